@@ -1,0 +1,3 @@
+"""calbench: accelerometer calibration bench."""
+
+__version__ = "0.1.0"

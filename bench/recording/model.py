@@ -1,0 +1,122 @@
+"""In-memory form of a calbench-recording/1 run (CSV samples + JSON sidecar).
+
+See ``shared/recording-format.md``. Everything here is plain frozen data; reading,
+writing and validation live in ``reader.py`` / ``writer.py``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+FORMAT_ID = "calbench-recording/1"
+CHANNEL_UNITS = ("V", "count", "m/s2", "g")
+GYRO_UNITS = ("rad/s", "deg/s")
+G0_M_S2 = 9.80665
+"""Standard gravity (m/s²), the unit ``g`` of ``channel_unit``."""
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class TableAxis:
+    """One table axis: a name and its unit rotation axis in the parent frame at zero angles."""
+
+    name: str
+    axis: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class TableGeometry:
+    """What the bench believes about its table.
+
+    :param axes: outermost first.
+    :param mount_rotation: (3, 3) rotation from the sensor's nominal frame to the innermost
+        table frame.
+    :param lever_arm_m: (3,) sensor reference point in the innermost table frame (m).
+    """
+
+    axes: tuple[TableAxis, ...]
+    mount_rotation: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def axis_vectors(self) -> FloatArray:
+        """(n_axes, 3) unit axis vectors."""
+        return np.array([a.axis for a in self.axes], dtype=float)
+
+    @property
+    def mount_matrix(self) -> FloatArray:
+        """(3, 3) mount rotation M."""
+        return np.array(self.mount_rotation, dtype=float)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A window the bench held still, or one motion profile.
+
+    :param start_s: start time (s, same clock as ``t``).
+    :param end_s: end time (s).
+    :param label: free text, e.g. ``pos01``.
+    :param nominal_up: for recordings without a table, the sensor axis meant to point up
+        (``"+x"`` … ``"-z"``), else ``None``.
+    """
+
+    start_s: float
+    end_s: float
+    label: str = ""
+    nominal_up: str | None = None
+
+
+@dataclass(frozen=True)
+class Sidecar:
+    """The JSON sidecar: units, geometry, segments. Unknown keys are kept in ``extra``."""
+
+    unit_serial: str
+    channel_unit: str
+    sample_rate_hz: float
+    g_local_m_s2: float
+    unit_model: str | None = None
+    gyro_unit: str | None = None
+    procedure: str | None = None
+    table: TableGeometry | None = None
+    segments: tuple[Segment, ...] | None = None
+    extra: dict[str, object] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One run's samples and sidecar.
+
+    :param sidecar: the sidecar.
+    :param t_s: (n,) DAQ time stamps, strictly increasing (s).
+    :param accel_raw: (n, 3) raw ax, ay, az in ``sidecar.channel_unit``.
+    :param table_deg: (n, n_axes) encoder angles as read, possibly wrapped (deg), or
+        ``None`` without a table. Use :meth:`table_rad_unwrapped` before differentiating.
+    :param temp_c: (n,) sensor temperature (°C) or ``None``.
+    :param gyro_raw: (n, 3) raw gyro channels in ``sidecar.gyro_unit`` or ``None``.
+    :param extra_columns: unknown CSV columns, kept as read (name -> (n,) strings).
+    :param source: path the recording was read from, for messages.
+    """
+
+    sidecar: Sidecar
+    t_s: FloatArray
+    accel_raw: FloatArray
+    table_deg: FloatArray | None = None
+    temp_c: FloatArray | None = None
+    gyro_raw: FloatArray | None = None
+    extra_columns: dict[str, list[str]] = field(default_factory=dict)
+    source: str = ""
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples."""
+        return int(self.t_s.shape[0])
+
+    def table_rad_unwrapped(self) -> FloatArray | None:
+        """(n, n_axes) encoder angles in radians, unwrapped along time."""
+        if self.table_deg is None:
+            return None
+        return np.unwrap(np.deg2rad(self.table_deg), axis=0)

@@ -1,0 +1,355 @@
+"""What a bench run produces, as plain frozen data, and the observer protocol that receives it.
+
+A run is executed by :mod:`bench.sequencer`; everything that wants to know about it (the
+database, the REST service, a progress bar) implements :class:`RunObserver` and is handed
+these records as the run goes (openhtf's ``TestRecord`` + output callbacks). The samples
+themselves go to the recording (``bench.run_recorder``), not through observers: an observer
+learns *that* a chunk of samples is safely on disk (:class:`ChunkRecord`) and *that* a window
+is complete (:class:`WindowRecord`), which is what a restart needs to resume.
+
+Life of a run (:class:`RunState`)::
+
+    PENDING -> RUNNING <-> PAUSED          (operator)
+                RUNNING <-> SUSPENDED       (interlock open, temperature out of band)
+                RUNNING -> FINISHED         (with an Outcome)
+    any live state -> INTERRUPTED           (the process died; set on the next start)
+    INTERRUPTED -> RUNNING                  (resumed from the window after the last complete one)
+
+:class:`Outcome` is only set once a run is FINISHED: PASS / FAIL (the *unit* is outside its
+limits) are verdicts about the unit; ERROR (the *bench* broke: lost link, timeout, fault)
+and ABORTED (an operator stopped it) say the run gave no verdict.
+
+Times are UTC ``datetime`` (timezone-aware) for wall clock and seconds (``*_s``) on the
+recording's clock (the ``t`` column) for everything inside the run.
+"""
+
+from __future__ import annotations
+
+import enum
+import os
+import secrets
+import socket
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from typing import Protocol, runtime_checkable
+
+
+class RunState(enum.Enum):
+    """Where a run is in its life (see the module docstring for the transitions)."""
+
+    PENDING = "pending"
+    RUNNING = "running"
+    PAUSED = "paused"
+    SUSPENDED = "suspended"
+    INTERRUPTED = "interrupted"
+    FINISHED = "finished"
+
+    @property
+    def is_live(self) -> bool:
+        """A process is (or should be) executing the run right now."""
+        return self in (RunState.PENDING, RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED)
+
+
+class Outcome(enum.Enum):
+    """Verdict of a finished run (openhtf's outcomes)."""
+
+    PASS = "PASS"
+    FAIL = "FAIL"
+    ERROR = "ERROR"
+    ABORTED = "ABORTED"
+
+
+class WindowKind(enum.Enum):
+    """What the table did during a window."""
+
+    NOISE = "noise"
+    """Static window recorded first to measure the unit's noise (dwell policy)."""
+    STATIC = "static"
+    """The table held a pose; the window's samples enter the static fit."""
+    RATE = "rate"
+    """One axis turned at constant rate."""
+    OSCILLATION = "oscillation"
+    """One or more axes oscillated."""
+
+
+def utc_now() -> datetime:
+    """The current time, timezone-aware UTC."""
+    return datetime.now(UTC)
+
+
+def new_run_id(unit_serial: str, started_at: datetime | None = None) -> str:
+    """A unique, sortable, file-name-safe run id, e.g. ``20250101T120000Z-SN0001-3fa9c2``.
+
+    The bench assigns run ids (not the database), so a recording's file name, its database
+    row and the REST resource all share one key from the first sample on.
+    """
+    when = (started_at or utc_now()).astimezone(UTC)
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in unit_serial)[:32] or "unit"
+    return f"{when:%Y%m%dT%H%M%SZ}-{safe}-{secrets.token_hex(3)}"
+
+
+@dataclass(frozen=True)
+class DwellChoice:
+    """The static dwell time of a run and why it was chosen (stored with the run).
+
+    :param dwell_s: dwell per static pose (s).
+    :param source: ``"allan"`` (the unit's last Allan characterisation), ``"noise_window"``
+        (a static window this run recorded first), ``"fixed"`` (given explicitly).
+    :param reason: one sentence for the operator and the certificate.
+    :param details: numbers behind the choice (e.g. ``{"tau_min_s": 40.0, "sigma_min": 1e-5}``).
+    """
+
+    dwell_s: float
+    source: str
+    reason: str
+    details: dict[str, float | str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RunStart:
+    """Everything known when a run starts (or is resumed).
+
+    :param run_id: from :func:`new_run_id`.
+    :param unit_serial: unit under test.
+    :param procedure: registry name, e.g. ``"static-12"``.
+    :param bench_name: which bench (several benches may share one database).
+    :param recording_path: the CSV the samples are written to (sidecar beside it, same stem).
+    :param sample_rate_hz: DAQ rate.
+    :param n_axes: table axes.
+    :param n_windows: windows the procedure will record.
+    :param expected_duration_s: preview duration of the whole procedure (s).
+    :param dwell: the dwell choice; ``None`` until a noise window has decided it.
+    :param parameters: the procedure's parameters (JSON-serialisable).
+    :param started_at: wall-clock start (UTC).
+    :param host: host name of the process executing the run.
+    :param pid: process id executing the run (a restart marks the run INTERRUPTED when that
+        process is gone).
+    :param resumed_from_window: ``None`` for a fresh run; for a resumed run, the index of the
+        first window recorded by this process.
+    """
+
+    run_id: str
+    unit_serial: str
+    procedure: str
+    bench_name: str
+    recording_path: str
+    sample_rate_hz: float
+    n_axes: int
+    n_windows: int
+    expected_duration_s: float
+    dwell: DwellChoice | None = None
+    parameters: dict[str, object] = field(default_factory=dict)
+    started_at: datetime = field(default_factory=utc_now)
+    host: str = field(default_factory=socket.gethostname)
+    pid: int = field(default_factory=os.getpid)
+    resumed_from_window: int | None = None
+
+
+@dataclass(frozen=True)
+class ChunkRecord:
+    """A chunk of samples that is now flushed and fsync'ed to the recording.
+
+    :param n_samples_total: samples in the recording after this chunk.
+    :param t_end_s: time stamp of the last sample on disk (recording clock, s).
+    :param last_seq: DAQ sequence number of the last sample in this chunk.
+    :param window_index: window being recorded, or ``None`` between windows.
+    """
+
+    n_samples_total: int
+    t_end_s: float
+    last_seq: int
+    window_index: int | None = None
+
+
+@dataclass(frozen=True)
+class WindowRecord:
+    """One completed window; once reported, its samples and segment are on disk.
+
+    :param index: 0-based window index within the procedure (stable across a resume).
+    :param label: e.g. ``"pos01"``, ``"rate+200"``, ``"noise"``.
+    :param kind: what the table did.
+    :param start_s: first sample time of the window (recording clock, s).
+    :param end_s: last sample time (s).
+    :param n_samples: samples in the window.
+    :param pose_deg: commanded table angles at the window (deg, outermost first).
+    :param mean_table_deg: mean encoder angles over the window (deg).
+    :param temp_c_mean: mean sensor temperature (°C), NaN if not measured.
+    :param step_index: index of the step that recorded this window.
+    """
+
+    index: int
+    label: str
+    kind: WindowKind
+    start_s: float
+    end_s: float
+    n_samples: int
+    pose_deg: tuple[float, ...]
+    mean_table_deg: tuple[float, ...]
+    temp_c_mean: float
+    step_index: int
+
+
+@dataclass(frozen=True)
+class StateChange:
+    """A run changed state.
+
+    :param state: the new state.
+    :param reason: why (e.g. ``"interlock open"``, ``"operator pause"``, ``"resumed from window 5"``).
+    :param at: wall-clock time (UTC).
+    """
+
+    state: RunState
+    reason: str = ""
+    at: datetime = field(default_factory=utc_now)
+
+
+@dataclass(frozen=True)
+class Progress:
+    """Where the run is, for a progress bar.
+
+    :param step_index: index of the step being executed (0-based).
+    :param n_steps: steps in the procedure.
+    :param step_label: the step's label.
+    :param window_index: window being recorded, or ``None`` during moves.
+    :param n_windows: windows in the procedure.
+    :param elapsed_s: run time so far on the recording clock (s).
+    :param expected_total_s: preview duration of the whole procedure (s).
+    :param table_deg: latest encoder angles (deg).
+    :param state: current run state.
+    """
+
+    step_index: int
+    n_steps: int
+    step_label: str
+    window_index: int | None
+    n_windows: int
+    elapsed_s: float
+    expected_total_s: float
+    table_deg: tuple[float, ...]
+    state: RunState
+
+    @property
+    def fraction(self) -> float:
+        """Fraction of the expected duration done, in [0, 1]."""
+        if self.expected_total_s <= 0:
+            return 0.0
+        return min(1.0, max(0.0, self.elapsed_s / self.expected_total_s))
+
+
+@dataclass(frozen=True)
+class LimitCheck:
+    """One fitted value checked against its tolerance.
+
+    :param name: what was checked, e.g. ``"bias_x"``.
+    :param unit: unit of ``value``, ``low``, ``high``.
+    :param value: the fitted value.
+    :param low: lower limit (``None``: unbounded).
+    :param high: upper limit (``None``: unbounded).
+    :param passed: ``low <= value <= high``.
+    """
+
+    name: str
+    unit: str
+    value: float
+    low: float | None
+    high: float | None
+    passed: bool
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """The finished run (or the state it was left in), handed to every observer at the end.
+
+    :param start: the run's :class:`RunStart` (of the last process that executed it).
+    :param state: final state: FINISHED, or INTERRUPTED when the caller could not finish.
+    :param outcome: verdict, set when FINISHED.
+    :param windows: every completed window, including those recorded before a resume.
+    :param ended_at: wall-clock end (UTC).
+    :param error: for ERROR: what broke and where (one line), else ``None``.
+    :param calibration: the fit as the ``calbench calibrate --json`` contract object, or
+        ``None`` when no fit was made (ERROR, ABORTED, too few windows).
+    :param limit_checks: the unit's limits evaluated on the fit (empty: no limits given).
+    :param n_samples: samples in the recording.
+    :param dwell: the dwell choice actually used.
+    """
+
+    start: RunStart
+    state: RunState
+    outcome: Outcome | None
+    windows: tuple[WindowRecord, ...]
+    ended_at: datetime = field(default_factory=utc_now)
+    error: str | None = None
+    calibration: dict[str, object] | None = None
+    limit_checks: tuple[LimitCheck, ...] = ()
+    n_samples: int = 0
+    dwell: DwellChoice | None = None
+
+    @property
+    def run_id(self) -> str:
+        """The run's id."""
+        return self.start.run_id
+
+
+@runtime_checkable
+class RunObserver(Protocol):
+    """Receives a run's records as they happen (the database, the service, a progress bar).
+
+    Calls come from the sequencer's thread, in order: ``on_start``, then any number of
+    ``on_state`` / ``on_progress`` / ``on_chunk`` / ``on_window``, then ``on_finish``
+    exactly once (also after an error or an abort). An observer must not block for long
+    (the DAQ buffer is being drained between calls) and should not raise; an exception
+    from an observer ends the run as ERROR with the observer named.
+    """
+
+    def on_start(self, start: RunStart) -> None:
+        """A run starts, or a resumed run starts again (``start.resumed_from_window`` set)."""
+        ...
+
+    def on_state(self, run_id: str, change: StateChange) -> None:
+        """The run changed state (pause, suspension, resume)."""
+        ...
+
+    def on_progress(self, run_id: str, progress: Progress) -> None:
+        """Periodic progress (a few times a second at most)."""
+        ...
+
+    def on_chunk(self, run_id: str, chunk: ChunkRecord) -> None:
+        """A chunk of samples is flushed and fsync'ed to the recording."""
+        ...
+
+    def on_window(self, run_id: str, window: WindowRecord) -> None:
+        """A window is complete: samples flushed, segment written to the sidecar."""
+        ...
+
+    def on_dwell(self, run_id: str, dwell: DwellChoice) -> None:
+        """The dwell time was chosen (at the start, or after the noise window)."""
+        ...
+
+    def on_finish(self, record: RunRecord) -> None:
+        """The run ended (any outcome)."""
+        ...
+
+
+class NullObserver:
+    """A :class:`RunObserver` that ignores everything; subclass it and override what you need."""
+
+    def on_start(self, start: RunStart) -> None:
+        """Ignored."""
+
+    def on_state(self, run_id: str, change: StateChange) -> None:
+        """Ignored."""
+
+    def on_progress(self, run_id: str, progress: Progress) -> None:
+        """Ignored."""
+
+    def on_chunk(self, run_id: str, chunk: ChunkRecord) -> None:
+        """Ignored."""
+
+    def on_window(self, run_id: str, window: WindowRecord) -> None:
+        """Ignored."""
+
+    def on_dwell(self, run_id: str, dwell: DwellChoice) -> None:
+        """Ignored."""
+
+    def on_finish(self, record: RunRecord) -> None:
+        """Ignored."""

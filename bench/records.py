@@ -109,7 +109,9 @@ class DwellChoice:
 class RunStart:
     """Everything known when a run starts (or is resumed).
 
-    :param run_id: from :func:`new_run_id`.
+    :param run_id: opaque string key of the run. With a database the composition root
+        creates the run row first and passes its id (``str(run.id)``); without one,
+        :func:`new_run_id` makes one.
     :param unit_serial: unit under test.
     :param procedure: registry name, e.g. ``"static-12"``.
     :param bench_name: which bench (several benches may share one database).
@@ -149,16 +151,27 @@ class RunStart:
 class ChunkRecord:
     """A chunk of samples that is now flushed and fsync'ed to the recording.
 
-    :param n_samples_total: samples in the recording after this chunk.
-    :param t_end_s: time stamp of the last sample on disk (recording clock, s).
-    :param last_seq: DAQ sequence number of the last sample in this chunk.
-    :param window_index: window being recorded, or ``None`` between windows.
+    :param seq: 0-based chunk number within the run (continues across a resume).
+    :param first_sample: index of the chunk's first sample in the recording (0-based row).
+    :param n_samples: samples in the chunk.
+    :param last_t_s: time stamp of the chunk's last sample (recording clock, s).
+    :param end_byte: size of the recording CSV once this chunk is durable (bytes); a resume
+        cuts the file here, everything before it is safe.
+    :param window_index: window being recorded when the chunk was written, ``None`` between
+        windows (moves, settling, spin-up).
     """
 
-    n_samples_total: int
-    t_end_s: float
-    last_seq: int
+    seq: int
+    first_sample: int
+    n_samples: int
+    last_t_s: float
+    end_byte: int
     window_index: int | None = None
+
+    @property
+    def n_samples_total(self) -> int:
+        """Samples in the recording after this chunk."""
+        return self.first_sample + self.n_samples
 
 
 @dataclass(frozen=True)
@@ -175,6 +188,8 @@ class WindowRecord:
     :param mean_table_deg: mean encoder angles over the window (deg).
     :param temp_c_mean: mean sensor temperature (°C), NaN if not measured.
     :param step_index: index of the step that recorded this window.
+    :param means: per-channel means over the window in the recording's units, keyed by CSV
+        column (``ax``, ``ay``, ``az``, ``temp``).
     """
 
     index: int
@@ -187,6 +202,7 @@ class WindowRecord:
     mean_table_deg: tuple[float, ...]
     temp_c_mean: float
     step_index: int
+    means: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

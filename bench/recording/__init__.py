@@ -1,5 +1,6 @@
 """calbench-recording/1: read, write, validate (see shared/recording-format.md)."""
 
+from bench.recording.errors import RecordingError
 from bench.recording.model import (
     CHANNEL_UNITS,
     FORMAT_ID,
@@ -11,6 +12,8 @@ from bench.recording.model import (
     TableAxis,
     TableGeometry,
 )
+from bench.recording.reader import read_recording, read_sidecar, sidecar_path_for
+from bench.recording.writer import RecordingWriter, ResumeState, write_recording
 
 __all__ = [
     "CHANNEL_UNITS",
@@ -18,8 +21,15 @@ __all__ = [
     "G0_M_S2",
     "GYRO_UNITS",
     "Recording",
+    "RecordingError",
+    "RecordingWriter",
+    "ResumeState",
     "Segment",
     "Sidecar",
     "TableAxis",
     "TableGeometry",
+    "read_recording",
+    "read_sidecar",
+    "sidecar_path_for",
+    "write_recording",
 ]

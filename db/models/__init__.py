@@ -1,0 +1,51 @@
+"""All calbench tables. Importing this package registers every model on ``Base.metadata``.
+
+=================  ==========================================================================
+table              holds
+=================  ==========================================================================
+``bench``          a rotary table + DAQ station (unique name, device URLs)
+``unit``           a sensor under calibration (unique serial)
+``run``            one procedure on one unit: state machine, owner process, progress
+``run_window``     a completed window of a run (label, times, per-channel means)
+``sample_chunk``   a durable chunk of the run's recording CSV (the CSV is the sample store)
+``fit_model``      a fitted model: the ``calibrate --json`` dict and its covariance (.npy)
+``finding``        a diagnosis finding (effect id, parameters, sigma, delta BIC)
+``certificate``    an issued certificate: unique number, JSON content, sha256, optional PDF
+``drift_check``    a nightly re-measurement compared with the unit's last certificate
+``api_token``      a hashed REST token with its role
+=================  ==========================================================================
+"""
+
+from db.base import Base
+from db.models.results import Certificate, DriftCheck, Finding, FitKind, FitModel
+from db.models.runs import (
+    ACTIVE_STATES,
+    FINAL_STATES,
+    RESUMABLE_STATES,
+    Run,
+    RunState,
+    RunWindow,
+    SampleChunk,
+)
+from db.models.tokens import ApiToken, TokenRole
+from db.models.units import Bench, Unit
+
+__all__ = [
+    "ACTIVE_STATES",
+    "FINAL_STATES",
+    "RESUMABLE_STATES",
+    "ApiToken",
+    "Base",
+    "Bench",
+    "Certificate",
+    "DriftCheck",
+    "Finding",
+    "FitKind",
+    "FitModel",
+    "Run",
+    "RunState",
+    "RunWindow",
+    "SampleChunk",
+    "TokenRole",
+    "Unit",
+]

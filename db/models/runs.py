@@ -1,0 +1,160 @@
+"""Runs, their completed windows and the durable chunks of their recordings.
+
+A run's raw samples live in its recording CSV (``calbench-recording/1``); the database
+keeps what is known to be durable: one :class:`SampleChunk` row per chunk flushed to the
+file, and one :class:`RunWindow` row per completed window. After a crash the recording
+is truncated to the last chunk's ``end_byte`` and the run resumes at window
+``last_complete_window + 1``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import enum
+from typing import TYPE_CHECKING, Any
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Mapped, mapped_column, relationship
+
+from db.base import Base
+from db.models._enum import value_enum
+
+if TYPE_CHECKING:
+    from db.models.units import Bench, Unit
+
+
+class RunState(enum.Enum):
+    """Life cycle of a run as stored (``bench.records.RunState`` + ``Outcome`` folded in).
+
+    Live, with an owner process: ``queued`` (bench ``pending``), ``running``, ``paused``
+    (operator), ``suspended`` (interlock, temperature). Final: ``completed`` (finished,
+    verdict PASS or none), ``failed`` (finished, verdict FAIL: the unit is outside its
+    limits), ``error`` (the bench broke), ``aborted`` (operator stop).
+    ``interrupted``: the owner process died; the run can be resumed.
+    """
+
+    QUEUED = "queued"
+    RUNNING = "running"
+    PAUSED = "paused"
+    COMPLETED = "completed"
+    FAILED = "failed"
+    ERROR = "error"
+    ABORTED = "aborted"
+    INTERRUPTED = "interrupted"
+    SUSPENDED = "suspended"
+
+
+ACTIVE_STATES = frozenset({RunState.QUEUED, RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED})
+"""States that need a live owner process."""
+RESUMABLE_STATES = frozenset({RunState.INTERRUPTED})
+"""States from which a new process may take a run over."""
+FINAL_STATES = frozenset({RunState.COMPLETED, RunState.FAILED, RunState.ERROR, RunState.ABORTED})
+"""States a run never leaves."""
+
+
+class Run(Base):
+    """One procedure executed on one unit.
+
+    :param id: the bench's run id (``bench.records.new_run_id``), shared by the recording's
+        file name, this row and the REST resource.
+    :param state: :class:`RunState`.
+    :param outcome: ``PASS``/``FAIL``/``ERROR``/``ABORTED`` once finished, else ``None``.
+    :param progress: fraction done, 0..1.
+    :param params: procedure parameters (JSON), including the dwell choice and its reason.
+    :param heartbeat_at: last sign of life of the owner process (UTC).
+    :param owner_pid, owner_host: the process that owns the run, so a restart can tell
+        a dead owner.
+    :param last_complete_window: index of the last window whose data are durable, or
+        ``None`` before the first one.
+    :param n_samples: samples in the recording at the end of the run.
+    :param limit_checks: the unit's limits evaluated on the fit (list of JSON objects).
+    """
+
+    __tablename__ = "run"
+    __table_args__ = (sa.CheckConstraint("progress >= 0 AND progress <= 1", name="progress_range"),)
+
+    id: Mapped[str] = mapped_column(sa.String(64), primary_key=True, sort_order=-1)
+    unit_id: Mapped[int] = mapped_column(sa.ForeignKey("unit.id", ondelete="RESTRICT"), index=True)
+    bench_id: Mapped[int | None] = mapped_column(sa.ForeignKey("bench.id", ondelete="SET NULL"), index=True)
+    procedure: Mapped[str] = mapped_column(sa.String(100))
+    state: Mapped[RunState] = mapped_column(value_enum(RunState, "run_state"), index=True)
+    outcome: Mapped[str | None] = mapped_column(sa.String(16))
+    progress: Mapped[float] = mapped_column(sa.Float, default=0.0)
+    recording_path: Mapped[str | None] = mapped_column(sa.String(1000))
+    params: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    started_at: Mapped[dt.datetime | None]
+    finished_at: Mapped[dt.datetime | None]
+    heartbeat_at: Mapped[dt.datetime | None]
+    owner_pid: Mapped[int | None]
+    owner_host: Mapped[str | None] = mapped_column(sa.String(255))
+    error: Mapped[str | None] = mapped_column(sa.Text)
+    last_complete_window: Mapped[int | None]
+    resume_count: Mapped[int] = mapped_column(default=0)
+    n_samples: Mapped[int | None] = mapped_column(sa.BigInteger)
+    limit_checks: Mapped[list[Any]] = mapped_column(default=list)
+
+    unit: Mapped[Unit] = relationship(back_populates="runs", lazy="raise")
+    bench: Mapped[Bench | None] = relationship(lazy="raise")
+    windows: Mapped[list[RunWindow]] = relationship(
+        back_populates="run",
+        lazy="raise",
+        order_by="RunWindow.index",
+        cascade="all, delete-orphan",
+        passive_deletes=True,
+    )
+
+
+class RunWindow(Base):
+    """A completed window of a run.
+
+    :param index: 0-based window index within the run (unique per run).
+    :param kind: ``noise``/``static``/``rate``/``oscillation`` (``bench.records.WindowKind``).
+    :param start_s, end_s: window bounds on the recording's clock (s).
+    :param pose_deg: commanded table angles (deg, outermost first).
+    :param means: means over the window, e.g. ``{"table_deg": [...], "temp_c": 24.9}``
+        (JSON; a quantity not measured is ``null``).
+    :param step_index: the procedure step that recorded the window.
+    """
+
+    __tablename__ = "run_window"
+    __table_args__ = (sa.UniqueConstraint("run_id", "index"),)
+
+    run_id: Mapped[str] = mapped_column(sa.String(64), sa.ForeignKey("run.id", ondelete="CASCADE"))
+    index: Mapped[int]
+    label: Mapped[str] = mapped_column(sa.String(100), default="")
+    kind: Mapped[str] = mapped_column(sa.String(16), default="static")
+    start_s: Mapped[float]
+    end_s: Mapped[float]
+    n_samples: Mapped[int]
+    pose_deg: Mapped[list[Any]] = mapped_column(default=list)
+    means: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    step_index: Mapped[int | None]
+
+    run: Mapped[Run] = relationship(back_populates="windows", lazy="raise")
+
+
+class SampleChunk(Base):
+    """A chunk of samples flushed (and fsynced) to the run's recording CSV.
+
+    :param seq: 0-based chunk number within the run (unique per run).
+    :param first_sample: index of the chunk's first sample in the run.
+    :param n_samples: samples in the chunk.
+    :param last_t_s: time stamp of the chunk's last sample (s).
+    :param end_byte: file size of the recording CSV once this chunk was durable (bytes):
+        everything before it is safe; anything after it is a chunk in flight. ``None``
+        when the writer could not tell.
+    :param daq_seq: DAQ sequence number of the chunk's last sample, if known.
+    :param window_index: window being recorded during the chunk, ``None`` between windows.
+    """
+
+    __tablename__ = "sample_chunk"
+    __table_args__ = (sa.UniqueConstraint("run_id", "seq"),)
+
+    run_id: Mapped[str] = mapped_column(sa.String(64), sa.ForeignKey("run.id", ondelete="CASCADE"))
+    seq: Mapped[int]
+    first_sample: Mapped[int] = mapped_column(sa.BigInteger)
+    n_samples: Mapped[int]
+    last_t_s: Mapped[float]
+    end_byte: Mapped[int | None] = mapped_column(sa.BigInteger)
+    daq_seq: Mapped[int | None] = mapped_column(sa.BigInteger)
+    window_index: Mapped[int | None]

@@ -1,0 +1,46 @@
+"""Benches and the units (sensors) they calibrate."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Mapped, mapped_column, relationship
+
+from db.base import Base
+
+if TYPE_CHECKING:
+    from db.models.runs import Run
+
+
+class Bench(Base):
+    """One calibration station: a rotary table and a DAQ, addressed by URL.
+
+    ``name`` is unique across the lab, so several benches can share one PostgreSQL database.
+    """
+
+    __tablename__ = "bench"
+
+    name: Mapped[str] = mapped_column(sa.String(100), unique=True)
+    table_url: Mapped[str | None] = mapped_column(sa.String(500))
+    daq_url: Mapped[str | None] = mapped_column(sa.String(500))
+
+    units: Mapped[list[Unit]] = relationship(back_populates="bench", lazy="raise")
+
+
+class Unit(Base):
+    """A sensor under calibration, identified by its serial number.
+
+    :param channel_unit: unit of the raw channels (``V``, ``count``, ``m/s2``, ``g``).
+    :param bench_id: the bench it was last calibrated on, if known.
+    """
+
+    __tablename__ = "unit"
+
+    serial: Mapped[str] = mapped_column(sa.String(100), unique=True)
+    model: Mapped[str | None] = mapped_column(sa.String(200))
+    channel_unit: Mapped[str | None] = mapped_column(sa.String(16))
+    bench_id: Mapped[int | None] = mapped_column(sa.ForeignKey("bench.id", ondelete="SET NULL"), index=True)
+
+    bench: Mapped[Bench | None] = relationship(back_populates="units", lazy="raise")
+    runs: Mapped[list[Run]] = relationship(back_populates="unit", lazy="raise")

@@ -16,7 +16,7 @@ where it ended, a constant rate keeps turning, an oscillation keeps oscillating.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Protocol
 
 import numpy as np
@@ -90,7 +90,7 @@ class Hold:
     duration_s: float
 
     def __post_init__(self) -> None:
-        _check_finite(self, angle_rad=self.angle_rad, duration_s=self.duration_s)
+        _check_finite(self)
         if self.duration_s < 0:
             raise ValueError(f"Hold: duration_s must be >= 0, got {self.duration_s}")
 
@@ -123,13 +123,7 @@ class TrapezoidMove:
     accel_max_rad_s2: float
 
     def __post_init__(self) -> None:
-        _check_finite(
-            self,
-            start_angle_rad=self.start_angle_rad,
-            end_rad=self.end_rad,
-            rate_max_rad_s=self.rate_max_rad_s,
-            accel_max_rad_s2=self.accel_max_rad_s2,
-        )
+        _check_finite(self)
         if self.rate_max_rad_s <= 0 or self.accel_max_rad_s2 <= 0:
             raise ValueError(
                 "TrapezoidMove: rate_max_rad_s and accel_max_rad_s2 must be > 0, got "
@@ -201,14 +195,7 @@ class ConstantRate:
     initial_rate_rad_s: float = 0.0
 
     def __post_init__(self) -> None:
-        _check_finite(
-            self,
-            start_angle_rad=self.start_angle_rad,
-            rate_rad_s=self.rate_rad_s,
-            accel_max_rad_s2=self.accel_max_rad_s2,
-            duration_s=self.duration_s,
-            initial_rate_rad_s=self.initial_rate_rad_s,
-        )
+        _check_finite(self)
         if self.accel_max_rad_s2 <= 0:
             raise ValueError(f"ConstantRate: accel_max_rad_s2 must be > 0, got {self.accel_max_rad_s2}")
         if self.duration_s < self.ramp_s * (1.0 - 1e-12):
@@ -255,14 +242,7 @@ class Oscillation:
     phase_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        _check_finite(
-            self,
-            centre_rad=self.centre_rad,
-            amplitude_rad=self.amplitude_rad,
-            period_s=self.period_s,
-            duration_s=self.duration_s,
-            phase_rad=self.phase_rad,
-        )
+        _check_finite(self)
         if self.period_s <= 0 or self.duration_s < 0:
             raise ValueError(
                 "Oscillation: period_s must be > 0 and duration_s >= 0, got "
@@ -409,7 +389,9 @@ class TableProfile:
     __call__ = kinematics
 
 
-def _check_finite(owner: object, **values: float) -> None:
-    for name, value in values.items():
+def _check_finite(segment: object) -> None:
+    """Every dataclass field of ``segment`` is a finite number."""
+    for f in fields(segment):  # type: ignore[arg-type]
+        value = getattr(segment, f.name)
         if not math.isfinite(value):
-            raise ValueError(f"{type(owner).__name__}: {name} must be finite, got {value!r}")
+            raise ValueError(f"{type(segment).__name__}: {f.name} must be finite, got {value!r}")

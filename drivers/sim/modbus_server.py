@@ -1,9 +1,9 @@
 """Simulated DAQ: a pymodbus TCP server on loopback whose registers follow a :class:`DaqEngine`.
 
 The register map is :mod:`drivers.daq_registers`. The server runs its own asyncio loop in
-a daemon thread (pymodbus servers must be built inside a running loop). Every request
-first brings the engine up to the simulated now and refreshes the instantaneous and
-stream-status registers; a write of HR 420-421 copies a window of the ring into
+a daemon thread (pymodbus servers must be built inside a running loop). A request that
+touches HR 0-413 first brings the engine up to the simulated now and refreshes the
+instantaneous and stream-status registers; a write of HR 420-421 copies a window of the ring into
 HR 500...; a write of HR 410 starts (1) or stops (0) the stream; type codes (HR 200-207)
 accept only known codes, anything else is answered with exception 03.
 
@@ -217,7 +217,10 @@ class DaqServer:
             result = self._write(address, [int(v) for v in set_values], registers, start_address)
             if result is not None:
                 return result
-        self._refresh(registers, start_address)
+        if address < reg.HR_READ_FROM_SEQ:
+            # Window reads skip this: the window is a snapshot taken at the HR 420 write,
+            # and the physics runs once per poll rather than once per request.
+            self._refresh(registers, start_address)
         return None
 
     def _write(self, address: int, values: list[int], registers: list[int], base: int) -> ExcCodes | None:

@@ -12,7 +12,7 @@ Detection (:func:`detect_static_windows`) marks a sample static when
   the outer, vertical axis leaves gravity unchanged and only the encoders see it).
 
 Runs of static samples closer than ``merge_gap_s`` whose mean raw reading differs by less
-than ``max_std`` and whose table angles differ by less than ``max_angle_step_rad`` are
+than ``max_std`` and whose table angles stay within ``max_angle_step_rad`` together are
 merged; a run whose table angles drift by more than ``max_angle_step_rad`` is split. Each
 run loses ``trim_s`` at both ends and is kept if it still lasts ``min_duration_s``.
 """
@@ -221,7 +221,7 @@ def detect_static_windows(
             gap = t[s] - t[pe - 1]
             same = np.linalg.norm(a[ps:pe].mean(0) - a[s:e].mean(0)) <= max_std
             if qu is not None:
-                same = same and np.max(np.abs(qu[ps:pe].mean(0) - qu[s:e].mean(0))) <= max_angle_step_rad
+                same = same and np.max(np.ptp(qu[ps:e], axis=0)) <= max_angle_step_rad
             if gap <= merge_gap_s + dt / 2 and same:
                 merged[-1] = (ps, e)
                 continue

@@ -195,6 +195,9 @@ def _parse_columns(
     and names the offending row.
     """
     extras = [c for c in names if c not in numeric]
+    n_lines = _count_data_lines(p)
+    if n_lines == 0:
+        return {c: np.zeros(0) for c in numeric}, {c: [] for c in extras}
     if not extras:
         try:
             data = np.loadtxt(
@@ -209,7 +212,7 @@ def _parse_columns(
             )
         except ValueError:
             data = None
-        if data is not None and data.shape[0] == _count_data_lines(p) and np.all(np.isfinite(data)):
+        if data is not None and data.shape[0] == n_lines and np.all(np.isfinite(data)):
             return {c: np.ascontiguousarray(data[:, names.index(c)]) for c in numeric}, {}
     return _parse_slow(p, names, numeric, optional, extras)
 
@@ -256,7 +259,7 @@ def read_recording(csv_path: str | Path) -> Recording:
         r = int(bad[0]) + 2
         raise RecordingError(
             csv_p,
-            f"time stamp {t[r - 1]!r} s does not increase (previous row: {t[r - 2]!r} s); "
+            f"time stamp {float(t[r - 1])!r} s does not increase (previous row: {float(t[r - 2])!r} s); "
             "expected strictly increasing t",
             row=r,
             line=r + 1,
@@ -268,7 +271,7 @@ def read_recording(csv_path: str | Path) -> Recording:
                 raise RecordingError(
                     json_p,
                     f"segment {s.label!r} [{s.start_s}, {s.end_s}] s lies outside the "
-                    f"recording {csv_p.name} (t = {t[0]!r} … {t[-1]!r} s)",
+                    f"recording {csv_p.name} (t = {float(t[0])!r} … {float(t[-1])!r} s)",
                     key=f"segments[{i}]",
                 )
     return Recording(

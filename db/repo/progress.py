@@ -63,19 +63,19 @@ def record_window(
     start_s, end_s = _finite("start_s", start_s, where), _finite("end_s", end_s, where)
     if end_s < start_s:
         raise ValueError(f"{where}: end_s {end_s} before start_s {start_s}")
-    clean_means: dict[str, Any] = {}
-    for key, value in (means or {}).items():
-        if isinstance(value, float):
-            value = _finite(f"means[{key!r}]", value, where)
-        clean_means[str(key)] = value
+    pose = [_finite(f"pose_deg[{i}]", a, where) for i, a in enumerate(pose_deg)]
+    clean_means = {str(k): _json_number(v, f"means[{k!r}]", where) for k, v in (means or {}).items()}
     window = RunWindow(
         run_id=run_id,
         index=index,
         label=label,
+        kind=kind,
         start_s=start_s,
         end_s=end_s,
         n_samples=n_samples,
+        pose_deg=pose,
         means=clean_means,
+        step_index=step_index,
     )
     session.add(window)
     session.flush()
@@ -116,6 +116,8 @@ def record_chunk(
         n_samples=n_samples,
         last_t_s=_finite("last_t_s", last_t_s, where),
         end_byte=end_byte,
+        daq_seq=daq_seq,
+        window_index=window_index,
     )
     session.add(chunk)
     session.flush()

@@ -1,0 +1,191 @@
+"""Noise terms from Allan curves: exact model curves, simulated noise, real imu_utils curves.
+
+The simulators here (white, flicker, rate random walk of known IEEE 952 coefficients) are
+also used by test_dwell.py.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench.estimation.allan import edf_simple, overlapping_allan
+from bench.estimation.noise_terms import (
+    BI_FACTOR,
+    basis,
+    first_fit_index,
+    fit_noise_model,
+    fit_noise_model_curve,
+    slope_method,
+)
+
+
+def white(rng: np.random.Generator, n: int, fs_hz: float, N: float, c: int) -> np.ndarray:
+    """(n, c) white noise of density N (u·√s): per-sample σ = N·√fs, so σ_A(τ) = N/√τ."""
+    return N * math.sqrt(fs_hz) * rng.normal(size=(n, c))
+
+
+def rate_random_walk(rng: np.random.Generator, n: int, fs_hz: float, K: float, c: int) -> np.ndarray:
+    """(n, c) random walk y_k = Σ K/√fs·w_i: σ_A(τ) = K·√(τ/3) for τ ≫ 1/fs."""
+    return np.cumsum(K / math.sqrt(fs_hz) * rng.normal(size=(n, c)), axis=0)
+
+
+def flicker(rng: np.random.Generator, n: int, fs_hz: float, B: float, c: int) -> np.ndarray:
+    """(n, c) flicker noise, one-sided PSD h/f with h = B²/π, by spectral shaping.
+
+    SP1065 Table 2: σ²_A = 2 ln2 · h = (2 ln2/π)·B² = (0.664·B)², the IEEE 952 floor, for
+    τ between a few samples and about a tenth of the record.
+    """
+    f = np.fft.rfftfreq(n, 1.0 / fs_hz)
+    amp = np.zeros_like(f)
+    amp[1:] = np.sqrt(B**2 / math.pi / f[1:] * fs_hz * n / 2.0)
+    spectrum = (rng.normal(size=(f.size, c)) + 1j * rng.normal(size=(f.size, c))) / math.sqrt(2.0)
+    return np.fft.irfft(spectrum * amp[:, None], n, axis=0)
+
+
+def test_bias_instability_factor() -> None:
+    assert abs(BI_FACTOR - 0.6642824702) < 1e-9
+
+
+def test_exact_model_curve_returns_its_coefficients() -> None:
+    """A noise-free curve of the model itself is fitted exactly."""
+    Q, N, B, K, R = 2e-5, 1e-3, 2e-4, 3e-5, 1e-7
+    taus = np.logspace(-2, 4, 40)
+    adev = np.sqrt(basis(taus) @ np.array([Q, N, B, K, R]) ** 2)
+    fit = fit_noise_model_curve(taus, adev, np.full(taus.size, 1e4))
+    got = [fit.quantization_q, fit.white_n, fit.bias_instability_b, fit.rate_random_walk_k, fit.rate_ramp_r]
+    np.testing.assert_allclose(got, [Q, N, B, K, R], rtol=1e-6)
+    assert fit.chi2_dof < 1e-10
+    np.testing.assert_allclose(fit.model_adev(taus), adev, rtol=1e-9)
+
+
+def test_white_flicker_random_walk_recovered_within_their_sigmas() -> None:
+    """One hour at 100 Hz, 3 channels × 2 seeds: N, B, K each within 4 σ of the truth."""
+    fs, n = 100.0, 360_000
+    N, B, K = 1e-3, 2e-4, 5e-5
+    for seed in (1, 2):
+        rng = np.random.default_rng(seed)
+        y = white(rng, n, fs, N, 3) + flicker(rng, n, fs, B, 3) + rate_random_walk(rng, n, fs, K, 3)
+        for fit in fit_noise_model(overlapping_allan(y, fs)):
+            assert abs(fit.white_n - N) < 4 * fit.white_n_sigma
+            assert abs(fit.bias_instability_b - B) < 4 * fit.bias_instability_b_sigma
+            assert abs(fit.rate_random_walk_k - K) < 4 * fit.rate_random_walk_k_sigma
+            # and the sigmas are informative: N to < 1 %, B to < 25 %, K to < 40 %
+            assert fit.white_n_sigma < 0.01 * N
+            assert fit.bias_instability_b_sigma < 0.25 * B
+            assert fit.rate_random_walk_k_sigma < 0.4 * K
+
+
+def test_white_noise_alone_leaves_other_terms_near_zero() -> None:
+    fs, n, N = 200.0, 200_000, 5e-4
+    y = white(np.random.default_rng(9), n, fs, N, 2)
+    for fit in fit_noise_model(overlapping_allan(y, fs)):
+        assert fit.white_n == pytest.approx(N, abs=3.5 * fit.white_n_sigma)
+        # every other term is 0 or below its 3.5-sigma limit, and would move σ_A at 1 s by < 3 %
+        for name in ("bias_instability_b", "rate_random_walk_k", "rate_ramp_r"):
+            assert getattr(fit, name) <= 3.5 * max(getattr(fit, f"{name}_sigma"), 1e-30)
+        assert float(fit.model_adev(1.0)) == pytest.approx(N, rel=0.03)
+
+
+def test_slope_method_reads_the_lines() -> None:
+    """White + rate random walk: N on the −1/2 line at 1 s, K on the +1/2 line at 3 s (IEEE 952 C)."""
+    fs, n, N, K = 50.0, 500_000, 2e-3, 2e-4
+    rng = np.random.default_rng(4)
+    y = white(rng, n, fs, N, 2) + rate_random_walk(rng, n, fs, K, 2)
+    for s in slope_method(overlapping_allan(y, fs)):
+        assert s.method == "ieee952-slope"
+        assert s.white_n == pytest.approx(N, rel=0.01)
+        assert s.rate_random_walk_k == pytest.approx(K, rel=0.3)
+        # no flat region: B is the minimum / 0.664, an upper bound; the minimum of N²/τ + K²τ/3
+        assert s.bias_instability_b * BI_FACTOR == pytest.approx(math.sqrt(2 * N * K / math.sqrt(3)), rel=0.2)
+
+
+def test_rising_start_is_left_out() -> None:
+    assert first_fit_index([1.0, 2.0, 3.0, 2.5, 2.0]) == 2
+    assert first_fit_index([3.0, 2.0, 1.0, 2.0]) == 0
+    assert first_fit_index([1.0, 2.0, 3.0]) == 0
+
+
+def test_bad_curve_is_named() -> None:
+    with pytest.raises(ValueError, match="unknown noise terms"):
+        fit_noise_model_curve([1.0, 2.0, 4.0], [1.0, 0.7, 0.5], [10, 10, 10], terms=("pink",))
+    with pytest.raises(ValueError, match="cannot determine"):
+        fit_noise_model_curve([1.0, 2.0], [1.0, 0.7], [10, 10])
+    with pytest.raises(ValueError, match="finite"):
+        fit_noise_model_curve([1.0, 2.0, 4.0, 8.0], [1.0, np.nan, 0.5, 0.3], [10] * 4, terms=("white",))
+
+
+# --- real curves: imu_utils (gaowenliang/imu_utils data/, six IMUs, ~2 h static) ----------------
+
+IMU_UTILS_RATE_HZ = {"xsens": 100.0, "16448": 200.0, "gx4": 500.0, "A3": 400.0, "N3": 400.0, "BMI160": 196.0}
+
+
+def _imu_utils_acc(shared_dir: Path) -> dict[str, list[dict[str, str]]]:
+    rows: dict[str, list[dict[str, str]]] = defaultdict(list)
+    with (shared_dir / "data/real/imu_utils-allan/imu_utils_allan_curves.csv").open() as fh:
+        for row in csv.DictReader(fh):
+            if row["quantity"] == "acc":
+                rows[row["sensor"]].append(row)
+    return rows
+
+
+def _yaml_acc(shared_dir: Path, sensor: str, axis: str) -> tuple[float, float]:
+    text = (shared_dir / f"data/real/imu_utils-allan/original/{sensor}_imu_param.yaml").read_text()
+    block = text[text.index("Acc:") :]
+    block = block[block.index(f"{axis}-axis:") :]
+    acc_n = re.search(r"acc_n:\s*(\S+)", block)
+    acc_w = re.search(r"acc_w:\s*(\S+)", block)
+    assert acc_n and acc_w
+    return float(acc_n.group(1)), float(acc_w.group(1))
+
+
+def test_imu_utils_curves_give_their_published_noise_levels(shared_dir: Path) -> None:
+    """Our fit of imu_utils' own Allan curves lands near the acc_n, acc_w its YAML files publish.
+
+    imu_utils reports acc_n = its fitted model's σ_A at τ = 1 s (all terms, not N alone) and
+    acc_w = the minimum of its fitted model over the curve's τ (not divided by 0.664)
+    (src/acc_lib/fitallan_acc.h: getWhiteNoise, getBiasInstability). We compare like with like.
+
+    Tolerances and why. Our model at 1 s within 12 % of the measured curve at 1 s (edf ~ 10⁴
+    there, so this is model misfit, not noise: up to ~10 % on the DJI A3/N3, whose short-τ
+    filter hump no power-law model describes). Within 15 % of acc_n: imu_utils fits log σ²
+    unweighted, and its own model sits up to 15 % off its data at 1 s (ADIS16448 y: data
+    0.87 × acc_n). Floor within 35 % of acc_w: the minimum lies in the last octaves of a 2 h
+    record, where each point has edf < 20 (±15-25 % per point, and neighbours correlated)
+    and the bias-instability / random-walk split is weakly determined, so two fitting
+    methods legitimately differ by that much (largest seen: DJI N3 z, +34 %). BMI160: its
+    YAML is ~15× off its own curves (see the data README), so its σ_A(1 s) is compared with
+    imu_utils' fitted curve file instead of the YAML.
+    """
+    curves = _imu_utils_acc(shared_dir)
+    assert set(curves) == set(IMU_UTILS_RATE_HZ)
+    n_checked = 0
+    for sensor, rows in curves.items():
+        taus = np.array([float(r["tau_s"]) for r in rows])
+        tau0 = 1.0 / IMU_UTILS_RATE_HZ[sensor]
+        n_samples = round(2 * 3600 / tau0)
+        m = np.maximum(np.rint(taus / tau0).astype(int), 1)
+        edf = np.array([edf_simple(n_samples + 1, int(k), 0) for k in m])
+        for axis in "xyz":
+            adev = np.array([float(r[f"adev_{axis}"]) for r in rows])
+            fit = fit_noise_model_curve(taus, adev, edf)
+            acc_n, acc_w = _yaml_acc(shared_dir, sensor, axis)
+            if sensor == "BMI160":
+                their_fit = np.array([float(r[f"fit_{axis}"]) for r in rows])
+                acc_n = float(np.exp(np.interp(0.0, np.log(taus), np.log(their_fit))))
+            ours_1s = float(fit.model_adev(1.0))
+            measured_1s = float(np.exp(np.interp(0.0, np.log(taus), np.log(adev))))
+            ours_floor = float(np.min(fit.model_adev(taus)))
+            assert ours_1s == pytest.approx(measured_1s, rel=0.12), (sensor, axis)
+            assert ours_1s == pytest.approx(acc_n, rel=0.15), (sensor, axis)
+            assert ours_floor == pytest.approx(acc_w, rel=0.35), (sensor, axis)
+            # the white density alone is below the all-term value at 1 s, never above it
+            assert fit.white_n <= ours_1s * (1 + 1e-9)
+            n_checked += 1
+    assert n_checked == 18

@@ -149,7 +149,7 @@ def _pm_statistic(X: FloatArray, y: FloatArray, v: FloatArray) -> float:
     return float(np.sum(r**2 / v))
 
 
-def _solve_decreasing(fun: Callable[[float], float], target: float, scale: float) -> float:
+def solve_decreasing(fun: Callable[[float], float], target: float, scale: float) -> float:
     """Smallest t ≥ 0 with fun(t) = target for a decreasing fun; 0 if fun(0) ≤ target."""
     if fun(0.0) <= target:
         return 0.0
@@ -163,7 +163,7 @@ def _solve_decreasing(fun: Callable[[float], float], target: float, scale: float
     return float(brentq(lambda t: fun(t) - target, 0.0, hi, xtol=1e-12 * hi, rtol=1e-10))
 
 
-def _t_factor(nu: int) -> float:
+def t_factor(nu: int) -> float:
     """ν / (ν − 2): variance of Student's t_ν, for a variance estimated with ν dof (3 if ν ≤ 4)."""
     return nu / (nu - 2.0) if nu > 4 else 3.0
 
@@ -220,13 +220,13 @@ def between_window_variance(
         def pooled_q(t: float) -> float:
             return sum(_pm_statistic(X, y[:, i], var_within[:, i] + t * s2[:, i]) for i in range(c))
 
-        t_pool = _solve_decreasing(pooled_q, c * dof, float(np.median(var_within / np.maximum(s2, 1e-300))))
+        t_pool = solve_decreasing(pooled_q, c * dof, float(np.median(var_within / np.maximum(s2, 1e-300))))
     base = var_within + t_pool * s2
     gate = float(chi2.ppf(OWN_SCATTER_GATE, dof))
     own = np.zeros(c)
     for i in range(c):
         if _pm_statistic(X, y[:, i], base[:, i]) > gate:
-            own[i] = _solve_decreasing(
+            own[i] = solve_decreasing(
                 lambda t, i=i: _pm_statistic(X, y[:, i], base[:, i] + t), dof, float(np.median(base[:, i]))
             )
-    return t_pool * _t_factor(c * dof) * s2 + own[None, :] * _t_factor(dof)
+    return t_pool * t_factor(c * dof) * s2 + own[None, :] * t_factor(dof)

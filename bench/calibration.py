@@ -1,0 +1,295 @@
+"""Calibrate a recording: windows -> window noise -> fit -> result -> contract dict.
+
+The one place where a :class:`~bench.recording.Recording` becomes a calibration; the CLI
+(``calbench calibrate``), the service and ``diagnose`` all call
+:func:`calibrate_recording`. Which fit applies:
+
+* a table in the sidecar: the known-orientation 12-parameter fit (``static_fit``), with
+  f_w = Rᵀ [0, 0, g] at each window's circular-mean encoder angles;
+* no table, every window labelled with ``nominal_up`` (a hand-placed six-position
+  calibration): the same fit with f_w = ±g along the named axis;
+* otherwise the orientation-free fit of |f| = g (``scalar_fit``), K reported as the
+  lower-triangular L with L Lᵀ = K Kᵀ (K up to a rotation of the sensor frame).
+
+Windows come from the sidecar's segments (those in which the table did not move), or are
+detected when the sidecar has none.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from bench.estimation.g_check import GCheck, correct, g_check
+from bench.estimation.scalar_fit import fit_scalar
+from bench.estimation.static_fit import fit_static
+from bench.estimation.window_noise import WindowNoise, pooled_mean_covariances, window_noise
+from bench.estimation.windows import StaticWindow, detect_static_windows, windows_from_segments
+from bench.kinematics import attitude, static_specific_force
+from bench.recording import G0_M_S2, Recording
+
+FloatArray = npt.NDArray[np.float64]
+
+MAX_TABLE_MOTION_RAD = 1e-3
+"""A segment whose encoder angles span more than this is a motion, not a static window."""
+MIN_WINDOW_SAMPLES = 8
+_AXES = {"+x": (0, 1.0), "-x": (0, -1.0), "+y": (1, 1.0), "-y": (1, -1.0), "+z": (2, 1.0), "-z": (2, -1.0)}
+
+
+@dataclass(frozen=True)
+class WindowResult:
+    """One static window of a calibration.
+
+    :param label: segment label or detected-window name.
+    :param start_s: first sample time (s).
+    :param end_s: last sample time (s).
+    :param n_samples: samples averaged.
+    :param mean_raw: (3,) window mean (channel units).
+    :param mean_sigma: (3,) standard deviation of that mean (channel units).
+    :param f_m_s2: (3,) specific force the fit assumed (m/s²), ``None`` for the scalar fit.
+    :param residual: (3,) mean − model (channel units) for the known-orientation fit;
+        for the scalar fit the |g| residual mapped to channel units along f̂.
+    :param normalized_residual: (3,) residual over its standard deviation (known-orientation
+        fit), or (|f̂| − g) / σ repeated (scalar fit).
+    :param g_error_after_m_s2: |K⁻¹(mean − b)| − g.
+    :param g_error_before_m_s2: the same with the nominal scale, or ``None``.
+    """
+
+    label: str
+    start_s: float
+    end_s: float
+    n_samples: int
+    mean_raw: FloatArray
+    mean_sigma: FloatArray
+    f_m_s2: FloatArray | None
+    residual: FloatArray
+    normalized_residual: FloatArray
+    g_error_after_m_s2: float
+    g_error_before_m_s2: float | None
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """A fitted first-order model of one recording, with its evidence.
+
+    :param method: ``"static"`` (known orientations) or ``"scalar"`` (|f| = g only).
+    :param bias: (3,) channel units.
+    :param K: (3, 3) channel unit per m/s² (lower-triangular L for ``"scalar"``).
+    :param cov: (12, 12) for ``"static"`` in ``static_fit.PARAMETER_NAMES`` order, or
+        (9, 9) for ``"scalar"`` in ``scalar_fit.PARAMETER_NAMES`` order.
+    :param bias_sigma: (3,); :param K_sigma: (3, 3) one-sigma uncertainties.
+    :param residual_rms: RMS of the window residuals (channel units).
+    :param chi2: residual χ² against the within-window noise; :param dof: its degrees of freedom.
+    """
+
+    unit_serial: str
+    channel_unit: str
+    procedure: str
+    method: str
+    g_local_m_s2: float
+    bias: FloatArray
+    K: FloatArray
+    cov: FloatArray
+    bias_sigma: FloatArray
+    K_sigma: FloatArray
+    residual_rms: float
+    chi2: float
+    dof: int
+    noise_model: str
+    g_after: GCheck
+    g_before: GCheck | None
+    windows: tuple[WindowResult, ...]
+    source: str = ""
+
+    @property
+    def terms(self) -> list[str]:
+        """Model terms fitted, as listed in the contract."""
+        if self.method == "scalar":
+            return ["bias", "scale_matrix_lower_triangular"]
+        return ["bias", "scale_matrix"]
+
+    def to_contract(self) -> dict[str, Any]:
+        """The ``calbench calibrate --json`` object (shared/cli-contract.md)."""
+        g_check_out: dict[str, Any] = {}
+        if self.g_before is not None:
+            g_check_out["before"] = _g_dict(self.g_before)
+        g_check_out["after"] = _g_dict(self.g_after)
+        return {
+            "unit": self.unit_serial,
+            "channel_unit": self.channel_unit,
+            "procedure": self.procedure,
+            "bias": self.bias.tolist(),
+            "bias_sigma": self.bias_sigma.tolist(),
+            "scale_matrix": self.K.tolist(),
+            "scale_matrix_sigma": self.K_sigma.tolist(),
+            "terms": self.terms,
+            "extra": {},
+            "residual_rms": self.residual_rms,
+            "g_check": g_check_out,
+        }
+
+
+def _g_dict(g: GCheck) -> dict[str, float]:
+    return {"mean_error_m_s2": g.mean_error_m_s2, "std_m_s2": g.std_m_s2}
+
+
+def _where(rec: Recording) -> str:
+    return rec.source or "recording"
+
+
+def select_windows(rec: Recording) -> list[StaticWindow]:
+    """Static windows of a recording: its still segments, or detected ones without segments.
+
+    :raises ValueError: no usable static window.
+    """
+    q = rec.table_rad_unwrapped()
+    if rec.sidecar.segments:
+        wins = windows_from_segments(rec.t_s, rec.sidecar.segments)
+        if q is not None:
+            wins = [w for w in wins if np.all(np.ptp(q[w.start : w.stop], axis=0) <= MAX_TABLE_MOTION_RAD)]
+    else:
+        wins = detect_static_windows(rec.t_s, rec.accel_raw, q)
+    wins = [w for w in wins if w.stop - w.start >= MIN_WINDOW_SAMPLES]
+    if not wins:
+        raise ValueError(f"{_where(rec)}: no static window with at least {MIN_WINDOW_SAMPLES} samples")
+    return wins
+
+
+def _specific_force(rec: Recording, wins: list[StaticWindow]) -> FloatArray | None:
+    """(m, 3) specific force per window from the table or ``nominal_up``; ``None`` if unknown."""
+    g = rec.sidecar.g_local_m_s2
+    table = rec.sidecar.table
+    if table is not None and rec.table_deg is not None:
+        q = np.deg2rad(rec.table_deg)
+        qm = np.array([np.arctan2(np.sin(q[w.slice]).mean(0), np.cos(q[w.slice]).mean(0)) for w in wins])
+        return static_specific_force(attitude(table.axis_vectors, qm, table.mount_matrix), g)
+    if all(w.nominal_up in _AXES for w in wins):
+        f = np.zeros((len(wins), 3))
+        for k, w in enumerate(wins):
+            axis, sign = _AXES[str(w.nominal_up)]
+            f[k, axis] = sign * g
+        return f
+    bad = [w.label for w in wins if w.nominal_up is not None and w.nominal_up not in _AXES]
+    if bad:
+        raise ValueError(f"{_where(rec)}: segment(s) {bad} have a nominal_up outside {sorted(_AXES)}")
+    return None
+
+
+def _nominal_force(
+    rec: Recording, y: FloatArray, scale: float | None, bias: FloatArray | None
+) -> FloatArray | None:
+    """Specific force with the nominal scale only (the 'before' of the g check), or ``None``."""
+    if scale is not None:
+        if not (np.isfinite(scale) and scale != 0):
+            raise ValueError(f"nominal scale must be finite and non-zero, got {scale}")
+        b0 = np.zeros(3) if bias is None else np.asarray(bias, dtype=float)
+        return (y - b0) / scale
+    unit = rec.sidecar.channel_unit
+    if unit == "m/s2":
+        return y
+    if unit == "g":
+        return y * G0_M_S2
+    return None
+
+
+def calibrate_recording(
+    rec: Recording,
+    *,
+    nominal_scale: float | None = None,
+    nominal_bias: FloatArray | None = None,
+) -> CalibrationResult:
+    """Fit bias and scale/misalignment to a recording (see the module docstring).
+
+    :param rec: the recording.
+    :param nominal_scale: nominal sensitivity (channel unit per m/s²) for the "before"
+        g check of a channel unit without a natural scale (V, count).
+    :param nominal_bias: (3,) nominal zero-g output (channel units) with ``nominal_scale``.
+    :returns: :class:`CalibrationResult`.
+    :raises ValueError: no usable windows, a degenerate orientation set (the message
+        names the undeterminable parameters), too few windows for the scalar fit, or
+        non-finite data; every message starts with the recording's path.
+    """
+    try:
+        return _calibrate(rec, nominal_scale, nominal_bias)
+    except ValueError as exc:
+        msg = str(exc)
+        where = _where(rec)
+        raise ValueError(msg if msg.startswith(where) else f"{where}: {msg}") from exc
+
+
+def _calibrate(
+    rec: Recording, nominal_scale: float | None, nominal_bias: FloatArray | None
+) -> CalibrationResult:
+    wins = select_windows(rec)
+    noises: list[WindowNoise] = []
+    for w in wins:
+        try:
+            noises.append(window_noise(rec.accel_raw[w.start : w.stop]))
+        except ValueError as exc:
+            raise ValueError(f"window {w.label!r} ({w.start_s:.3f}-{w.end_s:.3f} s): {exc}") from exc
+    y = np.array([q.mean for q in noises])
+    V = pooled_mean_covariances(noises)
+    g = rec.sidecar.g_local_m_s2
+    f = _specific_force(rec, wins)
+    if f is not None:
+        fit = fit_static(f, y, V)
+        bias, K, cov = fit.bias, fit.K, fit.cov
+        bias_sigma, K_sigma = fit.bias_sigma, fit.K_sigma
+        resid, norm_resid = fit.residuals, fit.normalized_residuals
+        chi2, dof, model, method = fit.chi2, fit.dof, fit.noise_model, "static"
+    else:
+        sf = fit_scalar(y, V, g)
+        bias, K, cov = sf.bias, sf.L, sf.cov
+        bias_sigma, K_sigma = sf.sigma[:3], sf.L_sigma
+        fh = correct(y, bias, K)
+        dirs = fh / np.linalg.norm(fh, axis=1, keepdims=True)
+        resid = (sf.residuals_m_s2[:, None] * dirs) @ K.T
+        norm_resid = np.repeat((sf.residuals_m_s2 / sf.residual_sigma_m_s2)[:, None], 3, axis=1)
+        chi2, dof, method = sf.chi2, sf.dof, "scalar"
+        model = (
+            "window means: batch-means covariance from each window's samples; "
+            f"between windows: additive |g| scatter sigma = {np.sqrt(sf.excess_var_m_s2):.3g} m/s²"
+        )
+    after = g_check(correct(y, bias, K), g)
+    f_nominal = _nominal_force(rec, y, nominal_scale, nominal_bias)
+    before = None if f_nominal is None else g_check(f_nominal, g)
+    sigma_mean = np.sqrt(np.diagonal(V, axis1=1, axis2=2))
+    windows = tuple(
+        WindowResult(
+            label=w.label,
+            start_s=w.start_s,
+            end_s=w.end_s,
+            n_samples=w.stop - w.start,
+            mean_raw=y[k],
+            mean_sigma=sigma_mean[k],
+            f_m_s2=None if f is None else f[k],
+            residual=resid[k],
+            normalized_residual=norm_resid[k],
+            g_error_after_m_s2=float(after.error_m_s2[k]),
+            g_error_before_m_s2=None if before is None else float(before.error_m_s2[k]),
+        )
+        for k, w in enumerate(wins)
+    )
+    return CalibrationResult(
+        unit_serial=rec.sidecar.unit_serial,
+        channel_unit=rec.sidecar.channel_unit,
+        procedure=rec.sidecar.procedure or ("static" if method == "static" else "hand-held"),
+        method=method,
+        g_local_m_s2=g,
+        bias=bias,
+        K=K,
+        cov=cov,
+        bias_sigma=bias_sigma,
+        K_sigma=K_sigma,
+        residual_rms=float(np.sqrt(np.mean(resid**2))),
+        chi2=chi2,
+        dof=dof,
+        noise_model=model,
+        g_after=after,
+        g_before=before,
+        windows=windows,
+        source=rec.source,
+    )

@@ -17,9 +17,13 @@ from __future__ import annotations
 
 import urllib.parse
 from collections.abc import Callable
+from dataclasses import dataclass
 
-from drivers.base import RotaryTable
+from drivers.base import Daq, RotaryTable
 from drivers.errors import DriverError
+from drivers.modbus_daq import ModbusDaq
+from drivers.sim.bench import DEFAULT_AXES, SimBench
+from drivers.sim.physics import SensorTruth
 from drivers.table import SerialRotaryTable
 
 TableOpener = Callable[[str, float, int], RotaryTable]
@@ -62,3 +66,126 @@ def open_table(url: str, *, timeout_s: float = 1.0, n_axes: int = 3) -> RotaryTa
         known = ", ".join(f"{s}://" for s in sorted(TABLE_OPENERS) if s)
         raise ValueError(f"unsupported table URL {url!r}: expected {known} or a device path")
     return opener(url, timeout_s, n_axes)
+
+
+# ---- DAQ and whole benches -------------------------------------------------------------------
+# DAQ URLs: ``modbus-tcp://host:port`` (default port 502), the calbench register map
+# (docs/daq-registers.md). ``sim://?speed=100&rate=1000&seed=1&unit=V`` in open_bench starts
+# a SimBench on loopback and connects the real drivers to it.
+
+SIM_PARAMS = {"speed": float, "rate": float, "seed": int, "unit": str}
+
+
+def open_daq(url: str, *, timeout_s: float = 1.0, device_id: int = 1, retries: int = 1) -> Daq:
+    """A connected DAQ for ``url`` (``modbus-tcp://host:port``); the module id is checked.
+
+    :raises ValueError: unknown scheme (``sim://`` needs the table too: :func:`open_bench`).
+    :raises LinkLost: nothing accepts connections there.
+    :raises ProtocolError: the device is not this DAQ.
+    """
+    scheme = url_scheme(url)
+    if scheme == "modbus-tcp":
+        return ModbusDaq(url, device_id=device_id, timeout_s=timeout_s, retries=retries)
+    if scheme == "sim":
+        raise ValueError(f"DAQ URL {url!r}: a simulated DAQ follows a simulated table; use open_bench")
+    raise ValueError(f"unsupported DAQ URL {url!r}: expected modbus-tcp://host:port")
+
+
+def parse_sim_url(url: str) -> dict[str, float | int | str]:
+    """``sim://?speed=100&rate=1000&seed=1&unit=V`` -> keyword arguments (speed, rate, seed, unit).
+
+    :raises ValueError: another scheme, an unknown or repeated parameter, or a bad value.
+    """
+    parts = urllib.parse.urlsplit(url)
+    if parts.scheme.lower() != "sim":
+        raise ValueError(f"not a sim:// URL: {url!r}")
+    out: dict[str, float | int | str] = {}
+    query = urllib.parse.parse_qs(parts.query, keep_blank_values=True)
+    for key, values in query.items():
+        if key not in SIM_PARAMS:
+            raise ValueError(f"sim URL {url!r}: unknown parameter {key!r}; expected {', '.join(SIM_PARAMS)}")
+        if len(values) != 1:
+            raise ValueError(f"sim URL {url!r}: parameter {key!r} given {len(values)} times")
+        try:
+            out[key] = SIM_PARAMS[key](values[0])
+        except ValueError:
+            kind = SIM_PARAMS[key].__name__
+            raise ValueError(f"sim URL {url!r}: {key}={values[0]!r} is not a {kind}") from None
+    return out
+
+
+@dataclass
+class BenchDevices:
+    """A table and a DAQ opened together, and the simulated bench behind them if any.
+
+    The caller owns it: :meth:`close` (or ``with``) closes the drivers, then the simulation.
+    """
+
+    table: RotaryTable
+    daq: Daq
+    sim: SimBench | None = None
+
+    def close(self) -> None:
+        """Close the drivers, then stop the simulated bench (idempotent)."""
+        try:
+            self.table.close()
+            self.daq.close()
+        finally:
+            if self.sim is not None:
+                self.sim.close()
+
+    def __enter__(self) -> BenchDevices:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def open_bench(
+    table_url: str,
+    daq_url: str | None = None,
+    *,
+    timeout_s: float = 1.0,
+    n_axes: int = 3,
+    truth: SensorTruth | None = None,
+) -> BenchDevices:
+    """Open the table and the DAQ; ``table_url`` ``sim://...`` starts a :class:`SimBench` first.
+
+    With ``sim://`` the DAQ URL must be absent or ``sim://`` too (one simulation feeds
+    both); ``truth`` chooses the simulated unit.
+
+    :raises ValueError: a bad URL or combination.
+    """
+    if url_scheme(table_url) == "sim":
+        if daq_url is not None and url_scheme(daq_url) != "sim":
+            raise ValueError(f"table {table_url!r} is simulated, DAQ {daq_url!r} is not: use sim:// for both")
+        p = parse_sim_url(table_url)
+        seed = int(p.get("seed", 0))
+        if truth is None:
+            truth = SensorTruth.typical(str(p.get("unit", "V")), seed)
+        sim = SimBench(
+            truth,
+            speed=float(p.get("speed", 1.0)),
+            sample_rate_hz=float(p.get("rate", 100.0)),
+            seed=seed,
+            axes=DEFAULT_AXES[:n_axes],
+        )
+        try:
+            table = open_table(sim.table_url, timeout_s=timeout_s, n_axes=n_axes)
+            try:
+                daq = open_daq(sim.daq_url, timeout_s=timeout_s)
+            except BaseException:
+                table.close()
+                raise
+        except BaseException:
+            sim.close()
+            raise
+        return BenchDevices(table, daq, sim)
+    if daq_url is None:
+        raise ValueError(f"table {table_url!r} is real: a DAQ URL (modbus-tcp://host:port) is needed")
+    table = open_table(table_url, timeout_s=timeout_s, n_axes=n_axes)
+    try:
+        return BenchDevices(table, open_daq(daq_url, timeout_s=timeout_s))
+    except BaseException:
+        table.close()
+        raise

@@ -1,0 +1,316 @@
+"""The sequencer: executes a procedure's steps on a RotaryTable and a Daq.
+
+One thread (the caller's) executes the steps; a :class:`bench.sequencer_daq.DaqPump` thread
+drains the DAQ. Every wait is a loop over sample blocks: each block goes to the recording
+(:class:`bench.run_recorder.RunRecorder`), into the open window if any, and the loop checks
+the control (abort, pause), the temperature band and, every ``status_poll_s``, the
+table's interlock. Blocking table calls run in a helper thread under a deadline while the
+loop keeps draining the DAQ. Window lengths and settling count DAQ samples, so a simulated
+bench running faster than real time gives the same recording.
+
+Outcomes: an operator abort ends as ABORTED; any driver fault, deadline or DAQ stall as
+ERROR naming the step; in both cases, and on success, the table is stopped (safe state),
+acquisition stopped and the recording closed with everything recorded so far. Pause, an
+open interlock or a temperature outside its band *suspend* the run: the window in progress
+is dropped, the table held, and the window recorded again once the condition clears.
+
+Step execution is in :mod:`bench.sequencer_steps`; this module has the loop and life cycle.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TypeVar
+
+import numpy as np
+
+from bench.procedures.steps import Procedure
+from bench.records import (
+    DwellChoice,
+    Outcome,
+    Progress,
+    RunObserver,
+    RunStart,
+    RunState,
+    StateChange,
+    WindowRecord,
+)
+from bench.run_recorder import RunRecorder
+from bench.sequencer_control import AbortRequested, Interruption, RunControl, SequencerConfig, WindowSpoiled
+from bench.sequencer_daq import DaqPump, Failed, Gap
+from bench.sequencer_window import WindowCollector
+from drivers.base import Daq, RotaryTable, SampleBlock
+from drivers.errors import DeviceError, DeviceTimeout, DriverError
+
+T = TypeVar("T")
+
+
+class ObserverError(Exception):
+    """An observer raised; the run cannot be trusted to be stored."""
+
+
+@dataclass(frozen=True)
+class Acquisition:
+    """What the sequencer leaves behind.
+
+    :param outcome: ``None`` when every step completed, else ERROR or ABORTED.
+    :param error: what went wrong and where (ERROR, ABORTED), else ``None``.
+    :param windows: every completed window (also those from before a resume).
+    :param dwell: the dwell choice used.
+    :param n_samples: rows in the recording.
+    """
+
+    outcome: Outcome | None
+    error: str | None
+    windows: tuple[WindowRecord, ...]
+    dwell: DwellChoice | None
+    n_samples: int
+
+
+class Sequencer:
+    """Executes one run (see the module docstring).
+
+    :param start_window: first window to record (a resumed run), 0 for a fresh run.
+    :param dwell: the dwell choice, if known before the run (Allan, fixed, or stored by
+        the interrupted run); otherwise a noise window of the procedure decides it.
+    """
+
+    def __init__(self, table: RotaryTable, daq: Daq, procedure: Procedure, recorder: RunRecorder,
+                 start: RunStart, observers: Sequence[RunObserver] = (), control: RunControl | None = None,
+                 config: SequencerConfig | None = None, dwell: DwellChoice | None = None,
+                 start_window: int = 0) -> None:
+        self.table, self.daq, self.procedure, self.recorder = table, daq, procedure, recorder
+        self.start, self.observers = start, list(observers)
+        self.control = control or RunControl()
+        self.config = config or SequencerConfig()
+        self.dwell = dwell
+        self.start_window = start_window
+        self.next_window = start_window
+        self.state = RunState.PENDING
+        self.window: WindowCollector | None = None
+        self.now_s = recorder.last_t_s or 0.0
+        self.step_index = 0
+        self.where = "start"
+        self.last_temp_c = float("nan")
+        self.positions_deg: tuple[float, ...] = (0.0,) * table.n_axes
+        self._pump = DaqPump(daq, self.config.block_max_samples, self.config.read_timeout_s)
+        self._last_sample_wall = time.monotonic()
+        self._last_status_wall = 0.0
+        self._last_progress_wall = 0.0
+        self._in_call = False
+        self._holding = False
+        self._daq_latches_table = False
+
+    # -- observers -----------------------------------------------------------------------
+
+    def notify(self, method: str, *args: object) -> None:
+        """Call ``method`` on every observer; an exception becomes :class:`ObserverError`."""
+        for obs in self.observers:
+            try:
+                getattr(obs, method)(*args)
+            except Exception as exc:
+                raise ObserverError(f"observer {type(obs).__name__}.{method} failed: "
+                                    f"{type(exc).__name__}: {exc}") from exc
+
+    def set_state(self, state: RunState, reason: str = "") -> None:
+        """Change state and tell the observers."""
+        self.state = state
+        self.notify("on_state", self.start.run_id, StateChange(state, reason))
+
+    def progress(self, force: bool = False) -> None:
+        """Emit a progress event (at most every ``progress_interval_s``)."""
+        now = time.monotonic()
+        if not force and now - self._last_progress_wall < self.config.progress_interval_s:
+            return
+        self._last_progress_wall = now
+        step = self.procedure.steps[min(self.step_index, len(self.procedure.steps) - 1)]
+        self.notify("on_progress", self.start.run_id, Progress(
+            self.step_index, len(self.procedure.steps), getattr(step, "label", ""),
+            self.window.index if self.window else None, self.procedure.n_windows, self.now_s,
+            self.start.expected_duration_s, self.positions_deg, self.state))
+
+    # -- the sample loop -----------------------------------------------------------------
+
+    def pump_once(self, wait_s: float = 0.05) -> None:
+        """Handle at most one DAQ item; check abort, pause, stall, interlock."""
+        if self.control.abort_requested:
+            raise AbortRequested(self.control.abort_reason)
+        if self.control.pause_requested and not (self._holding or self._in_call):
+            raise Interruption(RunState.PAUSED, "operator pause")
+        try:
+            item = self._pump.items.get(timeout=wait_s)
+        except queue.Empty:
+            if time.monotonic() - self._last_sample_wall > self.config.stall_timeout_s:
+                raise DeviceTimeout(f"no DAQ samples for {self.config.stall_timeout_s:g} s") from None
+            item = None
+        if isinstance(item, Failed):
+            raise item.error
+        if isinstance(item, Gap):
+            if self.window is not None:
+                raise WindowSpoiled(str(item.error))
+        elif item is not None:
+            self._handle_block(item)
+        if not (self._in_call or self._holding) and \
+                time.monotonic() - self._last_status_wall > self.config.status_poll_s:
+            self.check_table()
+        self.progress()
+
+    def _handle_block(self, block: SampleBlock) -> None:
+        self._last_sample_wall = time.monotonic()
+        t = self.recorder.to_recording_time(np.asarray(block.t_s, dtype=float))
+        if block.table_deg is not None:
+            table = np.asarray(block.table_deg, dtype=float)
+            self.positions_deg = tuple(float(v) for v in table[-1])
+            self._daq_latches_table = True
+        else:
+            table = np.tile(np.asarray(self.positions_deg, dtype=float), (block.n, 1))
+        temp = np.asarray(block.temp_c, dtype=float)
+        chunk = self.recorder.append(t, block.accel, table, temp if self.recorder.writer.has_temp else None,
+                                     self.window.index if self.window else None)
+        if chunk is not None:
+            self.notify("on_chunk", self.start.run_id, chunk)
+        self.now_s = float(t[-1])
+        if self.window is not None:
+            self.window.add(t, block.accel, table, temp)
+        finite = temp[np.isfinite(temp)]
+        if finite.size:
+            self.last_temp_c = float(finite.mean())
+            band = self.config.temp_band_c
+            if band is not None and not band[0] <= self.last_temp_c <= band[1] and not self._holding:
+                raise Interruption(RunState.SUSPENDED, self.temperature_reason())
+
+    def temperature_reason(self) -> str:
+        """Why the temperature suspends the run."""
+        lo, hi = self.config.temp_band_c or (float("-inf"), float("inf"))
+        return f"sensor temperature {self.last_temp_c:.2f} °C outside its band [{lo:g}, {hi:g}] °C"
+
+    def check_table(self) -> None:
+        """Poll the table: an open interlock or E-stop suspends the run."""
+        self._last_status_wall = time.monotonic()
+        st = self.table.status()
+        if not self._daq_latches_table:
+            self.positions_deg = tuple(a.position_deg for a in st.axes)
+        if st.estop or not st.interlock_ok:
+            raise Interruption(RunState.SUSPENDED, "emergency stop pressed" if st.estop else "interlock open")
+        faults = [f"axis {i + 1}: {a.fault}" for i, a in enumerate(st.axes) if a.fault]
+        if faults:
+            raise DeviceError("table fault: " + "; ".join(faults))
+
+    def wait_data(self, duration_s: float) -> None:
+        """Keep recording for ``duration_s`` on the recording clock."""
+        target = self.now_s + duration_s
+        while self.now_s < target:
+            self.pump_once()
+
+    def call(self, fn: Callable[[], T], deadline_s: float, what: str) -> T:
+        """Run a blocking table call in a helper thread, draining the DAQ until it returns.
+
+        :raises DeviceTimeout: it did not return within ``deadline_s`` (wall clock).
+        """
+        box: dict[str, object] = {}
+
+        def target() -> None:
+            try:
+                box["value"] = fn()
+            except BaseException as exc:
+                box["error"] = exc
+
+        worker = threading.Thread(target=target, name=f"table-{what}", daemon=True)
+        self._in_call = True
+        try:
+            worker.start()
+            end = time.monotonic() + deadline_s
+            while worker.is_alive():
+                if time.monotonic() > end:
+                    raise DeviceTimeout(f"table {what} did not return within {deadline_s:.3g} s")
+                self.pump_once(0.01)
+        finally:
+            self._in_call = False
+        if "error" in box:
+            raise box["error"]  # type: ignore[misc]
+        return box.get("value")  # type: ignore[return-value]
+
+    def record_window(self, collector: WindowCollector) -> WindowRecord:
+        """Record a window to its end, close it in the recording, tell the observers."""
+        self.window = collector
+        try:
+            while not collector.full:
+                self.pump_once()
+        finally:
+            self.window = None
+        rec = collector.record()
+        chunk = self.recorder.close_window(rec)
+        if chunk is not None:
+            self.notify("on_chunk", self.start.run_id, chunk)
+        self.notify("on_window", self.start.run_id, rec)
+        self.next_window = rec.index + 1
+        return rec
+
+    # -- life cycle ----------------------------------------------------------------------
+
+    def run(self) -> Acquisition:
+        """Execute the procedure; never raises for device faults (they become ERROR)."""
+        from bench.sequencer_steps import execute_steps  # the step logic, split for size
+
+        outcome: Outcome | None = None
+        error: str | None = None
+        try:
+            self.notify("on_start", self.start)
+            self._pump.start()
+            self._last_sample_wall = time.monotonic()
+            self.set_state(RunState.RUNNING, "resumed from window " + str(self.start_window)
+                           if self.start_window else "started")
+            execute_steps(self)
+        except AbortRequested as exc:
+            outcome, error = Outcome.ABORTED, f"aborted at {self.where}: {exc}"
+        except (DriverError, TimeoutError, OSError, ObserverError, ValueError) as exc:
+            outcome, error = Outcome.ERROR, f"{self.where}: {type(exc).__name__}: {exc}"
+        finally:
+            problems = self.make_safe()
+        if problems:
+            error = "; ".join([error or "completed", *problems])
+            outcome = outcome or Outcome.ERROR
+        return Acquisition(outcome, error, tuple(self.recorder.windows), self.dwell, self.recorder.n_rows)
+
+    def make_safe(self) -> list[str]:
+        """Table stopped, acquisition stopped, recording closed; return what failed."""
+        problems: list[str] = []
+        stopper = threading.Thread(target=self._stop_table, args=(problems,), daemon=True)
+        stopper.start()
+        stopper.join(self.config.stop_timeout_s)
+        if stopper.is_alive():
+            problems.append(f"table did not confirm stop within {self.config.stop_timeout_s:g} s")
+        pump_problem = self._pump.stop(self.config.stop_timeout_s)
+        if pump_problem:
+            problems.append(pump_problem)
+        # Samples still queued belong to the recording too.
+        while True:
+            try:
+                item = self._pump.items.get_nowait()
+            except queue.Empty:
+                break
+            if isinstance(item, SampleBlock):
+                try:
+                    self.window = None
+                    self._holding = True
+                    self._handle_block(item)
+                except Exception as exc:
+                    problems.append(f"saving the last samples failed: {exc}")
+                    break
+        try:
+            chunk = self.recorder.close()
+            if chunk is not None:
+                self.notify("on_chunk", self.start.run_id, chunk)
+        except Exception as exc:
+            problems.append(f"closing the recording failed: {type(exc).__name__}: {exc}")
+        return problems
+
+    def _stop_table(self, problems: list[str]) -> None:
+        try:
+            self.table.stop()
+        except Exception as exc:
+            problems.append(f"table stop failed: {type(exc).__name__}: {exc}")

@@ -106,3 +106,12 @@ def open_database(url: str | sa.URL | None = None) -> Engine:
     engine = make_engine(url)
     upgrade(engine)
     return engine
+
+
+def describe_connection_error(url: str | sa.URL | None, exc: BaseException) -> str:
+    """One line naming the database (password hidden) and the driver's first error line."""
+    sa_url = make_url(url if url is not None else default_database_url())
+    detail = str(getattr(exc, "orig", None) or exc).strip().splitlines()
+    return (
+        f"cannot use database {sa_url.render_as_string(hide_password=True)}: {detail[0] if detail else exc}"
+    )

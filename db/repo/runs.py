@@ -77,7 +77,11 @@ def list_runs(
     limit: int | None = None,
 ) -> list[Run]:
     """Runs, newest first, with ``run.unit`` and ``run.bench`` loaded."""
-    stmt = sa.select(Run).options(selectinload(Run.unit), selectinload(Run.bench)).order_by(Run.id.desc())
+    stmt = (
+        sa.select(Run)
+        .options(selectinload(Run.unit), selectinload(Run.bench))
+        .order_by(Run.created_at.desc(), Run.id.desc())
+    )
     if unit_serial is not None:
         stmt = stmt.join(Unit, Run.unit_id == Unit.id).where(Unit.serial == unit_serial)
     if states is not None:

@@ -1,0 +1,101 @@
+"""``calbench calibrate RECORDING.csv [--json]``: fit bias and scale/misalignment.
+
+Human output: the coefficients with their one-sigma uncertainties, the per-window
+residuals and |g| errors, and the |g| check summary. ``--json``: the object of
+``shared/cli-contract.md``. Bad input: exit 2 with one line (raised as ValueError).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from api.cli import BadInput
+from bench.calibration import CalibrationResult, calibrate_recording
+from bench.recording import read_recording
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``calbench calibrate``."""
+    parser.add_argument("recording", type=Path, help="recording CSV (the sidecar JSON is found by stem)")
+    parser.add_argument("--json", action="store_true", help="print the machine-readable result")
+    parser.add_argument(
+        "--nominal-scale",
+        type=float,
+        default=None,
+        help="nominal sensitivity (channel unit per m/s²) for the 'before' |g| check of V or count channels",
+    )
+    parser.add_argument(
+        "--nominal-bias",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("BX", "BY", "BZ"),
+        help="nominal zero-g output (channel unit) used with --nominal-scale",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Calibrate one recording and print the result."""
+    path: Path = args.recording
+    if not path.is_file():
+        raise BadInput(f"{path}: no such recording file")
+    if args.nominal_bias is not None and args.nominal_scale is None:
+        raise BadInput("--nominal-bias needs --nominal-scale")
+    rec = read_recording(path)
+    bias0 = None if args.nominal_bias is None else np.array(args.nominal_bias, dtype=float)
+    result = calibrate_recording(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0)
+    if args.json:
+        print(json.dumps(result.to_contract()))
+    else:
+        print(format_human(result))
+    return 0
+
+
+def _pm(value: float, sigma: float) -> str:
+    return f"{value: .8g} ± {sigma:.2g}"
+
+
+def format_human(r: CalibrationResult) -> str:
+    """Readable report: coefficients, per-window table, |g| check."""
+    u = r.channel_unit
+    lines = [
+        f"unit {r.unit_serial}   procedure {r.procedure}   fit: "
+        + (
+            "known orientations, bias + full K"
+            if r.method == "static"
+            else "orientation-free |f| = g, K as L (K up to rotation)"
+        ),
+        f"source {r.source}" if r.source else "",
+        "",
+        f"bias ({u}), one sigma:",
+    ]
+    lines += [f"  {ax}  {_pm(b, s)}" for ax, b, s in zip("xyz", r.bias, r.bias_sigma, strict=True)]
+    lines += ["", f"scale matrix K ({u} per m/s²), raw = bias + K·f, one sigma:"]
+    for i, ax in enumerate("xyz"):
+        lines.append(f"  {ax}  " + "   ".join(_pm(r.K[i, j], r.K_sigma[i, j]) for j in range(3)))
+    lines += [
+        "",
+        "correction: f = K⁻¹ (raw − bias)   (m/s²)",
+        f"noise model: {r.noise_model}",
+        f"residual rms {r.residual_rms:.3g} {u}   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}",
+        "",
+        f"{'window':<10}{'t (s)':>17}{'n':>7}  {'residual x,y,z (' + u + ')':<36}{'z-scores':<20}"
+        f"{'|g| err after':>14}{'before':>11}",
+    ]
+    for w in r.windows:
+        res = " ".join(f"{v: .2e}" for v in w.residual)
+        z = " ".join(f"{v: .1f}" for v in w.normalized_residual)
+        before = "" if w.g_error_before_m_s2 is None else f"{w.g_error_before_m_s2: .3e}"
+        lines.append(
+            f"{w.label:<10}{w.start_s:>8.2f}-{w.end_s:<8.2f}{w.n_samples:>7}  {res:<36}{z:<20}"
+            f"{w.g_error_after_m_s2:>14.3e}{before:>11}"
+        )
+    lines += ["", f"|g| check against g_local = {r.g_local_m_s2} m/s² (mean error, std over windows):"]
+    if r.g_before is not None:
+        lines.append(f"  before  {r.g_before.mean_error_m_s2: .3e}  {r.g_before.std_m_s2:.3e} m/s²")
+    lines.append(f"  after   {r.g_after.mean_error_m_s2: .3e}  {r.g_after.std_m_s2:.3e} m/s²")
+    return "\n".join(line for line in lines if line is not None)

@@ -1,0 +1,89 @@
+"""``calbench calibrate``: contract JSON, human table, exit 2 with one line on bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from api.cli import main
+
+CONTRACT_KEYS = {
+    "unit", "channel_unit", "procedure", "bias", "bias_sigma", "scale_matrix", "scale_matrix_sigma",
+    "terms", "extra", "residual_rms", "g_check",
+}  # fmt: skip
+
+
+@pytest.fixture()
+def example(shared_dir, tmp_path):
+    src = shared_dir / "data" / "examples"
+    for ext in ("csv", "json"):
+        shutil.copy(src / f"example_static12.{ext}", tmp_path / f"rec.{ext}")
+    return tmp_path / "rec.csv"
+
+
+def test_json_output_has_exactly_the_contract_keys(example, capsys) -> None:
+    assert (
+        main(
+            [
+                "calibrate",
+                str(example),
+                "--json",
+                "--nominal-scale",
+                "0.0176",
+                "--nominal-bias",
+                "1.5",
+                "1.5",
+                "1.5",
+            ]
+        )
+        == 0
+    )
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == CONTRACT_KEYS
+    assert (
+        out["unit"] == "SN-EXAMPLE_STATIC12"
+        and out["channel_unit"] == "V"
+        and out["procedure"] == "static-12"
+    )
+    assert len(out["bias"]) == 3 and len(out["bias_sigma"]) == 3
+    assert [len(r) for r in out["scale_matrix"]] == [3, 3, 3] and [
+        len(r) for r in out["scale_matrix_sigma"]
+    ] == [3, 3, 3]
+    assert set(out["g_check"]) == {"before", "after"}
+    for part in out["g_check"].values():
+        assert set(part) == {"mean_error_m_s2", "std_m_s2"}
+    # nominal 0.0176 V per m/s² is ~2 % off the true scales: 'before' is far worse than 'after'
+    assert out["g_check"]["before"]["std_m_s2"] > 50 * out["g_check"]["after"]["std_m_s2"]
+
+
+def test_human_output_is_a_table_with_every_window(example, capsys) -> None:
+    assert main(["calibrate", str(example)]) == 0
+    text = capsys.readouterr().out
+    assert "bias (V)" in text and "scale matrix K" in text
+    assert sum(line.startswith("pos") for line in text.splitlines()) == 12
+    assert "after" in text and "before" not in text.split("|g| check")[-1]
+
+
+def test_malformed_file_exits_2_with_one_line(example, capsys) -> None:
+    lines = example.read_text().splitlines()
+    lines[100] = lines[100].replace(",", ",abc", 1)
+    example.write_text("\n".join(lines) + "\n")
+    assert main(["calibrate", str(example), "--json"]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == ""
+    err = cap.err.strip().splitlines()
+    assert len(err) == 1 and "rec.csv" in err[0]
+
+
+def test_missing_file_and_degenerate_set_exit_2(tmp_path, example, capsys) -> None:
+    assert main(["calibrate", str(tmp_path / "nope.csv")]) == 2
+    assert "nope.csv" in capsys.readouterr().err
+    # only three segments left: too few windows for 12 parameters
+    side = json.loads(example.with_suffix(".json").read_text())
+    side["segments"] = side["segments"][:3]
+    example.with_suffix(".json").write_text(json.dumps(side))
+    assert main(["calibrate", str(example), "--json"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "at least 4 static windows" in err[0]

@@ -52,8 +52,8 @@ class DaqServer:
     :param engine: the sampling engine.
     :param host: interface to listen on (loopback by default).
     :param port: TCP port; 0 picks a free ephemeral port.
-    :param device_id: Modbus unit id answered (others get exception 0x0B, gateway
-        target failed to respond, as a TCP gateway would).
+    :param device_id: Modbus unit id answered (pymodbus 3.16 answers other ids with
+        exception 04, device failure).
     :param start_timeout_s: how long to wait for the listener.
     """
 

@@ -16,7 +16,7 @@ from pymodbus.client import ModbusTcpClient
 
 from drivers import daq_registers as reg
 from drivers.base import SampleBlock
-from drivers.errors import DeviceTimeout, DriverError
+from drivers.errors import DeviceError, DeviceTimeout, DriverError
 from drivers.modbus_daq import ModbusDaq
 from drivers.sim.clock import SimClock
 from drivers.sim.daq_engine import DaqEngine
@@ -244,3 +244,10 @@ def test_valid_type_code_write_is_kept(raw_client: tuple[ModbusTcpClient, Rig]) 
     client, _ = raw_client
     assert not client.write_registers(reg.HR_TYPE_CODE + 5, [0x0180]).isError()
     assert client.read_holding_registers(reg.HR_TYPE_CODE + 5, count=1).registers == [0x0180]
+
+
+def test_another_unit_id_is_refused_when_opening() -> None:
+    with sim_daq() as rig:
+        with pytest.raises(DeviceError) as info:
+            ModbusDaq(rig.server.url, device_id=7, timeout_s=0.5, retries=0)
+        assert info.value.code == 4 and "unit 7" in str(info.value) and "HR 210-210" in str(info.value)

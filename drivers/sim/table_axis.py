@@ -115,15 +115,13 @@ class SimAxis:
         return float(angle[0]), float(rate[0]), float(accel[0])
 
     def _replan(self, t: float, segments: list[Segment]) -> None:
-        """Cut the running segment at ``t`` and append ``segments`` (first starts at ``t``)."""
-        last = len(self._segments) - 1
-        elapsed = max(t - self._starts[last], 0.0)
-        if elapsed == 0.0 and last > 0:
+        """Drop what was planned after ``t``, cut the running segment at ``t``, append ``segments``."""
+        while len(self._segments) > 1 and self._starts[-1] >= t:
             self._segments.pop()
             self._starts.pop()
-        else:
-            self._segments[last] = Truncated(self._segments[last], elapsed)
-        start = self._starts[-1] + self._segments[-1].duration_s if self._segments else t
+        elapsed = max(t - self._starts[-1], 0.0)
+        self._segments[-1] = Truncated(self._segments[-1], elapsed)
+        start = self._starts[-1] + elapsed
         for seg in segments:
             self._starts.append(start)
             self._segments.append(seg)

@@ -87,13 +87,18 @@ class NoiseStream:
         self._gm_last = np.zeros(3)
         self._rw_last = np.zeros(3)
 
-    def next(self, t_s: FloatArray) -> FloatArray:
-        """Noise (n, 3) in m/s² for the next block of time stamps ``t_s`` (n,)."""
+    def next(self, t_s: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Noise for the next block of time stamps ``t_s`` (n,), m/s².
+
+        :returns: (white, wander), each (n, 3): the white part and the slow bias wander
+            (Gauss-Markov + random walk); the sensor sees their sum.
+        """
         t = np.asarray(t_s, dtype=float)
         n = t.shape[0]
+        white = np.zeros((n, 3))
         out = np.zeros((n, 3))
         if n == 0:
-            return out
+            return white, out
         first = self._t_last is None
         dt = np.diff(t, prepend=t[0] if first else self._t_last)
         spec = self.spec
@@ -102,7 +107,9 @@ class NoiseStream:
                 if n < 2:
                     raise ValueError("NoiseStream: sample_rate_hz unknown and the first block has one sample")
                 self._rate_hz = 1.0 / float(np.median(np.diff(t)))
-            out += spec.white_m_s2_rt_hz * math.sqrt(self._rate_hz) * self._rng_white.standard_normal((n, 3))
+            white += (
+                spec.white_m_s2_rt_hz * math.sqrt(self._rate_hz) * self._rng_white.standard_normal((n, 3))
+            )
         if spec.bias_instability_m_s2 > 0:
             out += self._gauss_markov(dt, first)
         if spec.random_walk_m_s2_s_rt_hz > 0:
@@ -113,7 +120,7 @@ class NoiseStream:
             self._rw_last = walk[-1].copy()
             out += walk
         self._t_last = float(t[-1])
-        return out
+        return white, out
 
     def _gauss_markov(self, dt: FloatArray, first: bool) -> FloatArray:
         b, tau = self.spec.bias_instability_m_s2, self.spec.bias_instability_tau_s

@@ -53,6 +53,7 @@ class SimulatedRun:
     :param mount: (3, 3) true mount rotation.
     :param g_local_m_s2: true local gravity (m/s²).
     :param profile: the commanded motion (encoder coordinates).
+    :param bias_wander_m_s2: (n, 3) slow noise the sensor saw (m/s², see ``SensorSamples``).
     """
 
     t_s: FloatArray
@@ -67,6 +68,19 @@ class SimulatedRun:
     mount: FloatArray
     g_local_m_s2: float
     profile: TableProfile
+    bias_wander_m_s2: FloatArray
+
+    def bias_seen(self) -> FloatArray:
+        """(3,) the bias this run's windows saw: truth.bias + diag(K)·(mean bias wander over the windows).
+
+        The slow wander's mean over a run cannot be told from the bias by any single run;
+        a calibration of this run estimates this value, not ``truth.bias`` alone.
+        """
+        inside = np.zeros(self.t_s.shape, dtype=bool)
+        for a, b, _ in self.segments:
+            inside |= (self.t_s >= a) & (self.t_s <= b)
+        wander = self.bias_wander_m_s2[inside].mean(axis=0) if inside.any() else np.zeros(3)
+        return np.asarray(self.truth.bias + np.diag(self.truth.K) * wander, dtype=float)
 
 
 class _Timeline:
@@ -163,6 +177,7 @@ def _run(
         mount=physics.mount,
         g_local_m_s2=physics.g_local_m_s2,
         profile=profile,
+        bias_wander_m_s2=samples.bias_wander_m_s2,
     )
 
 

@@ -55,11 +55,14 @@ class SensorSamples:
     :param raw: (n, 3) accelerometer outputs (channel units).
     :param encoder_deg: (n, k) encoder readings, wrapped to [−180, 180) (deg).
     :param temp_c: (n,) temperature channel (°C).
+    :param bias_wander_m_s2: (n, 3) the slow part of the noise (Gauss-Markov bias instability
+        plus bias random walk), input-referred (m/s²): what no single run can tell from bias.
     """
 
     raw: FloatArray
     encoder_deg: FloatArray
     temp_c: FloatArray
+    bias_wander_m_s2: FloatArray
 
 
 class SensorPhysics:
@@ -278,7 +281,8 @@ class SensorPhysics:
             f = self._lowpass(t, f)
         elif t.shape[0]:
             self._lp_state = (float(t[-1]), f[-1], f[-1])
-        f = f + self._noise.next(t)
+        white, wander = self._noise.next(t)
+        f = f + white + wander
         sat = self.truth.noise.saturation_m_s2
         if sat > 0:
             f = np.clip(f, -sat, sat)
@@ -294,7 +298,7 @@ class SensorPhysics:
         enc = wrap_deg(np.rad2deg(kin_enc.angles_rad))
         if self.encoder_resolution_deg > 0:
             enc = wrap_deg(np.round(enc / self.encoder_resolution_deg) * self.encoder_resolution_deg)
-        return SensorSamples(raw=raw, encoder_deg=enc, temp_c=temp_read)
+        return SensorSamples(raw=raw, encoder_deg=enc, temp_c=temp_read, bias_wander_m_s2=wander)
 
 
 def wrap_deg(angle_deg: FloatArray) -> FloatArray:

@@ -1,0 +1,35 @@
+"""``calbench resume RUN_ID [--sim] [--sim-speed N]``: finish an interrupted run.
+
+The recording is cut back to the last durable chunk that holds the last complete window,
+and the procedure continues with the next window; the end is as ``calbench run``.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from api.bench_session import resume_run
+from api.cli.run import ProgressBar, add_device_arguments, install_abort_handler, report
+from api.settings import Settings
+from bench.sequencer_control import RunControl
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``calbench resume``."""
+    parser.add_argument("run_id", metavar="RUN_ID", help="id of the run (see calbench runs)")
+    add_device_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``calbench resume``."""
+    control = RunControl()
+    install_abort_handler(control)
+    record = resume_run(
+        Settings(),
+        args.run_id,
+        sim=args.sim,
+        sim_speed=args.sim_speed,
+        observers=[] if args.json else [ProgressBar()],
+        control=control,
+    )
+    return report(record, args.json)

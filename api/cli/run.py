@@ -1,0 +1,145 @@
+"""``calbench run PROCEDURE --unit SERIAL [--sim] [--sim-speed N]``: run a procedure on the bench.
+
+Shows a progress bar on stderr while the run records, then prints the fit and the |g|
+table (or, with ``--json``, one object: run id, outcome, error, calibration). Ctrl-C
+aborts the run cleanly (table to its safe state, recording kept). Exit code 0 for PASS,
+1 for FAIL, ERROR or ABORTED, 2 for bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+from types import FrameType
+from typing import Any, TextIO
+
+from api.bench_session import start_run
+from api.settings import Settings
+from bench.procedures import PROCEDURES
+from bench.records import NullObserver, Outcome, Progress, RunRecord, StateChange
+from bench.sequencer_control import RunControl
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``calbench run``."""
+    parser.add_argument("procedure", choices=sorted(PROCEDURES), help="procedure to run")
+    parser.add_argument("--unit", required=True, metavar="SERIAL", help="serial of the unit under test")
+    add_device_arguments(parser)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the simulated unit and noise (--sim)")
+    parser.add_argument(
+        "--dwell-s",
+        type=float,
+        default=None,
+        help="static dwell per pose (s); default: from a noise window the run records first",
+    )
+
+
+def add_device_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--sim``, ``--sim-speed``, ``--json`` (shared with ``calbench resume``)."""
+    parser.add_argument("--sim", action="store_true", help="simulated bench, real drivers")
+    parser.add_argument(
+        "--sim-speed",
+        type=float,
+        default=None,
+        metavar="N",
+        help="simulated seconds per wall second (default CALBENCH_SIM_SPEED)",
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object at the end")
+
+
+class ProgressBar(NullObserver):
+    """A one-line progress bar on a text stream (stderr)."""
+
+    def __init__(self, stream: TextIO | None = None, width: int = 30) -> None:
+        self.stream = stream or sys.stderr
+        self.width = width
+
+    def _write(self, text: str) -> None:
+        self.stream.write(text)
+        self.stream.flush()
+
+    def on_progress(self, run_id: str, progress: Progress) -> None:
+        done = int(progress.fraction * self.width)
+        w = progress.window_index
+        win = "" if w is None else f" window {w + 1}/{progress.n_windows}"
+        self._write(
+            f"\r[{'#' * done}{'.' * (self.width - done)}] {progress.fraction:5.1%} "
+            f"step {progress.step_index + 1}/{progress.n_steps} {progress.step_label}{win}   "
+        )
+
+    def on_state(self, run_id: str, change: StateChange) -> None:
+        self._write(f"\n{change.state.value}: {change.reason}\n")
+
+    def on_finish(self, record: RunRecord) -> None:
+        self._write("\n")
+
+
+def record_as_dict(record: RunRecord) -> dict[str, Any]:
+    """The JSON object printed by ``--json``."""
+    dwell = record.dwell
+    return {
+        "run_id": record.run_id,
+        "outcome": record.outcome.value if record.outcome else None,
+        "error": record.error,
+        "recording": record.start.recording_path,
+        "n_samples": record.n_samples,
+        "n_windows": len(record.windows),
+        "dwell": None
+        if dwell is None
+        else {"dwell_s": dwell.dwell_s, "source": dwell.source, "reason": dwell.reason},
+        "calibration": record.calibration,
+    }
+
+
+def report(record: RunRecord, as_json: bool) -> int:
+    """Print the outcome, the fit and the |g| table; return the exit code."""
+    if as_json:
+        print(json.dumps(record_as_dict(record), indent=1))
+        return 0 if record.outcome is Outcome.PASS else 1
+    outcome = record.outcome.value if record.outcome else "?"
+    print(f"run {record.run_id}: {outcome}" + (f" ({record.error})" if record.error else ""))
+    print(f"recording: {record.start.recording_path} ({record.n_samples} samples, "
+          f"{len(record.windows)} windows)")
+    if record.dwell is not None:
+        print(f"dwell: {record.dwell.reason}")
+    cal: dict[str, Any] | None = record.calibration
+    if cal is not None:
+        pairs = zip(cal["bias"], cal["bias_sigma"], strict=True)
+        print("bias:", "  ".join(f"{b:.6g} ± {s:.2g}" for b, s in pairs))
+        print("scale matrix K (channel unit per m/s²):")
+        for row, srow in zip(cal["scale_matrix"], cal["scale_matrix_sigma"], strict=True):
+            print("   " + "  ".join(f"{k:+.6e} ± {s:.1e}" for k, s in zip(row, srow, strict=True)))
+        print(f"{'|g| check':12s} {'mean error (m/s²)':>18s} {'std (m/s²)':>12s}")
+        for name, g in cal["g_check"].items():
+            print(f"{name:12s} {g['mean_error_m_s2']:18.3e} {g['std_m_s2']:12.3e}")
+    return 0 if record.outcome is Outcome.PASS else 1
+
+
+def install_abort_handler(control: RunControl) -> None:
+    """Ctrl-C / SIGTERM abort the run cleanly (safe state, recording kept) instead of killing it."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        control.abort(f"signal {signal.Signals(signum).name}")
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``calbench run``."""
+    control = RunControl()
+    install_abort_handler(control)
+    record = start_run(
+        Settings(),
+        args.procedure,
+        args.unit,
+        sim=args.sim,
+        sim_speed=args.sim_speed,
+        seed=args.seed,
+        dwell_s=args.dwell_s,
+        observers=[] if args.json else [ProgressBar()],
+        control=control,
+    )
+    return report(record, args.json)

@@ -11,8 +11,9 @@ The one place where a :class:`~bench.recording.Recording` becomes a calibration;
 * otherwise the orientation-free fit of |f| = g (``scalar_fit``), K reported as the
   lower-triangular L with L Lᵀ = K Kᵀ (K up to a rotation of the sensor frame).
 
-Windows come from the sidecar's segments (those in which the table did not move), or are
-detected when the sidecar has none.
+Windows come from the sidecar's segments (those in which the table did not move; without
+a table, those with ``nominal_up`` when any segment has one), or are detected when the
+sidecar has none.
 """
 
 from __future__ import annotations
@@ -150,6 +151,9 @@ def select_windows(rec: Recording) -> list[StaticWindow]:
         wins = windows_from_segments(rec.t_s, rec.sidecar.segments)
         if q is not None:
             wins = [w for w in wins if np.all(np.ptp(q[w.start : w.stop], axis=0) <= MAX_TABLE_MOTION_RAD)]
+        elif any(w.nominal_up is not None for w in wins):
+            # a hand-held session names the pose of each static window; the others are motions
+            wins = [w for w in wins if w.nominal_up is not None]
     else:
         wins = detect_static_windows(rec.t_s, rec.accel_raw, q)
     wins = [w for w in wins if w.stop - w.start >= MIN_WINDOW_SAMPLES]

@@ -185,3 +185,40 @@ def claim_for_resume(
         sa.delete(SampleChunk).where(SampleChunk.run_id == run_id, SampleChunk.seq >= point.keep_chunks)
     )
     return point
+
+
+def mark_run_interrupted(
+    session: Session, run_id: str, reason: str, *, now: dt.datetime | None = None
+) -> bool:
+    """A live run stops without finishing (its process is going away): ``interrupted``, resumable."""
+    result = session.execute(
+        sa.update(Run)
+        .where(Run.id == run_id, Run.state.in_(list(ACTIVE_STATES)))
+        .values(state=RunState.INTERRUPTED, error=f"interrupted: {reason}", heartbeat_at=now or utc_now())
+        .execution_options(synchronize_session="fetch")
+    )
+    return bool(getattr(result, "rowcount", 0) == 1)
+
+
+def rewind_run(session: Session, run_id: str, next_window_index: int) -> None:
+    """Forget windows ``>= next_window_index`` (they will be recorded again) and set
+    ``last_complete_window`` to ``next_window_index - 1`` (``None`` for 0)."""
+    if next_window_index < 0:
+        raise ValueError(f"run {run_id}: next window index {next_window_index} < 0")
+    session.execute(
+        sa.delete(RunWindow).where(RunWindow.run_id == run_id, RunWindow.index >= next_window_index)
+    )
+    session.execute(
+        sa.update(Run)
+        .where(Run.id == run_id)
+        .values(last_complete_window=next_window_index - 1 if next_window_index > 0 else None)
+        .execution_options(synchronize_session="fetch")
+    )
+
+
+def drop_chunks_from(session: Session, run_id: str, seq: int) -> int:
+    """Delete the run's chunk rows with ``seq`` or later (a resumed writer numbers from ``seq``)."""
+    result = session.execute(
+        sa.delete(SampleChunk).where(SampleChunk.run_id == run_id, SampleChunk.seq >= seq)
+    )
+    return int(getattr(result, "rowcount", 0) or 0)

@@ -1,0 +1,253 @@
+"""``DbRunObserver``: the database as an output callback of bench runs.
+
+Implements ``bench.records.RunObserver``. Each event is written in its own short
+transaction (``with factory.begin()``), so the database always holds the state of the
+run up to its last event: the last complete window and the last durable chunk of the
+recording, which is what a restart needs to resume. Transient database errors
+(``OperationalError``: a lock held too long, a dropped connection) are retried a few
+times before the error is raised to the sequencer, which then ends the run as ERROR.
+
+State mapping (``bench.records`` -> ``db.models.RunState``): PENDING -> queued,
+RUNNING/PAUSED/SUSPENDED/INTERRUPTED -> same name, FINISHED -> by outcome: PASS or none ->
+completed, FAIL -> failed, ERROR -> error, ABORTED -> aborted.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from sqlalchemy.exc import OperationalError
+from sqlalchemy.orm import Session, sessionmaker
+
+from bench import records as br
+from db.models import FINAL_STATES, FitKind, Run, RunState
+from db.repo import progress, recovery, results, runs, units
+from db.types import utc_now
+
+T = TypeVar("T")
+
+_LIVE = {
+    br.RunState.PENDING: RunState.QUEUED,
+    br.RunState.RUNNING: RunState.RUNNING,
+    br.RunState.PAUSED: RunState.PAUSED,
+    br.RunState.SUSPENDED: RunState.SUSPENDED,
+}
+_FINAL = {
+    None: RunState.COMPLETED,
+    br.Outcome.PASS: RunState.COMPLETED,
+    br.Outcome.FAIL: RunState.FAILED,
+    br.Outcome.ERROR: RunState.ERROR,
+    br.Outcome.ABORTED: RunState.ABORTED,
+}
+
+
+def final_state(outcome: br.Outcome | None) -> RunState:
+    """The stored state of a FINISHED run with ``outcome``."""
+    return _FINAL[outcome]
+
+
+def fit_kind_for(procedure: str, contract: dict[str, Any]) -> FitKind:
+    """``scalar`` for the orientation-free fit, ``dynamic`` for rate/oscillation procedures,
+    else ``static``."""
+    terms = contract.get("terms") or []
+    if isinstance(terms, list) and "scale_matrix_lower_triangular" in terms:
+        return FitKind.SCALAR
+    if any(word in procedure for word in ("rate", "oscillation", "dynamic")):
+        return FitKind.DYNAMIC
+    return FitKind.STATIC
+
+
+class DbRunObserver(br.NullObserver):
+    """Writes runs, windows, chunks, progress, dwell and outcome to the database.
+
+    :param session_factory: ``db.engine.make_session_factory(engine)``.
+    :param min_progress_interval_s: progress (and heartbeat) written at most this often (s).
+    :param retries: attempts per event on ``OperationalError``; :param retry_wait_s: wait between them.
+    :param clock: monotonic clock (s), replaceable in tests.
+    """
+
+    def __init__(
+        self,
+        session_factory: sessionmaker[Session],
+        *,
+        min_progress_interval_s: float = 1.0,
+        retries: int = 3,
+        retry_wait_s: float = 0.5,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self._factory = session_factory
+        self._min_progress_interval_s = min_progress_interval_s
+        self._retries = max(1, retries)
+        self._retry_wait_s = retry_wait_s
+        self._clock = clock
+        self._last_progress: dict[str, float] = {}
+        self._first_chunk_pending: set[str] = set()
+
+    def _tx(self, fn: Callable[[Session], T]) -> T:
+        for attempt in range(1, self._retries + 1):
+            try:
+                with self._factory.begin() as session:
+                    return fn(session)
+            except OperationalError:
+                if attempt == self._retries:
+                    raise
+                time.sleep(self._retry_wait_s * attempt)
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    # -- RunObserver -----------------------------------------------------------------------
+
+    def on_start(self, start: br.RunStart) -> None:
+        """Create the run (fresh) or hand it to this process (resumed)."""
+        params: dict[str, Any] = {
+            **start.parameters,
+            "sample_rate_hz": start.sample_rate_hz,
+            "n_axes": start.n_axes,
+            "n_windows": start.n_windows,
+            "expected_duration_s": start.expected_duration_s,
+        }
+        if start.dwell is not None:
+            params["dwell"] = dataclasses.asdict(start.dwell)
+
+        def write(s: Session) -> None:
+            bench = units.get_or_create_bench(s, start.bench_name)
+            unit = units.get_or_create_unit(s, start.unit_serial, bench_id=bench.id)
+            run = s.get(Run, start.run_id, with_for_update=True)
+            if run is None:
+                runs.create_run(
+                    s,
+                    start.run_id,
+                    unit.id,
+                    start.procedure,
+                    bench_id=bench.id,
+                    params=params,
+                    recording_path=start.recording_path,
+                    state=RunState.RUNNING,
+                    owner_pid=start.pid,
+                    owner_host=start.host,
+                    now=start.started_at,
+                )
+                return
+            if run.state in FINAL_STATES:
+                raise ValueError(
+                    f"run {start.run_id} is {run.state.value}; a finished run cannot start again"
+                )
+            if run.unit_id != unit.id:
+                raise ValueError(f"run {start.run_id} belongs to another unit than {start.unit_serial}")
+            if run.state is RunState.INTERRUPTED:
+                run.resume_count += 1
+            run.state, run.owner_pid, run.owner_host = RunState.RUNNING, start.pid, start.host
+            run.heartbeat_at, run.error, run.bench_id = utc_now(), None, bench.id
+            run.started_at = run.started_at or start.started_at
+            run.params = {**run.params, **params}
+            run.recording_path = start.recording_path
+            s.flush()
+            if start.resumed_from_window is not None:
+                recovery.rewind_run(s, start.run_id, start.resumed_from_window)
+
+        self._tx(write)
+        self._first_chunk_pending.add(start.run_id)
+        self._last_progress.pop(start.run_id, None)
+
+    def on_state(self, run_id: str, change: br.StateChange) -> None:
+        """Pause, suspension, resumption; INTERRUPTED marks the run resumable."""
+        if change.state is br.RunState.INTERRUPTED:
+            self._tx(
+                lambda s: recovery.mark_run_interrupted(s, run_id, change.reason or "stopped", now=change.at)
+            )
+        elif change.state in _LIVE:
+            self._tx(lambda s: runs.set_live_state(s, run_id, _LIVE[change.state], now=change.at))
+
+    def on_progress(self, run_id: str, p: br.Progress) -> None:
+        """Progress fraction and heartbeat, at most every ``min_progress_interval_s``."""
+        now = self._clock()
+        last = self._last_progress.get(run_id)
+        if last is not None and now - last < self._min_progress_interval_s:
+            return
+        self._last_progress[run_id] = now
+        self._tx(lambda s: runs.heartbeat(s, run_id, progress=p.fraction))
+
+    def on_chunk(self, run_id: str, chunk: br.ChunkRecord) -> None:
+        """A durable chunk; the first one after a (re)start replaces stale rows from ``seq`` on."""
+        first = run_id in self._first_chunk_pending
+
+        def write(s: Session) -> None:
+            if first:
+                recovery.drop_chunks_from(s, run_id, chunk.seq)
+            progress.record_chunk(
+                s,
+                run_id,
+                chunk.seq,
+                first_sample=chunk.first_sample,
+                n_samples=chunk.n_samples,
+                last_t_s=chunk.last_t_s,
+                end_byte=chunk.end_byte,
+                window_index=chunk.window_index,
+            )
+            runs.heartbeat(s, run_id)
+
+        self._tx(write)
+        self._first_chunk_pending.discard(run_id)
+
+    def on_window(self, run_id: str, window: br.WindowRecord) -> None:
+        """A complete window; advances ``last_complete_window``."""
+        self._tx(lambda s: self._write_window(s, run_id, window))
+
+    @staticmethod
+    def _write_window(s: Session, run_id: str, w: br.WindowRecord) -> None:
+        means: dict[str, Any] = {**w.means, "table_deg": list(w.mean_table_deg), "temp_c": w.temp_c_mean}
+        progress.record_window(
+            s,
+            run_id,
+            w.index,
+            start_s=w.start_s,
+            end_s=w.end_s,
+            n_samples=w.n_samples,
+            label=w.label,
+            kind=w.kind.value,
+            pose_deg=w.pose_deg,
+            means=means,
+            step_index=w.step_index,
+        )
+
+    def on_dwell(self, run_id: str, dwell: br.DwellChoice) -> None:
+        """Store the dwell choice and its reason with the run's parameters."""
+        self._tx(lambda s: runs.merge_params(s, run_id, {"dwell": dataclasses.asdict(dwell)}))
+
+    def on_finish(self, record: br.RunRecord) -> None:
+        """Outcome, error, limit checks, any window not yet stored, and the fit."""
+        run_id = record.run_id
+
+        def write(s: Session) -> None:
+            stored = {w.index for w in progress.list_windows(s, run_id)}
+            for w in record.windows:
+                if w.index not in stored:
+                    self._write_window(s, run_id, w)
+            run = s.get(Run, run_id, with_for_update=True)
+            if run is None:
+                raise LookupError(f"run {run_id} was never started in the database")
+            run.n_samples = record.n_samples
+            run.limit_checks = [dataclasses.asdict(c) for c in record.limit_checks]
+            if record.dwell is not None:
+                run.params = {**run.params, "dwell": dataclasses.asdict(record.dwell)}
+            s.flush()
+            if record.state is not br.RunState.FINISHED:
+                recovery.mark_run_interrupted(s, run_id, record.error or "the run stopped before finishing")
+                return
+            runs.finish_run(
+                s,
+                run_id,
+                final_state(record.outcome),
+                outcome=record.outcome.value if record.outcome is not None else None,
+                error=record.error,
+                now=record.ended_at,
+            )
+            if record.calibration is not None:
+                contract = dict(record.calibration)
+                results.add_fit(s, run_id, fit_kind_for(run.procedure, contract), contract)
+
+        self._tx(write)
+        self._first_chunk_pending.discard(run_id)
+        self._last_progress.pop(run_id, None)

@@ -75,26 +75,29 @@ class DwellRecommendation:
 VarianceFn = Callable[[float], float]
 
 
-def _argmin_log(func: VarianceFn, lo_s: float, hi_s: float) -> float:
-    """τ in [lo, hi] minimising func(τ), by a grid in log τ refined with bounded Brent."""
+def _argmin_log(func: VarianceFn, lo_s: float, hi_s: float) -> tuple[float, bool]:
+    """τ in [lo, hi] minimising func(τ) (grid in log τ, refined with bounded Brent), and
+    whether the minimum is interior (False: at the upper end, still falling)."""
     grid = np.logspace(math.log10(lo_s), math.log10(hi_s), 400)
     values = np.array([func(t) for t in grid])
     i = int(np.argmin(values))
-    if i in (0, grid.size - 1):
-        return float(grid[i])
+    if i == grid.size - 1:
+        return hi_s, False
+    if i == 0:
+        return lo_s, True
     res = minimize_scalar(
         lambda u: func(math.exp(u)),
         bounds=(math.log(grid[i - 1]), math.log(grid[i + 1])),
         method="bounded",
         options={"xatol": 1e-10},
     )
-    return float(math.exp(res.x))
+    return float(math.exp(res.x)), True
 
 
 def _dwell_for_variance(f: VarianceFn, lo_s: float, hi_s: float, floor_var: float) -> tuple[float, bool, str]:
     """Dwell for a model variance function: (dwell_s, floor_reached, rule used)."""
-    t_star = _argmin_log(f, lo_s, hi_s)
-    if t_star < hi_s * (1 - 1e-9):
+    t_star, interior = _argmin_log(f, lo_s, hi_s)
+    if interior:
         return t_star, True, "minimum of the fitted Allan curve"
     if floor_var > 0 and f(hi_s) <= FLAT_FACTOR**2 * floor_var:
         grid = np.logspace(math.log10(lo_s), math.log10(hi_s), 2000)
@@ -103,7 +106,9 @@ def _dwell_for_variance(f: VarianceFn, lo_s: float, hi_s: float, floor_var: floa
     return hi_s, False, "still falling at the longest τ measured: the record is too short to show the floor"
 
 
-def channel_dwell(fit: NoiseTerms, channel: int, tau_lo_s: float, tau_hi_s: float) -> ChannelDwell:
+def channel_dwell(
+    fit: NoiseTerms, channel: int, tau_lo_s: float, tau_hi_s: float, name: str | None = None
+) -> ChannelDwell:
     """Dwell of one channel from its fitted noise terms, searched within [tau_lo_s, tau_hi_s]."""
     c2 = fit.coefficients**2
 
@@ -120,9 +125,8 @@ def channel_dwell(fit: NoiseTerms, channel: int, tau_lo_s: float, tau_hi_s: floa
         if above.size:
             white_dep = float(grid[above[0]])
     sigma = math.sqrt(var(dwell_s))
-    reason = (
-        f"channel {channel}: dwell {dwell_s:.3g} s, {rule}; the window mean then has noise σ_A = {sigma:.3g}"
-    )
+    label = name or f"channel {channel}"
+    reason = f"{label}: dwell {dwell_s:.3g} s, {rule}; the window mean then has noise σ_A = {sigma:.3g}"
     return ChannelDwell(channel, dwell_s, sigma, reached, white_dep, reason)
 
 
@@ -144,7 +148,7 @@ def recommend_dwell_s(
         raise ValueError(f"{len(fits)} noise fits for {result.n_channels} channels")
     names = channel_names or tuple(f"ch{c}" for c in range(result.n_channels))
     lo, hi = float(result.taus_s[0]), float(result.taus_s[-1])
-    per = tuple(channel_dwell(f, c, lo, hi) for c, f in enumerate(fits))
+    per = tuple(channel_dwell(f, c, lo, hi, names[c]) for c, f in enumerate(fits))
 
     def total_var(t: float) -> float:
         return float(sum(f.model_adev(np.array([t]))[0] ** 2 for f in fits))

@@ -189,7 +189,8 @@ def fit_noise_model_curve(
     al = _alpha_from_slope(t, s2) if alpha is None else np.asarray(alpha, dtype=np.int64)
     t, s2, nu, al = t[start:], s2[start:], nu[start:], al[start:]
     if t.size < len(active) + 1:
-        raise ValueError(f"{t.size} Allan points cannot determine {len(active)} noise terms")
+        rising = f" (the curve rises from τ0 to τ = {t[0]:.3g} s: is the stretch static?)" if start else ""
+        raise ValueError(f"{t.size} Allan points{rising} cannot determine {len(active)} noise terms")
     A = basis(t)[:, active]
     L = _ar1_cholesky(t, al)
     model = np.maximum(s2, np.max(s2) * 1e-300)

@@ -1,0 +1,263 @@
+"""``calbench allan REC.csv [--json] [--plot out.png] [--window-s START END]``.
+
+Allan deviation of a static stretch of a recording, the noise terms fitted to it and the
+dwell it recommends. The stretch is ``--window-s``, else the longest sidecar segment, else
+the longest static window found in the data, else the whole file (``--whole`` forces it).
+Channels in ``g`` are converted to m/s²; ``V`` and ``count`` stay in their own unit.
+Human output: a τ / σ_A table with intervals, the noise terms and the dwell. ``--json``:
+one object (fields in ``shared/cli-contract.md`` style). Bad input: exit 2, one line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from api.cli import BadInput
+from bench.estimation.allan import AllanResult, overlapping_allan
+from bench.estimation.dwell import DwellRecommendation, recommend_dwell_s
+from bench.estimation.noise_terms import NoiseTerms, fit_noise_model, slope_method
+from bench.estimation.windows import detect_static_windows
+from bench.recording import G0_M_S2, Recording, read_recording
+
+CHANNELS = ("ax", "ay", "az")
+NOISE_MODEL = "sigma^2(tau) = 3 Q^2/tau^2 + N^2/tau + (0.664 B)^2 + K^2 tau/3 + R^2 tau^2/2 (IEEE 952 C)"
+MAX_GAP_FACTOR = 1.5
+"""A step between time stamps longer than this many sample periods is a gap."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``calbench allan``."""
+    parser.add_argument("recording", type=Path, help="recording CSV (the sidecar JSON is found by stem)")
+    parser.add_argument("--json", action="store_true", help="print the machine-readable result")
+    parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png", help="write a log-log plot")
+    parser.add_argument(
+        "--window-s",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("START", "END"),
+        help="analyse START ≤ t ≤ END (s)",
+    )
+    parser.add_argument("--whole", action="store_true", help="analyse the whole file")
+    parser.add_argument("--taus", choices=("octave", "decade", "all"), default="octave", help="τ grid")
+
+
+def _unit_and_data(rec: Recording) -> tuple[str, np.ndarray]:
+    unit = rec.sidecar.channel_unit
+    if unit == "g":
+        return "m/s2", rec.accel_raw * G0_M_S2
+    return unit, rec.accel_raw
+
+
+def select_stretch(rec: Recording, window_s: list[float] | None, whole: bool) -> tuple[slice, str]:
+    """Sample slice to analyse and a description of where it came from."""
+    t = rec.t_s
+    if window_s is not None:
+        start, end = window_s
+        if not (math.isfinite(start) and math.isfinite(end) and start < end):
+            raise BadInput(f"--window-s: need finite START < END, got {start} {end}")
+        idx = np.flatnonzero((t >= start) & (t <= end))
+        if idx.size < 3:
+            raise BadInput(
+                f"{rec.source}: --window-s {start:g} {end:g} holds {idx.size} samples "
+                f"(recording spans {t[0]:g} to {t[-1]:g} s); need at least 3"
+            )
+        return slice(int(idx[0]), int(idx[-1]) + 1), f"--window-s {start:g} {end:g}"
+    if whole:
+        return slice(0, t.size), "whole file"
+    if rec.sidecar.segments:
+        seg = max(rec.sidecar.segments, key=lambda s: s.end_s - s.start_s)
+        idx = np.flatnonzero((t >= seg.start_s) & (t <= seg.end_s))
+        if idx.size >= 3:
+            return slice(int(idx[0]), int(idx[-1]) + 1), f"longest segment {seg.label or '(unlabelled)'}"
+    table = rec.table_rad_unwrapped()
+    try:
+        windows = detect_static_windows(t, rec.accel_raw, table)
+    except ValueError:
+        windows = []
+    if windows:
+        w = max(windows, key=lambda w: w.stop - w.start)
+        if w.stop - w.start >= 3:
+            return w.slice, "longest static window found in the data"
+    return slice(0, t.size), "whole file (no static window found)"
+
+
+def _check_even_spacing(rec: Recording, sl: slice) -> None:
+    t = rec.t_s[sl]
+    period = 1.0 / rec.sidecar.sample_rate_hz
+    steps = np.diff(t)
+    bad = np.flatnonzero(steps > MAX_GAP_FACTOR * period)
+    if bad.size:
+        i = int(bad[0])
+        raise BadInput(
+            f"{rec.source}: gap of {steps[i]:.6g} s after t = {t[i]:.6g} s (sample period {period:.6g} s); "
+            "the Allan deviation needs evenly spaced samples: choose --window-s on one side of it"
+        )
+
+
+def _clean(x: Any) -> Any:
+    """NaN/inf to None, numpy to Python, recursively (JSON has no NaN)."""
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_clean(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _clean(x.tolist())
+    if isinstance(x, float | np.floating):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def noise_units(u: str) -> dict[str, str]:
+    """Units of the noise terms for data in unit u."""
+    return {
+        "quantization_q": f"{u}*s",
+        "white_n": f"{u}*sqrt(s)",
+        "bias_instability_b": u,
+        "rate_random_walk_k": f"{u}/sqrt(s)",
+        "rate_ramp_r": f"{u}/s",
+    }
+
+
+def to_json(
+    rec: Recording,
+    unit: str,
+    source: str,
+    sl: slice,
+    r: AllanResult,
+    fits: tuple[NoiseTerms, ...],
+    slopes: tuple[NoiseTerms, ...],
+    dwell: DwellRecommendation,
+) -> dict[str, Any]:
+    """The ``--json`` object."""
+    by_ch = dict(zip(CHANNELS, range(3), strict=True))
+    return _clean(
+        {
+            "unit": rec.sidecar.unit_serial,
+            "channel_unit": rec.sidecar.channel_unit,
+            "adev_unit": unit,
+            "sample_rate_hz": rec.sidecar.sample_rate_hz,
+            "window": {
+                "source": source,
+                "start_s": float(rec.t_s[sl][0]),
+                "end_s": float(rec.t_s[sl][-1]),
+                "n_samples": r.n_samples,
+            },
+            "ci_level": r.ci_level,
+            "taus_s": r.taus_s,
+            "adev": {n: r.adev[:, c] for n, c in by_ch.items()},
+            "adev_lo": {n: r.adev_lo[:, c] for n, c in by_ch.items()},
+            "adev_hi": {n: r.adev_hi[:, c] for n, c in by_ch.items()},
+            "edf": {n: r.edf[:, c] for n, c in by_ch.items()},
+            "noise_terms": {
+                "model": NOISE_MODEL,
+                "units": noise_units(unit),
+                "channels": {n: fits[c].as_dict() for n, c in by_ch.items()},
+                "slope_method": {n: slopes[c].as_dict() for n, c in by_ch.items()},
+            },
+            "dwell": {
+                "dwell_s": dwell.dwell_s,
+                "floor_reached": dwell.floor_reached,
+                "reason": dwell.reason,
+                "per_channel": {
+                    CHANNELS[p.channel]: {
+                        "dwell_s": p.dwell_s,
+                        "adev_at_dwell": p.adev_at_dwell,
+                        "floor_reached": p.floor_reached,
+                        "white_departure_s": p.white_departure_s,
+                        "reason": p.reason,
+                    }
+                    for p in dwell.per_channel
+                },
+            },
+        }
+    )
+
+
+def _pm(value: float, sigma: float) -> str:
+    if not math.isfinite(value):
+        return "—"
+    if value == 0.0:
+        return f"0 (< {sigma:.2g})"
+    return f"{value:.4g} ± {sigma:.2g}"
+
+
+def format_human(
+    rec: Recording,
+    unit: str,
+    source: str,
+    sl: slice,
+    r: AllanResult,
+    fits: tuple[NoiseTerms, ...],
+    dwell: DwellRecommendation,
+) -> str:
+    """Readable report: τ table with intervals, noise terms, dwell."""
+    t = rec.t_s[sl]
+    lines = [
+        f"{rec.sidecar.unit_serial}: Allan deviation of {r.n_samples} samples at {r.sample_rate_hz:g} Hz, "
+        f"t = {t[0]:g} to {t[-1]:g} s ({source}); unit {unit}; intervals {100 * r.ci_level:.0f} % (χ², edf)",
+        "",
+        f"{'tau (s)':>10}" + "".join(f"  {n + ' [lo, hi]':<34}" for n in CHANNELS),
+    ]
+    for k, tau in enumerate(r.taus_s):
+        row = f"{tau:>10.4g}"
+        for c in range(3):
+            row += f"  {r.adev[k, c]:<10.4g} [{r.adev_lo[k, c]:.3g}, {r.adev_hi[k, c]:.3g}]".ljust(36)
+        lines.append(row)
+    units = noise_units(unit)
+    lines += ["", f"noise terms (fit of {NOISE_MODEL}):"]
+    names = {
+        "white_n": "N white / velocity random walk",
+        "bias_instability_b": "B bias instability",
+        "rate_random_walk_k": "K rate random walk",
+        "quantization_q": "Q quantisation",
+        "rate_ramp_r": "R rate ramp",
+    }
+    for key, label in names.items():
+        vals = "".join(f"{_pm(getattr(f, key), getattr(f, key + '_sigma')):>24}" for f in fits)
+        lines.append(f"  {label:<32}{vals}   {units[key]}")
+    lines.append(f"  {'chi2/dof':<32}" + "".join(f"{f.chi2_dof:>24.3g}" for f in fits))
+    lines += ["", dwell.reason, *[f"  {p.reason}" for p in dwell.per_channel]]
+    if not dwell.floor_reached:
+        lines.append("the noise floor was not reached: record a longer static stretch to find it")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Analyse one recording and print the result."""
+    path: Path = args.recording
+    if not path.is_file():
+        raise BadInput(f"{path}: no such recording file")
+    rec = read_recording(path)
+    sl, source = select_stretch(rec, args.window_s, args.whole)
+    _check_even_spacing(rec, sl)
+    unit, data = _unit_and_data(rec)
+    n = sl.stop - sl.start
+    if n < 16:
+        raise BadInput(
+            f"{path}: the analysed stretch ({source}) has {n} samples; the noise fit needs at least 16"
+        )
+    r = overlapping_allan(data[sl], rec.sidecar.sample_rate_hz, args.taus)
+    if r.taus_s.size < 6:
+        raise BadInput(f"{path}: {n} samples give only {r.taus_s.size} τ values; the noise fit needs 6")
+    fits = fit_noise_model(r)
+    slopes = slope_method(r)
+    dwell = recommend_dwell_s(r, fits, CHANNELS)
+    if args.plot is not None:
+        from api.plots.allan import allan_figure, save_allan_png
+
+        title = f"{rec.sidecar.unit_serial}: {path.name}, {source}"
+        save_allan_png(allan_figure(r, CHANNELS, unit, fits, dwell, title), args.plot)
+    if args.json:
+        print(json.dumps(to_json(rec, unit, source, sl, r, fits, slopes, dwell)))
+    else:
+        print(format_human(rec, unit, source, sl, r, fits, dwell))
+    return 0

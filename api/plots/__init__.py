@@ -1,0 +1,1 @@
+"""Plots for the CLI and the dashboard (matplotlib, Agg canvas)."""

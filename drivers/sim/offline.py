@@ -71,7 +71,7 @@ class SimulatedRun:
     bias_wander_m_s2: FloatArray
 
     def bias_seen(self) -> FloatArray:
-        """(3,) the bias this run's windows saw: truth.bias + diag(K)·(mean bias wander over the windows).
+        """(3,) the bias this run's windows saw: truth.bias + K·(mean bias wander over the windows).
 
         The slow wander's mean over a run cannot be told from the bias by any single run;
         a calibration of this run estimates this value, not ``truth.bias`` alone.
@@ -80,7 +80,7 @@ class SimulatedRun:
         for a, b, _ in self.segments:
             inside |= (self.t_s >= a) & (self.t_s <= b)
         wander = self.bias_wander_m_s2[inside].mean(axis=0) if inside.any() else np.zeros(3)
-        return np.asarray(self.truth.bias + np.diag(self.truth.K) * wander, dtype=float)
+        return np.asarray(self.truth.bias + self.truth.K @ wander, dtype=float)
 
 
 class _Timeline:
@@ -260,7 +260,7 @@ def simulate_oscillation(
     duration_s: float = 90.0,
     period_short_s: float = 12.0,
     amplitudes_deg: tuple[float, float] = (360.0, 90.0),
-    centre_deg: tuple[float, float, float] = (0.0, 90.0, 0.0),
+    centre_deg: tuple[float, float, float] = (0.0, 90.0, 55.0),
     lead_s: float = 10.0,
     move_rate_deg_s: float = 30.0,
     move_accel_deg_s2: float = 60.0,
@@ -268,11 +268,13 @@ def simulate_oscillation(
     """Two-axis quasi-harmonic oscillation (``oscillation-2axis``), after DESIGN.md.
 
     The inner axis oscillates with amplitude ``amplitudes_deg[0]`` and period T1, the middle
-    axis with ``amplitudes_deg[1]`` and T2 = ``period_short_s``; 2·T1 = 5·T2. Both start at
-    a turning point, θ = c + A·cos(2π·τ/T), so rates are continuous. About the middle
-    centre of 90° the gravity vector sweeps the whole sphere of the sensor frame. One
-    static window of ``lead_s`` at the centre pose precedes the oscillation window.
-    ``duration_s`` is a whole number of T1 (both axes then end at rest at a turning point).
+    axis with ``amplitudes_deg[1]`` and T2 = ``period_short_s``; 2·T1 = 5·T2. Each starts
+    at a turning point, θ = c + A·cos(2π·(t − t0)/T), so rates are continuous; the inner
+    starts T1/24 (15° of its phase) after the middle. With these phases and the centres
+    (middle 90°, inner 55°) gravity reaches beyond ±0.9 g on every sensor axis. The
+    window ``oscillation`` spans ``duration_s`` (a whole number of T1) with both axes
+    moving; a static window of ``lead_s`` at the centre pose precedes it. Afterwards the
+    middle axis finishes its half period and both end at rest.
     """
     if physics.axis_vectors.shape[0] != 3:
         raise ValueError("simulate_oscillation needs a three-axis table (outer, middle, inner)")
@@ -291,15 +293,16 @@ def simulate_oscillation(
     tl.hold(lead_s + 1.0)
     tl.move_to([c[0], c[1] + a2, c[2] + a1], math.radians(move_rate_deg_s), math.radians(move_accel_deg_s2))
     tl.hold(1.0)
-    start = tl.t_s
+    lag = t1 / 24.0
+    middle_s = math.ceil((lag + duration_s) / (0.5 * t2) - 1e-9) * 0.5 * t2  # ends at a turning point
+    start = tl.t_s + lag
     half_pi = 0.5 * math.pi
-    osc = {
-        1: Oscillation(c[1], a2, t2, duration_s, phase_rad=half_pi),
-        2: Oscillation(c[2], a1, t1, duration_s, phase_rad=half_pi),
-    }
-    for i in range(3):
-        tl._push(i, osc.get(i) or Hold(tl.angles[i], duration_s))
-    tl.t_s += duration_s
+    tl._push(0, Hold(tl.angles[0], middle_s))
+    tl._push(1, Oscillation(c[1], a2, t2, middle_s, phase_rad=half_pi))
+    tl._push(2, Hold(tl.angles[2], lag))
+    tl._push(2, Oscillation(c[2], a1, t1, duration_s, phase_rad=half_pi))
+    tl._push(2, Hold(tl.angles[2], middle_s - lag - duration_s))
+    tl.t_s += middle_s
     windows.append((start, start + duration_s, "oscillation"))
     tl.rates = [0.0, 0.0, 0.0]
     tl.hold(1.0)

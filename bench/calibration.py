@@ -141,21 +141,31 @@ def _where(rec: Recording) -> str:
     return rec.source or "recording"
 
 
+def _window_angles(table_deg: FloatArray, w: StaticWindow) -> tuple[FloatArray, FloatArray]:
+    """Mean encoder angles (rad) of a window and their span (rad), robust to wrapping.
+
+    Angles are taken relative to the window's first sample and wrapped to (−180°, 180°]
+    before averaging, so a window at the ±180° wrap averages correctly.
+    """
+    q = np.ascontiguousarray(table_deg[w.start : w.stop].T)  # (k, n): fast reductions along time
+    d = (q - q[:, :1] + 180.0) % 360.0 - 180.0
+    return np.deg2rad(q[:, 0] + d.mean(axis=1)), np.deg2rad(d.max(axis=1) - d.min(axis=1))
+
+
 def select_windows(rec: Recording) -> list[StaticWindow]:
     """Static windows of a recording: its still segments, or detected ones without segments.
 
     :raises ValueError: no usable static window.
     """
-    q = rec.table_rad_unwrapped()
     if rec.sidecar.segments:
         wins = windows_from_segments(rec.t_s, rec.sidecar.segments)
-        if q is not None:
-            wins = [w for w in wins if np.all(np.ptp(q[w.start : w.stop], axis=0) <= MAX_TABLE_MOTION_RAD)]
+        if rec.table_deg is not None:
+            wins = [w for w in wins if np.all(_window_angles(rec.table_deg, w)[1] <= MAX_TABLE_MOTION_RAD)]
         elif any(w.nominal_up is not None for w in wins):
             # a hand-held session names the pose of each static window; the others are motions
             wins = [w for w in wins if w.nominal_up is not None]
     else:
-        wins = detect_static_windows(rec.t_s, rec.accel_raw, q)
+        wins = detect_static_windows(rec.t_s, rec.accel_raw, rec.table_rad_unwrapped())
     wins = [w for w in wins if w.stop - w.start >= MIN_WINDOW_SAMPLES]
     if not wins:
         raise ValueError(f"{_where(rec)}: no static window with at least {MIN_WINDOW_SAMPLES} samples")
@@ -167,8 +177,7 @@ def _specific_force(rec: Recording, wins: list[StaticWindow]) -> FloatArray | No
     g = rec.sidecar.g_local_m_s2
     table = rec.sidecar.table
     if table is not None and rec.table_deg is not None:
-        q = np.deg2rad(rec.table_deg)
-        qm = np.array([np.arctan2(np.sin(q[w.slice]).mean(0), np.cos(q[w.slice]).mean(0)) for w in wins])
+        qm = np.array([_window_angles(rec.table_deg, w)[0] for w in wins])
         return static_specific_force(attitude(table.axis_vectors, qm, table.mount_matrix), g)
     if all(w.nominal_up in _AXES for w in wins):
         f = np.zeros((len(wins), 3))

@@ -159,7 +159,9 @@ def test_records_round_trip_with_fewer_axes_and_nan_temperature() -> None:
     n = 50
     accel = rng.normal(1.5, 0.5, (n, 3))
     enc = rng.uniform(-180, 180, (n, 2))
-    words = reg.encode_records(np.arange(65530, 65530 + n), accel, np.full(n, np.nan), enc, np.zeros(n))
+    words = reg.encode_records(
+        np.arange(65530, 65530 + n), accel, np.full(n, np.nan), enc, np.zeros(n, dtype=np.uint16)
+    )
     assert words.shape == (n * reg.RECORD_WORDS,)
     rec = reg.decode_records(words, n_axes=2)
     assert rec.seq16.tolist() == [(65530 + i) & 0xFFFF for i in range(n)]  # wraps at 16 bits

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 
+from drivers.base import SampleBlock
 from drivers.errors import DataGap, DeviceError, DeviceTimeout, LinkLost
 from drivers.modbus_daq import ModbusDaq
 from drivers.sim.physics import NoiseSpec, SensorTruth
@@ -82,7 +83,7 @@ def test_open_circuit_is_flagged_in_the_block_and_the_status() -> None:
         assert rig.daq.read_block(1000, timeout_s=1.0).flags == ()
         rig.server.set_open_circuit(2)
         time.sleep(0.05)
-        blocks = []
+        blocks: list[SampleBlock] = []
         while not blocks or blocks[-1].flags == ():
             blocks.append(rig.daq.read_block(1000, timeout_s=1.0))
         flagged = blocks[-1]

@@ -42,7 +42,7 @@ def assert_mean_is(accel: np.ndarray, f_sensor: np.ndarray) -> None:
 
 @pytest.fixture
 def bench() -> Iterator[BenchDevices]:
-    devices = open_bench("sim://?speed=20&rate=200&seed=1", truth=TRUTH)
+    devices = open_bench("sim://?speed=10&rate=200&seed=1", truth=TRUTH)
     yield devices
     devices.close()
 
@@ -54,7 +54,7 @@ def test_open_bench_gives_the_real_drivers_on_loopback(bench: BenchDevices) -> N
     assert bench.sim.table_url.startswith("socket://127.0.0.1:")
     assert bench.sim.daq_url.startswith("modbus-tcp://127.0.0.1:")
     assert bench.daq.sample_rate_hz == 200.0 and bench.daq.channel_unit == "V"
-    assert bench.sim.clock.speed == 20.0
+    assert bench.sim.clock.speed == 10.0
     np.testing.assert_array_equal(bench.sim.geometry.lever_arm_m, [0.0, 0.0, 0.0])
 
 

@@ -100,7 +100,7 @@ class NoiseStream:
         if n == 0:
             return white, out
         first = self._t_last is None
-        dt = np.diff(t, prepend=t[0] if first else self._t_last)
+        dt = np.diff(t, prepend=t[0] if self._t_last is None else self._t_last)
         spec = self.spec
         if spec.white_m_s2_rt_hz > 0:
             if self._rate_hz is None:

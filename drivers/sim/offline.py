@@ -86,7 +86,7 @@ class SimulatedRun:
 class _Timeline:
     """Builds a table profile axis by axis in lockstep (every step lasts the same on all axes)."""
 
-    def __init__(self, start_rad: Sequence[float]) -> None:
+    def __init__(self, start_rad: Sequence[float] | FloatArray) -> None:
         self.segments: list[list[Segment]] = [[] for _ in start_rad]
         self.angles = [float(a) for a in start_rad]
         self.rates = [0.0 for _ in start_rad]
@@ -236,7 +236,7 @@ def simulate_rate_steps(
     if any(abs(r) > 200.0 for r in rates_deg_s):
         raise ValueError(f"rates_deg_s must stay within ±200 °/s, got {list(rates_deg_s)}")
     first = poses_deg[0]
-    tl = _Timeline(np.deg2rad([0.0, first[0], first[1]]))
+    tl = _Timeline([0.0, math.radians(first[0]), math.radians(first[1])])
     windows: list[tuple[float, float, str]] = []
     accel = math.radians(accel_deg_s2)
     for j, (middle, inner) in enumerate(poses_deg):

@@ -28,6 +28,7 @@ import numpy as np
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
+from drivers import daq_blocks as blk
 from drivers import daq_registers as reg
 from drivers.base import SampleBlock
 from drivers.errors import DataGap, DeviceError, DeviceTimeout, DriverError, LinkLost, ProtocolError
@@ -153,7 +154,7 @@ class ModbusDaq:
         if not self._started:
             raise DriverError(f"{self._where}: read_block before start()")
         deadline = time.monotonic() + timeout_s
-        parts: list[reg.DecodedRecords] = []
+        parts: list[blk.DecodedRecords] = []
         first_seq = self._next_seq
         got = 0
         while got < max_samples:
@@ -214,7 +215,7 @@ class ModbusDaq:
         self.close()
 
     # -- block reading -------------------------------------------------------------
-    def _read_window(self, want: int, deadline: float) -> tuple[int, reg.DecodedRecords]:
+    def _read_window(self, want: int, deadline: float) -> tuple[int, blk.DecodedRecords]:
         """Window at ``self._next_seq``: (samples available in it, the first ``want`` decoded)."""
         expected = self._next_seq
         n_first = reg.WINDOW_HEADER_REGS + _FIRST_READ_RECORDS * reg.RECORD_WORDS
@@ -232,7 +233,7 @@ class ModbusDaq:
             deadline,
         )
         try:
-            header = reg.decode_window_header(regs[: reg.WINDOW_HEADER_REGS])
+            header = blk.decode_window_header(regs[: reg.WINDOW_HEADER_REGS])
         except ValueError as exc:
             raise ProtocolError(f"{self._where}: HR {reg.HR_WINDOW}: {exc}", str(regs[:4])) from None
         first = reg.unwrap_seq(header.first_seq32, expected)
@@ -243,9 +244,9 @@ class ModbusDaq:
         words = regs[reg.WINDOW_HEADER_REGS :]
         need = n * reg.RECORD_WORDS
         start = reg.HR_RECORDS + len(words)
-        for address, count in reg.read_spans(start, max(0, need - len(words))):
+        for address, count in blk.read_spans(start, max(0, need - len(words))):
             words += self._read(address, count, deadline)
-        records = reg.decode_records(words[:need], self._stream.n_axes)
+        records = blk.decode_records(words[:need], self._stream.n_axes)
         expect16 = (expected + np.arange(n)) & 0xFFFF
         if not np.array_equal(records.seq16, expect16):
             raise ProtocolError(
@@ -253,7 +254,7 @@ class ModbusDaq:
             )
         return header.n_valid, records
 
-    def _block(self, first_seq: int, parts: list[reg.DecodedRecords]) -> SampleBlock:
+    def _block(self, first_seq: int, parts: list[blk.DecodedRecords]) -> SampleBlock:
         n_axes = self._stream.n_axes
         if parts:
             accel = np.concatenate([p.accel for p in parts])
@@ -277,10 +278,10 @@ class ModbusDaq:
     def _deadline(self) -> float:
         return time.monotonic() + self.timeout_s
 
-    def _read_stream_status(self, deadline: float) -> reg.StreamStatus:
+    def _read_stream_status(self, deadline: float) -> blk.StreamStatus:
         regs = self._read(reg.HR_SAMPLE_COUNTER, reg.STREAM_STATUS_REGS, deadline)
         try:
-            return reg.decode_stream_status(regs)
+            return blk.decode_stream_status(regs)
         except ValueError as exc:
             raise ProtocolError(f"{self._where}: stream status HR 400-413: {exc}", str(regs)) from None
 

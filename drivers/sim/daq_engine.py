@@ -27,6 +27,7 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
+from drivers import daq_blocks as blk
 from drivers import daq_registers as reg
 
 FloatArray = npt.NDArray[np.float64]
@@ -265,7 +266,7 @@ class DaqEngine:
             n = int(breaks[0]) + 1 if breaks.size else run.shape[0]
             base = self._stored - ordered.shape[0]
             pos = (base + i0 + np.arange(n)) % self.capacity
-            regs = reg.encode_records(
+            regs = blk.encode_records(
                 self._seq[pos], self._accel[pos], self._temp[pos], self._enc[pos], self._status[pos]
             )
             return Window(int(run[0]), regs, n)

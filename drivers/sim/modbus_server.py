@@ -27,6 +27,7 @@ from pymodbus.constants import ExcCodes
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from drivers import daq_blocks as blk
 from drivers import daq_registers as reg
 from drivers.sim.daq_engine import DaqEngine
 
@@ -250,7 +251,7 @@ class DaqServer:
         counter = self.engine.counter
         from_seq = reg.unwrap_seq(from_seq32, counter)
         win = self.engine.window(from_seq)
-        header = reg.encode_window_header(win.first_seq, win.n)
+        header = blk.encode_window_header(win.first_seq, win.n)
         o = reg.HR_WINDOW - base
         registers[o : o + reg.WINDOW_HEADER_REGS] = header
         o = reg.HR_RECORDS - base
@@ -279,8 +280,8 @@ class DaqServer:
             registers[reg.HR_TYPE_CODE + c - base] = code
         o = reg.HR_TEMPERATURE - base
         registers[o : o + 2] = reg.f32_to_regs(latest.temp_c)
-        status_block = reg.encode_stream_status(
-            reg.StreamStatus(
+        status_block = blk.encode_stream_status(
+            blk.StreamStatus(
                 counter32=engine.counter,
                 oldest32=engine.oldest_seq,
                 sample_rate_hz=engine.sample_rate_hz,

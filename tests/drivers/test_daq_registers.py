@@ -14,6 +14,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from pymodbus.client import ModbusTcpClient
 
+from drivers import daq_blocks as blk
 from drivers import daq_registers as reg
 
 DT = ModbusTcpClient.DATATYPE
@@ -133,7 +134,7 @@ def test_sequence_unwrap_across_the_32_bit_wrap() -> None:
 
 # -- buffered records -----------------------------------------------------------------------
 def test_record_message_pair() -> None:
-    words = reg.encode_records(
+    words = blk.encode_records(
         seq=np.array([0x12345]),
         accel=np.array([[1.0, -2.5, 0.0]]),
         temp_c=np.array([25.0]),
@@ -146,7 +147,7 @@ def test_record_message_pair() -> None:
         0x41C8, 0x0000,
         0x055D, 0x4A80, 0xF545, 0x6B00, 0xF5DE, 0x0180,
     ]  # fmt: skip
-    rec = reg.decode_records(words, n_axes=3)
+    rec = blk.decode_records(words, n_axes=3)
     assert rec.seq16.tolist() == [0x2345]
     assert rec.status.tolist() == [0x100]
     assert rec.accel.tolist() == [[1.0, -2.5, 0.0]]
@@ -159,11 +160,11 @@ def test_records_round_trip_with_fewer_axes_and_nan_temperature() -> None:
     n = 50
     accel = rng.normal(1.5, 0.5, (n, 3))
     enc = rng.uniform(-180, 180, (n, 2))
-    words = reg.encode_records(
+    words = blk.encode_records(
         np.arange(65530, 65530 + n), accel, np.full(n, np.nan), enc, np.zeros(n, dtype=np.uint16)
     )
     assert words.shape == (n * reg.RECORD_WORDS,)
-    rec = reg.decode_records(words, n_axes=2)
+    rec = blk.decode_records(words, n_axes=2)
     assert rec.seq16.tolist() == [(65530 + i) & 0xFFFF for i in range(n)]  # wraps at 16 bits
     np.testing.assert_allclose(rec.accel, accel, rtol=2**-24)
     np.testing.assert_allclose(rec.encoder_deg, enc, atol=0.5e-6 + 1e-9)
@@ -173,26 +174,26 @@ def test_records_round_trip_with_fewer_axes_and_nan_temperature() -> None:
 
 def test_decode_rejects_partial_records_and_bad_words() -> None:
     with pytest.raises(ValueError, match="multiple of 16"):
-        reg.decode_records([0] * 17, n_axes=3)
+        blk.decode_records([0] * 17, n_axes=3)
     with pytest.raises(ValueError, match=r"0\.\.65535"):
-        reg.decode_records([70000] + [0] * 15, n_axes=3)
+        blk.decode_records([70000] + [0] * 15, n_axes=3)
     with pytest.raises(ValueError, match="encoder axes"):
-        reg.decode_records([0] * 16, n_axes=4)
+        blk.decode_records([0] * 16, n_axes=4)
 
 
 # -- window header, stream status, read plan ------------------------------------------------
 def test_window_header_message_pair() -> None:
-    assert reg.encode_window_header((1 << 32) + 7, 120) == [0, 7, 120, 16]
-    h = reg.decode_window_header([0x0001, 0x0002, 5, 16])
+    assert blk.encode_window_header((1 << 32) + 7, 120) == [0, 7, 120, 16]
+    h = blk.decode_window_header([0x0001, 0x0002, 5, 16])
     assert (h.first_seq32, h.n_valid, h.record_words) == (0x10002, 5, 16)
     with pytest.raises(ValueError, match="record size 8"):
-        reg.decode_window_header([0, 0, 5, 8])
+        blk.decode_window_header([0, 0, 5, 8])
     with pytest.raises(ValueError, match="capacity"):
-        reg.decode_window_header([0, 0, 121, 16])
+        blk.decode_window_header([0, 0, 121, 16])
 
 
 def test_stream_status_message_pair() -> None:
-    s = reg.StreamStatus(
+    s = blk.StreamStatus(
         counter32=70000,
         oldest32=61808,
         sample_rate_hz=1000.0,
@@ -202,15 +203,15 @@ def test_stream_status_message_pair() -> None:
         channel_unit=reg.ChannelUnit.G,
         full_scale=6.0,
     )
-    words = reg.encode_stream_status(s)
+    words = blk.encode_stream_status(s)
     assert words == [0x0001, 0x1170, 0x0000, 0xF170, 0x447A, 0x0000, 8192, 16, 120, 3, 1, 3, 0x40C0, 0x0000]
-    assert reg.decode_stream_status(words) == s
+    assert blk.decode_stream_status(words) == s
     bad_unit = [*words[:11], 9, *words[12:]]
     with pytest.raises(ValueError, match="HR 411"):
-        reg.decode_stream_status(bad_unit)
+        blk.decode_stream_status(bad_unit)
     zero_rate = [*words[:4], 0, 0, *words[6:]]
     with pytest.raises(ValueError, match="HR 404"):
-        reg.decode_stream_status(zero_rate)
+        blk.decode_stream_status(zero_rate)
 
 
 def test_channel_unit_codes() -> None:
@@ -220,9 +221,9 @@ def test_channel_unit_codes() -> None:
 
 
 def test_read_plan_respects_the_modbus_limit() -> None:
-    assert reg.read_spans(504, 300) == [(504, 125), (629, 125), (754, 50)]
-    assert reg.read_spans(504, 0) == []
-    spans = reg.read_spans(reg.HR_RECORDS, reg.WINDOW_CAPACITY * reg.RECORD_WORDS)
+    assert blk.read_spans(504, 300) == [(504, 125), (629, 125), (754, 50)]
+    assert blk.read_spans(504, 0) == []
+    spans = blk.read_spans(reg.HR_RECORDS, reg.WINDOW_CAPACITY * reg.RECORD_WORDS)
     assert all(c <= reg.MAX_READ_REGS for _, c in spans)
     assert sum(c for _, c in spans) == reg.WINDOW_CAPACITY * reg.RECORD_WORDS
     assert reg.HR_END <= 0xFFFF

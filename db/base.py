@@ -26,7 +26,7 @@ NAMING_CONVENTION: dict[str, str] = {
 
 
 class Base(DeclarativeBase):
-    """Base class: naming convention, type map, an integer ``id`` and a ``created_at``."""
+    """Base class: naming convention, type map and a ``created_at`` (UTC) on every table."""
 
     metadata = sa.MetaData(naming_convention=NAMING_CONVENTION)
     type_annotation_map: ClassVar[dict[Any, Any]] = {
@@ -35,7 +35,12 @@ class Base(DeclarativeBase):
         list[Any]: sa.JSON(),
     }
 
-    id: Mapped[int] = mapped_column(sa.Integer, primary_key=True, autoincrement=True, sort_order=-1)
     created_at: Mapped[dt.datetime] = mapped_column(
         default=utc_now, server_default=sa.func.current_timestamp()
     )
+
+
+class IntId:
+    """Mixin: an autoincrement integer primary key ``id``."""
+
+    id: Mapped[int] = mapped_column(sa.Integer, primary_key=True, autoincrement=True, sort_order=-1)

@@ -11,7 +11,7 @@ import numpy.typing as npt
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
-from db.base import Base
+from db.base import Base, IntId
 from db.models._enum import value_enum
 from db.models.runs import Run
 from db.models.units import Unit
@@ -26,7 +26,7 @@ class FitKind(enum.Enum):
     DYNAMIC = "dynamic"
 
 
-class FitModel(Base):
+class FitModel(IntId, Base):
     """A fitted sensor model.
 
     :param contract: the ``calbench calibrate --json`` object (``shared/cli-contract.md``):
@@ -49,7 +49,7 @@ class FitModel(Base):
     run: Mapped[Run] = relationship(lazy="raise")
 
 
-class Finding(Base):
+class Finding(IntId, Base):
     """One finding of ``calbench diagnose``: an effect id of the catalogue and its fit.
 
     :param parameters, sigma: the effect's parameters and their 1-sigma uncertainties,
@@ -72,7 +72,7 @@ class Finding(Base):
     run: Mapped[Run] = relationship(lazy="raise")
 
 
-class Certificate(Base):
+class Certificate(IntId, Base):
     """An issued calibration certificate.
 
     The number is ``CB-<year>-<serial:05d>``: ``(year, serial)`` is unique, and the issuer
@@ -102,7 +102,7 @@ class Certificate(Base):
     unit: Mapped[Unit] = relationship(lazy="raise")
 
 
-class DriftCheck(Base):
+class DriftCheck(IntId, Base):
     """A re-measurement of a unit compared with its reference certificate.
 
     :param result: per-parameter differences and their combined uncertainties (JSON).

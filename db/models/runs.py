@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
-from db.base import Base
+from db.base import Base, IntId
 from db.models._enum import value_enum
 
 if TYPE_CHECKING:
@@ -104,7 +104,7 @@ class Run(Base):
     )
 
 
-class RunWindow(Base):
+class RunWindow(IntId, Base):
     """A completed window of a run.
 
     :param index: 0-based window index within the run (unique per run).
@@ -133,7 +133,7 @@ class RunWindow(Base):
     run: Mapped[Run] = relationship(back_populates="windows", lazy="raise")
 
 
-class SampleChunk(Base):
+class SampleChunk(IntId, Base):
     """A chunk of samples flushed (and fsynced) to the run's recording CSV.
 
     :param seq: 0-based chunk number within the run (unique per run).

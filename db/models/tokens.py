@@ -8,7 +8,7 @@ import enum
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column
 
-from db.base import Base
+from db.base import Base, IntId
 from db.models._enum import value_enum
 
 
@@ -20,7 +20,7 @@ class TokenRole(enum.Enum):
     ADMIN = "admin"
 
 
-class ApiToken(Base):
+class ApiToken(IntId, Base):
     """A bearer token: its role, the hex SHA-256 of the secret, a label, and revocation."""
 
     __tablename__ = "api_token"

@@ -7,13 +7,13 @@ from typing import TYPE_CHECKING
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
-from db.base import Base
+from db.base import Base, IntId
 
 if TYPE_CHECKING:
     from db.models.runs import Run
 
 
-class Bench(Base):
+class Bench(IntId, Base):
     """One calibration station: a rotary table and a DAQ, addressed by URL.
 
     ``name`` is unique across the lab, so several benches can share one PostgreSQL database.
@@ -28,7 +28,7 @@ class Bench(Base):
     units: Mapped[list[Unit]] = relationship(back_populates="bench", lazy="raise")
 
 
-class Unit(Base):
+class Unit(IntId, Base):
     """A sensor under calibration, identified by its serial number.
 
     :param channel_unit: unit of the raw channels (``V``, ``count``, ``m/s2``, ``g``).

@@ -90,7 +90,7 @@ def _residual_and_jacobian(theta: FloatArray, y: FloatArray, g: float) -> tuple[
     J = np.empty((y.shape[0], 9))
     J[:, :3] = -a
     J[:, 3:] = -(a[:, :, None] * u[:, None, :])[:, _TRIL[0], _TRIL[1]]
-    return r, J, n, Linv
+    return np.asarray(r, dtype=float), J, np.asarray(n, dtype=float), np.asarray(Linv, dtype=float)
 
 
 def _residual_variance(theta: FloatArray, y: FloatArray, V: FloatArray, g: float) -> FloatArray:

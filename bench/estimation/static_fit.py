@@ -171,8 +171,8 @@ def _validate(f_m_s2: FloatArray, y_mean: FloatArray, y_cov: FloatArray) -> tupl
 def _wls(X: FloatArray, y: FloatArray, var: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Weighted LS θ and A = (Xᵀ W X)⁻¹ Xᵀ W for one channel (W = diag(1/var))."""
     Xw = X / var[:, None]
-    A = np.linalg.solve(X.T @ Xw, Xw.T)
-    return A @ y, A
+    A = np.asarray(np.linalg.solve(X.T @ Xw, Xw.T), dtype=float)
+    return np.asarray(A @ y, dtype=float), A
 
 
 def fit_static(

@@ -225,8 +225,11 @@ def between_window_variance(
     gate = float(chi2.ppf(OWN_SCATTER_GATE, dof))
     own = np.zeros(c)
     for i in range(c):
-        if _pm_statistic(X, y[:, i], base[:, i]) > gate:
-            own[i] = solve_decreasing(
-                lambda t, i=i: _pm_statistic(X, y[:, i], base[:, i] + t), dof, float(np.median(base[:, i]))
-            )
+        yi, bi = y[:, i], base[:, i]
+        if _pm_statistic(X, yi, bi) > gate:
+
+            def q_own(t: float, yi: FloatArray = yi, bi: FloatArray = bi) -> float:
+                return _pm_statistic(X, yi, bi + t)
+
+            own[i] = solve_decreasing(q_own, dof, float(np.median(bi)))
     return t_pool * t_factor(c * dof) * s2 + own[None, :] * t_factor(dof)

@@ -1,0 +1,202 @@
+"""Diagnosis: where a recording and the first-order model differ, which physics was left out.
+
+``diagnose(evidence)`` runs the whole chain on a static recording's evidence:
+
+1. observability of every catalogue effect on this recording (``effects``);
+2. greedy forward selection with a likelihood-ratio gate and BIC (``selection``), the
+   noise taken from the recording (window scatter, plus slow noise estimated by REML);
+3. refit with the chosen effects: parameters with sigmas, residuals before/after (``refit``);
+4. where the first-order residuals are largest and what they correlate with
+   (``residuals``, ``regressors``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bench.diagnosis.effects import CATALOGUE, Candidate, pose_response
+from bench.diagnosis.effects.base import FloatArray, first_order_design
+from bench.diagnosis.effects.settling import settling_test
+from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.likelihood import NoiseParams
+from bench.diagnosis.refit import ModelFit, effect_parameters, model_sequence
+from bench.diagnosis.regressors import correlations
+from bench.diagnosis.residuals import summarise, where
+from bench.diagnosis.result import Diagnosis, Finding, ModelSummary
+from bench.diagnosis.selection import FALSE_ALARM, scale_matrix, select
+from bench.diagnosis.summaries import summary
+
+__all__ = ["Diagnosis", "StaticEvidence", "diagnose"]
+
+CONFOUND_COSINE = 0.95
+"""Two effects whose signatures (beyond the first-order model) have |cos| above this are
+reported as indistinguishable on the recording."""
+
+
+def _noise_text(noise: NoiseParams) -> str:
+    tau = ", ".join(f"{np.sqrt(t):.2g}" for t in noise.tau2)
+    corr = (
+        "independent between windows"
+        if noise.corr_time_s <= 0
+        else f"correlation time {noise.corr_time_s:.0f} s"
+    )
+    return (
+        "window means: batch-means covariance of each window's samples; slow noise between "
+        f"windows (REML): sigma = [{tau}] channel units, {corr}"
+    )
+
+
+def _summary(model: ModelFit) -> ModelSummary:
+    terms = ("bias", "scale_matrix", *model.effects)
+    return ModelSummary(
+        terms=terms,
+        residual_rms=float(np.sqrt(np.mean(model.resid**2))),
+        chi2_dof=float(model.chi2_dof),
+        bic=float(model.bic),
+        resid=model.resid,
+        z=model.resid / model.sigma,
+    )
+
+
+def _confounded(
+    ev: StaticEvidence, K: FloatArray, chosen: list[Candidate], pool: list[Candidate]
+) -> dict[str, set[str]]:
+    X0 = first_order_design(ev.f_m_s2)
+    Q, _ = np.linalg.qr(X0)
+
+    def sig(c: Candidate) -> FloatArray:
+        a = c.columns(ev, K)
+        a = a - Q @ (Q.T @ a)
+        n = np.linalg.norm(a, axis=0)
+        return a / np.where(n > 0, n, 1.0)
+
+    out: dict[str, set[str]] = {}
+    for c in chosen:
+        sc = sig(c)
+        for d in pool:
+            if d.effect == c.effect or d in chosen:
+                continue
+            cos = np.abs(sc.T @ sig(d))
+            if np.max(cos) > CONFOUND_COSINE:
+                out.setdefault(c.effect, set()).add(d.effect)
+    return out
+
+
+def diagnose(
+    ev: StaticEvidence,
+    *,
+    unit: str = "",
+    channel_unit: str = "",
+    source: str = "",
+    false_alarm: float = FALSE_ALARM,
+    free_orientation_rad: float = 0.1,
+) -> Diagnosis:
+    """Diagnose a static recording (module docstring).
+
+    :param ev: the recording's static evidence.
+    :param false_alarm: per-test false-alarm probability of the likelihood-ratio gate.
+    :param free_orientation_rad: for ``orientation_known=False`` evidence (f taken from the
+        data), the standard deviation given to each window's orientation about the two axes
+        perpendicular to gravity, so that only the magnitude of each reading is evidence.
+    :returns: :class:`~bench.diagnosis.result.Diagnosis`.
+    :raises ValueError: fewer than 5 windows, or a pose set that cannot identify bias and K.
+    """
+    if ev.m < 5:
+        raise ValueError(
+            f"a diagnosis needs at least 5 static windows (first-order model + 1 dof), got {ev.m}"
+        )
+    X0 = first_order_design(ev.f_m_s2)
+    if np.linalg.matrix_rank(X0) < 12:
+        raise ValueError("the windows' gravity directions lie on one plane: bias and K cannot be determined")
+    unobservable: dict[str, str] = {}
+    pool: list[Candidate] = []
+    pose_ok = settle_ok = False
+    for eff in CATALOGUE:
+        ok, reason = eff.observable(ev)
+        if not ok:
+            unobservable[eff.id] = reason
+        elif eff.kind == "columns":
+            pool.extend(eff.candidates(ev))
+        elif eff.kind == "variance":
+            pose_ok = True
+        elif eff.kind == "window":
+            settle_ok = True
+    fixed = None
+    if not ev.orientation_known:
+        K0 = np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12].reshape(3, 3)
+        J = pose_response(ev, K0)
+        fixed = free_orientation_rad**2 * np.einsum("wik,wjk->wij", J, J)
+    state, notes = select(ev, pool, pose_allowed=pose_ok, fixed=fixed, false_alarm=false_alarm)
+    assert state.fit is not None and state.noise is not None
+    K = scale_matrix(state.fit)
+    order = list(dict.fromkeys(s.effect for s in state.steps))
+    seq = model_sequence(ev, order, state.candidates, state.pose, state.noise, K, fixed)
+    final = seq[-1]
+    span = float(np.ptp(ev.mid_s))
+    confounded = _confounded(ev, K, state.candidates, pool)
+    findings = []
+    for k, effect in enumerate(order):
+        if effect == "pose_error":
+            assert final.pose_angles is not None and final.pose_sigma is not None
+            params: dict[str, object] = {"angles_rad": final.pose_angles.tolist()}
+            sigma: dict[str, object] = {"angles_rad": final.pose_sigma.tolist()}
+        else:
+            params, sigma = effect_parameters(final, effect, K)
+        findings.append(
+            Finding(
+                effect=effect,
+                summary=summary(effect, params, sigma, ev.labels, span),
+                parameters=params,
+                sigma=sigma,
+                delta_bic=float(seq[k + 1].bic - seq[k].bic),
+                lr=float(sum(s.lr for s in state.steps if s.effect == effect)),
+                residual_rms_after=float(np.sqrt(np.mean(seq[k + 1].resid ** 2))),
+                explanation=next(e.explanation for e in CATALOGUE if e.id == effect),
+                confounded_with=tuple(sorted(confounded.get(effect, ()))),
+            )
+        )
+    note_list = [f"{label}: {text}" for label, text in sorted(notes.items())]
+    for f in findings:
+        if f.confounded_with:
+            note_list.append(
+                f"{f.effect} fits this recording about as well as {', '.join(f.confounded_with)}: "
+                "the pose set cannot tell them apart"
+            )
+    if settle_ok:
+        assert ev.window_samples is not None and ev.sample_rate_hz is not None
+        st = settling_test(ev.window_samples, ev.sample_rate_hz)
+        if st.p_value() < false_alarm:
+            ratio = float(np.exp(st.mean_log_ratio))
+            findings.append(
+                Finding(
+                    effect="settling",
+                    summary=summary("settling", {"early_variance_ratio": ratio}, {}, ev.labels, span),
+                    parameters={"early_variance_ratio": ratio},
+                    sigma={},
+                    delta_bic=float(-(st.t**2) + np.log(ev.n_obs)),
+                    lr=float(st.t**2),
+                    residual_rms_after=float(np.sqrt(np.mean(final.resid**2))),
+                    explanation=next(e.explanation for e in CATALOGUE if e.id == "settling"),
+                )
+            )
+    base = _summary(seq[0])
+    rs = summarise(ev, seq[0].resid, seq[0].sigma)
+    return Diagnosis(
+        unit=unit,
+        channel_unit=channel_unit,
+        method="static" if ev.orientation_known else "orientation-free",
+        baseline=base,
+        final=_summary(final),
+        findings=tuple(findings),
+        channel_ratio=rs.channel_ratio,
+        where=where(ev, rs),
+        correlations=tuple(correlations(ev, seq[0].resid, seq[0].sigma)),
+        unobservable=unobservable,
+        notes=tuple(note_list) + (_noise_text(state.noise),),
+        noise_text=_noise_text(state.noise),
+        labels=ev.labels,
+        mid_s=ev.mid_s,
+        bias=state.fit.theta[:3].copy(),
+        K=K,
+        source=source,
+    )

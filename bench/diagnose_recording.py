@@ -1,0 +1,118 @@
+"""Diagnose a recording: windows -> window noise -> evidence -> ``bench.diagnosis.diagnose``.
+
+Which specific force each window is compared with (as in ``bench.calibration``):
+
+* a table in the sidecar: f_w = Rᵀ [0, 0, g] at the window's circular-mean encoder angles;
+* no table, every window labelled ``nominal_up`` (hand-held six-position): ±g along the
+  named axis; the diagnosis then asks whether the unit really was there (``pose_error``);
+* neither: orientation-free, f_w = g · L⁻¹(ȳ_w − b)/|L⁻¹(ȳ_w − b)| from the scalar fit,
+  so only the magnitude of each reading is evidence.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bench.calibration import select_windows
+from bench.diagnosis import Diagnosis, StaticEvidence, diagnose
+from bench.estimation.scalar_fit import fit_scalar
+from bench.estimation.window_noise import WindowNoise, pooled_mean_covariances, window_noise
+from bench.estimation.windows import StaticWindow
+from bench.kinematics import attitude, static_specific_force
+from bench.recording import Recording
+
+_AXES = {"+x": (0, 1.0), "-x": (0, -1.0), "+y": (1, 1.0), "-y": (1, -1.0), "+z": (2, 1.0), "-z": (2, -1.0)}
+
+
+def _where(rec: Recording) -> str:
+    return rec.source or "recording"
+
+
+def recording_evidence(rec: Recording) -> StaticEvidence:
+    """The static evidence of a recording (module docstring).
+
+    :raises ValueError: no usable windows, a window whose noise cannot be estimated.
+    """
+    wins = select_windows(rec)
+    noises: list[WindowNoise] = []
+    for w in wins:
+        try:
+            noises.append(window_noise(rec.accel_raw[w.start : w.stop]))
+        except ValueError as exc:
+            raise ValueError(f"{_where(rec)}: window {w.label!r}: {exc}") from exc
+    y = np.array([q.mean for q in noises])
+    V = pooled_mean_covariances(noises)
+    g = rec.sidecar.g_local_m_s2
+    t = rec.t_s
+    mid = np.array([(t[w.start] + t[w.stop - 1]) / 2 for w in wins])
+    temp = None
+    if rec.temp_c is not None:
+        temp = np.array(
+            [
+                np.nanmean(rec.temp_c[w.slice]) if np.any(np.isfinite(rec.temp_c[w.slice])) else np.nan
+                for w in wins
+            ]
+        )
+    table = rec.sidecar.table
+    q_rad = axes = mount = None
+    known = True
+    peak = 0.0
+    if table is not None and rec.table_deg is not None:
+        q = np.deg2rad(rec.table_deg)
+        q_rad = np.array([np.arctan2(np.sin(q[w.slice]).mean(0), np.cos(q[w.slice]).mean(0)) for w in wins])
+        axes, mount = table.axis_vectors, table.mount_matrix
+        f = static_specific_force(attitude(axes, q_rad, mount), g)
+        qu = rec.table_rad_unwrapped()
+        assert qu is not None
+        peak = float(np.max(np.abs(np.diff(qu, axis=0)) / np.diff(t)[:, None])) if t.size > 1 else 0.0
+    elif all(w.nominal_up in _AXES for w in wins):
+        f = _labelled_force(wins, g)
+    else:
+        f = _scalar_force(rec, y, V, g)
+        known = False
+    return StaticEvidence(
+        y=y,
+        V=V,
+        f_m_s2=f,
+        mid_s=mid,
+        labels=tuple(w.label for w in wins),
+        g_local_m_s2=g,
+        temp_c=temp,
+        table_rad=q_rad,
+        axis_vectors=axes,
+        mount=mount,
+        orientation_known=known,
+        peak_rate_rad_s=peak,
+        window_samples=tuple(rec.accel_raw[w.slice] for w in wins),
+        sample_rate_hz=rec.sidecar.sample_rate_hz,
+    )
+
+
+def _labelled_force(wins: list[StaticWindow], g: float) -> np.ndarray:
+    f = np.zeros((len(wins), 3))
+    for k, w in enumerate(wins):
+        axis, sign = _AXES[str(w.nominal_up)]
+        f[k, axis] = sign * g
+    return f
+
+
+def _scalar_force(rec: Recording, y: np.ndarray, V: np.ndarray, g: float) -> np.ndarray:
+    try:
+        sf = fit_scalar(y, V, g)
+    except ValueError as exc:
+        raise ValueError(f"{_where(rec)}: orientations unknown and the scalar fit failed: {exc}") from exc
+    u = np.linalg.solve(sf.L, (y - sf.bias).T).T
+    return g * u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def diagnose_recording(rec: Recording) -> Diagnosis:
+    """Diagnose one recording; every error message starts with the recording's path."""
+    try:
+        ev = recording_evidence(rec)
+        return diagnose(
+            ev, unit=rec.sidecar.unit_serial, channel_unit=rec.sidecar.channel_unit, source=rec.source
+        )
+    except ValueError as exc:
+        msg = str(exc)
+        where = _where(rec)
+        raise ValueError(msg if msg.startswith(where) else f"{where}: {msg}") from exc

@@ -1,0 +1,39 @@
+"""The catalogue of physical effects (``cli-contract.md``), one object per effect id, in contract order."""
+
+from __future__ import annotations
+
+from bench.diagnosis.effects.base import Candidate, Effect, ParamSpec, first_order_design, leverage
+from bench.diagnosis.effects.geometry import ENCODER_OFFSET, POSE_ERROR, TILT, pose_response
+from bench.diagnosis.effects.motion import LEVER_ARM, LOWPASS, PROOF_MASS, TIME_SKEW
+from bench.diagnosis.effects.sensor import ASYMMETRY, CROSS_COUPLING, DRIFT, NONLINEARITY, TEMPERATURE
+from bench.diagnosis.effects.settling import SETTLING
+
+CATALOGUE: tuple[Effect, ...] = (
+    LEVER_ARM,
+    PROOF_MASS,
+    NONLINEARITY,
+    ASYMMETRY,
+    CROSS_COUPLING,
+    TEMPERATURE,
+    DRIFT,
+    TIME_SKEW,
+    TILT,
+    POSE_ERROR,
+    ENCODER_OFFSET,
+    LOWPASS,
+    SETTLING,
+)
+"""Every effect of the contract's table, in its order."""
+
+BY_ID = {e.id: e for e in CATALOGUE}
+
+__all__ = [
+    "BY_ID",
+    "CATALOGUE",
+    "Candidate",
+    "Effect",
+    "ParamSpec",
+    "first_order_design",
+    "leverage",
+    "pose_response",
+]

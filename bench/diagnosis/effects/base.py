@@ -1,0 +1,105 @@
+"""The shape every catalogue effect shares: an id, parameters with units, an observability
+condition, a model extension, and one sentence of physics.
+
+Extensions come in three kinds:
+
+- ``columns``: the effect adds A θ to the stacked window means (linear in its parameters θ
+  to first order, the columns evaluated at the current scale matrix K);
+- ``variance``: the effect adds a random term per window (``pose_error``), tested as a
+  variance component;
+- ``motion``: the effect needs the table to turn while the sensor is recorded; a static
+  diagnosis reports it as not observable.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from bench.diagnosis.evidence import StaticEvidence
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter of an effect: contract name, unit, shape (−1: one per window or axis)."""
+
+    name: str
+    unit: str
+    shape: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One way of adding (part of) an effect to the model.
+
+    :param effect: catalogue id.
+    :param label: e.g. ``nonlinearity_quadratic[z]``.
+    :param channels: the raw channels the candidate acts on (0, 1, 2).
+    :param columns: (evidence, K (3, 3)) -> (3m, q) design columns.
+    :param names: q names of the coefficients, for messages.
+    :param to_parameters: (θ (q,), cov (q, q), K) -> ({name: value}, {name: sigma}) in contract form.
+    """
+
+    effect: str
+    label: str
+    channels: tuple[int, ...]
+    columns: Callable[[StaticEvidence, FloatArray], FloatArray]
+    names: tuple[str, ...]
+    to_parameters: Callable[[FloatArray, FloatArray, FloatArray], tuple[dict[str, Any], dict[str, Any]]]
+
+
+class Effect(Protocol):
+    """A catalogue effect (``cli-contract.md``)."""
+
+    id: str
+    kind: str
+    parameters: tuple[ParamSpec, ...]
+    explanation: str
+
+    def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
+        """Whether the recording can show the effect, and why (not)."""
+        ...
+
+    def candidates(self, ev: StaticEvidence) -> list[Candidate]:
+        """The model extensions to try (``columns`` kind; empty otherwise)."""
+        ...
+
+
+AXES = "xyz"
+RELATIVE_LEVERAGE_MIN = 1e-3
+"""A column whose part outside the first-order design is below this fraction of its norm
+cannot be told from bias and K on this pose set."""
+
+
+def leverage(X: FloatArray, cols: FloatArray) -> FloatArray:
+    """(q,) fraction of each column's norm outside the span of X (0: indistinguishable)."""
+    Q, _ = np.linalg.qr(X)
+    out = []
+    for c in cols.T:
+        nrm = float(np.linalg.norm(c))
+        out.append(0.0 if nrm == 0 else float(np.linalg.norm(c - Q @ (Q.T @ c)) / nrm))
+    return np.array(out)
+
+
+def first_order_design(f_m_s2: FloatArray) -> FloatArray:
+    """(3m, 12) stacked design of raw = b + K f: columns b_x, b_y, b_z, K_xx … K_zz."""
+    m = f_m_s2.shape[0]
+    X = np.zeros((3 * m, 12))
+    for i in range(3):
+        X[i::3, i] = 1.0
+        X[i::3, 3 + 3 * i : 6 + 3 * i] = f_m_s2
+    return X
+
+
+def channel_column(ev: StaticEvidence, i: int, values: FloatArray) -> FloatArray:
+    """(3m, q) columns acting on channel i only; ``values`` (m,) or (m, q)."""
+    v = values[:, None] if values.ndim == 1 else values
+    out = np.zeros((ev.n_obs, v.shape[1]))
+    out[i::3] = v
+    return out

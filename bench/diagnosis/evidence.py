@@ -1,0 +1,98 @@
+"""What a diagnosis of a static recording works from: window means, their noise, their poses.
+
+Observations are stacked window-major: index 3·w + i is channel i of window w, so a
+(m, 3) array ``a`` becomes ``a.reshape(-1)`` and back with ``reshape(m, 3)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+G0_M_S2 = 9.80665
+"""Standard gravity (m/s²): the g0 of the catalogue's formulas."""
+
+
+@dataclass(frozen=True)
+class StaticEvidence:
+    """Static windows of one recording, reduced to what the model is compared with.
+
+    :param y: (m, 3) window means of the raw channels (channel units).
+    :param V: (m, 3, 3) covariance of each window mean from its own samples (channel units²).
+    :param f_m_s2: (m, 3) specific force the recording says each window saw (sensor frame, m/s²).
+    :param mid_s: (m,) mid time of each window since the start of the recording (s).
+    :param labels: window labels.
+    :param g_local_m_s2: local gravity (m/s²).
+    :param temp_c: (m,) mean sensor temperature per window (°C) or ``None``.
+    :param table_rad: (m, k) circular-mean encoder angle per window (rad) or ``None``.
+    :param axis_vectors: (k, 3) table axes, outermost first, or ``None``.
+    :param mount: (3, 3) mount rotation (sensor nominal frame -> innermost table frame).
+    :param orientation_known: ``False`` when f comes from the data itself (no table, no
+        labelled poses): then only the magnitude of each window's reading is evidence.
+    :param peak_rate_rad_s: largest table rate seen between the windows (rad/s), 0 if none.
+    :param window_samples: per window (n_w, 3) raw samples, for within-window tests, or ``None``.
+    :param sample_rate_hz: sampling rate (Hz), with ``window_samples``.
+    """
+
+    y: FloatArray
+    V: FloatArray
+    f_m_s2: FloatArray
+    mid_s: FloatArray
+    labels: tuple[str, ...]
+    g_local_m_s2: float
+    temp_c: FloatArray | None = None
+    table_rad: FloatArray | None = None
+    axis_vectors: FloatArray | None = None
+    mount: FloatArray | None = None
+    orientation_known: bool = True
+    peak_rate_rad_s: float = 0.0
+    window_samples: tuple[FloatArray, ...] | None = None
+    sample_rate_hz: float | None = None
+
+    def __post_init__(self) -> None:
+        m = self.y.shape[0] if self.y.ndim == 2 else -1
+        if self.y.shape != (m, 3) or self.V.shape != (m, 3, 3) or self.f_m_s2.shape != (m, 3):
+            raise ValueError(
+                f"evidence: expected y (m, 3), V (m, 3, 3), f (m, 3); "
+                f"got {self.y.shape}, {self.V.shape}, {self.f_m_s2.shape}"
+            )
+        if self.mid_s.shape != (m,) or len(self.labels) != m:
+            raise ValueError(f"evidence: mid_s and labels need {m} entries")
+        for name in ("y", "V", "f_m_s2", "mid_s"):
+            a = getattr(self, name)
+            if not np.all(np.isfinite(a)):
+                w = int(np.argwhere(~np.isfinite(a))[0, 0])
+                raise ValueError(f"evidence: {name} of window {self.labels[w]!r} is not finite")
+        if self.temp_c is not None and self.temp_c.shape != (m,):
+            raise ValueError(f"evidence: temp_c has shape {self.temp_c.shape}, expected ({m},)")
+        if self.table_rad is not None and (self.table_rad.ndim != 2 or self.table_rad.shape[0] != m):
+            raise ValueError(f"evidence: table_rad has shape {self.table_rad.shape}, expected ({m}, k)")
+        if np.any(np.diagonal(self.V, axis1=1, axis2=2) <= 0):
+            raise ValueError("evidence: every window mean needs a positive variance")
+
+    @property
+    def m(self) -> int:
+        """Number of windows."""
+        return int(self.y.shape[0])
+
+    @property
+    def n_obs(self) -> int:
+        """Number of scalar observations, 3·m."""
+        return 3 * self.m
+
+    @property
+    def has_temperature(self) -> bool:
+        """A usable temperature per window (finite everywhere)."""
+        return self.temp_c is not None and bool(np.all(np.isfinite(self.temp_c)))
+
+    def attitudes(self) -> FloatArray | None:
+        """(m, 3, 3) sensor -> base rotations implied by ``f`` (known orientations only), from the table."""
+        if self.table_rad is None or self.axis_vectors is None:
+            return None
+        from bench.kinematics import attitude
+
+        M = np.eye(3) if self.mount is None else self.mount
+        return attitude(self.axis_vectors, self.table_rad, M)

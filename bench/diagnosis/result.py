@@ -1,0 +1,143 @@
+"""The diagnosis as frozen data, and its ``calbench diagnose --json`` form (cli-contract.md)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bench.diagnosis.effects.base import FloatArray
+from bench.diagnosis.regressors import Correlation
+
+
+@dataclass(frozen=True)
+class ModelSummary:
+    """One model's agreement with the recording.
+
+    :param terms: ``bias``, ``scale_matrix`` and the effect ids added.
+    :param residual_rms: RMS of the window residuals (channel units).
+    :param chi2_dof: χ² / (n − p) against the noise the recording shows.
+    :param bic: −2 ℓ + k ln n (k: fitted parameters, noise parameters included).
+    :param resid: (m, 3) window residuals (channel units).
+    :param z: (m, 3) residuals over their noise sigma.
+    """
+
+    terms: tuple[str, ...]
+    residual_rms: float
+    chi2_dof: float
+    bic: float
+    resid: FloatArray
+    z: FloatArray
+
+    def to_contract(self) -> dict[str, Any]:
+        """``{terms, residual_rms, chi2_dof, bic}``."""
+        return {
+            "terms": list(self.terms),
+            "residual_rms": self.residual_rms,
+            "chi2_dof": self.chi2_dof,
+            "bic": self.bic,
+        }
+
+
+@dataclass(frozen=True)
+class Finding:
+    """An effect the recording supports, with its fitted parameters.
+
+    :param effect: catalogue id; :param summary: one sentence with the size of the effect.
+    :param parameters: contract parameter name -> value (lists); :param sigma: same shapes, one sigma.
+    :param delta_bic: BIC change when the effect entered (negative).
+    :param lr: likelihood-ratio statistic when it entered.
+    :param residual_rms_after: RMS of the residuals once it is in the model.
+    :param explanation: the physics, one sentence.
+    :param confounded_with: effects that fit this recording equally well.
+    """
+
+    effect: str
+    summary: str
+    parameters: dict[str, Any]
+    sigma: dict[str, Any]
+    delta_bic: float
+    lr: float
+    residual_rms_after: float
+    explanation: str
+    confounded_with: tuple[str, ...] = ()
+
+    def to_contract(self) -> dict[str, Any]:
+        """One entry of ``findings``."""
+        return {
+            "effect": self.effect,
+            "summary": self.summary,
+            "parameters": self.parameters,
+            "sigma": self.sigma,
+            "delta_bic": self.delta_bic,
+            "residual_rms_after": self.residual_rms_after,
+        }
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Everything ``diagnose`` concluded about one recording.
+
+    :param channel_ratio: (3,) baseline χ²_i / (m − 4) per channel (1: explained to the noise).
+    :param where: where the baseline mismatch is strongest.
+    :param correlations: regressor correlations with the baseline residuals, strongest first.
+    :param unobservable: effect id -> why this recording cannot show it.
+    :param notes: further remarks (effects indistinguishable on this pose set, noise model).
+    :param noise_text: the noise model the χ² and sigmas use.
+    :param labels: window labels; :param mid_s: (m,) window times (s).
+    :param bias: (3,) and :param K: (3, 3) of the final model (channel units, per m/s²).
+    """
+
+    unit: str
+    channel_unit: str
+    method: str
+    baseline: ModelSummary
+    final: ModelSummary
+    findings: tuple[Finding, ...]
+    channel_ratio: FloatArray
+    where: str
+    correlations: tuple[Correlation, ...]
+    unobservable: dict[str, str]
+    notes: tuple[str, ...]
+    noise_text: str
+    labels: tuple[str, ...]
+    mid_s: FloatArray
+    bias: FloatArray
+    K: FloatArray
+    source: str = ""
+
+    def correlates_with(self) -> list[str]:
+        """Names of the significant regressors, strongest first, each once."""
+        out: list[str] = []
+        for c in self.correlations:
+            if c.significant and c.regressor not in out:
+                out.append(c.regressor)
+        return out
+
+    def to_contract(self) -> dict[str, Any]:
+        """The ``calbench diagnose --json`` object."""
+        return {
+            "unit": self.unit,
+            "baseline": self.baseline.to_contract(),
+            "mismatch": {
+                "channels": {
+                    ch: float(r) for ch, r in zip(("ax", "ay", "az"), self.channel_ratio, strict=True)
+                },
+                "where": self.where,
+                "correlates_with": self.correlates_with(),
+            },
+            "findings": [f.to_contract() for f in self.findings],
+            "final": self.final.to_contract(),
+            "unobservable": dict(self.unobservable),
+            "notes": list(self.notes),
+        }
+
+
+def finite_or_none(a: Any) -> Any:
+    """Nested lists with non-finite numbers replaced by ``None`` (JSON has no NaN)."""
+    if isinstance(a, (list, tuple)):
+        return [finite_or_none(x) for x in a]
+    if isinstance(a, float) and not np.isfinite(a):
+        return None
+    return a

@@ -1,0 +1,179 @@
+"""Greedy forward selection of effects: BIC to rank, a likelihood-ratio gate to admit.
+
+At each step every candidate not yet in the model is tried (fixed columns appended to the
+design; the pose error as a variance component). A candidate is admitted only if
+
+1. it is observable: its columns keep at least ``RELATIVE_LEVERAGE_MIN`` of their norm
+   outside the span of the current design (else bias, K and the effects already in the
+   model would absorb it: it is reported as indistinguishable, not guessed);
+2. the likelihood-ratio statistic, with the noise re-estimated (REML) under the extended
+   model, exceeds the χ²_q quantile at ``false_alarm`` (per test; the pose variance, a
+   boundary parameter, uses the 50:50 mixture of χ²_0 and χ²_1); for fixed columns under a
+   common covariance the statistic is Δχ² = χ²_current − χ²_extended;
+3. its BIC change Δ = −LR + q ln n is negative.
+
+Among the admissible candidates the one with the lowest BIC change enters; selection stops
+when none is admissible. Candidates are ranked first with the current noise held fixed
+and only the best ``SHORTLIST`` are re-fitted with their own noise (the REML fit is the
+expensive part).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
+from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
+from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.likelihood import GlsFit, NoiseParams, covariance, fit_noise, gls
+
+FALSE_ALARM = 1e-3
+"""Per-test false-alarm probability of the likelihood-ratio gate."""
+SHORTLIST = 3
+MAX_STEPS = 8
+
+
+@dataclass(frozen=True)
+class Step:
+    """One admitted candidate: its label, effect, LR statistic, BIC change, dof."""
+
+    label: str
+    effect: str
+    lr: float
+    delta_bic: float
+    q: int
+
+
+@dataclass
+class ModelState:
+    """The current model during selection."""
+
+    candidates: list[Candidate] = field(default_factory=list)
+    pose: bool = False
+    noise: NoiseParams | None = None
+    fit: GlsFit | None = None
+    steps: list[Step] = field(default_factory=list)
+
+
+def design(ev: StaticEvidence, K: FloatArray, cands: list[Candidate]) -> FloatArray:
+    """(3m, 12 + Σq) first-order design with the candidates' columns appended."""
+    X = first_order_design(ev.f_m_s2)
+    return np.hstack([X] + [c.columns(ev, K) for c in cands]) if cands else X
+
+
+def scale_matrix(fit: GlsFit) -> FloatArray:
+    """K (3, 3) from the first 12 coefficients."""
+    return fit.theta[3:12].reshape(3, 3)
+
+
+def fit_model(
+    ev: StaticEvidence,
+    cands: list[Candidate],
+    pose: bool,
+    K0: FloatArray,
+    fixed: FloatArray | None,
+    init: NoiseParams | None = None,
+    iterations: int = 1,
+) -> tuple[NoiseParams, GlsFit, FloatArray]:
+    """REML noise and GLS fit of a model, the columns evaluated at K0 (then at the fitted K)."""
+    K = K0
+    noise: NoiseParams | None = init
+    fit: GlsFit | None = None
+    z = ev.y.reshape(-1)
+    for _ in range(iterations):
+        X = design(ev, K, cands)
+        J = pose_response(ev, K)
+        noise, fit = fit_noise(X, z, ev.V, ev.mid_s, J_pose=J, fixed=fixed, estimate_pose=pose, init=noise)
+        K = scale_matrix(fit)
+    assert noise is not None and fit is not None
+    return noise, fit, K
+
+
+def _lr_fixed(
+    ev: StaticEvidence,
+    X0: FloatArray,
+    X1: FloatArray,
+    noise: NoiseParams,
+    K: FloatArray,
+    fixed: FloatArray | None,
+) -> float:
+    C = covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed)
+    return gls(X0, ev.y.reshape(-1), C).chi2 - gls(X1, ev.y.reshape(-1), C).chi2
+
+
+def select(
+    ev: StaticEvidence,
+    pool: list[Candidate],
+    *,
+    pose_allowed: bool,
+    fixed: FloatArray | None = None,
+    false_alarm: float = FALSE_ALARM,
+) -> tuple[ModelState, dict[str, str]]:
+    """Run the greedy selection.
+
+    :param ev: the evidence.
+    :param pool: observable candidates (fixed columns).
+    :param pose_allowed: try the pose-error variance component.
+    :param fixed: fixed extra covariance per window (orientation-free diagnosis).
+    :returns: the final state and, per candidate label, why it was not admitted when it
+        could not be told from the model (``"indistinguishable"`` notes).
+    """
+    n = ev.n_obs
+    state = ModelState()
+    K = np.diag(np.ones(3))
+    # first-order start: ordinary LS of the first-order design gives K for the columns
+    X0 = first_order_design(ev.f_m_s2)
+    K = np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12].reshape(3, 3)
+    state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2)
+    notes: dict[str, str] = {}
+    for _ in range(MAX_STEPS):
+        X = design(ev, K, state.candidates)
+        scored: list[tuple[float, Candidate | None, int]] = []
+        for cand in pool:
+            if cand in state.candidates:
+                continue
+            cols = cand.columns(ev, K)
+            lev = leverage(X, cols)
+            if np.any(lev < RELATIVE_LEVERAGE_MIN):
+                notes[cand.label] = (
+                    f"cannot be told apart from the model's other terms on this pose set "
+                    f"(only {float(np.min(lev)):.1e} of its signature is independent of them)"
+                )
+                continue
+            q = cols.shape[1]
+            lr = _lr_fixed(ev, X, np.hstack([X, cols]), state.noise, K, fixed)
+            scored.append((-lr + q * math.log(n), cand, q))
+        if pose_allowed and not state.pose:
+            scored.append((-math.inf, None, 1))  # always re-fitted: its LR needs the REML fit
+        scored.sort(key=lambda s: s[0])
+        best: tuple[float, Candidate | None, NoiseParams, GlsFit, FloatArray, float, int] | None = None
+        for _dbic0, cand, q in scored[: SHORTLIST + 1]:
+            if cand is None:
+                noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise)
+                if noise1.pose_var_rad2 <= 0:
+                    continue
+                lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
+                gate = float(chi2_dist.ppf(1.0 - 2.0 * false_alarm, 1))
+            else:
+                noise1, fit1, K1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise)
+                X1 = design(ev, K1, [*state.candidates, cand])
+                lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
+                gate = float(chi2_dist.ppf(1.0 - false_alarm, q))
+            dbic = -lr + q * math.log(n)
+            if lr > gate and dbic < 0 and (best is None or dbic < best[0]):
+                best = (dbic, cand, noise1, fit1, K1, lr, q)
+        if best is None:
+            break
+        dbic, cand, noise1, fit1, K1, lr, q = best
+        if cand is None:
+            state.pose = True
+            state.steps.append(Step("pose_error", "pose_error", lr, dbic, q))
+        else:
+            state.candidates.append(cand)
+            state.steps.append(Step(cand.label, cand.effect, lr, dbic, q))
+        state.noise, state.fit, K = noise1, fit1, K1
+    return state, notes

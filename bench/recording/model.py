@@ -39,7 +39,11 @@ class TableGeometry:
     """
 
     axes: tuple[TableAxis, ...]
-    mount_rotation: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    mount_rotation: tuple[tuple[float, float, float], ...] = (
+        (1.0, 0.0, 0.0),
+        (0.0, 1.0, 0.0),
+        (0.0, 0.0, 1.0),
+    )
     lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property

@@ -100,6 +100,7 @@ def test_z_scores_honest_with_white_and_gauss_markov_noise() -> None:
     _assert_honest(_z_scores(300, seed=11))
 
 
+@pytest.mark.slow
 def test_z_scores_honest_with_pose_errors_between_windows() -> None:
     """400 runs with 1 mrad pose errors: the between-window variance keeps z ~ N(0, 1)."""
     z = _z_scores(400, seed=12, pose_error_rad=1e-3)

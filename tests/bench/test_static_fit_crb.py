@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy.signal import lfilter
 
 from bench.estimation.static_fit import fit_static
@@ -17,6 +18,7 @@ def _balanced_12() -> np.ndarray:
     return G_LOCAL * np.vstack([d, -d])
 
 
+@pytest.mark.slow
 def test_white_noise_scatter_reaches_the_cramer_rao_bound() -> None:
     """2000 runs, 12 windows × L = 100 white samples: MC std within 10 % of the CRB."""
     rng = np.random.default_rng(21)

@@ -128,10 +128,14 @@ class Sequencer:
             return
         self._last_progress_wall = now
         step = self.procedure.steps[min(self.step_index, len(self.procedure.steps) - 1)]
+        n_win = max(1, self.procedure.n_windows)
+        # The preview's duration is an estimate; never let the bar reach its end early.
+        left = (n_win - self.next_window) * self.start.expected_duration_s / n_win
+        expected = max(self.start.expected_duration_s, self.now_s + left)
         self.notify("on_progress", self.start.run_id, Progress(
             self.step_index, len(self.procedure.steps), getattr(step, "label", ""),
             self.window.index if self.window else None, self.procedure.n_windows, self.now_s,
-            self.start.expected_duration_s, self.positions_deg, self.state))
+            expected, self.positions_deg, self.state))
 
     # -- the sample loop -----------------------------------------------------------------
 
@@ -260,6 +264,7 @@ class Sequencer:
         error: str | None = None
         try:
             self.notify("on_start", self.start)
+            self.prepare_table()
             self._pump.start()
             self._last_sample_wall = time.monotonic()
             self.set_state(RunState.RUNNING, "resumed from window " + str(self.start_window)
@@ -275,6 +280,35 @@ class Sequencer:
             error = "; ".join([error or "completed", *problems])
             outcome = outcome or Outcome.ERROR
         return Acquisition(outcome, error, tuple(self.recorder.windows), self.dwell, self.recorder.n_rows)
+
+    def prepare_table(self) -> None:
+        """Ready the table, through its optional ``prepare(timeout_s)`` (clear faults, close interlocks).
+
+        Not part of the :class:`RotaryTable` protocol: a table without it is used as it is.
+        """
+        prepare = getattr(self.table, "prepare", None)
+        if callable(prepare):
+            self.where = "preparing the table"
+            timeout = self.config.move_timeout_margin_s
+            self._run_blocking(lambda: prepare(timeout), timeout + self.config.stop_timeout_s, "prepare")
+
+    def _run_blocking(self, fn: Callable[[], object], deadline_s: float, what: str) -> None:
+        """Run ``fn`` in a helper thread before the DAQ runs (no samples to drain yet)."""
+        box: dict[str, BaseException] = {}
+
+        def target() -> None:
+            try:
+                fn()
+            except BaseException as exc:
+                box["error"] = exc
+
+        worker = threading.Thread(target=target, name=f"table-{what}", daemon=True)
+        worker.start()
+        worker.join(deadline_s)
+        if worker.is_alive():
+            raise DeviceTimeout(f"table {what} did not return within {deadline_s:.3g} s")
+        if "error" in box:
+            raise box["error"]
 
     def make_safe(self) -> list[str]:
         """Table stopped, acquisition stopped, recording closed; return what failed."""
@@ -310,7 +344,12 @@ class Sequencer:
         return problems
 
     def _stop_table(self, problems: list[str]) -> None:
+        """The table's ``make_safe(timeout_s)`` if it has one (stop, motors off, interlock off), else stop."""
+        make_safe = getattr(self.table, "make_safe", None)
         try:
-            self.table.stop()
+            if callable(make_safe):
+                make_safe(self.config.stop_timeout_s)
+            else:
+                self.table.stop()
         except Exception as exc:
-            problems.append(f"table stop failed: {type(exc).__name__}: {exc}")
+            problems.append(f"table safe state failed: {type(exc).__name__}: {exc}")

@@ -51,6 +51,7 @@ from db.repo.recovery import claim_for_resume, mark_interrupted_runs
 from db.repo.runs import create_run, finish_run, heartbeat, merge_params, set_live_state
 from db.repo.units import get_or_create_bench, get_or_create_unit
 from drivers.factory import BenchDevices, open_bench
+from drivers.sim.physics import SensorTruth
 
 AXIS_NAMES = ("outer", "middle", "inner")
 
@@ -61,10 +62,13 @@ def sim_url(settings: Settings, speed: float | None, seed: int) -> str:
     return f"sim://?speed={speed:g}&rate={settings.sim_sample_rate_hz:g}&seed={seed}&unit=V"
 
 
-def open_devices(settings: Settings, sim: bool, sim_speed: float | None, seed: int) -> BenchDevices:
-    """Table and DAQ: a simulated bench (``sim``) or the URLs of the settings."""
+def open_devices(
+    settings: Settings, sim: bool, sim_speed: float | None, seed: int, truth: SensorTruth | None = None
+) -> BenchDevices:
+    """Table and DAQ: a simulated bench (``sim``, unit ``truth`` or the seed's typical one)
+    or the URLs of the settings."""
     if sim:
-        return open_bench(sim_url(settings, sim_speed, seed))
+        return open_bench(sim_url(settings, sim_speed, seed), truth=truth)
     return open_bench(settings.table_url, settings.daq_url)
 
 
@@ -226,9 +230,18 @@ def start_run(
     observers: Sequence[RunObserver] = (),
     control: RunControl | None = None,
     g_local_m_s2: float = 9.80665,
+    run_id: str | None = None,
+    truth: SensorTruth | None = None,
+    devices: BenchDevices | None = None,
 ) -> RunRecord:
     """Run a procedure on the bench from start to verdict.
 
+    :param devices: devices already open (the caller keeps them and closes them); default:
+        opened here from ``sim`` / the settings and closed at the end.
+
+    :param run_id: the run's id when the caller allocated it (the service answers with it
+        before the run starts); default :func:`new_run_id`.
+    :param truth: the simulated unit (``sim`` only), e.g. an aged one; default the seed's.
     :raises ValueError: unknown procedure, a limit violation in the preview, bad dwell.
     """
     proc = build_procedure(procedure_name, dwell_s=dwell_s)
@@ -238,7 +251,7 @@ def start_run(
     dwell: DwellChoice | None = fixed_dwell(dwell_s) if dwell_s is not None else None
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)
-    run_id = new_run_id(unit_serial)
+    run_id = run_id or new_run_id(unit_serial)
     csv_path = settings.recordings_dir / f"run-{run_id}.csv"
     meta: dict[str, Any] = {
         "run_id": run_id,
@@ -247,7 +260,9 @@ def start_run(
         "sim": {"seed": seed} if sim else None,
         "bench": settings.bench_name,
     }
-    devices = open_devices(settings, sim, sim_speed, seed)
+    owned = devices is None
+    if devices is None:
+        devices = open_devices(settings, sim, sim_speed, seed, truth)
     try:
         sidecar = bench_sidecar(devices, unit_serial, procedure_name, g_local_m_s2)
         with sessions.begin() as s:
@@ -287,7 +302,8 @@ def start_run(
         )
         return _execute(seq, csv_path, obs)
     finally:
-        devices.close()
+        if owned:
+            devices.close()
         engine.dispose()
 
 

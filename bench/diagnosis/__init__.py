@@ -94,7 +94,8 @@ def diagnose(
     """Diagnose a static recording (module docstring).
 
     :param ev: the recording's static evidence.
-    :param false_alarm: per-test false-alarm probability of the likelihood-ratio gate.
+    :param false_alarm: false-alarm probability of one selection step (``selection.FALSE_ALARM``);
+        the within-window settling test runs at a tenth of it.
     :param free_orientation_rad: for ``orientation_known=False`` evidence (f taken from the
         data), the standard deviation given to each window's orientation about the two axes
         perpendicular to gravity, so that only the magnitude of each reading is evidence.
@@ -165,7 +166,7 @@ def diagnose(
     if settle_ok:
         assert ev.window_samples is not None and ev.sample_rate_hz is not None
         st = settling_test(ev.window_samples, ev.sample_rate_hz)
-        if st.p_value() < false_alarm:
+        if st.p_value() < false_alarm / 10:
             ratio = float(np.exp(st.mean_log_ratio))
             findings.append(
                 Finding(

@@ -156,7 +156,7 @@ def fit_noise(
 ) -> tuple[NoiseParams, GlsFit]:
     """REML estimate of the noise parameters for design X; returns them and the GLS fit under them.
 
-    τ² (and σ_p² when ``estimate_pose``) are optimised on a log scale (L-BFGS-B) for each
+    τ² (and σ_p² when ``estimate_pose``) are optimised on a log scale (Powell) for each
     T_c of ``CORRELATION_TIMES_FRACTION`` × span; the best ℓ_REML wins. ``init`` (a nearby
     model's estimate) gives the starting point; without it two starts are tried.
     """
@@ -197,7 +197,14 @@ def fit_noise(
                 u_init = np.append(u_init, np.log(pv / g_scale))
             starts = [np.clip(u_init, _LOG_FLOOR, 12.0)]
         for u0 in starts:
-            res = minimize(objective, u0, args=(tc,), method="L-BFGS-B", bounds=[(_LOG_FLOOR, 12.0)] * n_par)
+            res = minimize(
+                objective,
+                u0,
+                args=(tc,),
+                method="Powell",
+                bounds=[(_LOG_FLOOR, 12.0)] * n_par,
+                options={"xtol": 1e-3, "ftol": 1e-6},
+            )
             val = float(res.fun)
             if best is None or val < best[0]:
                 best = (val, unpack(res.x, tc))

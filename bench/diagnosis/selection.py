@@ -7,7 +7,7 @@ design; the pose error as a variance component). A candidate is admitted only if
    outside the span of the current design (else bias, K and the effects already in the
    model would absorb it: it is reported as indistinguishable, not guessed);
 2. the likelihood-ratio statistic, with the noise re-estimated (REML) under the extended
-   model, exceeds the χ²_q quantile at ``false_alarm`` (per test; the pose variance, a
+   model, exceeds the χ²_q quantile at ``false_alarm`` / N (N candidates in the step; the pose variance, a
    boundary parameter, uses the 50:50 mixture of χ²_0 and χ²_1); for fixed columns under a
    common covariance the statistic is Δχ² = χ²_current − χ²_extended;
 3. its BIC change Δ = −LR + q ln n is negative.
@@ -31,8 +31,9 @@ from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import GlsFit, NoiseParams, covariance, fit_noise, gls
 
-FALSE_ALARM = 1e-3
-"""Per-test false-alarm probability of the likelihood-ratio gate."""
+FALSE_ALARM = 0.01
+"""False-alarm probability of one selection step: split evenly (Bonferroni) over the
+candidates tried in that step, so each likelihood-ratio gate runs at FALSE_ALARM / N."""
 SHORTLIST = 3
 MAX_STEPS = 8
 
@@ -150,6 +151,7 @@ def select(
         if pose_allowed and not state.pose:
             scored.append((-math.inf, None, 1))  # always re-fitted: its LR needs the REML fit
         scored.sort(key=lambda s: s[0])
+        alpha = false_alarm / max(len(scored), 1)
         best: tuple[float, Candidate | None, NoiseParams, GlsFit, FloatArray, float, int] | None = None
         for _dbic0, cand, q in scored[: SHORTLIST + 1]:
             if cand is None:
@@ -157,12 +159,12 @@ def select(
                 if noise1.pose_var_rad2 <= 0:
                     continue
                 lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
-                gate = float(chi2_dist.ppf(1.0 - 2.0 * false_alarm, 1))
+                gate = float(chi2_dist.ppf(1.0 - 2.0 * alpha, 1))
             else:
                 noise1, fit1, K1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise)
                 X1 = design(ev, K1, [*state.candidates, cand])
                 lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
-                gate = float(chi2_dist.ppf(1.0 - false_alarm, q))
+                gate = float(chi2_dist.ppf(1.0 - alpha, q))
             dbic = -lr + q * math.log(n)
             if lr > gate and dbic < 0 and (best is None or dbic < best[0]):
                 best = (dbic, cand, noise1, fit1, K1, lr, q)

@@ -1,0 +1,282 @@
+"""Calibrate a recording in which the table moves (``rate-1axis``, ``oscillation-2axis``).
+
+Recording -> motion regressors (``dynamic_model.prepare_motion`` on the unwrapped encoder
+angles and the sidecar geometry) -> choice of terms (below) -> batch fit over every usable
+sample (``dynamic_batch``) -> extended Kalman filter over the same samples as a cross-check
+(``dynamic_kalman``) -> the contract of ``calbench calibrate`` with the terms beyond bias
+and K under ``extra`` (``cli-contract.md``: ``lever_arm.r_m``, ``proof_mass_offsets.rho_m``,
+``nonlinearity_quadratic.k2_per_g``, ``table_tilt.tilt_rad``, ``time_skew.delay_s``).
+
+Terms. Every candidate term is fitted only if the recording's motion determines it: the
+Fisher information at the linear start must have full rank and the Cramér–Rao sigma of
+each of the term's parameters must be below ``USEFUL_SIGMA`` (a term known no better than
+that is left out, and ``not_fitted`` says why). With ``proof_mass_offsets`` the three
+proof-mass positions q_i are fitted; the contract's ``r_m`` is their centroid and row i of
+``rho_m`` is q_i − r_m (a split of the q_i that the data cannot make otherwise).
+
+|g| check: each sample corrected, f̂ = K⁻¹(raw − b − nonlinear term) minus the fitted
+centripetal and tangential acceleration, |f̂| − g averaged over blocks of 1 s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from bench.calibration import MAX_TABLE_MOTION_RAD, CalibrationResult
+from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
+from bench.estimation.dynamic_kalman import run_dynamic_kalman
+from bench.estimation.dynamic_model import (
+    G0_M_S2,
+    ModelSpec,
+    MotionData,
+    initial_theta,
+    positions,
+    prepare_motion,
+)
+from bench.estimation.g_check import GCheck
+from bench.estimation.observability import fisher_information, information_report
+from bench.recording import Recording
+
+FloatArray = npt.NDArray[np.float64]
+
+DYNAMIC_PROCEDURES = ("rate-1axis", "oscillation-2axis")
+CANDIDATE_TERMS = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", "table_tilt", "time_skew")
+USEFUL_SIGMA = {
+    "lever_arm": 5e-3,
+    "proof_mass_offsets": 1e-3,
+    "nonlinearity_quadratic": 1e-3,
+    "table_tilt": 1e-3,
+    "time_skew": 2e-3,
+}
+"""Largest Cramér–Rao sigma at which a term is worth fitting (m, m, 1/g, rad, s)."""
+KALMAN_AGREEMENT_Z = 3.0
+"""The filter and the batch fit agree when every |difference| / batch sigma is below this."""
+G_BLOCK_S = 1.0
+
+
+def is_dynamic(rec: Recording) -> bool:
+    """A moving-table recording: a dynamic procedure, or (no procedure) a segment where the table turns."""
+    proc = rec.sidecar.procedure
+    if proc in DYNAMIC_PROCEDURES:
+        return True
+    if proc is not None or rec.table_deg is None or not rec.sidecar.segments:
+        return False
+    q = rec.table_rad_unwrapped()
+    assert q is not None
+    for s in rec.sidecar.segments:
+        sel = (rec.t_s >= s.start_s) & (rec.t_s <= s.end_s)
+        if sel.sum() > 1 and np.max(np.ptp(q[sel], axis=0)) > MAX_TABLE_MOTION_RAD:
+            return True
+    return False
+
+
+@dataclass(frozen=True)
+class DynamicCalibrationResult(CalibrationResult):
+    """A :class:`CalibrationResult` of a moving-table recording, with the extra terms.
+
+    :param fit: the batch fit (θ, sandwich covariance, names).
+    :param extra: contract ``extra`` (effect id -> parameter -> value).
+    :param extra_sigma: one-sigma of the same shape.
+    :param not_fitted: candidate term -> why it was left out.
+    :param kalman: cross-check summary (``max_abs_z``, ``agree``, ``sigma_ratio``), or empty.
+    """
+
+    fit: DynamicFit | None = None
+    extra: dict[str, dict[str, Any]] = field(default_factory=dict)
+    extra_sigma: dict[str, dict[str, Any]] = field(default_factory=dict)
+    not_fitted: dict[str, str] = field(default_factory=dict)
+    kalman: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def terms(self) -> list[str]:
+        """bias, scale_matrix and the fitted extra terms (contract effect ids)."""
+        return ["bias", "scale_matrix", *self.extra]
+
+    def to_contract(self) -> dict[str, Any]:
+        """The contract object; adds ``extra_sigma``, ``not_fitted``, ``method`` and ``kalman_check``."""
+        out = super().to_contract()
+        out["extra"] = self.extra
+        out["extra_sigma"] = self.extra_sigma
+        out["not_fitted"] = self.not_fitted
+        out["method"] = "dynamic-batch"
+        out["kalman_check"] = self.kalman
+        return out
+
+
+def choose_spec(
+    m: MotionData, y: FloatArray, g: float, lever: FloatArray, candidates: tuple[str, ...] = CANDIDATE_TERMS
+) -> tuple[ModelSpec, dict[str, str]]:
+    """The candidate terms this motion determines (module docstring) and the reasons for the others."""
+    b0, K0 = linear_start(m, y, g, lever)
+    sig = np.maximum(white_sigma(y[m.valid]), 1e-12)
+    terms = list(candidates)
+    dropped: dict[str, str] = {}
+    while True:
+        spec = ModelSpec(tuple(terms))
+        rep = information_report(
+            fisher_information(m, initial_theta(spec, b0, K0, lever), spec, g, lever, sig), spec.names
+        )
+        worst: tuple[float, str, str] | None = None
+        for t in spec.terms:
+            s = rep.crb_sigma[spec.index(t)]
+            ratio = float(np.max(s)) / USEFUL_SIGMA[t]
+            if ratio > 1.0 and (worst is None or ratio > worst[0]):
+                why = (
+                    ("not determined by this motion: " + "; ".join(rep.unobservable))
+                    if not rep.ok
+                    else (f"Cramér–Rao sigma {np.max(s):.3g} exceeds {USEFUL_SIGMA[t]:g}")
+                )
+                worst = (ratio, t, why)
+        if worst is None:
+            return spec, dropped
+        terms.remove(worst[1])
+        dropped[worst[1]] = worst[2]
+
+
+def _extra(fit: DynamicFit) -> tuple[dict[str, dict[str, Any]], dict[str, dict[str, Any]]]:
+    spec, th, cov = fit.spec, fit.theta, fit.cov
+    val: dict[str, dict[str, Any]] = {}
+    sig: dict[str, dict[str, Any]] = {}
+
+    def lin(T: FloatArray, s: slice) -> tuple[FloatArray, FloatArray]:
+        c = cov[s, s]
+        return T @ th[s], np.sqrt(np.diag(T @ c @ T.T))
+
+    for t in spec.terms:
+        s = spec.index(t)
+        if t == "lever_arm":
+            val[t], sig[t] = {"r_m": th[s].tolist()}, {"r_m": np.sqrt(np.diag(cov[s, s])).tolist()}
+        elif t == "proof_mass_offsets":
+            Tr = np.tile(np.eye(3) / 3.0, (1, 3))  # centroid of q_x, q_y, q_z
+            r, rs = lin(Tr, s)
+            Trho = np.eye(9) - np.tile(Tr, (3, 1))
+            rho, rhos = lin(Trho, s)
+            val["lever_arm"], sig["lever_arm"] = {"r_m": r.tolist()}, {"r_m": rs.tolist()}
+            val[t], sig[t] = {"rho_m": rho.reshape(3, 3).tolist()}, {"rho_m": rhos.reshape(3, 3).tolist()}
+        else:
+            name = {"nonlinearity_quadratic": "k2_per_g", "table_tilt": "tilt_rad", "time_skew": "delay_s"}[t]
+            v, e = th[s], np.sqrt(np.diag(cov[s, s]))
+            val[t] = {name: float(v[0]) if t == "time_skew" else v.tolist()}
+            sig[t] = {name: float(e[0]) if t == "time_skew" else e.tolist()}
+    order = ["lever_arm", *[t for t in val if t != "lever_arm"]]
+    return {k: val[k] for k in order if k in val}, {k: sig[k] for k in order if k in sig}
+
+
+def _corrected_gravity(fit: DynamicFit, m: MotionData, y: FloatArray, lever: FloatArray) -> FloatArray:
+    """(n, 3) K⁻¹(raw − b − nonlinear term) − fitted motion acceleration, per sample (m/s²)."""
+    spec, th = fit.spec, fit.theta
+    b, K = th[:3], th[3:12].reshape(3, 3)
+    Q = positions(th, spec, lever)
+    f_motion = np.einsum("nic,ic->ni", m.B, Q)
+    if "time_skew" in spec.terms:
+        f_motion = f_motion - th[spec.index("time_skew")][0] * np.einsum("nic,ic->ni", m.B_dot, Q)
+    fhat = np.linalg.solve(K, (y - b).T).T
+    if "nonlinearity_quadratic" in spec.terms:  # one fixed-point step removes the k2 f² term
+        k2 = th[spec.index("nonlinearity_quadratic")]
+        fhat = np.linalg.solve(K, (y - b - np.diag(K) * k2 * fhat**2 / G0_M_S2).T).T
+    return np.asarray(fhat - f_motion, dtype=float)
+
+
+def _block_means(t: FloatArray, v: FloatArray) -> FloatArray:
+    blk = np.floor((t - t[0]) / G_BLOCK_S).astype(np.int64)
+    counts = np.bincount(blk)
+    return np.asarray(np.bincount(blk, weights=v)[counts > 0] / counts[counts > 0], dtype=float)
+
+
+def _g_from_magnitudes(mag: FloatArray, g: float) -> GCheck:
+    """:class:`GCheck` of block-mean magnitudes |f̂| (m/s²) against g."""
+    err = mag - g
+    return GCheck(
+        magnitude_m_s2=mag,
+        error_m_s2=err,
+        mean_error_m_s2=float(err.mean()),
+        std_m_s2=float(err.std(ddof=1)) if err.size > 1 else 0.0,
+        rms_m_s2=float(np.sqrt(np.mean(err**2))),
+    )
+
+
+def calibrate_dynamic(
+    rec: Recording,
+    *,
+    terms: tuple[str, ...] | None = None,
+    nominal_scale: float | None = None,
+    nominal_bias: FloatArray | None = None,
+    cross_check: bool = True,
+) -> DynamicCalibrationResult:
+    """Fit the dynamic model to a moving-table recording (module docstring).
+
+    :param terms: the extra terms to fit; default: those the motion determines.
+    :param nominal_scale: nominal sensitivity (channel unit per m/s²) for the 'before' check.
+    :param cross_check: run the Kalman filter over the same data and compare.
+    :raises ValueError: no table, too few samples, or a motion that cannot determine bias and K.
+    """
+    geo = rec.sidecar.table
+    q = rec.table_rad_unwrapped()
+    if geo is None or q is None:
+        raise ValueError("a dynamic calibration needs the table (sidecar 'table' and table_i columns)")
+    g = rec.sidecar.g_local_m_s2
+    lever = np.asarray(geo.lever_arm_m, dtype=float)
+    y = np.asarray(rec.accel_raw, dtype=float)
+    m = prepare_motion(rec.t_s, q, geo.axis_vectors, geo.mount_matrix)
+    if terms is None:
+        spec, dropped = choose_spec(m, y, g, lever)
+    else:
+        spec, dropped = ModelSpec(tuple(terms)), {}
+    fit = fit_dynamic_batch(m, y, g, lever, spec)
+    kal: dict[str, Any] = {}
+    if cross_check:
+        b0, K0 = linear_start(m, y, g, lever)
+        kr = run_dynamic_kalman(
+            m, y, g, lever, spec, initial_theta(spec, b0, K0, lever), fit.noise_sigma, smooth=False
+        )
+        z = (kr.final.x - fit.theta) / fit.sigma
+        kal = {
+            "max_abs_z": float(np.max(np.abs(z))),
+            "worst": fit.names[int(np.argmax(np.abs(z)))],
+            "agree": bool(np.max(np.abs(z)) < KALMAN_AGREEMENT_Z),
+            "filter_sigma_over_batch_sigma_median": float(
+                np.median(np.sqrt(np.diag(kr.final.P)) / fit.sigma)
+            ),
+        }
+    fg = _corrected_gravity(fit, m, y, lever)
+    after = _g_from_magnitudes(_block_means(rec.t_s, np.linalg.norm(fg, axis=1)), g)
+    before = None
+    unit = rec.sidecar.channel_unit
+    scale = nominal_scale if nominal_scale is not None else {"m/s2": 1.0, "g": 1.0 / G0_M_S2}.get(unit)
+    if scale is not None:
+        b0n = np.zeros(3) if nominal_bias is None else np.asarray(nominal_bias, dtype=float)
+        before = _g_from_magnitudes(_block_means(rec.t_s, np.linalg.norm((y - b0n) / scale, axis=1)), g)
+    extra, extra_sigma = _extra(fit)
+    th, sg = fit.theta, fit.sigma
+    return DynamicCalibrationResult(
+        unit_serial=rec.sidecar.unit_serial,
+        channel_unit=unit,
+        procedure=rec.sidecar.procedure or "dynamic",
+        method="dynamic",
+        g_local_m_s2=g,
+        bias=th[:3].copy(),
+        K=th[3:12].reshape(3, 3).copy(),
+        cov=fit.cov,
+        bias_sigma=sg[:3].copy(),
+        K_sigma=sg[3:12].reshape(3, 3).copy(),
+        residual_rms=fit.residual_rms,
+        chi2=float(3 * fit.n_used),
+        dof=3 * fit.n_used - spec.n_params,
+        noise_model=(
+            f"per-sample residual sigma {np.array2string(fit.noise_sigma, precision=3)}; covariance: "
+            f"Newey-West sandwich over {fit.n_blocks} blocks of 1 s, never below the white bound"
+        ),
+        g_after=after,
+        g_before=before,
+        windows=(),
+        source=rec.source,
+        fit=fit,
+        extra=extra,
+        extra_sigma=extra_sigma,
+        not_fitted=dropped,
+        kalman=kal,
+    )

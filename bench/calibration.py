@@ -226,6 +226,11 @@ def calibrate_recording(
         non-finite data; every message starts with the recording's path.
     """
     try:
+        # moving-table recordings (rate-1axis, oscillation-2axis): the dynamic model
+        from bench.calibration_dynamic import calibrate_dynamic, is_dynamic
+
+        if is_dynamic(rec):
+            return calibrate_dynamic(rec, nominal_scale=nominal_scale, nominal_bias=nominal_bias)
         return _calibrate(rec, nominal_scale, nominal_bias)
     except ValueError as exc:
         msg = str(exc)

@@ -28,7 +28,7 @@ from bench.diagnosis.summaries import summary
 
 __all__ = ["Diagnosis", "StaticEvidence", "diagnose"]
 
-CONFOUND_COSINE = 0.95
+CONFOUND_COSINE = 0.8
 """Two effects whose signatures (beyond the first-order model) have |cos| above this are
 reported as indistinguishable on the recording."""
 

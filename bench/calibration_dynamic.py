@@ -171,9 +171,11 @@ def _corrected_gravity(fit: DynamicFit, m: MotionData, y: FloatArray, lever: Flo
     spec, th = fit.spec, fit.theta
     b, K = th[:3], th[3:12].reshape(3, 3)
     Q = positions(th, spec, lever)
-    f_motion = np.einsum("nic,ic->ni", m.B, Q)
+    Be = m.B
     if "time_skew" in spec.terms:
-        f_motion = f_motion - th[spec.index("time_skew")][0] * np.einsum("nic,ic->ni", m.B_dot, Q)
+        d = th[spec.index("time_skew")][0]
+        Be = m.B - d * m.B_dot + 0.5 * d * d * m.B_ddot
+    f_motion = np.einsum("nic,ic->ni", Be, Q)
     fhat = np.linalg.solve(K, (y - b).T).T
     if "nonlinearity_quadratic" in spec.terms:  # one fixed-point step removes the k2 f² term
         k2 = th[spec.index("nonlinearity_quadratic")]

@@ -10,6 +10,10 @@ filter, Särkkä 2013 §5.2). The prior is the sensor's spread before calibratio
 (:class:`Prior`, defaults of an ADXL325-like unit: 15 mg bias, 1 % scale, 15′
 misalignment); the start is the linear least-squares start of the batch fit, whose own
 information is negligible against the data's only if the prior is broad, which it is.
+The measurement is bilinear in K and the lever arm, so a single pass from a start that is
+centimetres off linearises its first batches badly; ``passes=2`` (the default) runs the
+filter again from the first pass's final mean with the same broad prior (a relinearisation,
+as the iterated extended filter does per step, Särkkä 2013 §5.5).
 
 With no bias walk the smoothed state equals the final filtered one; with a walk the
 smoother returns the bias along the run. The filter's covariance assumes white noise: it
@@ -104,6 +108,7 @@ def run_dynamic_kalman(
     batch_s: float = BATCH_S,
     bias_walk_var_per_s: float = 0.0,
     smooth: bool = True,
+    passes: int = 2,
 ) -> KalmanRun:
     """Filter (and smooth) θ through the recording.
 
@@ -120,27 +125,30 @@ def run_dynamic_kalman(
     p = spec.n_params
     pr = prior or Prior()
     P0 = np.diag(pr.sigma(spec, np.asarray(x0[3:12]).reshape(3, 3)) ** 2)
-    state = KalmanState(np.asarray(x0, dtype=float), P0)
     dt = float(np.median(np.diff(m.t_s)))
     per = max(1, round(batch_s / dt))
     Q = np.zeros((p, p))
     Q[:3, :3] = np.eye(3) * bias_walk_var_per_s * per * dt
     idx = np.flatnonzero(m.valid)
     cuts = np.arange(0, idx.shape[0], per)
-    filt: list[KalmanState] = []
-    pred: list[KalmanState] = []
-    times = np.empty(cuts.shape[0])
-    for j, a in enumerate(cuts):
-        sel = idx[a : a + per]
-        prior_k = state if j == 0 else kf_predict(state, None, Q if bias_walk_var_per_s else None)
-        raw, J = predict(prior_k.x, m.take(sel), spec, g_m_s2, lever, jacobian=True)
-        assert J is not None
-        state = update_diagonal(
-            prior_k, Y[sel].reshape(-1), raw.reshape(-1), J.reshape(-1, p), np.tile(sig**2, sel.shape[0])
-        )
-        pred.append(prior_k)
-        filt.append(state)
-        times[j] = m.t_s[sel[-1]]
+    start = np.asarray(x0, dtype=float)
+    for _ in range(max(1, passes)):
+        state = KalmanState(start, P0)
+        filt: list[KalmanState] = []
+        pred: list[KalmanState] = []
+        times = np.empty(cuts.shape[0])
+        for j, a in enumerate(cuts):
+            sel = idx[a : a + per]
+            prior_k = state if j == 0 else kf_predict(state, None, Q if bias_walk_var_per_s else None)
+            raw, J = predict(prior_k.x, m.take(sel), spec, g_m_s2, lever, jacobian=True)
+            assert J is not None
+            state = update_diagonal(
+                prior_k, Y[sel].reshape(-1), raw.reshape(-1), J.reshape(-1, p), np.tile(sig**2, sel.shape[0])
+            )
+            pred.append(prior_k)
+            filt.append(state)
+            times[j] = m.t_s[sel[-1]]
+        start = filt[-1].x if not bias_walk_var_per_s else filt[0].x
     sm = rts_smooth(filt, pred) if smooth else filt
     return KalmanRun(
         names=tuple(spec.names),

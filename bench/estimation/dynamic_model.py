@@ -12,10 +12,12 @@ with g_base = Rot(x, a)·Rot(y, b)·[0, 0, g] = g·[sin b, −cos b sin a, cos b
 ``table_tilt`` of ``cli-contract.md``). Without the size effect every axis sits at the
 lever arm r (q_i = r); with it (``proof_mass_offsets``) each axis has its own q_i
 (DESIGN.md §3, the rate-table paper). f is linear in g_base and q, and so is its time
-derivative ḟ = Ġ g_base + Ḃ q, with Ġ, Ḃ precomputed by differentiating G, B along time.
+derivatives ḟ = Ġ g_base + Ḃ q and f̈, with Ġ, Ḃ, G̈, B̈ precomputed by differentiating G,
+B along time.
 
-``time_skew``: the sample at t saw the table at t − δ, f_δ(t) = f(t − δ) ≈ f(t) − δ·ḟ(t)
-(first order; the neglected δ²f̈/2 is < 1e-7 g for δ ≤ 10 ms at the procedures' rates).
+``time_skew``: the sample at t saw the table at t − δ,
+f_δ(t) = f(t − δ) ≈ f(t) − δ·ḟ(t) + δ²/2·f̈(t) (second order; with |f⃛| ≲ g·ω³ the neglected
+δ³/6·f⃛ is below 1e-6 g for δ ≤ 10 ms at the procedures' rates, ω ≤ 3.5 rad/s).
 
 Sensor (``cli-contract.md``): raw = b + K f_δ + diag(K) ⊙ k2 ⊙ f_δ² / g0.
 
@@ -126,6 +128,7 @@ class MotionData:
     :param t_s: (n,) time (s).
     :param G: (n, 3, 3) Mᵀ R_inᵀ; :param G_dot: its time derivative (1/s).
     :param B: (n, 3, 3) Mᵀ R_inᵀ A R_in (1/s²); :param B_dot: its time derivative (1/s³).
+    :param G_ddot: (n, 3, 3) second derivative of G; :param B_ddot: of B.
     :param valid: (n,) samples the fit may use (not at a rate-profile corner).
     :param peak_rate_rad_s: max |ω| (rad/s).
     """
@@ -135,6 +138,8 @@ class MotionData:
     G_dot: FloatArray
     B: FloatArray
     B_dot: FloatArray
+    G_ddot: FloatArray
+    B_ddot: FloatArray
     valid: BoolArray
     peak_rate_rad_s: float
 
@@ -151,6 +156,8 @@ class MotionData:
             self.G_dot[idx],
             self.B[idx],
             self.B_dot[idx],
+            self.G_ddot[idx],
+            self.B_ddot[idx],
             self.valid[idx],
             self.peak_rate_rad_s,
         )
@@ -226,6 +233,8 @@ def prepare_motion(
         G_dot=sg(G, 1),
         B=B,
         B_dot=sg(B, 1),
+        G_ddot=sg(G, 2),
+        B_ddot=sg(B, 2),
         valid=~corner,
         peak_rate_rad_s=float(np.max(np.linalg.norm(omega, axis=1))),
     )
@@ -253,15 +262,18 @@ def positions(theta: FloatArray, spec: ModelSpec, lever_arm_m: FloatArray) -> Fl
 def _forces(
     theta: FloatArray, m: MotionData, spec: ModelSpec, g: float, lever_arm_m: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """f_δ (n,3), ḟ (n,3), and the effective regressors G − δĠ, B − δḂ."""
+    """f_δ (n,3), ∂f_δ/∂δ = −ḟ + δ f̈ (n,3), and the effective regressors G_δ, B_δ (n,3,3)."""
     gb, _ = gravity_base(theta, spec, g)
     Q = positions(theta, spec, lever_arm_m)
-    f = m.G @ gb + np.einsum("nic,ic->ni", m.B, Q)
-    fdot = m.G_dot @ gb + np.einsum("nic,ic->ni", m.B_dot, Q)
     if "time_skew" not in spec.terms:
-        return f, fdot, m.G, m.B
+        return m.G @ gb + np.einsum("nic,ic->ni", m.B, Q), np.zeros((m.n, 3)), m.G, m.B
     d = float(theta[spec.index("time_skew")][0])
-    return f - d * fdot, fdot, m.G - d * m.G_dot, m.B - d * m.B_dot
+    Ge = m.G - d * m.G_dot + 0.5 * d * d * m.G_ddot
+    Be = m.B - d * m.B_dot + 0.5 * d * d * m.B_ddot
+    dGe = d * m.G_ddot - m.G_dot
+    dBe = d * m.B_ddot - m.B_dot
+    f = Ge @ gb + np.einsum("nic,ic->ni", Be, Q)
+    return f, dGe @ gb + np.einsum("nic,ic->ni", dBe, Q), Ge, Be
 
 
 def specific_force(
@@ -286,7 +298,7 @@ def predict(
     :param lever_arm_m: (3,) lever arm used when the model does not fit it (m).
     """
     b, K = theta[:3], theta[3:12].reshape(3, 3)
-    f, fdot, Ge, Be = _forces(theta, m, spec, g_m_s2, lever_arm_m)
+    f, df_dd, Ge, Be = _forces(theta, m, spec, g_m_s2, lever_arm_m)
     dK = np.diag(K)
     k2 = (
         theta[spec.index("nonlinearity_quadratic")] if "nonlinearity_quadratic" in spec.terms else np.zeros(3)
@@ -315,7 +327,7 @@ def predict(
             _, dg = gravity_base(theta, spec, g_m_s2)
             J[:, :, s] = D @ (Ge @ dg)
         else:
-            J[:, :, s.start] = -np.einsum("nij,nj->ni", D, fdot)
+            J[:, :, s.start] = np.einsum("nij,nj->ni", D, df_dd)
     return raw, J
 
 

@@ -1,0 +1,149 @@
+"""Dynamic calibration: injected truth recovered within the reported uncertainty."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench.calibration import calibrate_recording
+from bench.calibration_dynamic import DynamicCalibrationResult, calibrate_dynamic, is_dynamic
+from bench.recording import read_recording
+from tests.bench.dynamic_sim import DELAY_TRUE_S, EFFECTS, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
+
+RHO = np.array([[0.0, 0.004, -0.002], [0.003, 0.0, 0.001], [-0.002, 0.002, 0.0]])
+Z_MAX = 3.0
+
+
+def _z(est: object, sig: object, true: object) -> np.ndarray:
+    return (np.asarray(est, dtype=float) - np.asarray(true, dtype=float)) / np.asarray(sig, dtype=float)
+
+
+@pytest.fixture(scope="module")
+def osc():  # type: ignore[no-untyped-def]
+    run, rec = oscillation()
+    res = calibrate_recording(rec)
+    assert isinstance(res, DynamicCalibrationResult)
+    return run, res
+
+
+@pytest.fixture(scope="module")
+def rate_pm():  # type: ignore[no-untyped-def]
+    effects = {**EFFECTS, "proof_mass_offsets": {"rho_m": RHO.tolist()}}
+    poses = ((90.0, 0.0), (0.0, 0.0), (90.0, 90.0), (80.0, 30.0), (10.0, 0.0), (80.0, 120.0))
+    run, rec = rate(truth=truth(effects=effects), poses_deg=poses)
+    return run, calibrate_recording(rec)
+
+
+def test_oscillation_recovers_truth(osc) -> None:  # type: ignore[no-untyped-def]
+    run, res = osc
+    c = res.to_contract()
+    assert c["procedure"] == "oscillation-2axis"
+    assert {"lever_arm", "table_tilt", "time_skew"} <= set(c["terms"])
+    assert np.all(np.abs(_z(c["bias"], c["bias_sigma"], run.bias_seen())) < Z_MAX)
+    assert np.all(np.abs(_z(c["scale_matrix"], c["scale_matrix_sigma"], run.truth.K)) < Z_MAX)
+    ex, es = c["extra"], c["extra_sigma"]
+    assert np.all(np.abs(_z(ex["lever_arm"]["r_m"], es["lever_arm"]["r_m"], R_TRUE_M)) < Z_MAX)
+    assert np.all(
+        np.abs(_z(ex["table_tilt"]["tilt_rad"], es["table_tilt"]["tilt_rad"], TILT_TRUE_RAD)) < Z_MAX
+    )
+    assert abs(_z(ex["time_skew"]["delay_s"], es["time_skew"]["delay_s"], DELAY_TRUE_S)) < Z_MAX
+    if "nonlinearity_quadratic" in ex:  # truth has none
+        k2 = ex["nonlinearity_quadratic"]
+        assert np.all(np.abs(_z(k2["k2_per_g"], es["nonlinearity_quadratic"]["k2_per_g"], 0.0)) < Z_MAX)
+    # the paper's radius vector to ~1 mm
+    assert np.max(np.abs(np.array(ex["lever_arm"]["r_m"]) - R_TRUE_M)) < 2e-3
+    # the |g| check after: corrected, motion removed, |f| = g to the noise of 1-s blocks
+    assert abs(c["g_check"]["after"]["mean_error_m_s2"]) < 2e-3
+    json.dumps(c)
+
+
+def test_oscillation_kalman_agrees_with_batch(osc) -> None:  # type: ignore[no-untyped-def]
+    _, res = osc
+    k = res.kalman
+    assert k["agree"] and k["max_abs_z"] < 0.5
+    # the filter's covariance is the white-noise bound: close to the batch sigma here
+    assert 0.5 < k["filter_sigma_over_batch_sigma_median"] <= 1.05
+
+
+def test_rate_table_lever_arm_and_proof_masses(rate_pm) -> None:  # type: ignore[no-untyped-def]
+    run, res = rate_pm
+    c = res.to_contract()
+    ex, es = c["extra"], c["extra_sigma"]
+    assert "proof_mass_offsets" in ex
+    r = np.array(ex["lever_arm"]["r_m"])
+    q = r + np.array(ex["proof_mass_offsets"]["rho_m"])
+    q_true = R_TRUE_M + RHO
+    # the rate-table paper: offsets to millimetres at ±200 °/s; here each proof mass to < 1 mm
+    assert np.max(np.abs(q - q_true)) < 1e-3
+    assert np.max(np.abs(r - q_true.mean(axis=0))) < 1e-3
+    assert np.all(np.abs(_z(r, es["lever_arm"]["r_m"], q_true.mean(axis=0))) < Z_MAX)
+    rho_true = q_true - q_true.mean(axis=0)
+    assert np.all(
+        np.abs(_z(ex["proof_mass_offsets"]["rho_m"], es["proof_mass_offsets"]["rho_m"], rho_true)) < Z_MAX
+    )
+    assert np.all(np.abs(_z(c["bias"], c["bias_sigma"], run.bias_seen())) < Z_MAX)
+    assert np.all(np.abs(_z(c["scale_matrix"], c["scale_matrix_sigma"], run.truth.K)) < Z_MAX)
+    assert res.kalman["agree"]
+
+
+def test_independent_example_rate_recording(shared_dir: Path) -> None:
+    """An independent simulator's rate recording to ±240 °/s: its truth recovered."""
+    stem = shared_dir / "data" / "examples" / "example_rate_lever_known"
+    rec = read_recording(stem.with_suffix(".csv"))
+    truth_doc = json.loads(stem.with_name(stem.name + ".truth.json").read_text())
+    c = calibrate_recording(rec).to_contract()
+    assert np.all(np.abs(_z(c["bias"], c["bias_sigma"], truth_doc["bias_v"])) < Z_MAX)
+    assert np.all(np.abs(_z(c["scale_matrix"], c["scale_matrix_sigma"], truth_doc["K_v_per_m_s2"])) < Z_MAX)
+    r = np.array(c["extra"]["lever_arm"]["r_m"])
+    assert np.max(np.abs(r - [0.06, 0.0, -0.015])) < 1e-3
+    assert np.all(np.abs(_z(r, c["extra_sigma"]["lever_arm"]["r_m"], [0.06, 0.0, -0.015])) < Z_MAX)
+    assert c["kalman_check"]["agree"]
+
+
+def test_unmodelled_lever_arm_is_biased_and_fitted_one_is_not() -> None:
+    """Ignoring the lever arm (the believed zero) leaves its centripetal terms in the residuals."""
+    run, rec = oscillation(duration_s=30.0)
+    bad = calibrate_dynamic(rec, terms=(), cross_check=False)
+    good = calibrate_dynamic(rec, terms=("lever_arm", "table_tilt", "time_skew"), cross_check=False)
+    z_good = np.abs(_z(good.K, good.K_sigma, run.truth.K)).max()
+    assert bad.residual_rms > 1.3 * good.residual_rms  # 0.46 mV (0.026 m/s²) of centripetal signal unmodelled
+    assert z_good < Z_MAX
+
+
+def test_dispatch_and_bad_input() -> None:
+    _, rec = oscillation(duration_s=30.0)
+    assert is_dynamic(rec)
+    assert not is_dynamic(replace(rec, sidecar=replace(rec.sidecar, procedure="static-12")))
+    # no procedure, but a segment in which the table turns
+    assert is_dynamic(replace(rec, sidecar=replace(rec.sidecar, procedure=None)))
+    # a rate-1axis recording at one pose turning about the vertical only: K cannot be determined
+    _, flat = rate(rates_deg_s=(50.0, 100.0), poses_deg=((0.0, 0.0),), dwell_s=3.0)
+    with pytest.raises(ValueError, match=r"cannot be determined|cannot determine"):
+        calibrate_recording(flat)
+    nan = rec.accel_raw.copy()
+    nan[100, 1] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        calibrate_dynamic(replace(rec, accel_raw=nan), terms=("lever_arm",))
+    with pytest.raises(ValueError, match="table"):
+        calibrate_dynamic(replace(rec, table_deg=None))
+
+
+def test_reported_sigma_is_honest_over_seeds() -> None:
+    """Over independent runs the z-scores of every parameter behave like N(0, 1) or better."""
+    zs = []
+    for seed in range(10):
+        run, rec = oscillation(seed=10 + seed, duration_s=60.0, truth=truth(seed=seed))
+        res = calibrate_dynamic(rec, terms=("lever_arm", "table_tilt", "time_skew"), cross_check=False)
+        th_true = np.concatenate(
+            [run.bias_seen(), run.truth.K.ravel(), R_TRUE_M, TILT_TRUE_RAD, [DELAY_TRUE_S]]
+        )
+        assert res.fit is not None
+        zs.append((res.fit.theta - th_true) / res.fit.sigma)
+    z = np.abs(np.concatenate(zs))
+    assert z.max() < 4.5
+    assert np.mean(z < 2.0) > 0.88  # N(0, 1): 0.954
+    assert np.sqrt(np.mean(z**2)) < 1.3

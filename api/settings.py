@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import socket
 from pathlib import Path
+from typing import Annotated
 
-from pydantic import Field
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import Field, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 
 class Settings(BaseSettings):
@@ -26,6 +27,16 @@ class Settings(BaseSettings):
     :param sim_speed: simulated seconds per wall second for ``--sim``.
     :param sim_sample_rate_hz: DAQ rate of the simulated bench (Hz).
     :param temp_band_c: allowed sensor temperature band (°C) or ``None``.
+    :param public_read: reads need no token (a lab that shows the dashboard on a wall screen).
+    :param sim: the service drives a simulated bench (``calbench serve --sim``).
+    :param sim_seed: seed of the simulated bench's noise; each unit's own errors come from its serial.
+    :param run_dwell_s: static dwell of runs started over REST (s); ``None``: a noise window decides.
+    :param drift_time: local time of the nightly drift check, ``HH:MM``; empty: no scheduler.
+    :param drift_procedure: the short check procedure.
+    :param drift_dwell_s: its static dwell per pose (s).
+    :param drift_k: coverage factor of the drift test |Δ| > k·sqrt(u_cert² + u_check²).
+    :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c).
+    :param authorized_by: who authorises certificates (7.8.2.1 o).
     """
 
     model_config = SettingsConfigDict(env_prefix="CALBENCH_", extra="ignore")
@@ -35,10 +46,30 @@ class Settings(BaseSettings):
     table_url: str = "sim://"
     daq_url: str | None = None
     bench_name: str = Field(default_factory=socket.gethostname)
-    tokens: list[str] = Field(default_factory=list)
+    tokens: Annotated[list[str], NoDecode] = Field(default_factory=list)
     sim_speed: float = 1.0
     sim_sample_rate_hz: float = 1000.0
     temp_band_c: tuple[float, float] | None = None
+    public_read: bool = False
+    sim: bool = False
+    sim_seed: int = 0
+    run_dwell_s: float | None = None
+    drift_time: str = "02:00"
+    drift_procedure: str = "static-12"
+    drift_dwell_s: float = 20.0
+    drift_k: float = 2.0
+    lab_name: str = "calbench calibration laboratory"
+    lab_address: str = "address not configured (CALBENCH_LAB_ADDRESS)"
+    lab_location: str = "bench room"
+    authorized_by: str = "not configured (CALBENCH_AUTHORIZED_BY)"
+
+    @field_validator("tokens", mode="before")
+    @classmethod
+    def _split_tokens(cls, value: object) -> object:
+        """``CALBENCH_TOKENS=operator:SECRET,viewer:SECRET`` (comma-separated ``role:secret``)."""
+        if isinstance(value, str):
+            return [part.strip() for part in value.split(",") if part.strip()]
+        return value
 
     @property
     def effective_database_url(self) -> str:

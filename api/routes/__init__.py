@@ -1,0 +1,11 @@
+"""The REST routers, aggregated in :data:`api_router`."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from api.routes import certificates, drift, health, recordings, runs, units
+
+api_router = APIRouter()
+for _module in (health, runs, certificates, units, recordings, drift):
+    api_router.include_router(_module.router)

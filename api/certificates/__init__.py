@@ -1,0 +1,1 @@
+"""Calibration certificates: JSON content (ISO/IEC 17025 7.8), rounding of U, PDF, issuing."""

@@ -1,0 +1,208 @@
+"""The content of a calibration certificate (ISO/IEC 17025:2017 7.8.2.1 and 7.8.4.1) as JSON.
+
+:func:`certificate_content` is pure: it takes what the run produced and returns a dict
+that is hashed (``db.repo.certificates.canonical_sha256``) and rendered to PDF. The fitted
+model is carried under the names of ``calbench calibrate --json`` (``bias``,
+``scale_matrix``, ``residual_rms``, ``g_check``), each quantity as
+``{"value", "expanded_uncertainty", "unit", "k"}`` with U = k·σ, k = 2, two significant
+digits (:mod:`api.certificates.rounding`).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from api.certificates.rounding import expanded_quantity
+
+TITLE = "Calibration Certificate"
+COVERAGE_K = 2.0
+COVERAGE_STATEMENT = (
+    "The reported expanded uncertainty is the standard uncertainty multiplied by the coverage "
+    "factor k = 2, which for a normal distribution corresponds to a coverage probability of "
+    "approximately 95 %. The standard uncertainty was determined in accordance with the GUM "
+    "(JCGM 100:2008): Type A from the within-window noise of the recording (batch means) and "
+    "the scatter between windows."
+)
+ONLY_ITEM = "The results relate only to the item calibrated."
+NOT_REPRODUCED = (
+    "This certificate shall not be reproduced except in full without the approval of the laboratory."
+)
+METHOD = {
+    "static-12": "static multi-position (12 orientations, tumble test on a three-axis table, IEEE Std 1293 "
+    "principle); per-channel weighted least squares of raw = b + K·f",
+    "rate-1axis": "single-axis rate table; static poses for b and K, rate windows for the lever arm",
+    "oscillation-2axis": "two-axis quasi-harmonic oscillation",
+}
+
+
+@dataclass(frozen=True)
+class CertificateInputs:
+    """What a certificate is built from.
+
+    :param run: ``{"id", "procedure", "started_at", "finished_at", "parameters", "bench"}``.
+    :param unit: ``{"serial", "model", "channel_unit"}``.
+    :param calibration: the ``calibrate --json`` contract.
+    :param g_local_m_s2: local gravity used (m/s²), ``None`` when unknown.
+    :param temp_c: (min, mean, max) sensor temperature over the windows (°C), or ``None``.
+    :param table: table description (axes, mount, lever arm) from the sidecar, or ``None``.
+    :param diagnosis: the ``diagnose --json`` object, or ``None`` when not run.
+    :param diagnosis_note: why there is no diagnosis, when there is none.
+    :param simulated: the bench was simulated (results are then not traceable).
+    :param deviations: additions to / deviations from the method (7.8.2.1 n).
+    """
+
+    run: dict[str, Any]
+    unit: dict[str, Any]
+    calibration: dict[str, Any]
+    g_local_m_s2: float | None
+    temp_c: tuple[float, float, float] | None = None
+    table: dict[str, Any] | None = None
+    diagnosis: dict[str, Any] | None = None
+    diagnosis_note: str = ""
+    simulated: bool = False
+    deviations: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Laboratory:
+    """Who issues: name, address, location of the work, who authorises (7.8.2.1 b, c, o)."""
+
+    name: str
+    address: str
+    location: str
+    authorized_by: str
+
+
+def _iso(value: Any) -> str | None:
+    if value is None:
+        return None
+    return value.isoformat() if isinstance(value, dt.datetime) else str(value)
+
+
+def _two_digits(value: Any) -> float | None:
+    """A statistic shown to two significant digits; ``None`` when absent or not finite."""
+    if value is None or not math.isfinite(float(value)):
+        return None
+    return float(f"{float(value):.2g}")
+
+
+def _results(cal: dict[str, Any]) -> dict[str, Any]:
+    unit = str(cal.get("channel_unit", ""))
+    for key in ("bias", "bias_sigma", "scale_matrix", "scale_matrix_sigma"):
+        if key not in cal:
+            raise ValueError(f"calibration has no {key!r}: cannot state the result")
+    results: dict[str, Any] = {
+        "channel_unit": unit,
+        "model": "raw = bias + scale_matrix · f, f the specific force in m/s²",
+        "terms": list(cal.get("terms", ["bias", "scale_matrix"])),
+        "bias": expanded_quantity(cal["bias"], cal["bias_sigma"], unit, COVERAGE_K),
+        "scale_matrix": expanded_quantity(
+            cal["scale_matrix"], cal["scale_matrix_sigma"], f"{unit}/(m/s2)", COVERAGE_K
+        ),
+        "residual_rms": {"value": _two_digits(cal.get("residual_rms")), "unit": unit},
+        "extra": cal.get("extra", {}),
+    }
+    return results
+
+
+def _g_check(cal: dict[str, Any]) -> dict[str, Any]:
+    g = cal.get("g_check", {})
+    out: dict[str, Any] = {
+        "description": "|K⁻¹(raw − b)| − g_local over the static windows: mean error and standard "
+        "deviation, before adjustment (nominal scale) and after (this calibration)",
+    }
+    for when in ("before", "after"):
+        if when in g:
+            out[when] = {k: _two_digits(v) for k, v in g[when].items()}
+        else:
+            out[when] = None
+    return out
+
+
+def _findings(inp: CertificateInputs) -> dict[str, Any]:
+    if inp.diagnosis is None:
+        return {"performed": False, "note": inp.diagnosis_note or "diagnosis not available", "findings": []}
+    findings = [
+        {
+            "effect": f.get("effect"),
+            "summary": f.get("summary"),
+            "parameters": f.get("parameters", {}),
+            "sigma": f.get("sigma", {}),
+        }
+        for f in inp.diagnosis.get("findings", [])
+    ]
+    note = (
+        "the first-order model explains the recording to its noise; no unmodelled effect was found"
+        if not findings
+        else "effects beyond the first-order model were found; see findings (opinion, 7.8.7)"
+    )
+    return {"performed": True, "note": note, "findings": findings}
+
+
+def certificate_content(
+    inp: CertificateInputs, lab: Laboratory, *, number: str, issued_at: dt.datetime
+) -> dict[str, Any]:
+    """The certificate as a JSON-able dict (keys named after the 17025 items they satisfy).
+
+    :raises ValueError: the calibration lacks a quantity or holds a non-finite one.
+    """
+    run, unit = inp.run, inp.unit
+    procedure = str(run.get("procedure", ""))
+    traceability = (
+        "SIMULATED BENCH: the table, DAQ and unit were simulated; these results are not "
+        "metrologically traceable and are for demonstration and testing only."
+        if inp.simulated
+        else "Traceable to the SI through the calibrated reference standards of the bench: table angle "
+        "encoders, DAQ voltage reference, thermometer, and the local gravity value stated under conditions."
+    )
+    temp = None
+    if inp.temp_c is not None:
+        lo, mean, hi = inp.temp_c
+        temp = {"min_c": round(lo, 2), "mean_c": round(mean, 2), "max_c": round(hi, 2)}
+    return {
+        "title": TITLE,
+        "number": number,
+        "laboratory": {"name": lab.name, "address": lab.address},
+        "location": lab.location,
+        "customer": {"name": None, "note": "not recorded by the bench"},
+        "method": {
+            "procedure": procedure,
+            "description": METHOD.get(procedure, procedure),
+            "parameters": run.get("parameters", {}),
+            "deviations": list(inp.deviations) or ["none"],
+            "sampling": "not applicable",
+        },
+        "item": {
+            "description": "triaxial accelerometer",
+            "serial": unit.get("serial"),
+            "model": unit.get("model"),
+            "channel_unit": unit.get("channel_unit"),
+            "condition": "as received; no adjustment made",
+        },
+        "dates": {
+            "received": None,
+            "calibration_start": _iso(run.get("started_at")),
+            "calibration_end": _iso(run.get("finished_at")),
+            "issued": _iso(issued_at),
+        },
+        "run_id": run.get("id"),
+        "bench": run.get("bench"),
+        "conditions": {
+            "sensor_temperature": temp,
+            "g_local_m_s2": inp.g_local_m_s2,
+            "table": inp.table,
+        },
+        "results": _results(inp.calibration),
+        "g_check": _g_check(inp.calibration),
+        "uncertainty_statement": COVERAGE_STATEMENT,
+        "diagnosis": _findings(inp),
+        "conformity": "no statement of conformity was requested (no limits configured for the unit)",
+        "traceability": traceability,
+        "statements": [ONLY_ITEM, NOT_REPRODUCED],
+        "authorized_by": lab.authorized_by,
+        "external_providers": "none",
+        "end": "End of certificate",
+    }

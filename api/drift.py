@@ -1,0 +1,221 @@
+"""Nightly drift checks: re-measure each unit of this bench and compare with its last certificate.
+
+Test per coefficient c (the 3 biases and 9 elements of K):
+
+    |Δc| > k · sqrt(u_cert(c)² + u_check(c)²),   Δc = c_check − c_cert
+
+with u_cert = U_cert / k_cert from the certificate's stated expanded uncertainty and
+u_check the standard uncertainty of the check's fit (both independent measurements; the
+certificate's rounding of U to two digits is part of its statement). A unit is flagged
+when any coefficient exceeds its limit.
+
+:class:`DriftScheduler` runs the check once a day at ``CALBENCH_DRIFT_TIME`` (``HH:MM``,
+local time of the clock) for every unit of the bench that has a certificate, one after
+the other on the bench's runner. Its clock is injectable and :meth:`DriftScheduler.tick`
+is what its thread calls, so tests drive it without waiting for the night.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+import math
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, sessionmaker
+
+from api.runner import BenchBusy, BenchRunner
+from api.settings import Settings
+from bench.records import RunRecord, utc_now
+from db.models import Certificate, DriftCheck, Unit
+from db.repo.certificates import latest_certificate
+from db.repo.drift import add_drift_check
+from db.repo.units import get_bench_by_name, get_unit_by_serial
+
+log = logging.getLogger(__name__)
+
+
+def parse_time_of_day(text: str) -> dt.time | None:
+    """``"HH:MM"`` -> ``time``; empty -> ``None`` (scheduler off).
+
+    :raises ValueError: anything else, naming the setting.
+    """
+    if not text.strip():
+        return None
+    try:
+        hh, mm = text.strip().split(":")
+        return dt.time(int(hh), int(mm))
+    except ValueError:
+        raise ValueError(f"CALBENCH_DRIFT_TIME={text!r}: expected HH:MM (00:00..23:59) or empty") from None
+
+
+def compare(cert: dict[str, Any], check: dict[str, Any], k: float) -> dict[str, Any]:
+    """Compare a check's fit (``calibrate --json``) with a certificate's content.
+
+    :returns: ``{"k", "coefficients": [...], "flagged", "max_ratio"}``; each coefficient has
+        name, unit, reference, check, delta, u_reference, u_check, limit, exceeded.
+    :raises ValueError: a quantity missing or of another shape.
+    """
+    rows: list[dict[str, Any]] = []
+    res = cert["results"]
+    for name, sigma_key in (("bias", "bias_sigma"), ("scale_matrix", "scale_matrix_sigma")):
+        q = res[name]
+        ref = np.asarray(q["value"], dtype=float)
+        u_ref = np.asarray(q["expanded_uncertainty"], dtype=float) / float(q["k"])
+        val = np.asarray(check[name], dtype=float)
+        u_val = np.asarray(check[sigma_key], dtype=float)
+        if ref.shape != val.shape or u_val.shape != val.shape:
+            raise ValueError(f"{name}: certificate shape {ref.shape}, check shape {val.shape}")
+        for idx in np.ndindex(ref.shape):
+            delta = float(val[idx] - ref[idx])
+            limit = k * math.hypot(float(u_ref[idx]), float(u_val[idx]))
+            rows.append({
+                "name": f"{name}[{','.join(map(str, idx))}]",
+                "unit": q["unit"],
+                "reference": float(ref[idx]),
+                "check": float(val[idx]),
+                "delta": delta,
+                "u_reference": float(u_ref[idx]),
+                "u_check": float(u_val[idx]),
+                "limit": limit,
+                "exceeded": abs(delta) > limit,
+            })
+    ratios = [abs(r["delta"]) / r["limit"] for r in rows if r["limit"] > 0]
+    return {
+        "k": k,
+        "coefficients": rows,
+        "flagged": any(r["exceeded"] for r in rows),
+        "max_ratio": max(ratios) if ratios else None,
+    }
+
+
+def record_drift_check(s: Session, settings: Settings, serial: str, record: RunRecord) -> DriftCheck:
+    """Store the drift check of ``serial`` from a finished check run (flagged or not).
+
+    :raises LookupError: the unit is unknown.
+    """
+    unit = get_unit_by_serial(s, serial)
+    if unit is None:
+        raise LookupError(f"unit {serial} not found")
+    cert = latest_certificate(s, unit.id)
+    result: dict[str, Any] = {"procedure": record.start.procedure, "outcome": None, "status": "no_result"}
+    flagged = False
+    if record.outcome is not None:
+        result["outcome"] = record.outcome.value
+    if cert is None:
+        result["error"] = "the unit has no certificate to compare with"
+    elif record.calibration is None:
+        result["error"] = record.error or "the check run produced no fit"
+    else:
+        result = {**result, **compare(cert.content, dict(record.calibration), settings.drift_k)}
+        result["status"] = "compared"
+        result["reference_number"] = cert.number
+        flagged = bool(result["flagged"])
+    return add_drift_check(
+        s, unit.id, result, flagged, run_id=record.run_id,
+        reference_certificate_id=cert.id if cert is not None else None,
+    )
+
+
+def units_due(s: Session, bench_name: str) -> list[str]:
+    """Serials of this bench's units that have a certificate."""
+    bench = get_bench_by_name(s, bench_name)
+    if bench is None:
+        return []
+    stmt = (
+        sa.select(Unit.serial)
+        .where(Unit.bench_id == bench.id, sa.exists().where(Certificate.unit_id == Unit.id))
+        .order_by(Unit.serial)
+    )
+    return list(s.scalars(stmt))
+
+
+class DriftScheduler:
+    """Starts the nightly check runs on the runner, one unit at a time.
+
+    :param clock: wall clock (aware datetime); the run time is taken in the clock's local zone.
+    :param poll_s: how often the thread calls :meth:`tick`.
+    """
+
+    def __init__(
+        self,
+        settings: Settings,
+        sessions: sessionmaker[Session],
+        runner: BenchRunner,
+        clock: Callable[[], dt.datetime] = utc_now,
+        poll_s: float = 20.0,
+    ) -> None:
+        self.settings, self.sessions, self.runner, self.clock = settings, sessions, runner, clock
+        self.time_of_day = parse_time_of_day(settings.drift_time)
+        self.poll_s = poll_s
+        self.pending: list[str] = []
+        self.last_run_at: dt.datetime | None = None
+        self.next_run_at = self._next_after(clock()) if self.time_of_day else None
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def _next_after(self, now: dt.datetime) -> dt.datetime:
+        assert self.time_of_day is not None
+        local = now.astimezone()
+        tod = self.time_of_day
+        at = local.replace(hour=tod.hour, minute=tod.minute, second=0, microsecond=0)
+        return at if at > local else at + dt.timedelta(days=1)
+
+    def enqueue(self, serial: str | None = None) -> list[str]:
+        """Queue one unit (it must exist) or every due unit of the bench; returns the queue.
+
+        :raises LookupError: the unit is unknown.
+        """
+        with self.sessions.begin() as s:
+            if serial is not None and get_unit_by_serial(s, serial) is None:
+                raise LookupError(f"unit {serial} not found")
+            serials = [serial] if serial is not None else units_due(s, self.settings.bench_name)
+        with self._lock:
+            self.pending.extend(x for x in serials if x not in self.pending)
+            self.last_run_at = self.clock()
+            return list(self.pending)
+
+    def tick(self) -> str | None:
+        """Queue the units when the time has come, and start the next check if the bench is
+        free; returns the id of the run started, if any."""
+        now = self.clock()
+        if self.next_run_at is not None and now >= self.next_run_at:
+            self.next_run_at = self._next_after(now)
+            self.enqueue()
+        with self._lock:
+            if not self.pending or self.runner.current is not None:
+                return None
+            serial = self.pending[0]
+        try:
+            live = self.runner.start(
+                serial, self.settings.drift_procedure, dwell_s=self.settings.drift_dwell_s, kind="drift_check"
+            )
+        except BenchBusy:
+            return None
+        with self._lock:
+            if serial in self.pending:
+                self.pending.remove(serial)
+        return live.id
+
+    def _loop(self) -> None:
+        while not self._stop.wait(self.poll_s):
+            try:
+                self.tick()
+            except Exception:  # keep the scheduler alive; the next tick tries again
+                log.exception("drift scheduler tick failed")
+
+    def start(self) -> None:
+        """Start the scheduler's thread."""
+        self._thread = threading.Thread(target=self._loop, name="drift-scheduler", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the thread (the current check run, if any, is the runner's)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)

@@ -1,0 +1,126 @@
+"""The service: ``create_app(settings)`` wires database, runner, drift scheduler, auth and routes.
+
+The lifespan opens (creates and migrates) the database, marks runs left live by a dead
+process ``interrupted``, starts the drift scheduler's thread, and on shutdown aborts the
+run holding the bench and stops the scheduler. Nothing is read from the environment here:
+the caller builds ``Settings`` (``calbench serve`` does, from ``CALBENCH_*``).
+
+The dashboard (``api/static``, ``api/templates`` and a router in ``api.routes.dashboard``,
+when installed) is mounted beside the JSON API.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import importlib
+import importlib.util
+import logging
+import socket
+from collections.abc import AsyncIterator, Callable
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
+from sqlalchemy.orm import Session, sessionmaker
+
+from api.auth import Authenticator, Role, parse_tokens
+from api.certificates.issue import finish_calibration
+from api.deps import Services
+from api.drift import DriftScheduler, record_drift_check
+from api.progress_hub import ProgressHub
+from api.routes import api_router
+from api.runner import BenchRunner, LiveRun
+from api.settings import Settings
+from bench.records import RunRecord, utc_now
+from db.engine import make_session_factory, open_database
+from db.repo.recovery import mark_interrupted_runs
+from db.repo.runs import merge_params
+
+log = logging.getLogger(__name__)
+STATIC_DIR = Path(__file__).resolve().parent / "static"
+DESCRIPTION = """Accelerometer calibration bench service.
+
+Roles: a **viewer** token reads, an **operator** token also starts and aborts runs, issues
+certificates, uploads recordings and starts drift checks. Send `Authorization: Bearer TOKEN`.
+Missing or unknown token: 401; a role too low: 403. One run at a time per bench: a second
+start gets 409.
+"""
+
+
+def make_finisher(
+    settings: Settings, sessions: sessionmaker[Session]
+) -> Callable[[LiveRun, RunRecord], None]:
+    """What the runner's worker does after a run: results, certificate or drift comparison."""
+
+    def finish(live: LiveRun, record: RunRecord) -> None:
+        with sessions.begin() as s:
+            merge_params(s, record.run_id, {"service_kind": live.kind})
+            if live.kind == "calibration":
+                cert = finish_calibration(s, settings, record)
+                live.extra["certificate_number"] = cert.number if cert is not None else None
+            else:
+                check = record_drift_check(s, settings, live.unit_serial, record)
+                live.extra["drift_flagged"] = check.flagged
+                live.extra["drift_check_id"] = check.id
+
+    return finish
+
+
+def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_now) -> Services:
+    """Open the database (migrating it) and build runner, scheduler and authenticator.
+
+    :raises ValueError: a malformed ``CALBENCH_TOKENS`` entry or ``CALBENCH_DRIFT_TIME``.
+    """
+    env_tokens = parse_tokens(settings.tokens)
+    engine = open_database(settings.effective_database_url)
+    sessions = make_session_factory(engine)
+    with sessions.begin() as s:
+        marked = mark_interrupted_runs(s, socket.gethostname())
+    if marked:
+        log.warning("runs left live by a dead process, now interrupted: %s", ", ".join(marked))
+    hub = ProgressHub()
+    runner = BenchRunner(settings, sessions, hub, make_finisher(settings, sessions), clock=clock)
+    drift = DriftScheduler(settings, sessions, runner, clock=clock)
+    auth = Authenticator(env_tokens, sessions, public_read=settings.public_read)
+    return Services(settings, engine, sessions, hub, runner, drift, auth)
+
+
+def create_app(
+    settings: Settings,
+    *,
+    clock: Callable[[], dt.datetime] = utc_now,
+    start_scheduler: bool = True,
+    extra_tokens: dict[str, str] | None = None,
+) -> FastAPI:
+    """The FastAPI application for ``settings``.
+
+    :param clock: wall clock of the runner and scheduler (tests move it to age units).
+    :param start_scheduler: start the drift scheduler's thread (tests call ``tick`` instead).
+    :param extra_tokens: ``{secret: role}`` accepted besides ``settings.tokens`` (the
+        operator token ``calbench serve`` generates when none is configured).
+    """
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        services = build_services(settings, clock)
+        for secret, role in (extra_tokens or {}).items():
+            services.auth.add(secret, Role[role.upper()])
+        app.state.services = services
+        if start_scheduler and services.drift.time_of_day is not None:
+            services.drift.start()
+        try:
+            yield
+        finally:
+            services.drift.stop()
+            services.runner.shutdown()
+            app.state.services = None
+            services.engine.dispose()
+
+    app = FastAPI(title="calbench", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
+    app.include_router(api_router)
+    if importlib.util.find_spec("api.routes.dashboard") is not None:
+        app.include_router(importlib.import_module("api.routes.dashboard").router)
+    if STATIC_DIR.is_dir():
+        app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
+    return app

@@ -1,0 +1,40 @@
+"""Liveness (no token needed) and the caller's role."""
+
+from __future__ import annotations
+
+import sqlalchemy as sa
+from fastapi import APIRouter
+
+from api.deps import ServicesDep, ViewerDep
+from api.schemas import Health, WhoAmI
+
+router = APIRouter(prefix="/api", tags=["health"])
+VERSION = "0.1.0"
+
+
+@router.get("/health", response_model=Health)
+def health(services: ServicesDep) -> Health:
+    """Is the service up, is its database reachable, is the bench busy."""
+    ok = True
+    try:
+        with services.engine.connect() as conn:
+            conn.execute(sa.text("SELECT 1"))
+    except sa.exc.SQLAlchemyError:
+        ok = False
+    cur = services.runner.current
+    return Health(
+        status="ok" if ok else "degraded",
+        version=VERSION,
+        bench=services.settings.bench_name,
+        simulated=services.settings.sim,
+        database=services.engine.url.render_as_string(hide_password=True),
+        database_ok=ok,
+        busy_run=cur.id if cur is not None else None,
+        public_read=services.auth.public_read,
+    )
+
+
+@router.get("/whoami", response_model=WhoAmI)
+def whoami(role: ViewerDep) -> WhoAmI:
+    """The role of the presented token (``anonymous`` where reads are public)."""
+    return WhoAmI(role=role.label)  # type: ignore[arg-type]

@@ -1,0 +1,157 @@
+"""Runs: start (operator), list, read, abort (operator), and the live event stream."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from collections.abc import AsyncIterator
+from typing import Annotated
+
+import sqlalchemy as sa
+from fastapi import APIRouter, HTTPException, Query, Request, status
+from fastapi.responses import StreamingResponse
+
+from api.deps import OperatorDep, RunnerDep, ServicesDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
+from api.progress_hub import TERMINAL_EVENT
+from api.routes.views import live_out, run_out
+from api.runner import BenchBusy
+from api.schemas import AbortOut, RunCreate, RunCreated, RunOut, RunStateName
+from db.models import Certificate, RunState
+from db.repo.runs import get_run, list_runs
+
+router = APIRouter(prefix="/api/runs", tags=["runs"])
+KEEPALIVE_S = 15.0
+
+
+@router.post(
+    "",
+    status_code=status.HTTP_202_ACCEPTED,
+    response_model=RunCreated,
+    responses={409: {"description": "the bench is busy with another run"}},
+)
+def start_run(body: RunCreate, runner: RunnerDep, _: OperatorDep) -> RunCreated:
+    """Queue a procedure for a unit on this bench; the run starts at once on its worker."""
+    try:
+        live = runner.start(body.unit_serial, body.procedure, dwell_s=body.dwell_s)
+    except BenchBusy as exc:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
+    except ValueError as exc:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
+    return RunCreated(id=live.id)
+
+
+@router.get("", response_model=list[RunOut])
+def runs(
+    session: SessionDep,
+    runner: RunnerDep,
+    settings: SettingsDep,
+    _: ViewerDep,
+    unit_serial: Annotated[str | None, Query(max_length=64)] = None,
+    state: RunStateName | None = None,
+    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+) -> list[RunOut]:
+    """Runs, newest first (the run holding the bench first while it has no stored row)."""
+    with session.begin():
+        rows = list_runs(
+            session, unit_serial=unit_serial, states=[RunState(state)] if state else None, limit=limit
+        )
+        numbers = dict(
+            session.execute(
+                sa.select(Certificate.run_id, Certificate.number).where(
+                    Certificate.run_id.in_([r.id for r in rows])
+                )
+            ).tuples()
+        )
+        out = [run_out(r, r.unit.serial, runner.live(r.id), numbers.get(r.id)) for r in rows]
+    cur = runner.current
+    if (
+        cur is not None
+        and all(r.id != cur.id for r in out)
+        and state in (None, "queued")
+        and unit_serial in (None, cur.unit_serial)
+    ):
+        out.insert(0, live_out(cur, settings.bench_name))
+    return out
+
+
+@router.get("/{run_id}", response_model=RunOut, responses={404: {"description": "no such run"}})
+def run(run_id: str, session: SessionDep, runner: RunnerDep, settings: SettingsDep, _: ViewerDep) -> RunOut:
+    """One run: state, progress 0..1, outcome, error, the fit when there is one."""
+    with session.begin():
+        row = get_run(session, run_id, with_unit=True)
+        if row is not None:
+            number = session.scalar(sa.select(Certificate.number).where(Certificate.run_id == run_id))
+            return run_out(row, row.unit.serial, runner.live(run_id), number)
+    live = runner.live(run_id)
+    if live is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
+    return live_out(live, settings.bench_name)
+
+
+@router.post(
+    "/{run_id}/abort",
+    response_model=AbortOut,
+    responses={404: {"description": "no such run"}, 409: {"description": "the run is not live"}},
+)
+def abort(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -> AbortOut:
+    """Abort a live run: the table goes to its safe state, the recording is kept."""
+    if runner.abort(run_id):
+        return AbortOut(id=run_id, abort_requested=True, state="running")
+    with session.begin():
+        row = get_run(session, run_id)
+        if row is None:
+            raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
+        state = row.state.value
+    raise HTTPException(
+        status.HTTP_409_CONFLICT, f"run {run_id} is {state}, not running on this bench: nothing to abort"
+    )
+
+
+def _sse(event: str, data: dict[str, object]) -> str:
+    return f"event: {event}\ndata: {json.dumps(data, default=str)}\n\n"
+
+
+@router.get(
+    "/{run_id}/events",
+    response_class=StreamingResponse,
+    responses={200: {"content": {"text/event-stream": {}}, "description": "server-sent events"}},
+)
+async def events(run_id: str, request: Request, services: ServicesDep, _: ViewerLinkDep) -> StreamingResponse:
+    """Live progress as server-sent events: ``state``, ``progress``, ``window``, and a final
+    ``finished`` (state, outcome, error, certificate_number) after which the stream ends.
+    A run that is not live gets one ``finished`` event with its stored state."""
+    runner, hub = services.runner, services.hub
+    live = runner.live(run_id)
+    if live is None:
+        with services.sessions.begin() as s:
+            row = get_run(s, run_id)
+            if row is None:
+                raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
+            final = {"state": row.state.value, "outcome": row.outcome, "error": row.error}
+
+        async def once() -> AsyncIterator[str]:
+            yield _sse(TERMINAL_EVENT, final)
+
+        return StreamingResponse(once(), media_type="text/event-stream")
+    sub = hub.subscribe(run_id)
+
+    async def stream() -> AsyncIterator[str]:
+        try:
+            if live.done.is_set() and hub.last(run_id) is None:
+                yield _sse(TERMINAL_EVENT, {"state": live.state, "error": live.error})
+                return
+            while True:
+                try:
+                    event, data = await asyncio.wait_for(sub.queue.get(), KEEPALIVE_S)
+                except TimeoutError:
+                    if await request.is_disconnected():
+                        return
+                    yield ": keepalive\n\n"
+                    continue
+                yield _sse(event, data)
+                if event == TERMINAL_EVENT:
+                    return
+        finally:
+            hub.unsubscribe(sub)
+
+    return StreamingResponse(stream(), media_type="text/event-stream", headers={"Cache-Control": "no-cache"})

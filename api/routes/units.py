@@ -1,0 +1,61 @@
+"""Units: the list, and one unit's history (runs, certificates, drift checks)."""
+
+from __future__ import annotations
+
+import sqlalchemy as sa
+from fastapi import APIRouter, HTTPException, status
+
+from api.deps import RunnerDep, SessionDep, ViewerDep
+from api.routes.views import certificate_out, drift_out, run_out
+from api.schemas import UnitHistory, UnitOut
+from db.models import Bench, Certificate, DriftCheck, Run, Unit
+from db.repo.certificates import list_certificates
+from db.repo.drift import list_drift_checks
+from db.repo.runs import list_runs
+from db.repo.units import get_unit_by_serial, list_units
+
+router = APIRouter(prefix="/api/units", tags=["units"])
+
+
+def _unit_out(session: SessionDep, unit: Unit) -> UnitOut:
+    bench = session.scalar(sa.select(Bench.name).where(Bench.id == unit.bench_id)) if unit.bench_id else None
+    n_runs = session.scalar(sa.select(sa.func.count()).select_from(Run).where(Run.unit_id == unit.id)) or 0
+    last_cert = session.scalar(
+        sa.select(Certificate.number).where(Certificate.unit_id == unit.id).order_by(Certificate.id.desc())
+    )
+    last_drift = session.scalar(
+        sa.select(DriftCheck.flagged).where(DriftCheck.unit_id == unit.id).order_by(DriftCheck.id.desc())
+    )
+    return UnitOut(
+        serial=unit.serial, model=unit.model, channel_unit=unit.channel_unit, bench=bench,
+        n_runs=int(n_runs), last_certificate=last_cert, last_drift_flagged=last_drift,
+    )
+
+
+@router.get("", response_model=list[UnitOut])
+def units(session: SessionDep, _: ViewerDep) -> list[UnitOut]:
+    """Every unit, by serial, with its last certificate and whether its last drift check flagged it."""
+    with session.begin():
+        return [_unit_out(session, u) for u in list_units(session)]
+
+
+@router.get("/{serial}/history", response_model=UnitHistory, responses={404: {"description": "no such unit"}})
+def history(serial: str, session: SessionDep, runner: RunnerDep, _: ViewerDep) -> UnitHistory:
+    """A unit's runs (with their fits), certificates and drift checks, oldest first."""
+    with session.begin():
+        unit = get_unit_by_serial(session, serial)
+        if unit is None:
+            raise HTTPException(status.HTTP_404_NOT_FOUND, f"unit {serial} not found")
+        certs = list_certificates(session, unit.id)
+        by_run = {c.run_id: c.number for c in certs}
+        by_id = {c.id: c.number for c in certs}
+        runs = list(reversed(list_runs(session, unit_serial=serial)))
+        return UnitHistory(
+            unit=_unit_out(session, unit),
+            runs=[run_out(r, serial, runner.live(r.id), by_run.get(r.id)) for r in runs],
+            certificates=[certificate_out(c, serial) for c in certs],
+            drift_checks=[
+                drift_out(d, serial, by_id.get(d.reference_certificate_id or -1))
+                for d in list_drift_checks(session, unit.id)
+            ],
+        )

@@ -1,0 +1,88 @@
+"""Conversion of stored rows (and the runner's live runs) to wire models."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from api.runner import LiveRun
+from api.schemas import CertificateOut, DriftCheckOut, RunOut
+from db.models import Certificate, DriftCheck, Run
+
+
+def _kind(run: Run, live: LiveRun | None) -> str:
+    if live is not None:
+        return live.kind
+    kind = run.params.get("service_kind")
+    return kind if kind in ("calibration", "drift_check") else "other"
+
+
+def run_out(run: Run, serial: str, live: LiveRun | None = None, certificate: str | None = None) -> RunOut:
+    """A stored run; a live one shows the runner's fresher progress."""
+    cal = run.params.get("calibration")
+    progress = run.progress
+    if live is not None and run.state.value in ("queued", "running", "paused", "suspended"):
+        progress = max(progress, live.progress)
+    return RunOut(
+        id=run.id,
+        unit_serial=serial,
+        procedure=run.procedure,
+        kind=_kind(run, live),  # type: ignore[arg-type]
+        state=run.state.value,  # type: ignore[arg-type]
+        progress=min(1.0, max(0.0, progress)),
+        outcome=run.outcome,
+        error=run.error,
+        bench=run.params.get("bench"),
+        created_at=run.created_at,
+        started_at=run.started_at,
+        finished_at=run.finished_at,
+        n_samples=run.n_samples,
+        last_complete_window=run.last_complete_window,
+        calibration=cal if isinstance(cal, dict) else None,
+        certificate_number=certificate,
+    )
+
+
+_WIRE_STATE = {"pending": "queued", "finished": "running"}
+"""Bench states with no wire name: ``finished`` is only visible while results are stored."""
+
+
+def live_out(live: LiveRun, bench: str) -> RunOut:
+    """A run the runner holds that has no database row (yet, or ever: it failed before)."""
+    state = _WIRE_STATE.get(live.state, live.state)
+    return RunOut(
+        id=live.id,
+        unit_serial=live.unit_serial,
+        procedure=live.procedure,
+        kind=live.kind,
+        state=state,  # type: ignore[arg-type]
+        progress=min(1.0, max(0.0, live.progress)),
+        error=live.error,
+        bench=bench,
+        created_at=live.created_at,
+    )
+
+
+def certificate_out(cert: Certificate, serial: str) -> CertificateOut:
+    """An issued certificate."""
+    return CertificateOut(
+        number=cert.number,
+        run_id=cert.run_id,
+        unit_serial=serial,
+        issued_at=cert.issued_at,
+        sha256=cert.sha256,
+        content=cert.content,
+    )
+
+
+def drift_out(check: DriftCheck, serial: str, reference: str | None) -> DriftCheckOut:
+    """A stored drift check."""
+    result: dict[str, Any] = dict(check.result)
+    return DriftCheckOut(
+        id=check.id,
+        unit_serial=serial,
+        checked_at=check.checked_at,
+        flagged=check.flagged,
+        run_id=check.run_id,
+        reference_certificate=reference,
+        result=result,
+    )

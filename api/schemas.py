@@ -1,0 +1,187 @@
+"""Wire models of the REST API (pydantic), never ORM classes.
+
+Request bodies forbid unknown fields, so a misspelt key is a 422 naming it rather than a
+silently ignored option. Times are ISO 8601 UTC; numbers are SI unless the field name
+says otherwise (``*_deg``, ``channel_unit``).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from bench.procedures import PROCEDURES
+
+RunStateName = Literal[
+    "queued", "running", "paused", "suspended", "completed", "failed", "error", "aborted", "interrupted"
+]
+SERIAL_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"
+
+
+class RunCreate(BaseModel):
+    """Start a procedure on the bench for one unit."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    unit_serial: str = Field(
+        pattern=SERIAL_PATTERN,
+        description="serial of the unit under test: letters, digits, '.', '_', '-' (1..64 characters)",
+        examples=["SN-0001"],
+    )
+    procedure: str = Field(description="registered procedure name", examples=["static-12"])
+    dwell_s: float | None = Field(
+        default=None,
+        gt=0.0,
+        le=3600.0,
+        description="static dwell per pose (s); default: the service's setting or a noise window",
+    )
+
+    @field_validator("procedure")
+    @classmethod
+    def _known_procedure(cls, value: str) -> str:
+        if value not in PROCEDURES:
+            raise ValueError(f"unknown procedure {value!r}; known: {', '.join(sorted(PROCEDURES))}")
+        return value
+
+    @field_validator("dwell_s")
+    @classmethod
+    def _finite(cls, value: float | None) -> float | None:
+        if value is not None and not math.isfinite(value):
+            raise ValueError("dwell_s must be a finite number of seconds")
+        return value
+
+
+class RunCreated(BaseModel):
+    """The id of the run just queued; follow it at ``/api/runs/{id}`` and ``/api/runs/{id}/events``."""
+
+    id: str
+    state: RunStateName = "queued"
+
+
+class RunOut(BaseModel):
+    """One run as stored (or, before its first database write, as the bench's worker knows it)."""
+
+    id: str
+    unit_serial: str
+    procedure: str
+    kind: Literal["calibration", "drift_check", "other"] = "other"
+    state: RunStateName
+    progress: float = Field(ge=0.0, le=1.0)
+    outcome: str | None = None
+    error: str | None = None
+    bench: str | None = None
+    created_at: dt.datetime | None = None
+    started_at: dt.datetime | None = None
+    finished_at: dt.datetime | None = None
+    n_samples: int | None = None
+    last_complete_window: int | None = None
+    calibration: dict[str, Any] | None = Field(
+        default=None, description="the fit as `calbench calibrate --json` prints it"
+    )
+    certificate_number: str | None = None
+
+
+class AbortOut(BaseModel):
+    """Result of an abort request."""
+
+    id: str
+    abort_requested: bool
+    state: RunStateName
+
+
+class UnitOut(BaseModel):
+    """A unit (sensor) known to the service."""
+
+    serial: str
+    model: str | None = None
+    channel_unit: str | None = None
+    bench: str | None = None
+    n_runs: int = 0
+    last_certificate: str | None = None
+    last_drift_flagged: bool | None = None
+
+
+class CertificateOut(BaseModel):
+    """An issued certificate: number, hash of the canonical JSON content, and the content."""
+
+    number: str
+    run_id: str
+    unit_serial: str
+    issued_at: dt.datetime
+    sha256: str
+    content: dict[str, Any]
+
+
+class DriftCheckOut(BaseModel):
+    """A nightly re-measurement compared with the unit's last certificate."""
+
+    id: int
+    unit_serial: str
+    checked_at: dt.datetime
+    flagged: bool
+    run_id: str | None = None
+    reference_certificate: str | None = None
+    result: dict[str, Any]
+
+
+class UnitHistory(BaseModel):
+    """Everything the service knows about one unit, oldest first."""
+
+    unit: UnitOut
+    runs: list[RunOut]
+    certificates: list[CertificateOut]
+    drift_checks: list[DriftCheckOut]
+
+
+class DriftRequest(BaseModel):
+    """Run the drift check now (all registered units, or one)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    unit_serial: str | None = Field(default=None, pattern=SERIAL_PATTERN)
+
+
+class DriftStatus(BaseModel):
+    """The drift scheduler: when it runs next and what it did last."""
+
+    enabled: bool
+    time_of_day: str | None
+    next_run_at: dt.datetime | None
+    last_run_at: dt.datetime | None
+    procedure: str
+    dwell_s: float
+    k: float
+    running: bool
+    pending_units: list[str]
+
+
+class RecordingResult(BaseModel):
+    """Calibration and diagnosis of an uploaded recording."""
+
+    calibration: dict[str, Any]
+    diagnosis: dict[str, Any] | None = Field(
+        default=None, description="the `calbench diagnose --json` object, or null when not available"
+    )
+    diagnosis_error: str | None = None
+
+
+class Health(BaseModel):
+    """Liveness and what the service is connected to."""
+
+    status: Literal["ok", "degraded"]
+    version: str
+    bench: str
+    simulated: bool
+    database: str
+    database_ok: bool
+    busy_run: str | None
+    public_read: bool
+
+
+class WhoAmI(BaseModel):
+    """The role of the presented token."""
+
+    role: Literal["viewer", "operator", "admin", "anonymous"]

@@ -1,0 +1,62 @@
+"""Shared pieces of the service tests: settings on a temporary directory, tokens, a movable clock."""
+
+from __future__ import annotations
+
+import datetime as dt
+import time
+from pathlib import Path
+from typing import Any
+
+from fastapi.testclient import TestClient
+
+from api.settings import Settings
+
+OPERATOR = "operator-secret-0001"
+VIEWER = "viewer-secret-0001"
+OP = {"Authorization": f"Bearer {OPERATOR}"}
+VIEW = {"Authorization": f"Bearer {VIEWER}"}
+SIM_SPEED = 10.0
+RATE_HZ = 100.0
+
+
+def service_settings(tmp_path: Path, **overrides: Any) -> Settings:
+    """Settings of a simulated bench on SQLite in ``tmp_path`` with one operator and one viewer token."""
+    values: dict[str, Any] = {
+        "data_dir": tmp_path,
+        "database_url": f"sqlite:///{tmp_path / 'calbench.db'}",
+        "tokens": [f"operator:{OPERATOR}", f"viewer:{VIEWER}"],
+        "sim": True,
+        "sim_speed": SIM_SPEED,
+        "sim_sample_rate_hz": RATE_HZ,
+        "bench_name": "bench-api",
+        "run_dwell_s": 3.0,
+        "drift_time": "",
+        "drift_dwell_s": 3.0,
+    }
+    values.update(overrides)
+    return Settings(**values)
+
+
+class MovableClock:
+    """A wall clock the test moves forward (aware UTC)."""
+
+    def __init__(self) -> None:
+        self.offset = dt.timedelta(0)
+
+    def __call__(self) -> dt.datetime:
+        return dt.datetime.now(dt.UTC) + self.offset
+
+    def advance(self, days: float) -> None:
+        self.offset += dt.timedelta(days=days)
+
+
+def wait_final(client: TestClient, run_id: str, timeout_s: float = 240.0) -> dict[str, Any]:
+    """Poll ``GET /api/runs/{id}`` until the run is final and its results are stored."""
+    deadline = time.monotonic() + timeout_s
+    services = client.app.state.services  # type: ignore[attr-defined]
+    while time.monotonic() < deadline:
+        body = client.get(f"/api/runs/{run_id}", headers=VIEW).json()
+        if body.get("state") in ("completed", "failed", "error", "aborted") and services.runner.current is None:
+            return body
+        time.sleep(0.2)
+    raise AssertionError(f"run {run_id} did not finish within {timeout_s} s: {body}")

@@ -38,21 +38,13 @@ from bench.estimation.dynamic_model import (
     prepare_motion,
 )
 from bench.estimation.g_check import GCheck
-from bench.estimation.observability import fisher_information, information_report
+from bench.estimation.observability import USEFUL_SIGMA, fisher_information, information_report
 from bench.recording import Recording
 
 FloatArray = npt.NDArray[np.float64]
 
 DYNAMIC_PROCEDURES = ("rate-1axis", "oscillation-2axis")
 CANDIDATE_TERMS = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", "table_tilt", "time_skew")
-USEFUL_SIGMA = {
-    "lever_arm": 5e-3,
-    "proof_mass_offsets": 1e-3,
-    "nonlinearity_quadratic": 1e-3,
-    "table_tilt": 1e-3,
-    "time_skew": 2e-3,
-}
-"""Largest Cramér–Rao sigma at which a term is worth fitting (m, m, 1/g, rad, s)."""
 KALMAN_AGREEMENT_Z = 3.0
 """The filter and the batch fit agree when every |difference| / batch sigma is below this."""
 G_BLOCK_S = 1.0

@@ -56,7 +56,9 @@ def parse_time_of_day(text: str) -> dt.time | None:
 def compare(cert: dict[str, Any], check: dict[str, Any], k: float) -> dict[str, Any]:
     """Compare a check's fit (``calibrate --json``) with a certificate's content.
 
-    :returns: ``{"k", "coefficients": [...], "flagged", "max_ratio"}``; each coefficient has
+    :returns: ``{"k", "false_alarm_probability", "coefficients": [...], "flagged", "max_ratio"}``
+        (the probability that an unchanged unit is flagged, for independent normal errors);
+        each coefficient has
         name, unit, reference, check, delta, u_reference, u_check, limit, exceeded.
     :raises ValueError: a quantity missing or of another shape.
     """
@@ -85,8 +87,10 @@ def compare(cert: dict[str, Any], check: dict[str, Any], k: float) -> dict[str, 
                 "exceeded": abs(delta) > limit,
             })
     ratios = [abs(r["delta"]) / r["limit"] for r in rows if r["limit"] > 0]
+    p_one = math.erfc(k / math.sqrt(2.0))  # P(|z| > k) for one unchanged coefficient
     return {
         "k": k,
+        "false_alarm_probability": 1.0 - (1.0 - p_one) ** len(rows),
         "coefficients": rows,
         "flagged": any(r["exceeded"] for r in rows),
         "max_ratio": max(ratios) if ratios else None,

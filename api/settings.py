@@ -34,7 +34,9 @@ class Settings(BaseSettings):
     :param drift_time: local time of the nightly drift check, ``HH:MM``; empty: no scheduler.
     :param drift_procedure: the short check procedure.
     :param drift_dwell_s: its static dwell per pose (s).
-    :param drift_k: coverage factor of the drift test |Δ| > k·sqrt(u_cert² + u_check²).
+    :param drift_k: coverage factor of the drift test |Δ| > k·sqrt(u_cert² + u_check²), per
+        coefficient; with 12 coefficients k = 3 flags an unchanged unit with probability
+        about 3 % (k = 2: about 43 %).
     :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c).
     :param authorized_by: who authorises certificates (7.8.2.1 o).
     """
@@ -57,7 +59,7 @@ class Settings(BaseSettings):
     drift_time: str = "02:00"
     drift_procedure: str = "static-12"
     drift_dwell_s: float = 20.0
-    drift_k: float = 2.0
+    drift_k: float = 3.0
     lab_name: str = "calbench calibration laboratory"
     lab_address: str = "address not configured (CALBENCH_LAB_ADDRESS)"
     lab_location: str = "bench room"

@@ -233,9 +233,11 @@ def start_run(
     run_id: str | None = None,
     truth: SensorTruth | None = None,
     devices: BenchDevices | None = None,
+    config: SequencerConfig | None = None,
 ) -> RunRecord:
     """Run a procedure on the bench from start to verdict.
 
+    :param config: sequencer deadlines and policies; default from the settings.
     :param devices: devices already open (the caller keeps them and closes them); default:
         opened here from ``sim`` / the settings and closed at the end.
 
@@ -245,7 +247,7 @@ def start_run(
     :raises ValueError: unknown procedure, a limit violation in the preview, bad dwell.
     """
     proc = build_procedure(procedure_name, dwell_s=dwell_s)
-    pv = preview(proc, _config(settings).limits)
+    pv = preview(proc, (config or _config(settings)).limits)
     if not pv.ok:
         raise ValueError(f"{procedure_name}: " + "; ".join(pv.problems))
     dwell: DwellChoice | None = fixed_dwell(dwell_s) if dwell_s is not None else None
@@ -298,7 +300,15 @@ def start_run(
         )
         obs = [DbObserver(sessions), *observers]
         seq = Sequencer(
-            devices.table, devices.daq, proc, recorder, start, obs, control, _config(settings), dwell
+            devices.table,
+            devices.daq,
+            proc,
+            recorder,
+            start,
+            obs,
+            control,
+            (config or _config(settings)),
+            dwell,
         )
         return _execute(seq, csv_path, obs)
     finally:

@@ -104,6 +104,7 @@ class Sequencer:
         self._in_call = False
         self._holding = False
         self._daq_latches_table = False
+        self._gaps = 0
 
     # -- observers -----------------------------------------------------------------------
 
@@ -149,11 +150,13 @@ class Sequencer:
             item = self._pump.items.get(timeout=wait_s)
         except queue.Empty:
             if time.monotonic() - self._last_sample_wall > self.config.stall_timeout_s:
-                raise DeviceTimeout(f"no DAQ samples for {self.config.stall_timeout_s:g} s") from None
+                gaps = f" ({self._gaps} sample gaps reported meanwhile)" if self._gaps else ""
+                raise DeviceTimeout(f"no DAQ samples for {self.config.stall_timeout_s:g} s{gaps}") from None
             item = None
         if isinstance(item, Failed):
             raise item.error
         if isinstance(item, Gap):
+            self._gaps += 1
             if self.window is not None:
                 raise WindowSpoiled(str(item.error))
         elif item is not None:

@@ -100,7 +100,7 @@ def test_sigkill_mid_window_then_resume(tmp_path: Path) -> None:
 
     # An uninterrupted run of the same unit: the two fits agree within their uncertainty,
     # and both agree with the truth.
-    clean = start_run(settings_for(tmp_path / "clean"), "static-12", "SN-CRASH", sim=True, sim_speed=100,
+    clean = start_run(settings_for(tmp_path / "clean"), "static-12", "SN-CRASH", sim=True, sim_speed=50,
                       seed=SEED, dwell_s=8.0)
     assert clean.outcome is Outcome.PASS and clean.calibration is not None
     dz = difference_z(out["calibration"], clean.calibration)

@@ -1,0 +1,134 @@
+"""Injected driver faults on the simulated bench: every one ends as a clean ERROR (or a
+suspension), with the table made safe where it still answers and the partial recording kept.
+
+Faults are injected into the simulated controller and DAQ server once the second window is
+complete, through an observer; the real drivers see them over their real protocols.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import pytest
+
+from api.bench_session import sim_url, start_run
+from bench.recording.reader import read_recording
+from bench.records import NullObserver, Outcome, RunRecord, RunState, StateChange, WindowRecord
+from bench.sequencer_control import SequencerConfig
+from drivers.base import AxisMode
+from drivers.factory import BenchDevices, open_bench
+from tests.e2e.helpers import settings_for
+
+pytestmark = pytest.mark.slow
+
+FAST_FAIL = SequencerConfig(stall_timeout_s=5.0, stop_timeout_s=5.0, move_timeout_margin_s=10.0,
+                            suspend_timeout_s=3.0)
+
+
+class InjectAfter(NullObserver):
+    def __init__(self, window: int, inject: Callable[[], None]) -> None:
+        self.window = window
+        self.inject = inject
+        self.states: list[StateChange] = []
+
+    def on_window(self, run_id: str, window: WindowRecord) -> None:
+        if window.index == self.window:
+            self.inject()
+
+    def on_state(self, run_id: str, change: StateChange) -> None:
+        self.states.append(change)
+
+
+def run_with_fault(tmp_path: Path, inject: Callable[[BenchDevices], None]) -> tuple[RunRecord, BenchDevices,
+                                                                                      InjectAfter]:
+    settings = settings_for(tmp_path)
+    devices = open_bench(sim_url(settings, 50, 7))
+    obs = InjectAfter(1, lambda: inject(devices))
+    try:
+        record = start_run(settings, "static-12", "SN-FAULT", sim=True, seed=7, dwell_s=5.0, observers=[obs],
+                           devices=devices, config=FAST_FAIL)
+    except BaseException:
+        devices.close()
+        raise
+    return record, devices, obs
+
+
+def assert_recording_kept(record: RunRecord) -> None:
+    rec = read_recording(record.start.recording_path)
+    assert rec.n_samples == record.n_samples > 0
+    assert len(rec.sidecar.segments or ()) == len(record.windows) >= 2
+
+
+def assert_table_safe(devices: BenchDevices) -> None:
+    st = devices.table.status()
+    assert all(a.mode is AxisMode.OFF and abs(a.rate_deg_s) < 1e-6 for a in st.axes), st
+    assert not st.interlock_ok  # the shutdown order ends with the interlock open
+
+
+@pytest.mark.parametrize(("fault", "params", "expect"), [
+    ("no_reply", {}, "Timeout"),
+    ("garbled", {"probability": 1.0}, "Error"),
+    ("stalled_axis", {"axis": 2, "trip_s": 0.5}, "step"),
+])
+def test_table_faults_end_as_error(tmp_path: Path, fault: str, params: dict[str, Any], expect: str) -> None:
+    def inject(d: BenchDevices) -> None:
+        d.sim.controller.inject(fault, **params)  # type: ignore[union-attr]
+
+    record, devices, _ = run_with_fault(tmp_path, inject)
+    try:
+        assert record.outcome is Outcome.ERROR, record
+        assert record.error is not None and expect in record.error
+        assert_recording_kept(record)
+        if fault == "stalled_axis":
+            assert_table_safe(devices)
+        else:
+            devices.sim.controller.clear(fault)  # type: ignore[union-attr]
+    finally:
+        devices.close()
+
+
+def test_interlock_trip_suspends_then_errors_when_it_stays_open(tmp_path: Path) -> None:
+    record, devices, obs = run_with_fault(
+        tmp_path, lambda d: d.sim.controller.inject("interlock_trip", after_s=0.0))  # type: ignore[union-attr]
+    try:
+        assert [s.state for s in obs.states][:2] == [RunState.RUNNING, RunState.SUSPENDED]
+        assert "interlock" in obs.states[1].reason
+        assert record.outcome is Outcome.ERROR and "suspended for more than 3 s" in (record.error or "")
+        assert_recording_kept(record)
+    finally:
+        devices.close()
+
+
+@pytest.mark.parametrize("fault", ["exception", "silent"])
+def test_daq_faults_end_as_error_with_the_table_safe(tmp_path: Path, fault: str) -> None:
+    def inject(d: BenchDevices) -> None:
+        server = d.sim.daq_server  # type: ignore[union-attr]
+        if fault == "exception":
+            server.inject_exception(4, None)
+        else:
+            server.set_silent(True)
+
+    record, devices, _ = run_with_fault(tmp_path, inject)
+    try:
+        assert record.outcome is Outcome.ERROR, record
+        assert_recording_kept(record)
+        assert_table_safe(devices)
+    finally:
+        devices.close()
+
+
+def test_lost_daq_samples_are_recorded_again_not_hidden(tmp_path: Path) -> None:
+    record, devices, _ = run_with_fault(tmp_path, lambda d: d.sim.daq_server.drop_samples(30))  # type: ignore[union-attr]
+    try:
+        assert record.outcome is Outcome.PASS, record.error
+        assert len(record.windows) == 12
+        rec = read_recording(record.start.recording_path)
+        jumps = rec.t_s[:-1][np.diff(rec.t_s) > 1.5 / rec.sidecar.sample_rate_hz]
+        assert jumps.size >= 1  # the 30 lost samples show as a jump in t
+        assert not any(w.start_s <= t < w.end_s for w in record.windows for t in jumps)
+    finally:
+        devices.close()

@@ -74,4 +74,4 @@ def checks(
     if unit_serial is not None:
         stmt = stmt.where(Unit.serial == unit_serial)
     with session.begin():
-        return [drift_out(c, serial, number) for c, serial, number in session.execute(stmt).tuples()]
+        return [drift_out(c, serial, number) for c, serial, number in session.execute(stmt).all()]

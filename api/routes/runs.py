@@ -55,13 +55,11 @@ def runs(
         rows = list_runs(
             session, unit_serial=unit_serial, states=[RunState(state)] if state else None, limit=limit
         )
-        numbers = dict(
-            session.execute(
-                sa.select(Certificate.run_id, Certificate.number).where(
-                    Certificate.run_id.in_([r.id for r in rows])
-                )
-            ).tuples()
-        )
+        ids = [r.id for r in rows]
+        found = session.execute(
+            sa.select(Certificate.run_id, Certificate.number).where(Certificate.run_id.in_(ids))
+        ).all()
+        numbers = dict(found)
         out = [run_out(r, r.unit.serial, runner.live(r.id), numbers.get(r.id)) for r in rows]
     cur = runner.current
     if (

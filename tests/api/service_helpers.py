@@ -56,7 +56,8 @@ def wait_final(client: TestClient, run_id: str, timeout_s: float = 240.0) -> dic
     services = client.app.state.services  # type: ignore[attr-defined]
     while time.monotonic() < deadline:
         body = client.get(f"/api/runs/{run_id}", headers=VIEW).json()
-        if body.get("state") in ("completed", "failed", "error", "aborted") and services.runner.current is None:
+        final = body.get("state") in ("completed", "failed", "error", "aborted")
+        if final and services.runner.current is None:
             return body
         time.sleep(0.2)
     raise AssertionError(f"run {run_id} did not finish within {timeout_s} s: {body}")

@@ -78,7 +78,9 @@ def test_public_read_opens_reads_but_not_writes(tmp_path: Path) -> None:
         ({"unit_serial": "SN-1", "procedure": "static-12", "dwel_s": 2}, "dwel_s"),
     ],
 )
-def test_bad_bodies_are_422_naming_the_field(client: TestClient, body: dict[str, object], needle: str) -> None:
+def test_bad_bodies_are_422_naming_the_field(
+    client: TestClient, body: dict[str, object], needle: str
+) -> None:
     r = client.post("/api/runs", json=body, headers=OP)
     assert r.status_code == 422
     assert needle in json.dumps(r.json())

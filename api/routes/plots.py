@@ -1,0 +1,155 @@
+"""JSON series for the dashboard's plots, and a run's diagnosis as stored.
+
+Read-only (viewer role). A run's series come from its recording and fit
+(:mod:`api.plots.run_bundle`), so they exist once the run is final and has a fit:
+a run still recording gets 409, a run without a fit 409 naming its state, a
+recording that has gone missing or cannot be read 422 naming the file.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, HTTPException, Query, status
+from sqlalchemy.orm import Session
+
+from api.deps import SessionDep, ViewerDep
+from api.plots.history_series import HistoryPoint, coefficient_history
+from api.plots.run_bundle import BundleCache, RunBundle, build_bundle
+from db.models import ACTIVE_STATES, Run
+from db.repo.progress import list_windows
+from db.repo.runs import get_run, list_runs
+from db.repo.units import get_unit_by_serial
+
+router = APIRouter(tags=["plots"])
+CACHE = BundleCache()
+_404: dict[int | str, dict[str, Any]] = {404: {"description": "no such run"}}
+_ERRORS: dict[int | str, dict[str, Any]] = {**_404, 409: {"description": "the run is live or has no fit"},
+           422: {"description": "the recording cannot be read or fitted"}}
+
+
+def _final_run(session: Session, run_id: str) -> Run:
+    run = get_run(session, run_id)
+    if run is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
+    if run.state in ACTIVE_STATES:
+        raise HTTPException(
+            status.HTTP_409_CONFLICT, f"run {run_id} is {run.state.value}: no plots until it ends"
+        )
+    if not isinstance(run.params.get("calibration"), dict):
+        raise HTTPException(
+            status.HTTP_409_CONFLICT, f"run {run_id} is {run.state.value} without a fit: nothing to plot"
+        )
+    if not run.recording_path:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id} has no recording path")
+    return run
+
+
+def _bundle(session: Session, run_id: str) -> tuple[str, RunBundle]:
+    with session.begin():
+        run = _final_run(session, run_id)
+        path = str(run.recording_path)
+        noise = [(w.start_s, w.end_s) for w in list_windows(session, run_id) if w.kind == "noise"]
+    try:
+        key = CACHE.key(run_id, path)
+        return path, CACHE.get(key, lambda: build_bundle(path, noise))
+    except OSError as exc:
+        raise HTTPException(
+            status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id}: recording {path} cannot be read: {exc}"
+        ) from None
+    except ValueError as exc:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id}: {exc}") from None
+
+
+def _previous_calibration(session: Session, run_id: str) -> dict[str, Any] | None:
+    """The contract of the unit's last calibrated run before ``run_id``, with its ``run_id``."""
+    with session.begin():
+        run = get_run(session, run_id, with_unit=True)
+        if run is None:
+            return None
+        for other in list_runs(session, unit_serial=run.unit.serial):  # newest first
+            if other.id == run_id or other.created_at >= run.created_at:
+                continue
+            cal = other.params.get("calibration")
+            if isinstance(cal, dict) and "bias" in cal and "scale_matrix" in cal:
+                return {**cal, "run_id": other.id}
+    return None
+
+
+@router.get("/api/runs/{run_id}/plots/g-check", responses=_ERRORS)
+def g_check(
+    run_id: str,
+    session: SessionDep,
+    _: ViewerDep,
+    nominal_scale: Annotated[
+        float | None, Query(description="datasheet sensitivity (channel unit per m/s²) for 'before'")
+    ] = None,
+    nominal_bias: Annotated[
+        list[float] | None, Query(description="datasheet zero-g output, 3 values (channel unit)")
+    ] = None,
+) -> dict[str, Any]:
+    """|f̂| per static window after correction, and before: with the nominal scale (given, or
+    natural for m/s² and g channels) or else with the unit's previous calibration."""
+    bundle = _bundle(session, run_id)[1]
+    previous = None if nominal_scale is not None else _previous_calibration(session, run_id)
+    try:
+        return bundle.g_check(nominal_scale, nominal_bias, previous)
+    except ValueError as exc:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
+
+
+@router.get("/api/runs/{run_id}/plots/residuals", responses=_ERRORS)
+def residuals(run_id: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
+    """Fit residuals per static window and channel (channel units and z-scores)."""
+    return _bundle(session, run_id)[1].residuals
+
+
+@router.get("/api/runs/{run_id}/plots/allan", responses=_ERRORS)
+def allan(run_id: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
+    """Overlapping Allan deviation of the run's noise window (or longest static window)."""
+    bundle = _bundle(session, run_id)[1]
+    if bundle.allan is None:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, bundle.allan_error or "no Allan curve")
+    return bundle.allan
+
+
+@router.get("/api/runs/{run_id}/diagnosis", responses=_404)
+def diagnosis(run_id: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
+    """The run's stored diagnosis (the ``calbench diagnose --json`` object) or why there is none:
+    ``{"run_id", "diagnosis": {...} | null, "note": str}``."""
+    with session.begin():
+        run = get_run(session, run_id)
+        if run is None:
+            raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
+        diag = run.params.get("diagnosis")
+        note = str(run.params.get("diagnosis_error") or "")
+        if not isinstance(diag, dict):
+            diag = None
+            if not note:
+                note = (
+                    f"run is {run.state.value}: diagnosis comes after the fit"
+                    if run.state in ACTIVE_STATES
+                    else "no diagnosis stored for this run"
+                )
+        return {"run_id": run_id, "diagnosis": diag, "note": note}
+
+
+@router.get("/api/units/{serial}/plots/history", responses={404: {"description": "no such unit"}})
+def history(serial: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
+    """Every fitted coefficient of the unit over its calibrated runs, with U = 2σ."""
+    with session.begin():
+        unit = get_unit_by_serial(session, serial)
+        if unit is None:
+            raise HTTPException(status.HTTP_404_NOT_FOUND, f"unit {serial} not found")
+        points = []
+        for run in list_runs(session, unit_serial=serial):
+            cal = run.params.get("calibration")
+            if not isinstance(cal, dict):
+                continue
+            when = run.finished_at or run.started_at or run.created_at
+            points.append(HistoryPoint(run.id, when.isoformat() if when else "", cal))
+        channel_unit = unit.channel_unit or "?"
+    out = coefficient_history(points, channel_unit)
+    out["unit_serial"] = serial
+    out["channel_unit"] = channel_unit
+    return out

@@ -1,0 +1,91 @@
+"""Certificate rounding (GUM 7.2.6), content and PDF, without a bench."""
+
+from __future__ import annotations
+
+import datetime as dt
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
+from api.certificates.pdf import render_pdf
+from api.certificates.rounding import expanded_quantity, round_expanded
+from db.repo.certificates import canonical_sha256
+
+
+@pytest.mark.parametrize(
+    ("value", "sigma", "expected"),
+    [
+        (1.504234567, 1.2345e-5, (1.504235, 2.5e-5)),  # U = 2.469e-5 -> 2.5e-5, value to 1e-6
+        (0.0177312, 4.98e-7, (0.0177312, 1.0e-6)),  # U = 9.96e-7 rounds up to 1.0e-6
+        (9.81, 0.00625, (9.81, 0.013)),  # 0.0125 half-up -> 0.013
+        (-3.14159, 0.05, (-3.14, 0.10)),
+        (123456.0, 2400.0, (123500.0, 4800.0)),  # U = 4800: value to the hundreds
+    ],
+)
+def test_expanded_uncertainty_has_two_significant_digits(
+    value: float, sigma: float, expected: tuple[float, float]
+) -> None:
+    v, u = round_expanded(value, sigma)
+    assert v == pytest.approx(expected[0], abs=1e-15) and u == pytest.approx(expected[1], rel=1e-12)
+
+
+def test_rounding_refuses_non_finite_and_negative() -> None:
+    for bad in ((float("nan"), 1.0), (1.0, float("inf")), (1.0, -1.0)):
+        with pytest.raises(ValueError, match="cannot round"):
+            round_expanded(*bad)
+    with pytest.raises(ValueError, match="shape"):
+        expanded_quantity([1.0, 2.0], [0.1], "V")
+
+
+CAL = {
+    "unit": "SN-C", "channel_unit": "V", "procedure": "static-12",
+    "bias": [1.5042, 1.5003, 1.4955], "bias_sigma": [1.1e-5, 1.2e-5, 0.9e-5],
+    "scale_matrix": [[0.01744, 9.2e-5, -1.08e-4], [1e-5, 0.0175, 2e-5], [3e-5, -2e-5, 0.0176]],
+    "scale_matrix_sigma": [[1.6e-6] * 3] * 3, "terms": ["bias", "scale_matrix"], "extra": {},
+    "residual_rms": 7.7e-6,
+    "g_check": {"after": {"mean_error_m_s2": 3.2e-9, "std_m_s2": 3.3e-4}},
+}
+
+
+def _content() -> dict[str, object]:
+    inputs = CertificateInputs(
+        run={"id": "r1", "procedure": "static-12", "started_at": dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
+             "finished_at": dt.datetime(2025, 1, 1, 0, 5, tzinfo=dt.UTC), "parameters": {"dwell_s": 8.0}},
+        unit={"serial": "SN-C", "model": "ADXL325", "channel_unit": "V"},
+        calibration=CAL, g_local_m_s2=9.81535, temp_c=(24.4, 24.6, 24.9),
+        diagnosis={"findings": [{"effect": "nonlinearity_quadratic", "summary": "z: k2 = 1.5e-3 per g",
+                                 "parameters": {"k2_per_g": [0, 0, 0.0015]}, "sigma": {}}]},
+    )
+    lab = Laboratory("Test lab", "1 Lab Road", "room 2", "A. Person")
+    return certificate_content(inputs, lab, number="CB-2025-00007",
+                               issued_at=dt.datetime(2025, 1, 2, tzinfo=dt.UTC))
+
+
+def test_content_carries_the_17025_items_and_the_model_under_the_contract_names() -> None:
+    c = _content()
+    assert c["number"] == "CB-2025-00007" and c["end"] == "End of certificate"
+    res = c["results"]
+    assert res["bias"]["value"] == [1.5042, 1.5003, 1.4955]
+    assert res["bias"]["expanded_uncertainty"] == [2.2e-5, 2.4e-5, 1.8e-5]
+    assert res["scale_matrix"]["expanded_uncertainty"][0] == [3.2e-6] * 3
+    assert c["g_check"]["before"] is None and c["g_check"]["after"]["std_m_s2"] == 3.3e-4
+    assert c["diagnosis"]["findings"][0]["effect"] == "nonlinearity_quadratic"
+    assert c["conditions"]["sensor_temperature"]["mean_c"] == 24.6
+    assert "k = 2" in c["uncertainty_statement"]
+    canonical_sha256(c)  # JSON-able without NaN
+
+
+@pytest.mark.skipif(shutil.which("pdftotext") is None, reason="poppler-utils not installed")
+def test_pdf_text_holds_number_results_and_hash(tmp_path: Path) -> None:
+    c = _content()
+    digest = canonical_sha256(c)
+    path = tmp_path / "c.pdf"
+    path.write_bytes(render_pdf(c, digest))
+    text = subprocess.run(["pdftotext", "-layout", str(path), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    for needle in ("Calibration Certificate", "CB-2025-00007", "page 1 of 1", digest, "End of certificate",
+                   "nonlinearity_quadratic", "1.5042 ± 2.2e-05"):
+        assert needle in text, needle

@@ -8,34 +8,23 @@ dwell is therefore τ_min of the unit's Allan curve, taken from
 1. the unit's last Allan characterisation, when one is given (``source = "allan"``), or
 2. a static noise window the run records first (``source = "noise_window"``);
 
-in both cases the recommendation of :func:`bench.estimation.dwell.recommend_dwell_s` when
-that module is installed, else τ_min of the worst channel (the largest τ_min over the three
-channels), clipped to ``[min_dwell_s, max_dwell_s]``. When the curve is still falling at
-the longest τ the window allowed, the floor was not reached and the reason says so.
+in both cases the recommendation of :func:`bench.estimation.dwell.recommend_dwell_s`
+(minimum of the fitted Allan noise model), clipped to ``[min_dwell_s, max_dwell_s]``. When
+the curve is still falling at the longest τ the window allowed, the floor was not reached
+and the reason says so.
 """
 
 from __future__ import annotations
-
-import importlib
 
 import numpy as np
 import numpy.typing as npt
 
 from bench.estimation.allan import AllanResult, overlapping_allan
+from bench.estimation.dwell import recommend_dwell_s
 from bench.records import DwellChoice
 
 DEFAULT_MIN_DWELL_S = 5.0
 DEFAULT_MAX_DWELL_S = 300.0
-
-
-def _recommend(allan: AllanResult) -> tuple[float, str] | None:
-    """The estimation package's recommendation (dwell_s, reason), when that module exists."""
-    try:
-        mod = importlib.import_module("bench.estimation.dwell")
-    except ModuleNotFoundError:
-        return None
-    rec = mod.recommend_dwell_s(allan)
-    return float(rec.dwell_s), str(rec.reason)
 
 
 def tau_at_floor_s(allan: AllanResult) -> tuple[float, bool]:
@@ -55,14 +44,9 @@ def choose_dwell(allan: AllanResult, source: str, min_dwell_s: float = DEFAULT_M
     :param allan: overlapping Allan deviation of the three accelerometer channels.
     :param source: ``"allan"`` or ``"noise_window"``, stored with the choice.
     """
-    tau_s, reached = tau_at_floor_s(allan)
-    rec = _recommend(allan)
-    if rec is not None:
-        dwell_s, why = rec
-    else:
-        dwell_s = tau_s
-        why = (f"Allan deviation floor at tau = {tau_s:.3g} s" if reached else
-               f"Allan deviation still falling at the longest tau ({tau_s:.3g} s): floor not reached")
+    tau_s, _ = tau_at_floor_s(allan)
+    rec = recommend_dwell_s(allan, channel_names=("ax", "ay", "az")[: allan.n_channels])
+    dwell_s, why, reached = float(rec.dwell_s), str(rec.reason), bool(rec.floor_reached)
     clipped = min(max(dwell_s, min_dwell_s), max_dwell_s)
     if clipped != dwell_s:
         why += f"; {dwell_s:.3g} s clipped to [{min_dwell_s:g}, {max_dwell_s:g}] s"

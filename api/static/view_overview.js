@@ -1,0 +1,86 @@
+// Overview (start a run, recent runs, units) and the units list.
+
+import { getJson, postJson } from "./api.js";
+import { badge, card, h, message, progressBar, table, when } from "./dom.js";
+
+const PROCEDURES = ["static-12", "rate-1axis", "oscillation-2axis"];
+const LIVE = new Set(["queued", "running", "paused", "suspended"]);
+const REFRESH_MS = 3000;
+
+function unitLink(serial) { return h("a", { href: `#/units/${encodeURIComponent(serial)}` }, serial); }
+function runLink(id) { return h("a", { href: `#/runs/${encodeURIComponent(id)}`, class: "mono" }, id); }
+
+export function unitsTable(units) {
+  if (!units.length) return message("No units yet: start a run to register one.");
+  return table("Units calibrated on this service", ["Serial", "Model", "Runs", "Last certificate", "Drift"],
+    units.map((u) => [
+      unitLink(u.serial), u.model || "–", String(u.n_runs), u.last_certificate || "–",
+      u.last_drift_flagged === null || u.last_drift_flagged === undefined ? "not checked"
+        : u.last_drift_flagged ? badge("flagged") : badge("ok"),
+    ]), [2]);
+}
+
+function runsTable(runs) {
+  if (!runs.length) return message("No runs yet.");
+  return table("Most recent first", ["Run", "Unit", "Procedure", "State", "Progress", "Started"],
+    runs.map((r) => [
+      runLink(r.id), unitLink(r.unit_serial), r.procedure, badge(r.state),
+      h("div", { class: "progress-line" }, progressBar(r.progress, false, `progress of run ${r.id}`), `${Math.round(r.progress * 100)} %`),
+      when(r.started_at || r.created_at),
+    ]));
+}
+
+function startForm(session) {
+  const serial = h("input", { id: "start-serial", name: "unit_serial", required: true, placeholder: "SN-0001",
+    pattern: "[A-Za-z0-9][A-Za-z0-9._-]{0,63}", title: "letters, digits, '.', '_', '-'" });
+  const proc = h("select", { id: "start-procedure", name: "procedure" }, PROCEDURES.map((p) => h("option", { value: p }, p)));
+  const status = h("p", { class: "note", "aria-live": "polite" });
+  const button = h("button", { type: "submit", id: "start-run" }, "Start run");
+  const form = h("form", { class: "start", "aria-label": "start a run" },
+    h("label", { for: "start-serial" }, "Unit serial", serial),
+    h("label", { for: "start-procedure" }, "Procedure", proc),
+    button);
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    button.disabled = true; status.textContent = "Starting…";
+    try {
+      const created = await postJson("/api/runs", { unit_serial: serial.value.trim(), procedure: proc.value });
+      location.hash = `#/runs/${encodeURIComponent(created.id)}`;
+    } catch (err) {
+      status.textContent = `Not started: ${err.message}`;
+      button.disabled = false;
+    }
+  });
+  const canStart = session.role === "operator" || session.role === "admin";
+  if (!canStart) {
+    for (const c of [serial, proc, button]) c.disabled = true;
+    status.textContent = "Starting runs needs an operator token; this view is read-only.";
+  }
+  return card("Start a run", form, status);
+}
+
+export async function overviewView(view, session, signal) {
+  view.append(h("div", { class: "page-head" }, h("h1", {}, "Bench overview")));
+  const runsBox = h("div", {}, message("Loading runs…"));
+  const unitsBox = h("div", {}, message("Loading units…"));
+  view.append(h("div", { class: "grid" }, startForm(session), card("Units", unitsBox), h("section", { class: "card span", "aria-label": "Runs" }, h("h2", {}, "Runs"), runsBox)));
+  const load = async () => {
+    const [runs, units] = await Promise.all([getJson("/api/runs?limit=20", { signal }), getJson("/api/units", { signal })]);
+    runsBox.replaceChildren(runsTable(runs));
+    unitsBox.replaceChildren(unitsTable(units));
+    return runs.some((r) => LIVE.has(r.state));
+  };
+  const live = await load();
+  const tick = async () => {
+    if (signal.aborted) return;
+    try { await load(); } catch (err) { if (err.name === "AbortError") return; }
+    setTimeout(tick, REFRESH_MS);
+  };
+  setTimeout(tick, live ? REFRESH_MS : REFRESH_MS * 3);
+}
+
+export async function unitsView(view, signal) {
+  view.append(h("div", { class: "page-head" }, h("h1", {}, "Units")));
+  const units = await getJson("/api/units", { signal });
+  view.append(h("section", { class: "card", "aria-label": "Units" }, unitsTable(units)));
+}

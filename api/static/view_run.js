@@ -1,0 +1,187 @@
+// One run: live progress (event stream, polling as fallback), then its fit, the |g| check
+// before/after, residuals, Allan curve, diagnosis and certificate.
+
+import { downloadJson, followEvents, getJson, linkWithToken, postJson } from "./api.js";
+import { badge, card, h, message, progressBar, setProgress, table, when } from "./dom.js";
+import { CHANNEL_COLOURS, bars, chart, fmt, legend } from "./svgplot.js";
+
+const LIVE = new Set(["queued", "running", "paused", "suspended"]);
+const POLL_MS = 1500;
+const enc = encodeURIComponent;
+
+function seconds(s) {
+  if (!Number.isFinite(s)) return "–";
+  const m = Math.floor(s / 60);
+  return m ? `${m} min ${Math.round(s % 60)} s` : `${s.toFixed(1)} s`;
+}
+
+function liveCard(run, session, onAbort) {
+  const bar = progressBar(run.progress, true, "run progress");
+  const pct = h("strong", { id: "progress-text", class: "num" }, `${Math.round(run.progress * 100)} %`);
+  const state = h("span", { id: "run-state" }, badge(run.state));
+  const step = h("dd", { id: "run-step" }, "–");
+  const windows = h("dd", { id: "run-window" }, "–");
+  const time = h("dd", { id: "run-time" }, "–");
+  const pose = h("dd", { id: "run-pose", class: "num" }, "–");
+  const canAbort = session.role === "operator" || session.role === "admin";
+  const abort = h("button", { type: "button", class: "danger", id: "abort-run", disabled: !canAbort || !LIVE.has(run.state),
+    title: canAbort ? "stop the run; the table goes to its safe state and the recording is kept" : "needs an operator token",
+    onclick: onAbort }, "Abort");
+  const el = h("section", { class: "card span", "aria-label": "Progress" },
+    h("header", {}, h("h2", {}, "Progress"), state),
+    h("div", { class: "progress-line" }, bar, pct),
+    h("dl", { class: "kv" }, h("dt", {}, "Step"), step, h("dt", {}, "Window"), windows,
+      h("dt", {}, "Time"), time, h("dt", {}, "Table"), pose),
+    h("p", {}, abort));
+  const update = (p) => {
+    if (p.progress !== undefined) { setProgress(bar, p.progress); pct.textContent = `${Math.round(p.progress * 100)} %`; }
+    if (p.state) state.replaceChildren(badge(p.state));
+    if (p.step_label !== undefined) step.textContent = `${p.step_index + 1} of ${p.n_steps}: ${p.step_label}`;
+    if (p.n_windows) windows.textContent = p.window_index == null ? `between windows (${p.n_windows} planned)` : `${p.window_index + 1} of ${p.n_windows}`;
+    if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} of about ${seconds(p.expected_total_s)} (bench clock)`;
+    if (p.table_deg) pose.textContent = p.table_deg.map((a) => `${a.toFixed(1)}°`).join("  ");
+    if (p.state && !LIVE.has(p.state)) abort.disabled = true;
+  };
+  return { el, update };
+}
+
+function fitCard(cal) {
+  const unit = cal.channel_unit;
+  const ax = ["x", "y", "z"];
+  const U = (s) => (Number.isFinite(s) ? 2 * s : NaN);
+  const bias = table(`bias (${unit}) ± U`, ["", "value", "U (k=2)"], ax.map((a, i) => [a, fmt(cal.bias[i], 7), fmt(U(cal.bias_sigma[i]), 2)]), [1, 2]);
+  const K = h("div", { class: "table-wrap" }, h("table", { class: "matrix" },
+    h("caption", {}, `scale matrix K (${unit} per m/s²), value ± U`),
+    h("tbody", {}, cal.scale_matrix.map((row, i) => h("tr", {}, h("th", { scope: "row" }, ax[i]),
+      row.map((v, j) => h("td", {}, `${fmt(v, 6)} ± ${fmt(U(cal.scale_matrix_sigma[i][j]), 2)}`)))))));
+  const g = cal.g_check || {};
+  const gRows = ["before", "after"].filter((k) => g[k]).map((k) => [k, fmt(g[k].mean_error_m_s2, 3), fmt(g[k].std_m_s2, 3)]);
+  return card("Fitted model", bias, K,
+    h("p", { class: "note" }, `terms: ${(cal.terms || []).join(", ")} · residual RMS ${fmt(cal.residual_rms, 3)} ${unit}`),
+    gRows.length ? table("|g| check over static windows (m/s²)", ["", "mean error", "std"], gRows, [1, 2]) : null);
+}
+
+function gCard(gc) {
+  const body = [];
+  const gl = { y: gc.g_local_m_s2, label: `g local ${fmt(gc.g_local_m_s2, 7)} m/s²`, colour: "#333" };
+  const panel = (title, ys, colour, mean, std) => h("figure", { style: "margin:0" },
+    h("figcaption", { class: "note" }, `${title}: mean error ${fmt(mean, 3)} m/s², std ${fmt(std, 3)} m/s²`),
+    chart({ categories: gc.labels, series: [{ name: title, y: ys, colour, line: false }], hlines: [gl],
+      ylabel: "|f̂| (m/s²)", height: 230, label: `${title}: corrected specific force magnitude per window against local g` }));
+  if (gc.before_m_s2) body.push(panel(`before (${gc.before_label})`, gc.before_m_s2, "var(--before)", gc.before_mean_error_m_s2, gc.before_std_m_s2));
+  else body.push(message("Before: no nominal scale is known for these channels and the unit has no earlier calibration, so only the corrected values are shown."));
+  body.push(panel("after (this calibration)", gc.after_m_s2, "var(--accent)", gc.after_mean_error_m_s2, gc.after_std_m_s2));
+  return h("section", { class: "card", "aria-label": "|g| check", id: "g-check" }, h("h2", {}, "|g| check, before and after"), ...body);
+}
+
+function residualCard(rs) {
+  const series = rs.channels.map((c, k) => ({ name: c, y: rs.normalized.map((r) => r[k]), colour: CHANNEL_COLOURS[k],
+    detail: rs.residual.map((r) => `${fmt(r[k], 3)} ${rs.channel_unit}`) }));
+  return h("section", { class: "card", "aria-label": "Residuals", id: "residuals" }, h("h2", {}, "Residuals per window"),
+    bars({ categories: rs.labels, series, band: 2, ylabel: "residual / σ", label: "normalised fit residuals per window and channel" }),
+    legend(series.map((s) => ({ name: s.name, colour: s.colour }))),
+    h("p", { class: "note" }, `Window mean minus model, in units of the mean's standard deviation; the green band is ±2. `
+      + `χ² = ${fmt(rs.chi2, 4)} for ${rs.dof} degrees of freedom (${rs.method} fit).`));
+}
+
+function allanCard(al) {
+  const series = al.channels.map((c, k) => ({ name: c, y: al.adev[k], lo: al.adev_lo[k], hi: al.adev_hi[k], colour: CHANNEL_COLOURS[k] }));
+  return h("section", { class: "card", "aria-label": "Allan deviation", id: "allan" }, h("h2", {}, "Allan deviation"),
+    chart({ x: al.taus_s, series, xlog: true, ylog: true, xlabel: "averaging time τ (s)", ylabel: `σ(τ) (${al.unit})`,
+      height: 280, label: `overlapping Allan deviation of the ${al.source}` }),
+    legend(series.map((s) => ({ name: s.name, colour: s.colour }))),
+    h("p", { class: "note" }, `${al.source}, ${fmt(al.start_s, 4)}–${fmt(al.end_s, 4)} s, ${al.n_samples} samples; `
+      + `bands: ${Math.round(al.ci_level * 100)} % χ² interval.`));
+}
+
+function diagnosisCard(d) {
+  const c = h("section", { class: "card", "aria-label": "Diagnosis", id: "diagnosis" }, h("h2", {}, "Diagnosis"));
+  if (!d.diagnosis) { c.append(message(d.note || "No diagnosis.")); return c; }
+  const f = d.diagnosis.findings || [];
+  const base = d.diagnosis.baseline || {}, fin = d.diagnosis.final || {};
+  c.append(h("ul", { class: "findings" }, f.length
+    ? f.map((x) => h("li", {}, h("strong", {}, x.effect.replaceAll("_", " ")), ": ", x.summary,
+      x.delta_bic == null ? "" : h("span", { class: "muted" }, ` (ΔBIC ${fmt(x.delta_bic, 4)})`)))
+    : h("li", { class: "clean" }, "The first-order model explains this recording to its noise: no unmodelled physics found.")));
+  if (d.diagnosis.mismatch && d.diagnosis.mismatch.where) c.append(h("p", { class: "note" }, `Mismatch: ${d.diagnosis.mismatch.where}.`));
+  c.append(h("p", { class: "note" }, `χ²/dof ${fmt(base.chi2_dof, 3)} with ${(base.terms || []).join(", ")}`
+    + (f.length ? ` → ${fmt(fin.chi2_dof, 3)} with ${(fin.terms || []).join(", ")}` : "") + "."));
+  return c;
+}
+
+function certificateCard(run) {
+  const c = h("section", { class: "card", "aria-label": "Certificate", id: "certificate" }, h("h2", {}, "Certificate"));
+  if (!run.certificate_number) { c.append(message(run.state === "completed" ? "No certificate issued for this run." : `No certificate: the run is ${run.state}.`)); return c; }
+  const status = h("span", { class: "note", "aria-live": "polite" });
+  c.append(h("p", {}, h("strong", {}, run.certificate_number)),
+    h("p", {},
+      h("button", { type: "button", id: "download-json", onclick: async () => {
+        try { const data = await downloadJson(`/api/runs/${enc(run.id)}/certificate`, `${run.certificate_number}.json`); status.textContent = `downloaded, sha256 ${data.sha256.slice(0, 12)}…`; }
+        catch (err) { status.textContent = `download failed: ${err.message}`; }
+      } }, "Download JSON"), " ",
+      h("a", { id: "pdf-link", href: linkWithToken(`/api/runs/${enc(run.id)}/certificate.pdf`), target: "_blank", rel: "noopener" }, "Open PDF"), " ", status));
+  return c;
+}
+
+async function optional(path, signal) {
+  try { return await getJson(path, { signal }); } catch (err) { if (err.name === "AbortError") throw err; return { error: err.message }; }
+}
+
+async function renderResults(box, run, signal) {
+  box.replaceChildren();
+  const grid = h("div", { class: "grid wide" });
+  box.append(grid);
+  if (run.calibration) grid.append(fitCard(run.calibration));
+  const diag = await optional(`/api/runs/${enc(run.id)}/diagnosis`, signal);
+  if (!run.calibration) {
+    grid.append(card("Result", message(run.error ? `The run ended ${run.state}: ${run.error}` : `The run ended ${run.state} without a fit.`)));
+    if (!diag.error) grid.append(diagnosisCard(diag));
+    return;
+  }
+  grid.append(certificateCard(run));
+  const [gc, rs, al] = await Promise.all(["g-check", "residuals", "allan"].map((p) => optional(`/api/runs/${enc(run.id)}/plots/${p}`, signal)));
+  grid.append(gc.error ? card("|g| check", message(gc.error)) : gCard(gc));
+  grid.append(rs.error ? card("Residuals", message(rs.error)) : residualCard(rs));
+  grid.append(al.error ? card("Allan deviation", message(al.error)) : allanCard(al));
+  grid.append(diag.error ? card("Diagnosis", message(diag.error)) : diagnosisCard(diag));
+}
+
+export async function runView(view, runId, session, signal) {
+  let run = await getJson(`/api/runs/${enc(runId)}`, { signal });
+  view.append(h("div", { class: "page-head" }, h("h1", {}, "Run ", h("span", { class: "mono" }, run.id)),
+    h("span", { class: "muted" }, "unit ", h("a", { href: `#/units/${enc(run.unit_serial)}` }, run.unit_serial), ` · ${run.procedure} · ${when(run.started_at || run.created_at)}`)));
+  const status = h("p", { class: "note", "aria-live": "polite" });
+  const live = liveCard(run, session, async () => {
+    try { await postJson(`/api/runs/${enc(runId)}/abort`); status.textContent = "Abort requested."; }
+    catch (err) { status.textContent = `Abort failed: ${err.message}`; }
+  });
+  const results = h("div", { id: "results" });
+  view.append(h("div", { class: "grid" }, live.el), status, results);
+  const finish = async () => {
+    run = await getJson(`/api/runs/${enc(runId)}`, { signal });
+    live.update({ state: run.state, progress: run.progress });
+    await renderResults(results, run, signal);
+  };
+  if (!LIVE.has(run.state)) { await finish(); return; }
+  results.append(message("Results appear here when the run ends."));
+  try {
+    await followEvents(runId, (name, data) => {
+      if (name === "progress" || name === "state") live.update(data);
+      if (name === "finished") live.update({ state: data.state, progress: data.state === "completed" ? 1 : undefined });
+    }, signal);
+  } catch (err) {
+    if (err.name === "AbortError") return;
+    status.textContent = `Live stream unavailable (${err.message}); polling instead.`;
+  }
+  // The stream ended (or failed): poll until the stored run is final and its results are in.
+  // A completed fit gets its certificate just after the state turns final: wait a few polls for it.
+  let grace = 10;
+  while (!signal.aborted) {
+    run = await getJson(`/api/runs/${enc(runId)}`, { signal });
+    live.update({ state: run.state, progress: run.progress });
+    const awaitingCertificate = run.state === "completed" && run.calibration && !run.certificate_number;
+    if (!LIVE.has(run.state) && (!awaitingCertificate || grace-- <= 0)) break;
+    await new Promise((r) => setTimeout(r, POLL_MS));
+  }
+  if (!signal.aborted) await finish();
+}

@@ -72,20 +72,20 @@ def open_devices(
     return open_bench(settings.table_url, settings.daq_url)
 
 
+def _vec3(v: Any) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
 def bench_sidecar(devices: BenchDevices, unit_serial: str, procedure: str, g_local_m_s2: float) -> Sidecar:
     """The sidecar: units from the DAQ, geometry from the (simulated) bench's belief."""
     n = devices.table.n_axes
     if devices.sim is not None:
         geo = devices.sim.geometry
         axes = tuple(
-            TableAxis(AXIS_NAMES[i] if n == 3 else f"axis{i + 1}", tuple(float(v) for v in geo.axes[i]))  # type: ignore[arg-type]
-            for i in range(n)
+            TableAxis(AXIS_NAMES[i] if n == 3 else f"axis{i + 1}", _vec3(geo.axes[i])) for i in range(n)
         )
-        table = TableGeometry(
-            axes,
-            tuple(tuple(float(v) for v in r) for r in geo.mount_rotation),  # type: ignore[arg-type]
-            tuple(float(v) for v in geo.lever_arm_m),
-        )  # type: ignore[arg-type]
+        mount = (_vec3(geo.mount_rotation[0]), _vec3(geo.mount_rotation[1]), _vec3(geo.mount_rotation[2]))
+        table = TableGeometry(axes, mount, _vec3(geo.lever_arm_m))
         g_local_m_s2 = devices.sim.g_local_m_s2
     else:
         default = ((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))

@@ -21,6 +21,7 @@ import dataclasses
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -38,13 +39,12 @@ def _window_to_json(w: WindowRecord) -> dict[str, object]:
     return d
 
 
-def _window_from_json(d: dict[str, object], seg: Segment) -> WindowRecord:
+def _window_from_json(d: dict[str, Any], seg: Segment) -> WindowRecord:
     return WindowRecord(
-        index=int(d["index"]), label=seg.label, kind=WindowKind(d["kind"]), start_s=seg.start_s,  # type: ignore[arg-type]
-        end_s=seg.end_s, n_samples=int(d["n_samples"]),  # type: ignore[arg-type]
-        pose_deg=tuple(d["pose_deg"]), mean_table_deg=tuple(d["mean_table_deg"]),  # type: ignore[arg-type]
-        temp_c_mean=float(d["temp_c_mean"]), step_index=int(d["step_index"]),  # type: ignore[arg-type]
-        means=dict(d.get("means", {})),  # type: ignore[call-overload]
+        index=int(d["index"]), label=seg.label, kind=WindowKind(d["kind"]), start_s=seg.start_s,
+        end_s=seg.end_s, n_samples=int(d["n_samples"]), pose_deg=tuple(d["pose_deg"]),
+        mean_table_deg=tuple(d["mean_table_deg"]), temp_c_mean=float(d["temp_c_mean"]),
+        step_index=int(d["step_index"]), means=dict(d.get("means", {})),
     )
 
 

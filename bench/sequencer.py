@@ -261,13 +261,14 @@ class Sequencer:
 
     def run(self) -> Acquisition:
         """Execute the procedure; never raises for device faults (they become ERROR)."""
+        from bench.sequencer_safety import make_safe, prepare_table
         from bench.sequencer_steps import execute_steps  # the step logic, split for size
 
         outcome: Outcome | None = None
         error: str | None = None
         try:
             self.notify("on_start", self.start)
-            self.prepare_table()
+            prepare_table(self)
             self._pump.start()
             self._last_sample_wall = time.monotonic()
             self.set_state(RunState.RUNNING, "resumed from window " + str(self.start_window)
@@ -278,81 +279,8 @@ class Sequencer:
         except (DriverError, TimeoutError, OSError, ObserverError, ValueError) as exc:
             outcome, error = Outcome.ERROR, f"{self.where}: {type(exc).__name__}: {exc}"
         finally:
-            problems = self.make_safe()
+            problems = make_safe(self)
         if problems:
             error = "; ".join([error or "completed", *problems])
             outcome = outcome or Outcome.ERROR
         return Acquisition(outcome, error, tuple(self.recorder.windows), self.dwell, self.recorder.n_rows)
-
-    def prepare_table(self) -> None:
-        """Ready the table, through its optional ``prepare(timeout_s)`` (clear faults, close interlocks).
-
-        Not part of the :class:`RotaryTable` protocol: a table without it is used as it is.
-        """
-        prepare = getattr(self.table, "prepare", None)
-        if callable(prepare):
-            self.where = "preparing the table"
-            timeout = self.config.move_timeout_margin_s
-            self._run_blocking(lambda: prepare(timeout), timeout + self.config.stop_timeout_s, "prepare")
-
-    def _run_blocking(self, fn: Callable[[], object], deadline_s: float, what: str) -> None:
-        """Run ``fn`` in a helper thread before the DAQ runs (no samples to drain yet)."""
-        box: dict[str, BaseException] = {}
-
-        def target() -> None:
-            try:
-                fn()
-            except BaseException as exc:
-                box["error"] = exc
-
-        worker = threading.Thread(target=target, name=f"table-{what}", daemon=True)
-        worker.start()
-        worker.join(deadline_s)
-        if worker.is_alive():
-            raise DeviceTimeout(f"table {what} did not return within {deadline_s:.3g} s")
-        if "error" in box:
-            raise box["error"]
-
-    def make_safe(self) -> list[str]:
-        """Table stopped, acquisition stopped, recording closed; return what failed."""
-        problems: list[str] = []
-        stopper = threading.Thread(target=self._stop_table, args=(problems,), daemon=True)
-        stopper.start()
-        stopper.join(self.config.stop_timeout_s)
-        if stopper.is_alive():
-            problems.append(f"table did not confirm stop within {self.config.stop_timeout_s:g} s")
-        pump_problem = self._pump.stop(self.config.stop_timeout_s)
-        if pump_problem:
-            problems.append(pump_problem)
-        # Samples still queued belong to the recording too.
-        while True:
-            try:
-                item = self._pump.items.get_nowait()
-            except queue.Empty:
-                break
-            if isinstance(item, SampleBlock):
-                try:
-                    self.window = None
-                    self._holding = True
-                    self._handle_block(item)
-                except Exception as exc:
-                    problems.append(f"saving the last samples failed: {exc}")
-                    break
-        try:
-            chunk = self.recorder.close()
-            if chunk is not None:
-                self.notify("on_chunk", self.start.run_id, chunk)
-        except Exception as exc:
-            problems.append(f"closing the recording failed: {type(exc).__name__}: {exc}")
-        return problems
-
-    def _stop_table(self, problems: list[str]) -> None:
-        """The table's ``make_safe(timeout_s)`` if it has one (stop, motors off, interlock off), else stop."""
-        make_safe = getattr(self.table, "make_safe", None)
-        try:
-            if callable(make_safe):
-                make_safe(self.config.stop_timeout_s)
-            else:
-                self.table.stop()
-        except Exception as exc:
-            problems.append(f"table safe state failed: {type(exc).__name__}: {exc}")

@@ -119,7 +119,7 @@ class Authenticator:
         if not secret:
             if minimum <= Role.VIEWER and self.public_read:
                 return Role.ANONYMOUS
-            raise AuthError(401, f"a {minimum.label} token is required (Authorization: Bearer TOKEN)")
+            raise AuthError(401, f"{minimum.label} token required (Authorization: Bearer TOKEN)")
         role = self.role_of(secret)
         if role is None:
             raise AuthError(401, "unknown or revoked token")

@@ -32,7 +32,7 @@ def _quantity(name: str, q: dict[str, Any]) -> list[str]:
     v, u = q["value"], q["expanded_uncertainty"]
     if v and isinstance(v[0], list):
         return [head, *_fmt_matrix(v, u)]
-    return [head, "    " + "   ".join(f"{a:.7g} ± {b:.2g}" for a, b in zip(v, u, strict=True))]
+    return [head, "    " + "   ".join(f"{a:.7g} ± {b:.1e}" for a, b in zip(v, u, strict=True))]
 
 
 def _wrap(text: str, indent: str = "  ") -> list[str]:

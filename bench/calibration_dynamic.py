@@ -262,7 +262,7 @@ def calibrate_dynamic(
         dof=3 * fit.n_used - spec.n_params,
         noise_model=(
             f"per-sample residual sigma {np.array2string(fit.noise_sigma, precision=3)}; covariance: "
-            f"Newey-West sandwich over {fit.n_blocks} blocks of 1 s, never below the white bound"
+            f"Newey-West sandwich over {fit.n_blocks} blocks, never below the white bound"
         ),
         g_after=after,
         g_before=before,

@@ -14,7 +14,9 @@ Covariance. At 100 Hz–1 kHz the residuals are not white (the sensor's bias wan
 unmodelled remainder), and (Jᵀ W J)⁻¹ would then be too small. The reported covariance is
 the sandwich (heteroscedasticity-and-autocorrelation-consistent, Newey & West,
 Econometrica 55 (1987) 703) built on the scores s_t = J_tᵀ W e_t summed over consecutive
-blocks of ``block_s`` seconds:
+blocks of ``block_s`` seconds (default: the recording split into ``TARGET_BLOCKS`` blocks,
+at least ``BLOCK_S`` long, so that a block outlasts the correlation of slow noise such as a
+200-s bias wander in a 40-minute recording while enough blocks remain to estimate Ŝ):
 
     Ŝ = Σ_b s_b s_bᵀ + Σ_{k=1..L} (1 − k/(L+1)) Σ_b (s_b s_{b+k}ᵀ + s_{b+k} s_bᵀ),
     Cov(θ̂) = H⁻¹ Ŝ H⁻¹ · n_b / (n_b − p)
@@ -43,6 +45,7 @@ FloatArray = npt.NDArray[np.float64]
 
 CHUNK_SAMPLES = 20_000
 BLOCK_S = 1.0
+TARGET_BLOCKS = 50
 NW_LAGS = 2
 MAX_ITER = 40
 
@@ -171,7 +174,7 @@ def fit_dynamic_batch(
     spec: ModelSpec,
     *,
     theta0: FloatArray | None = None,
-    block_s: float = BLOCK_S,
+    block_s: float | None = None,
     max_iter: int = MAX_ITER,
 ) -> DynamicFit:
     """Fit θ to raw samples y (n, 3) of the motion ``m``.
@@ -197,7 +200,9 @@ def fit_dynamic_batch(
     theta = np.array(theta0, dtype=float)
     sig = np.maximum(white_sigma(Y[m.valid]), 1e-12 * np.abs(Y).max())
     w = 1.0 / sig**2
-    blk = np.floor((m.t_s - m.t_s[0]) / block_s).astype(np.int64)
+    span_s = float(m.t_s[-1] - m.t_s[0])
+    block = max(BLOCK_S, span_s / TARGET_BLOCKS) if block_s is None else float(block_s)
+    blk = np.floor((m.t_s - m.t_s[0]) / block).astype(np.int64)
     n_blocks = int(blk[-1]) + 1
     lam, it, converged, reweighted = 1e-3, 0, False, False
     cost, H, grad, _, ss = _pass(theta, m, Y, w, spec, g_m_s2, lever, None, 0)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import sqlalchemy as sa
 from fastapi import APIRouter, HTTPException, Response, status
 
@@ -14,7 +16,7 @@ from db.repo.certificates import get_certificate_by_number
 from db.repo.runs import get_run
 
 router = APIRouter(tags=["certificates"])
-_404 = {404: {"description": "no such run or no certificate"}}
+_404: dict[int | str, dict[str, Any]] = {404: {"description": "no such run or no certificate"}}
 
 
 def _of_run(session: SessionDep, run_id: str) -> tuple[Certificate, str]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import json
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Mapping
 from typing import Annotated
 
 import sqlalchemy as sa
@@ -105,7 +105,7 @@ def abort(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -
     )
 
 
-def _sse(event: str, data: dict[str, object]) -> str:
+def _sse(event: str, data: Mapping[str, object]) -> str:
     return f"event: {event}\ndata: {json.dumps(data, default=str)}\n\n"
 
 

@@ -261,7 +261,7 @@ def calibrate_dynamic(
         chi2=float(3 * fit.n_used),
         dof=3 * fit.n_used - spec.n_params,
         noise_model=(
-            f"per-sample residual sigma {np.array2string(fit.noise_sigma, precision=3)}; covariance: "
+            f"per-sample residual sigma {' '.join(f'{v:.3g}' for v in fit.noise_sigma)}; covariance: "
             f"Newey-West sandwich over {fit.n_blocks} blocks, never below the white bound"
         ),
         g_after=after,

@@ -55,6 +55,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+_FMT = {"float_kind": lambda x: f"{x:.5g}"}
+
+
 def _pm(value: float, sigma: float) -> str:
     return f"{value: .8g} ± {sigma:.2g}"
 
@@ -67,6 +70,8 @@ def format_human(r: CalibrationResult) -> str:
         + (
             "known orientations, bias + full K"
             if r.method == "static"
+            else "moving table, dynamic model over every sample"
+            if r.method == "dynamic"
             else "orientation-free |f| = g, K as L (K up to rotation)"
         ),
         f"source {r.source}" if r.source else "",
@@ -77,6 +82,12 @@ def format_human(r: CalibrationResult) -> str:
     lines += ["", f"scale matrix K ({u} per m/s²), raw = bias + K·f, one sigma:"]
     for i, ax in enumerate("xyz"):
         lines.append(f"  {ax}  " + "   ".join(_pm(r.K[i, j], r.K_sigma[i, j]) for j in range(3)))
+    extra, extra_sigma = getattr(r, "extra", {}), getattr(r, "extra_sigma", {})
+    for effect, params in extra.items():  # terms beyond bias and K (dynamic calibration)
+        for name, value in params.items():
+            sigma = extra_sigma.get(effect, {}).get(name, np.nan)
+            v, sg = (np.array2string(np.asarray(x), formatter=_FMT, separator=", ") for x in (value, sigma))
+            lines.append(f"{effect}.{name} = {v} ± {sg}".replace("\n", ""))
     lines += [
         "",
         "correction: f = K⁻¹ (raw − bias)   (m/s²)",

@@ -147,3 +147,32 @@ def test_reported_sigma_is_honest_over_seeds() -> None:
     assert z.max() < 4.5
     assert np.mean(z < 2.0) > 0.88  # N(0, 1): 0.954
     assert np.sqrt(np.mean(z**2)) < 1.3
+
+
+def test_cli_json_contract_for_a_dynamic_recording(
+    shared_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from api.cli import main
+
+    example = shared_dir / "data" / "examples" / "example_rate_lever_known.csv"
+    assert main(["calibrate", str(example), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in (
+        "unit",
+        "channel_unit",
+        "procedure",
+        "bias",
+        "bias_sigma",
+        "scale_matrix",
+        "scale_matrix_sigma",
+        "terms",
+        "extra",
+        "residual_rms",
+        "g_check",
+    ):
+        assert key in out
+    assert out["procedure"] == "rate-1axis" and out["terms"][:3] == ["bias", "scale_matrix", "lever_arm"]
+    assert set(out["extra"]) == set(out["terms"][2:])
+    assert np.shape(out["extra"]["lever_arm"]["r_m"]) == (3,)
+    assert main(["calibrate", str(example)]) == 0
+    assert "lever_arm.r_m" in capsys.readouterr().out

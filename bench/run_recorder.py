@@ -143,6 +143,12 @@ class RunRecorder:
             self._t_daq0 = float(t_daq_s[0])
         return t_daq_s - self._t_daq0 + self._t_offset
 
+    def rebase(self) -> None:
+        """The DAQ clock restarted: the next block continues one sample period after the last row."""
+        if self.last_t_s is not None:
+            self._t_offset = self.last_t_s + 1.0 / self.writer.sidecar.sample_rate_hz
+        self._t_daq0 = None
+
     def append(self, t_s: np.ndarray, accel: np.ndarray, table_deg: np.ndarray | None,
                temp_c: np.ndarray | None, window_index: int | None) -> ChunkRecord | None:
         """Append samples (``t_s`` already on the recording clock); return a chunk if one became durable."""

@@ -41,7 +41,7 @@ from bench.records import (
 )
 from bench.run_recorder import RunRecorder
 from bench.sequencer_control import AbortRequested, Interruption, RunControl, SequencerConfig, WindowSpoiled
-from bench.sequencer_daq import DaqPump, Failed, Gap
+from bench.sequencer_daq import DaqPump, Failed, Gap, Restarted
 from bench.sequencer_window import WindowCollector
 from drivers.base import Daq, RotaryTable, SampleBlock
 from drivers.errors import DeviceError, DeviceTimeout, DriverError
@@ -155,7 +155,9 @@ class Sequencer:
             item = None
         if isinstance(item, Failed):
             raise item.error
-        if isinstance(item, Gap):
+        if isinstance(item, Restarted):
+            self.recorder.rebase()
+        elif isinstance(item, Gap):
             self._gaps += 1
             if self.window is not None:
                 raise WindowSpoiled(str(item.error))

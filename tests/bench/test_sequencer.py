@@ -373,6 +373,18 @@ def test_data_gap_in_a_window_re_records_it(tmp_path: Path) -> None:
     assert not any(w.start_s <= t_gap < w.end_s for w in acq.windows)
 
 
+def test_repeated_gaps_restart_acquisition_and_the_clock_continues(tmp_path: Path) -> None:
+    table = FakeTable()
+    daq = FakeDaq(table)
+    daq.gap_at = {40, 41, 42}  # a reader losing the race for the oldest samples, three times running
+    seq, *_ = make(tmp_path, quick_static(), table=table, daq=daq)
+    acq = seq.run()
+    assert acq.outcome is None, acq.error
+    assert len(acq.windows) == 12
+    rec = read_recording(tmp_path / "run.csv")
+    assert np.all(np.diff(rec.t_s) > 0)  # the DAQ clock restarted at 0; the recording's did not
+
+
 def test_resume_after_an_interrupted_run_completes_the_windows(tmp_path: Path) -> None:
     seq, _table, _, obs, ctl = make(tmp_path, quick_static())
     obs.hook = lambda w: ctl.abort("simulated crash") if w.index == 6 else None

@@ -44,6 +44,8 @@ from bench.recording import Recording
 FloatArray = npt.NDArray[np.float64]
 
 DYNAMIC_PROCEDURES = ("rate-1axis", "oscillation-2axis")
+DROP_ORDER = ("proof_mass_offsets", "nonlinearity_quadratic", "time_skew", "table_tilt", "lever_arm")
+"""Which undetermined term goes first when the information is singular."""
 CANDIDATE_TERMS = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", "table_tilt", "time_skew")
 KALMAN_AGREEMENT_Z = 3.0
 """The filter and the batch fit agree when every |difference| / batch sigma is below this."""
@@ -113,16 +115,19 @@ def choose_spec(
             fisher_information(m, initial_theta(spec, b0, K0, lever), spec, g, lever, sig), spec.names
         )
         worst: tuple[float, str, str] | None = None
-        for t in spec.terms:
-            s = rep.crb_sigma[spec.index(t)]
-            ratio = float(np.max(s)) / USEFUL_SIGMA[t]
-            if ratio > 1.0 and (worst is None or ratio > worst[0]):
-                why = (
-                    ("not determined by this motion: " + "; ".join(rep.unobservable))
-                    if not rep.ok
-                    else (f"Cramér–Rao sigma {np.max(s):.3g} exceeds {USEFUL_SIGMA[t]:g}")
-                )
-                worst = (ratio, t, why)
+        if not rep.ok:  # drop the most dispensable term the undetermined directions involve
+            text = "; ".join(rep.unobservable)
+            involved = [
+                t for t in DROP_ORDER if t in spec.terms and any(n in text for n in spec.names[spec.index(t)])
+            ]
+            if involved:
+                worst = (np.inf, involved[0], "not determined by this motion: " + text)
+        else:
+            for t in spec.terms:
+                s = float(np.max(rep.crb_sigma[spec.index(t)]))
+                ratio = s / USEFUL_SIGMA[t]
+                if ratio > 1.0 and (worst is None or ratio > worst[0]):
+                    worst = (ratio, t, f"Cramér–Rao sigma {s:.3g} exceeds {USEFUL_SIGMA[t]:g}")
         if worst is None:
             return spec, dropped
         terms.remove(worst[1])

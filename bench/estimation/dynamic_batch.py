@@ -111,7 +111,7 @@ def linear_start(
             "the table motion does not turn gravity through three dimensions: bias and K cannot be determined"
         )
     coef, *_ = np.linalg.lstsq(X, y[m.valid], rcond=None)
-    return coef[0], coef[1:].T
+    return np.asarray(coef[0], dtype=float), np.asarray(coef[1:].T, dtype=float)
 
 
 def _pass(

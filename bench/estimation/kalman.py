@@ -92,7 +92,7 @@ def update_diagonal(
     w = 1.0 / np.asarray(r_var, dtype=float).reshape(-1)
     innov = np.asarray(z, dtype=float).reshape(-1) - np.asarray(h, dtype=float).reshape(-1)
     info = np.linalg.inv(s.P) + (Hm.T * w) @ Hm
-    P = _sym(np.linalg.inv(_sym(info)))
+    P = _sym(np.asarray(np.linalg.inv(_sym(info)), dtype=float))
     return KalmanState(s.x + P @ (Hm.T @ (w * innov)), P)
 
 

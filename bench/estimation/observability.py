@@ -202,7 +202,8 @@ def procedure_angles(
                 block[:, a - 1] = cur[a - 1] + amp * np.sin(2.0 * np.pi * t / per)
             chunks.append(block)
     q = np.vstack(chunks)
-    return np.arange(q.shape[0]) * h, np.deg2rad(q)
+    t_s = np.arange(q.shape[0], dtype=float) * h
+    return t_s, np.asarray(np.deg2rad(q), dtype=float)
 
 
 def plan_observability(

@@ -29,7 +29,7 @@ from drivers.sim.physics import SensorPhysics, SensorTruth
 G0 = 9.80665
 ARCMIN = math.pi / 180.0 / 60.0
 STATIC_DWELLS_S = (2.0, 5.0, 15.0, 40.0, 100.0, 192.0)
-OSC_DURATIONS_S = (30.0, 60.0, 90.0, 180.0, 300.0, 600.0)
+OSC_DURATIONS_S = (30.0, 60.0, 90.0, 180.0, 300.0, 600.0, 1200.0, 1800.0)
 
 
 def unit(seed: int) -> SensorTruth:

@@ -16,7 +16,7 @@ import numpy as np
 
 from bench.diagnosis.effects import CATALOGUE, Candidate, pose_response
 from bench.diagnosis.effects.base import FloatArray, first_order_design
-from bench.diagnosis.effects.settling import settling_test
+from bench.diagnosis.effects.settling import settling_duration, settling_test
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import NoiseParams
 from bench.diagnosis.refit import ModelFit, effect_parameters, model_sequence
@@ -167,13 +167,19 @@ def diagnose(
         assert ev.window_samples is not None and ev.sample_rate_hz is not None
         st = settling_test(ev.window_samples, ev.sample_rate_hz)
         if st.p_value() < false_alarm / 10:
-            ratio = float(np.exp(st.mean_log_ratio))
+            params_s: dict[str, object] = {"early_variance_ratio": float(np.exp(st.mean_log_ratio))}
+            sigma_s: dict[str, object] = {}
+            try:
+                dur, dur_sigma = settling_duration(ev.window_samples, ev.sample_rate_hz)
+                params_s["duration_s"], sigma_s["duration_s"] = dur, dur_sigma
+            except ValueError as exc:
+                note_list.append(str(exc))
             findings.append(
                 Finding(
                     effect="settling",
-                    summary=summary("settling", {"early_variance_ratio": ratio}, {}, ev.labels, span),
-                    parameters={"early_variance_ratio": ratio},
-                    sigma={},
+                    summary=summary("settling", params_s, sigma_s, ev.labels, span),
+                    parameters=params_s,
+                    sigma=sigma_s,
                     delta_bic=float(-(st.t**2) + np.log(ev.n_obs)),
                     lr=float(st.t**2),
                     residual_rms_after=float(np.sqrt(np.mean(final.resid**2))),

@@ -53,11 +53,12 @@ class NoiseParams:
     tau2: FloatArray
     corr_time_s: float = 0.0
     pose_var_rad2: float = 0.0
+    n_tau: int = 3
 
     @property
     def n_free(self) -> int:
         """Number of estimated noise parameters counted in the BIC."""
-        return 3 + (1 if self.corr_time_s > 0 else 0)
+        return self.n_tau + (1 if self.corr_time_s > 0 else 0)
 
 
 @dataclass(frozen=True)
@@ -153,6 +154,7 @@ def fit_noise(
     fixed: FloatArray | None = None,
     estimate_pose: bool = False,
     init: NoiseParams | None = None,
+    channel_gain: FloatArray | None = None,
 ) -> tuple[NoiseParams, GlsFit]:
     """REML estimate of the noise parameters for design X; returns them and the GLS fit under them.
 
@@ -168,15 +170,17 @@ def fit_noise(
             raise ValueError("estimate_pose needs J_pose")
         jn = float(np.median(np.sum(J_pose**2, axis=(1, 2))) / 2.0)
         g_scale = scale / jn if jn > 0 else 1.0
-    n_par = 4 if estimate_pose else 3
+    n_tau = 3 if channel_gain is None else 1
+    shape = np.ones(3) if channel_gain is None else channel_gain**2 / np.mean(channel_gain**2)
+    n_par = n_tau + (1 if estimate_pose else 0)
 
     def unpack(u: FloatArray, tc: float) -> NoiseParams:
-        tau2 = scale * np.exp(u[:3])
-        tau2 = np.where(u[:3] <= _LOG_FLOOR + 1e-6, 0.0, tau2)
+        tau2 = scale * np.exp(u[:n_tau]) * shape
+        tau2 = np.where(u[:n_tau] <= _LOG_FLOOR + 1e-6, 0.0, tau2)
         pv = 0.0
         if estimate_pose:
-            pv = 0.0 if u[3] <= _LOG_FLOOR + 1e-6 else g_scale * float(np.exp(u[3]))
-        return NoiseParams(tau2=tau2, corr_time_s=tc, pose_var_rad2=pv)
+            pv = 0.0 if u[n_tau] <= _LOG_FLOOR + 1e-6 else g_scale * float(np.exp(u[n_tau]))
+        return NoiseParams(tau2=tau2, corr_time_s=tc, pose_var_rad2=pv, n_tau=n_tau)
 
     def objective(u: FloatArray, tc: float) -> float:
         try:
@@ -185,13 +189,14 @@ def fit_noise(
             return 1e300
 
     best: tuple[float, NoiseParams] | None = None
-    fracs = CORRELATION_TIMES_FRACTION if span > 0 else (0.0,)
+    fracs = tuple(f for f in CORRELATION_TIMES_FRACTION if f > 0) if span > 0 else (0.0,)
     for frac in fracs:
         tc = frac * span
         if init is None:
             starts = [np.full(n_par, -2.0), np.full(n_par, _LOG_FLOOR)]
         else:
-            u_init = np.log(np.maximum(init.tau2, scale * np.exp(_LOG_FLOOR)) / scale)
+            t_init = init.tau2 / shape if n_tau == 3 else np.array([np.mean(init.tau2 / shape)])
+            u_init = np.log(np.maximum(t_init, scale * np.exp(_LOG_FLOOR)) / scale)
             if estimate_pose:
                 pv = init.pose_var_rad2 if init.pose_var_rad2 > 0 else g_scale * np.exp(-2.0)
                 u_init = np.append(u_init, np.log(pv / g_scale))

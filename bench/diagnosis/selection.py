@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
+from scipy.stats import f as f_dist
 
 from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
 from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
@@ -34,7 +35,7 @@ from bench.diagnosis.likelihood import GlsFit, NoiseParams, covariance, fit_nois
 FALSE_ALARM = 0.01
 """False-alarm probability of one selection step: split evenly (Bonferroni) over the
 candidates tried in that step, so each likelihood-ratio gate runs at FALSE_ALARM / N."""
-SHORTLIST = 3
+SHORTLIST = 4
 MAX_STEPS = 8
 
 
@@ -88,7 +89,10 @@ def fit_model(
     for _ in range(iterations):
         X = design(ev, K, cands)
         J = pose_response(ev, K)
-        noise, fit = fit_noise(X, z, ev.V, ev.mid_s, J_pose=J, fixed=fixed, estimate_pose=pose, init=noise)
+        noise, fit = fit_noise(
+            X, z, ev.V, ev.mid_s, J_pose=J, fixed=fixed, estimate_pose=pose, init=noise,
+            channel_gain=np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
+        )
         K = scale_matrix(fit)
     assert noise is not None and fit is not None
     return noise, fit, K
@@ -125,15 +129,19 @@ def select(
     """
     n = ev.n_obs
     state = ModelState()
-    K = np.diag(np.ones(3))
-    # first-order start: ordinary LS of the first-order design gives K for the columns
     X0 = first_order_design(ev.f_m_s2)
     K = np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12].reshape(3, 3)
     state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2)
     notes: dict[str, str] = {}
     for _ in range(MAX_STEPS):
+        assert state.noise is not None and state.fit is not None
         X = design(ev, K, state.candidates)
-        scored: list[tuple[float, Candidate | None, int]] = []
+        n_tried = sum(1 for c in pool if c not in state.candidates) + (
+            1 if pose_allowed and not state.pose else 0
+        )
+        alpha = false_alarm / max(n_tried, 1)
+        admissible: list[tuple[float, Candidate | None, float, tuple[NoiseParams, GlsFit, FloatArray]]] = []
+        ranked: list[tuple[float, Candidate]] = []
         for cand in pool:
             if cand in state.candidates:
                 continue
@@ -145,37 +153,32 @@ def select(
                     f"(only {float(np.min(lev)):.1e} of its signature is independent of them)"
                 )
                 continue
-            q = cols.shape[1]
-            lr = _lr_fixed(ev, X, np.hstack([X, cols]), state.noise, K, fixed)
-            scored.append((-lr + q * math.log(n), cand, q))
-        if pose_allowed and not state.pose:
-            scored.append((-math.inf, None, 1))  # always re-fitted: its LR needs the REML fit
-        scored.sort(key=lambda s: s[0])
-        alpha = false_alarm / max(len(scored), 1)
-        best: tuple[float, Candidate | None, NoiseParams, GlsFit, FloatArray, float, int] | None = None
-        for _dbic0, cand, q in scored[: SHORTLIST + 1]:
-            if cand is None:
-                noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise)
-                if noise1.pose_var_rad2 <= 0:
-                    continue
-                lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
-                gate = float(chi2_dist.ppf(1.0 - 2.0 * alpha, 1))
-            else:
-                noise1, fit1, K1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise)
-                X1 = design(ev, K1, [*state.candidates, cand])
-                lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
-                gate = float(chi2_dist.ppf(1.0 - alpha, q))
+            ranked.append((_lr_fixed(ev, X, np.hstack([X, cols]), state.noise, K, fixed), cand))
+        ranked.sort(key=lambda r: -r[0])
+        for _lr0, cand in ranked[:SHORTLIST]:
+            q = len(cand.names)
+            model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise)
+            noise1, _fit1, K1 = model1
+            X1 = design(ev, K1, [*state.candidates, cand])
+            lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
             dbic = -lr + q * math.log(n)
-            if lr > gate and dbic < 0 and (best is None or dbic < best[0]):
-                best = (dbic, cand, noise1, fit1, K1, lr, q)
-        if best is None:
+            if lr > q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1])) and dbic < 0:
+                admissible.append((dbic, cand, lr, model1))
+        if pose_allowed and not state.pose:
+            noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise)
+            if noise1.pose_var_rad2 > 0:
+                lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
+                dbic = -lr + math.log(n)
+                if lr > float(chi2_dist.ppf(1.0 - 2.0 * alpha, 1)) and dbic < 0:
+                    admissible.append((dbic, None, lr, (noise1, fit1, K1)))
+        if not admissible:
             break
-        dbic, cand, noise1, fit1, K1, lr, q = best
+        dbic, cand, lr, model1 = min(admissible, key=lambda a: a[0])
         if cand is None:
             state.pose = True
-            state.steps.append(Step("pose_error", "pose_error", lr, dbic, q))
+            state.steps.append(Step("pose_error", "pose_error", lr, dbic, 1))
         else:
             state.candidates.append(cand)
-            state.steps.append(Step(cand.label, cand.effect, lr, dbic, q))
-        state.noise, state.fit, K = noise1, fit1, K1
+            state.steps.append(Step(cand.label, cand.effect, lr, dbic, len(cand.names)))
+        state.noise, state.fit, K = model1
     return state, notes

@@ -69,8 +69,11 @@ def summary(
             f"{np.sqrt(np.mean(mag**2)):.2g}° rms, most in window {labels[w]} ({mag[w]:.2g}°)"
         )
     if effect == "settling":
-        return (
+        text = (
             f"the table still rings when the windows start: their first seconds scatter "
             f"{params.get('early_variance_ratio', float('nan')):.2f}× as much as their second half"
         )
+        if "duration_s" in params:
+            text += f"; the ring lasts {params['duration_s']:.1f} ± {sigma['duration_s']:.1f} s after a stop"
+        return text
     return effect

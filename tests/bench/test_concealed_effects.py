@@ -1,55 +1,52 @@
 """Effects concealed in simulated static-12 recordings (truth model: drivers/sim/physics.py).
 
-Sizes are multiples of the detection limits measured with this recording (typical ADXL-like
-triad, 30 s windows at 100 Hz; docs/diagnose.md): the finding must name the effect and
-recover the injected value within 3 of its own sigmas. Clean recordings: at most 2 % may
-report anything.
+Scenarios and measured detection limits: ``benchmarks/diagnose_cases.py`` (the full table,
+more recordings per cell: ``python -m benchmarks.study_diagnose_detection``, docs/diagnose.md).
+At 10x its limit each effect must be found and its parameter recovered within 3 of its own
+sigmas; at 3x it must be found in at least the stated share of recordings. On 50 clean
+recordings at most one may report anything (2 %).
 """
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
-from typing import Any
+import math
 
-import numpy as np
 import pytest
 
 from bench.diagnose_recording import diagnose_recording
-from tests.bench.diagnosis_sim import static_recording
+from benchmarks.diagnose_cases import CASES, run_case, static_recording
 
-# effect, parameters at 10x the detection limit, parameter checked, index
-CASES: list[tuple[str, dict[str, Any], str, tuple[int, ...]]] = [
-    ("nonlinearity_quadratic", {"k2_per_g": [0.0, 0.0, 1.3e-3]}, "k2_per_g", (2,)),
-    ("scale_asymmetry", {"delta": [2.6e-3, 0.0, 0.0]}, "delta", (0,)),
-    ("table_tilt", {"tilt_rad": [7e-4, 0.0]}, "tilt_rad", (0,)),
-    ("encoder_offset", {"offset_deg": [0.0, 0.05, 0.0]}, "offset_deg", (1,)),
-]
+TEN_X = ["nonlinearity_quadratic", "scale_asymmetry", "cross_coupling", "temperature_bias", "bias_drift",
+         "table_tilt", "pose_error", "encoder_offset"]  # fmt: skip
+THREE_X_SEEDS = range(21, 25)
+THREE_X_MIN_FOUND = 3
+"""At 3x the limit an effect is found in at least 3 of these 4 recordings (the study finds >= 90 %)."""
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("effect", "params", "name", "index"), CASES, ids=[c[0] for c in CASES])
-def test_effect_at_ten_times_its_limit_is_found_and_measured(effect, params, name, index) -> None:
-    d = diagnose_recording(static_recording({effect: params}, seed=11))
-    found = {f.effect: f for f in d.findings}
-    assert effect in found, f"{effect} not found; findings {list(found)}"
-    f = found[effect]
-    est = np.asarray(f.parameters[name])[index]
-    sig = np.asarray(f.sigma[name])[index]
-    truth = np.asarray(params[name])[index]
-    assert abs(est - truth) < 3 * sig, f"{effect}: {est} vs {truth} ± {sig}"
-    assert f.delta_bic < 0 and d.final.chi2_dof < d.baseline.chi2_dof
-
-
-def _clean(seed: int) -> list[str]:
-    return [f.effect for f in diagnose_recording(static_recording({}, seed=seed)).findings]
+@pytest.mark.parametrize("effect", TEN_X)
+def test_effect_at_ten_times_its_limit_is_found_and_measured(effect: str) -> None:
+    case = CASES[effect]
+    s = run_case(case, 10 * case.limit, seed=11)
+    assert s.found, f"{effect} not found at 10x its limit; other findings {s.others}"
+    assert abs(s.z) < 3.0, f"{effect}: parameter off by {s.z:.1f} sigma"
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True, reason="known: more than 1 of these 50 clean recordings report a finding (docs/diagnose.md)"
-)
+@pytest.mark.parametrize("effect", TEN_X)
+def test_effect_at_three_times_its_limit_is_found_mostly(effect: str) -> None:
+    case = CASES[effect]
+    scores = [run_case(case, 3 * case.limit, seed=s) for s in THREE_X_SEEDS]
+    found = sum(s.found for s in scores)
+    assert found >= THREE_X_MIN_FOUND, f"{effect} found in {found} of {len(scores)} at 3x"
+    assert all(abs(s.z) < 4.0 for s in scores if s.found and not math.isnan(s.z))
+
+
+@pytest.mark.slow
 def test_false_finding_rate_on_fifty_clean_recordings() -> None:
-    with ProcessPoolExecutor(2) as ex:
-        results = list(ex.map(_clean, range(1000, 1050)))
-    false = [r for r in results if r]
+    false = {}
+    for seed in range(1000, 1050):
+        effects = [f.effect for f in diagnose_recording(static_recording({}, seed=seed)).findings]
+        if effects:
+            false[seed] = effects
     assert len(false) <= 1, false  # 1/50 = 2 %

@@ -240,3 +240,14 @@ def plan_observability(
         elif term in USEFUL_SIGMA and crb > USEFUL_SIGMA[term]:
             why[term] = f"Cramér–Rao sigma {crb:.3g} exceeds {USEFUL_SIGMA[term]:g}"
     return rep, why
+
+
+def plan_blockers(proc: Procedure, dwell_s: float = 60.0) -> list[str]:
+    """Problems that make a moving-table procedure useless for calibration, one sentence each.
+
+    The minimal dynamic model (bias, K, lever arm) must be determined by the planned motion;
+    weaker terms are only left out of the fit, so they are not problems. Evaluated at 25 Hz
+    (the bound follows the noise density, not the rate).
+    """
+    _, why = plan_observability(proc, ("lever_arm",), sample_rate_hz=25.0, dwell_s=dwell_s)
+    return [f"{proc.name}: the motion cannot determine {term} ({reason})" for term, reason in why.items()]

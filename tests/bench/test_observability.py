@@ -77,3 +77,12 @@ def test_procedure_angles_follow_the_steps() -> None:
     assert np.isclose(qd[-1, 1], 90.0) and np.isclose(qd[-1, 2], 0.0)
     # ramp 1 s, 100 deg/s held for spin-up + window (5 s), ramp 1 s: 600 deg turned in all
     assert np.isclose(qd[-1, 0], 600.0, atol=1.0)
+
+
+def test_preview_refuses_a_motion_that_cannot_calibrate() -> None:
+    from bench.procedures import preview
+
+    assert preview(rate_1axis(dwell_s=10.0)).ok
+    pv = preview(rate_1axis(dwell_s=10.0, poses_deg=((0.0, 0.0),)))
+    assert not pv.ok
+    assert any("cannot determine scale_matrix" in p for p in pv.problems)

@@ -6,7 +6,7 @@ import { overviewView, unitsView } from "./view_overview.js";
 import { unitView } from "./view_unit.js";
 import { runView } from "./view_run.js";
 
-export const session = { role: "none", controller: null };
+export const session = { role: "none", controller: null, publicRead: null };
 
 function notice(text, kind = "error") {
   const n = document.getElementById("notice");
@@ -14,8 +14,15 @@ function notice(text, kind = "error") {
   n.hidden = false; n.textContent = text; n.className = `notice${kind === "info" ? " info" : ""}`;
 }
 
+const NEED_TOKEN = "This lab needs a token to read: paste a viewer or operator token above.";
+
 async function refreshRole() {
   const roleEl = document.getElementById("role");
+  if (!getToken() && session.publicRead === false) {
+    // no token and reads are not public: say so without a request that can only fail
+    session.role = "none"; roleEl.textContent = "no access"; notice(NEED_TOKEN);
+    return;
+  }
   try {
     const who = await getJson("/api/whoami");
     session.role = who.role;
@@ -25,7 +32,7 @@ async function refreshRole() {
     session.role = "none";
     roleEl.textContent = "no access";
     notice(err.status === 401
-      ? (getToken() ? "That token is unknown or revoked: paste a valid one." : "This lab needs a token to read: paste a viewer or operator token above.")
+      ? (getToken() ? "That token is unknown or revoked: paste a valid one." : NEED_TOKEN)
       : `Cannot reach the service: ${err.message}`);
   }
 }
@@ -33,6 +40,7 @@ async function refreshRole() {
 async function refreshBench() {
   try {
     const hl = await getJson("/api/health");
+    session.publicRead = hl.public_read;
     const busy = hl.busy_run ? ` · busy: run ${hl.busy_run}` : " · idle";
     document.getElementById("bench").textContent =
       `bench ${hl.bench}${hl.simulated ? " (simulated)" : ""}${busy}${hl.database_ok ? "" : " · DATABASE UNREACHABLE"}`;
@@ -48,7 +56,8 @@ async function route() {
   const parts = hash.split("/").filter(Boolean);
   view.replaceChildren();
   try {
-    if (parts[0] === "units" && parts[1]) await unitView(view, parts.slice(1).join("/"), signal);
+    if (session.role === "none" && parts.length) view.append(Object.assign(document.createElement("p"), { className: "muted", textContent: "Paste a token above to see this page." }));
+    else if (parts[0] === "units" && parts[1]) await unitView(view, parts.slice(1).join("/"), signal);
     else if (parts[0] === "units") await unitsView(view, signal);
     else if (parts[0] === "runs" && parts[1]) await runView(view, parts[1], session, signal);
     else await overviewView(view, session, signal);
@@ -75,9 +84,8 @@ function setup() {
     route();
   });
   window.addEventListener("hashchange", route);
-  refreshBench();
   setInterval(refreshBench, 10000);
-  refreshRole().then(route);
+  refreshBench().then(refreshRole).then(route);
 }
 
 setup();

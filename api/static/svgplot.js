@@ -26,6 +26,22 @@ function niceStep(span, n) {
   return (m < 1.5 ? 1 : m < 3 ? 2 : m < 7 ? 5 : 10) * p;
 }
 
+/** Tick labels with as many decimals as the tick step needs (9.8150, 9.8155, … not 9.82, 9.82). */
+function tickLabel(v, step) {
+  const a = Math.abs(v);
+  if (a !== 0 && (a < 1e-3 || a >= 1e5)) {
+    const digits = Math.max(1, Math.min(6, Math.ceil(Math.log10(a / step)) + 1));
+    return v.toExponential(digits - 1);
+  }
+  return v.toFixed(Math.max(0, Math.min(8, -Math.floor(Math.log10(step) + 1e-9))));
+}
+
+/** Plot width (SVG user units) close to the rendered width, so text keeps its size on a phone. */
+export function plotWidth() {
+  const w = window.innerWidth || 1024;
+  return w < 700 ? Math.max(300, w - 56) : 640;
+}
+
 function linTicks(lo, hi, n = 5) {
   if (!(hi > lo)) return [lo];
   const s = niceStep(hi - lo, n);
@@ -35,12 +51,17 @@ function linTicks(lo, hi, n = 5) {
 }
 
 function logTicks(lo, hi) {
-  const out = [];
-  for (let e = Math.floor(Math.log10(lo)); e <= Math.ceil(Math.log10(hi)); e++) {
-    const v = 10 ** e;
-    if (v >= lo * 0.999 && v <= hi * 1.001) out.push(v);
+  for (const mult of [[1], [1, 3], [1, 2, 5]]) {
+    const out = [];
+    for (let e = Math.floor(Math.log10(lo)); e <= Math.ceil(Math.log10(hi)); e++) {
+      for (const m of mult) {
+        const v = m * 10 ** e;
+        if (v >= lo * 0.999 && v <= hi * 1.001) out.push(v);
+      }
+    }
+    if (out.length >= 3) return out;
   }
-  return out.length >= 2 ? out : linTicks(lo, hi, 3).filter((v) => v > 0);
+  return [lo, hi];
 }
 
 function extent(values, log) {
@@ -70,8 +91,8 @@ function frame(width, height, label) {
  *        xlog, ylog, xlabel, ylabel, hlines: [{y, label, colour}], hband: {lo, hi}, label, width, height}
  */
 export function chart(opts) {
-  const W = opts.width || 640, H = opts.height || 300;
-  const M = { l: 64, r: 14, t: 12, b: opts.categories ? 58 : 42 };
+  const W = opts.width || plotWidth(), H = opts.height || 300;
+  const M = { l: 70, r: 14, t: 12, b: opts.categories ? 58 : 42 };
   const svg = frame(W, H, opts.label || opts.ylabel || "plot");
   const cats = opts.categories;
   const xs = cats ? cats.map((_, i) => i) : opts.x;
@@ -84,9 +105,10 @@ export function chart(opts) {
   const X = scale(x0, x1, M.l, W - M.r, opts.xlog), Y = scale(y0, y1, H - M.b, M.t, opts.ylog);
   const axis = el("g", { class: "axis" });
   const yt = opts.ylog ? logTicks(y0, y1) : linTicks(y0, y1, 5);
+  const ystep = opts.ylog ? 0 : niceStep(y1 - y0, 5);
   for (const v of yt) {
     axis.append(el("line", { x1: M.l, x2: W - M.r, y1: Y(v), y2: Y(v), class: "gridline" }));
-    axis.append(el("text", { x: M.l - 6, y: Y(v) + 4, "text-anchor": "end" }, fmt(v, 3)));
+    axis.append(el("text", { x: M.l - 6, y: Y(v) + 4, "text-anchor": "end" }, opts.ylog ? fmt(v, 2) : tickLabel(v, ystep)));
   }
   if (cats) {
     const every = Math.max(1, Math.ceil(cats.length / Math.max(1, (W - M.l) / 46)));
@@ -96,9 +118,10 @@ export function chart(opts) {
         transform: `rotate(-35 ${X(i)} ${H - M.b + 14})` }, c));
     });
   } else {
+    const xstep = opts.xlog ? 0 : niceStep(x1 - x0, 6);
     for (const v of opts.xlog ? logTicks(x0, x1) : linTicks(x0, x1, 6)) {
       axis.append(el("line", { x1: X(v), x2: X(v), y1: M.t, y2: H - M.b, class: "gridline" }));
-      axis.append(el("text", { x: X(v), y: H - M.b + 15, "text-anchor": "middle" }, fmt(v, 3)));
+      axis.append(el("text", { x: X(v), y: H - M.b + 15, "text-anchor": "middle" }, opts.xlog ? fmt(v, 2) : tickLabel(v, xstep)));
     }
   }
   axis.append(el("path", { d: `M${M.l},${M.t}V${H - M.b}H${W - M.r}`, fill: "none" }));
@@ -146,7 +169,7 @@ export function chart(opts) {
 
 /** Grouped bar chart: categories × series, a zero line and an optional band (e.g. ±2). */
 export function bars(opts) {
-  const W = opts.width || 640, H = opts.height || 260;
+  const W = opts.width || plotWidth(), H = opts.height || 260;
   const M = { l: 52, r: 10, t: 10, b: 58 };
   const svg = frame(W, H, opts.label || "bar chart");
   const n = opts.categories.length, k = opts.series.length;
@@ -158,7 +181,7 @@ export function bars(opts) {
   const axis = el("g", { class: "axis" });
   for (const v of linTicks(-m, m, 6)) {
     axis.append(el("line", { x1: M.l, x2: W - M.r, y1: Y(v), y2: Y(v), class: "gridline" }));
-    axis.append(el("text", { x: M.l - 6, y: Y(v) + 4, "text-anchor": "end" }, fmt(v, 2)));
+    axis.append(el("text", { x: M.l - 6, y: Y(v) + 4, "text-anchor": "end" }, tickLabel(v, niceStep(2 * m, 6))));
   }
   if (opts.band) svg.append(el("rect", { x: M.l, width: W - M.l - M.r, y: Y(opts.band), height: Y(-opts.band) - Y(opts.band),
     fill: "#2ca02c", "fill-opacity": 0.08 }));

@@ -32,7 +32,7 @@ function runsTable(runs) {
 
 function startForm(session) {
   const serial = h("input", { id: "start-serial", name: "unit_serial", required: true, placeholder: "SN-0001",
-    pattern: "[A-Za-z0-9][A-Za-z0-9._-]{0,63}", title: "letters, digits, '.', '_', '-'" });
+    pattern: "[A-Za-z0-9][A-Za-z0-9._\\-]{0,63}", title: "letters, digits, '.', '_', '-'" });
   const proc = h("select", { id: "start-procedure", name: "procedure" }, PROCEDURES.map((p) => h("option", { value: p }, p)));
   const status = h("p", { class: "note", "aria-live": "polite" });
   const button = h("button", { type: "submit", id: "start-run" }, "Start run");
@@ -70,7 +70,17 @@ export async function overviewView(view, session, signal) {
     unitsBox.replaceChildren(unitsTable(units));
     return runs.some((r) => LIVE.has(r.state));
   };
-  const live = await load();
+  if (session.role === "none") {
+    runsBox.replaceChildren(message("Reading needs a token.")); unitsBox.replaceChildren(message("Reading needs a token."));
+    return;
+  }
+  let live = false;
+  try { live = await load(); } catch (err) {
+    if (err.name === "AbortError") return;
+    const why = err.status === 401 || err.status === 403 ? "Reading needs a token." : `Not available: ${err.message}`;
+    runsBox.replaceChildren(message(why)); unitsBox.replaceChildren(message(why));
+    return;
+  }
   const tick = async () => {
     if (signal.aborted) return;
     try { await load(); } catch (err) { if (err.name === "AbortError") return; }

@@ -23,6 +23,7 @@ function liveCard(run, session, onAbort) {
   const windows = h("dd", { id: "run-window" }, "–");
   const time = h("dd", { id: "run-time" }, "–");
   const pose = h("dd", { id: "run-pose", class: "num" }, "–");
+  const poseLabel = h("dt", {}, "Table");
   const canAbort = session.role === "operator" || session.role === "admin";
   const abort = h("button", { type: "button", class: "danger", id: "abort-run", disabled: !canAbort || !LIVE.has(run.state),
     title: canAbort ? "stop the run; the table goes to its safe state and the recording is kept" : "needs an operator token",
@@ -31,17 +32,24 @@ function liveCard(run, session, onAbort) {
     h("header", {}, h("h2", {}, "Progress"), state),
     h("div", { class: "progress-line" }, bar, pct),
     h("dl", { class: "kv" }, h("dt", {}, "Step"), step, h("dt", {}, "Window"), windows,
-      h("dt", {}, "Time"), time, h("dt", {}, "Table"), pose),
+      h("dt", {}, "Time"), time, poseLabel, pose),
     h("p", {}, abort));
   const update = (p) => {
     if (p.progress !== undefined) { setProgress(bar, p.progress); pct.textContent = `${Math.round(p.progress * 100)} %`; }
     if (p.state) state.replaceChildren(badge(p.state));
-    if (p.step_label !== undefined) step.textContent = `${p.step_index + 1} of ${p.n_steps}: ${p.step_label}`;
+    if (p.step_label !== undefined) step.textContent = `${Math.min(p.step_index + 1, p.n_steps)} of ${p.n_steps}: ${p.step_label}`;
     if (p.n_windows) windows.textContent = p.window_index == null ? `between windows (${p.n_windows} planned)` : `${p.window_index + 1} of ${p.n_windows}`;
     if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} of about ${seconds(p.expected_total_s)} (bench clock)`;
     if (p.table_deg) pose.textContent = p.table_deg.map((a) => `${a.toFixed(1)}°`).join("  ");
     if (p.state && !LIVE.has(p.state)) abort.disabled = true;
   };
+  if (!LIVE.has(run.state)) {
+    step.textContent = `ended ${run.state}${run.outcome ? ` (${run.outcome})` : ""}`;
+    windows.textContent = run.last_complete_window == null ? "none complete" : `${run.last_complete_window + 1} complete`;
+    const wall = (Date.parse(run.finished_at) - Date.parse(run.started_at)) / 1000;
+    time.textContent = Number.isFinite(wall) ? `${seconds(wall)} (wall clock)` : "–";
+    if (run.n_samples) { poseLabel.textContent = "Recording"; pose.textContent = `${run.n_samples} samples`; }
+  }
   return { el, update };
 }
 

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from bench.calibration import MAX_TABLE_MOTION_RAD, CalibrationResult
+from bench.calibration import MAX_TABLE_MOTION_RAD, CalibrationResult, WindowResult, select_windows
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_kalman import run_dynamic_kalman
 from bench.estimation.dynamic_model import (
@@ -35,10 +35,12 @@ from bench.estimation.dynamic_model import (
     MotionData,
     initial_theta,
     positions,
+    predict,
     prepare_motion,
 )
 from bench.estimation.g_check import GCheck
 from bench.estimation.observability import USEFUL_SIGMA, fisher_information, information_report
+from bench.estimation.window_noise import pooled_mean_covariances, window_noise
 from bench.recording import Recording
 
 FloatArray = npt.NDArray[np.float64]
@@ -50,6 +52,8 @@ CANDIDATE_TERMS = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", 
 KALMAN_AGREEMENT_Z = 3.0
 """The filter and the batch fit agree when every |difference| / batch sigma is below this."""
 G_BLOCK_S = 1.0
+MIN_BATCH_WINDOW = 40
+"""Samples a still window needs for its batch-means noise (``window_noise``)."""
 
 
 def is_dynamic(rec: Recording) -> bool:
@@ -186,6 +190,48 @@ def _block_means(t: FloatArray, v: FloatArray) -> FloatArray:
     return np.asarray(np.bincount(blk, weights=v)[counts > 0] / counts[counts > 0], dtype=float)
 
 
+def _static_windows(
+    rec: Recording, fit: DynamicFit, m: MotionData, y: FloatArray, fg: FloatArray, lever: FloatArray
+) -> tuple[WindowResult, ...]:
+    """The recording's still segments (reference windows, zero-rate windows) against the fitted model.
+
+    residual = window mean − mean model prediction; its sigma from batch means pooled over
+    the windows (``window_noise``), as in the static calibration.
+    """
+    try:
+        wins = [w for w in select_windows(rec) if w.stop - w.start >= MIN_BATCH_WINDOW]
+    except ValueError:
+        return ()
+    if not wins:
+        return ()
+    V = pooled_mean_covariances([window_noise(y[w.start : w.stop]) for w in wins])
+    out = []
+    g = rec.sidecar.g_local_m_s2
+    for k, w in enumerate(wins):
+        sl = slice(w.start, w.stop)
+        model, _ = predict(fit.theta, m.take(sl), fit.spec, g, lever)
+        mean = y[sl].mean(axis=0)
+        sig = np.sqrt(np.diag(V[k]))
+        resid = mean - model.mean(axis=0)
+        f_mean = np.linalg.solve(fit.theta[3:12].reshape(3, 3), model.mean(axis=0) - fit.theta[:3])
+        out.append(
+            WindowResult(
+                label=w.label,
+                start_s=w.start_s,
+                end_s=w.end_s,
+                n_samples=w.stop - w.start,
+                mean_raw=mean,
+                mean_sigma=sig,
+                f_m_s2=f_mean,
+                residual=resid,
+                normalized_residual=resid / sig,
+                g_error_after_m_s2=float(np.linalg.norm(fg[sl].mean(axis=0)) - g),
+                g_error_before_m_s2=None,
+            )
+        )
+    return tuple(out)
+
+
 def _g_from_magnitudes(mag: FloatArray, g: float) -> GCheck:
     """:class:`GCheck` of block-mean magnitudes |f̂| (m/s²) against g."""
     err = mag - g
@@ -271,7 +317,7 @@ def calibrate_dynamic(
         ),
         g_after=after,
         g_before=before,
-        windows=(),
+        windows=_static_windows(rec, fit, m, y, fg, lever),
         source=rec.source,
         fit=fit,
         extra=extra,

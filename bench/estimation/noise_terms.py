@@ -12,17 +12,21 @@ The standard noise model adds independent power-law processes; their Allan varia
     R  rate ramp (drift)                   (u/s)
 
 :func:`fit_noise_model` fits the five squared coefficients p = [Q², N², B², K², R²] ≥ 0 by
-non-negative weighted least squares on σ̂², with each point weighted by its standard
-deviation σ²(τ)·√(2/edf + (2·MODEL_FLOOR_REL)²) (a χ² variable with edf degrees of freedom,
-plus a 1 % relative allowance on σ for the model itself: real sensors' filters and
-non-power-law processes depart from it by that much, and without the allowance the points
-at short τ, whose edf run to 10⁵, would decide every term). The weights are iterated with
-the model's own σ² so that low points do not pull the fit. Points before the curve's first
-maximum are left out when the curve *rises* from τ0 (a sensor low-pass filter correlates
-neighbouring samples; no term of the model rises at short τ). Uncertainties come from the
-weighted normal matrix of the active terms, scaled up by √(χ²/dof) when the fit is worse
-than the intervals say. Allan points at neighbouring τ are positively correlated, which
-this treats as independent; see the tests for the coverage that results.
+non-negative generalised least squares on σ̂². The covariance of the σ̂² vector is
+C = D·R·D: D = σ²(τ)·√(2/edf) (a χ² variable with edf degrees of freedom, SP1065 §5.3) and
+R the correlation of overlapping estimates at different τ, computed from the model's own
+spectrum (:func:`allan_correlation`; octave neighbours correlate 0.5 for white noise, 0.88
+for rate random walk, and the correlation reaches several octaves). Both are iterated with
+the fitted model. Treating the points as independent, or as an AR(1) chain along τ, made
+the B and K sigmas 20-35 % too small. Real sensors' filters and non-power-law processes
+depart from the model: when χ² exceeds its 95 % quantile, a relative allowance on σ
+(``model_floor_rel``) is added to every point, set so that χ²/dof = 1. Without it the
+points at short τ, whose edf run to 10⁵, would decide every term. Points before the curve's
+first maximum are left out when the curve *rises* from τ0 (a sensor low-pass filter
+correlates neighbouring samples; no term of the model rises at short τ). Uncertainties come
+from the generalised normal matrix of the active terms. On simulated noise of known N, B,
+K (tests), (estimate − truth)/sigma has a spread of 0.8-1 for each term. Fitting Q and R
+as well when they are truly zero moves N and K by about −0.4 σ (the non-negativity bound).
 
 :func:`slope_method` is the graphical reading of Annex C: N from the points on the −1/2
 line (read at τ = 1 s), K from the points on the +1/2 line (read at τ = 3 s), B from the
@@ -36,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from scipy import stats
 from scipy.optimize import nnls
 
 from bench.estimation.allan import AllanResult
@@ -48,11 +53,8 @@ BI_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
 TERMS = ("quantization", "white", "bias_instability", "rate_random_walk", "rate_ramp")
 """Term names, in the order of :func:`basis`."""
 
-MODEL_FLOOR_REL = 0.01
-"""Relative allowance on the Allan deviation for the noise model's own inexactness."""
-
-OCTAVE_CORRELATION = {2: 0.5, 1: 0.5, 0: 0.53, -1: 0.68, -2: 0.88}
-"""Correlation of Allan estimates one octave apart, by power-law α (Monte-Carlo, see module doc)."""
+MISFIT_LEVEL = 0.95
+"""χ² above this quantile of its distribution counts as model misfit (see :func:`fit_noise_model_curve`)."""
 
 DOMINANT_SHARE = 0.8
 """Slope method: a point belongs to a term's line where that term is ≥ 80 % of the model variance."""
@@ -85,6 +87,7 @@ class NoiseTerms:
     chi2_dof: float
     method: str
     tau_min_fit_s: float = math.nan
+    model_floor_rel: float = math.nan
 
     @property
     def coefficients(self) -> FloatArray:
@@ -104,6 +107,7 @@ class NoiseTerms:
         out["chi2_dof"] = float(self.chi2_dof)
         out["method"] = self.method
         out["tau_min_fit_s"] = float(self.tau_min_fit_s)
+        out["model_floor_rel"] = float(self.model_floor_rel)
         return out
 
 
@@ -111,12 +115,23 @@ _FIELDS = ("quantization_q", "white_n", "bias_instability_b", "rate_random_walk_
 
 
 def _terms(
-    values: list[float], sigmas: list[float], chi2_dof: float, method: str, tau_min_fit_s: float
+    values: list[float],
+    sigmas: list[float],
+    chi2_dof: float,
+    method: str,
+    tau_min_fit_s: float,
+    model_floor_rel: float = math.nan,
 ) -> NoiseTerms:
     """NoiseTerms from [Q, N, B, K, R] values and sigmas."""
     kwargs = dict(zip(_FIELDS, values, strict=True))
     kwargs.update({f"{name}_sigma": s for name, s in zip(_FIELDS, sigmas, strict=True)})
-    return NoiseTerms(**kwargs, chi2_dof=chi2_dof, method=method, tau_min_fit_s=tau_min_fit_s)
+    return NoiseTerms(
+        **kwargs,
+        chi2_dof=chi2_dof,
+        method=method,
+        tau_min_fit_s=tau_min_fit_s,
+        model_floor_rel=model_floor_rel,
+    )
 
 
 def first_fit_index(adev: npt.ArrayLike) -> int:
@@ -136,22 +151,124 @@ def _root_with_sigma(p: float, var_p: float) -> tuple[float, float]:
     return math.sqrt(p), 0.5 * (math.sqrt(p + sp) - math.sqrt(max(p - sp, 0.0)))
 
 
-def _alpha_from_slope(t: FloatArray, s2: FloatArray) -> npt.NDArray[np.int64]:
-    """(m,) α from the local log-log slope μ of σ²(τ): α = −μ − 1, rounded into [−2, 0]."""
-    if t.size < 2:
-        return np.zeros(t.size, dtype=np.int64)
-    mu = np.gradient(np.log(s2), np.log(t))
-    return np.clip(np.rint(-mu - 1.0), -2, 0).astype(np.int64)
+def spectrum_coefficients(p: npt.ArrayLike) -> FloatArray:
+    """(4,) one-sided power-law coefficients [h₂, h₀, h₋₁, h₋₂] of S_y(f) = Σ h_α f^α from p.
+
+    p = [Q², N², B², K², R²] (R, a deterministic ramp, has no spectrum). SP1065 Table 2 with
+    IEEE 952 Table C.2: h₀ = 2N², h₋₁ = B²/π, h₋₂ = K²/(2π²); white phase noise h₂ = 4π²Q²·τ0·2
+    (its Allan variance 3 f_h h₂/(4π²τ²) = 3Q²/τ² with f_h = 1/(2τ0)).
+    """
+    q2, n2, b2, k2, _ = np.asarray(p, dtype=float)
+    return np.array([0.0, 2.0 * n2, b2 / math.pi, k2 / (2.0 * math.pi**2)]) + np.array(
+        [8.0 * math.pi**2 * q2, 0.0, 0.0, 0.0]
+    )
 
 
-def _ar1_cholesky(t: FloatArray, alpha: npt.ArrayLike) -> FloatArray:
-    """Lower Cholesky factor of the AR(1) correlation of Allan points along τ."""
-    a = np.asarray(alpha)
-    rho_oct = np.array([OCTAVE_CORRELATION[int(np.clip(x, -2, 2))] for x in a])
-    rho_pair = np.sqrt(rho_oct[:-1] * rho_oct[1:]) ** np.log2(t[1:] / t[:-1])
-    log_cum = np.concatenate([[0.0], np.cumsum(np.log(np.maximum(rho_pair, 1e-300)))])
-    corr = np.exp(-np.abs(log_cum[:, None] - log_cum[None, :]))
-    return np.linalg.cholesky(corr + 1e-12 * np.eye(t.size))
+def allan_correlation(taus_s: FloatArray, p: npt.ArrayLike, tau0_s: float) -> FloatArray:
+    """(m, m) correlation of overlapping Allan variance estimates at taus_s under the model p.
+
+    For a Gaussian process the overlapping estimate is a quadratic form of the second
+    differences d_a; for a record long against the τ involved,
+    Cov(σ̂²_a, σ̂²_b) ∝ Σ_h Cov(d_a(i), d_b(i+h))² = ∫ S_y(f)² W_a(f) W_b(f) df (Parseval), so
+
+        ρ_ab = ∫ S² W_a W_b df / √(∫ S² W_a² df · ∫ S² W_b² df),
+
+    W_τ(f) = 2 sin⁴(πfτ) / (m² sin²(πfτ0)) the Allan transfer function of m = τ/τ0 sampled
+    points (SP1065 §5.2; Greenhall, "Estimating the modified Allan variance", 1995, for the
+    quadratic-form covariance), S_y from :func:`spectrum_coefficients`, f up to 1/(2τ0).
+    sin⁴ is replaced by its mean 3/8 beyond ten periods, where the other factors are smooth.
+    """
+    t = np.asarray(taus_s, dtype=float)
+    h = spectrum_coefficients(p)
+    f_nyq = 0.5 / tau0_s
+    f = np.geomspace(f_nyq * 1e-4 * tau0_s / t.max(), f_nyq, 2048)
+    x = np.pi * f[None, :] * t[:, None]
+    s4 = np.where(x < 20.0 * np.pi, np.sin(x) ** 4, 0.375)
+    m = t[:, None] / tau0_s
+    W = 2.0 * s4 / (m**2 * np.sin(np.pi * f * tau0_s) ** 2)
+    S = h[0] * f**2 + h[1] + h[2] / f + h[3] / f**2
+    wts = np.gradient(f) * S**2
+    G = np.einsum("af,bf->ab", W * wts, W)  # einsum: no BLAS threads for a small product
+    d = np.sqrt(np.maximum(np.diag(G), np.finfo(float).tiny))
+    R = np.asarray(G / d[:, None] / d[None, :], dtype=float)
+    np.fill_diagonal(R, 1.0)  # also for a τ where the model has no variance at all
+    return R
+
+
+def _cholesky(cov: FloatArray) -> FloatArray:
+    """Lower Cholesky factor of cov, with a diagonal ridge (10⁻¹² … 10⁻⁴ relative) if near-singular.
+
+    Closely spaced τ (e.g. 90 points over 5 decades) give correlations within 10⁻⁶ of 1.
+    """
+    ridge = 1e-12
+    while True:
+        try:
+            return np.linalg.cholesky(cov + ridge * np.diag(np.diag(cov)))
+        except np.linalg.LinAlgError:
+            if ridge >= 1e-4:
+                raise
+            ridge *= 100.0
+
+
+def _forward_solve(L: FloatArray, b: FloatArray) -> FloatArray:
+    """L⁻¹·b for lower-triangular L (m, m) and b (m, k), row by row (small m; no BLAS threads)."""
+    x = np.empty_like(b)
+    for i in range(L.shape[0]):
+        x[i] = (b[i] - L[i, :i] @ x[:i]) / L[i, i]
+    return x
+
+
+def _gls(
+    t: FloatArray,
+    s2: FloatArray,
+    nu: FloatArray,
+    A: FloatArray,
+    active: list[int],
+    tau0_s: float,
+    floor_rel: float,
+    n_iterations: int,
+) -> tuple[float, int, FloatArray, FloatArray]:
+    """Iterated non-negative GLS of s2 on A: (χ², dof, p (k,), whitened design (m, k)).
+
+    Covariance of σ̂²: C = D·R·D + diag(2·floor_rel·σ²)², D = diag(σ²·√(2/edf)), with σ² the
+    current model and R from :func:`allan_correlation` of the current model.
+    """
+    model = np.maximum(s2, np.max(s2) * 1e-300)
+    Ar = A / model[:, None]
+    col = np.maximum(np.linalg.norm(Ar, axis=0), np.finfo(float).tiny)
+    p = nnls(Ar / col, np.ones(t.size))[0] / col  # start: relative least squares
+    p_full = np.zeros(5)
+    p_full[active] = p
+    for it in range(n_iterations + 1):
+        corr = allan_correlation(t, p_full, tau0_s)
+        d = model * np.sqrt(2.0 / nu)
+        cov = corr * d[:, None] * d[None, :] + np.diag((2.0 * floor_rel * model) ** 2)
+        L = _cholesky(cov)
+        white = _forward_solve(L, np.column_stack([A, s2]))
+        As, s2w = white[:, :-1], white[:, -1]
+        if it == n_iterations:
+            break
+        scale = np.linalg.norm(As, axis=0)
+        p_scaled, _ = nnls(As / scale, s2w)
+        p = p_scaled / scale
+        p_full = np.zeros(5)
+        p_full[active] = p
+        model = np.maximum(A @ p, np.max(s2) * 1e-12)
+    r = s2w - As @ p
+    dof = max(t.size - int(np.count_nonzero(p > 0)), 1)
+    return float(r @ r), dof, p, As
+
+
+def _floor_for_unit_chi2(
+    t: FloatArray, s2: FloatArray, nu: FloatArray, A: FloatArray, active: list[int], tau0_s: float, n_it: int
+) -> float:
+    """Relative model allowance on σ (0.1 % … 50 %) at which the fit's χ²/dof is 1, by bisection in log."""
+    lo, hi = math.log(1e-3), math.log(0.5)
+    for _ in range(8):
+        mid = 0.5 * (lo + hi)
+        chi2, dof, _, _ = _gls(t, s2, nu, A, active, tau0_s, math.exp(mid), min(n_it, 3))
+        lo, hi = (mid, hi) if chi2 / dof > 1.0 else (lo, mid)
+    return math.exp(hi)
 
 
 def fit_noise_model_curve(
@@ -159,8 +276,9 @@ def fit_noise_model_curve(
     adev: npt.ArrayLike,
     edf: npt.ArrayLike,
     terms: tuple[str, ...] = TERMS,
-    alpha: npt.ArrayLike | None = None,
     n_iterations: int = 6,
+    tau0_s: float | None = None,
+    floor_rel: float | None = None,
 ) -> NoiseTerms:
     """Weighted non-negative least-squares fit of the noise model to one Allan curve.
 
@@ -168,9 +286,12 @@ def fit_noise_model_curve(
     :param adev: (m,) Allan deviation, unit u.
     :param edf: (m,) equivalent degrees of freedom of each point (≥ 1).
     :param terms: which of :data:`TERMS` to fit; the others are fixed at 0 (value NaN).
-    :param alpha: (m,) power-law α of each point (:attr:`AllanResult.alpha`) for the correlation
-        model; ``None`` takes it from the curve's local slope.
-    :returns: :class:`NoiseTerms` with method ``"wls-5term"``.
+    :param n_iterations: re-weighting passes (weights and correlations from the current model).
+    :param tau0_s: sampling interval of the data behind the curve (s); ``None``: the smallest τ.
+    :param floor_rel: relative allowance on σ for model misfit; ``None`` (default) estimates it:
+        0 unless χ² exceeds its :data:`MISFIT_LEVEL` quantile, else the value giving χ²/dof = 1.
+    :returns: :class:`NoiseTerms` with method ``"wls-5term"``; ``chi2_dof`` is that of the fit
+        without allowance, ``model_floor_rel`` the allowance used.
     """
     t = np.asarray(taus_s, dtype=float)
     s2 = np.asarray(adev, dtype=float) ** 2
@@ -186,34 +307,23 @@ def fit_noise_model_curve(
         raise ValueError("taus_s must be finite and > 0 and adev finite")
     active = [TERMS.index(name) for name in terms]
     start = first_fit_index(s2)
-    al = _alpha_from_slope(t, s2) if alpha is None else np.asarray(alpha, dtype=np.int64)
-    t, s2, nu, al = t[start:], s2[start:], nu[start:], al[start:]
+    t, s2, nu = t[start:], s2[start:], nu[start:]
     if t.size < len(active) + 1:
         rising = f" (the curve rises from τ0 to τ = {t[0]:.3g} s: is the stretch static?)" if start else ""
         raise ValueError(f"{t.size} Allan points{rising} cannot determine {len(active)} noise terms")
     A = basis(t)[:, active]
-    L = _ar1_cholesky(t, al)
-    model = np.maximum(s2, np.max(s2) * 1e-300)
-    p = np.zeros(len(active))
-    rel_sd = np.sqrt(2.0 / nu + (2.0 * MODEL_FLOOR_REL) ** 2)
-
-    def whiten(v: FloatArray, sd: FloatArray) -> FloatArray:
-        return np.asarray(np.linalg.solve(L, v / (sd[:, None] if v.ndim == 2 else sd)), dtype=float)
-
-    for _ in range(n_iterations):
-        sd = model * rel_sd
-        As = whiten(A, sd)
-        scale = np.linalg.norm(As, axis=0)
-        p_scaled, _ = nnls(As / scale, whiten(s2, sd))
-        p = p_scaled / scale
-        model = np.maximum(A @ p, np.max(s2) * 1e-12)
-    sd = model * rel_sd
-    As = whiten(A, sd)
-    chi2 = float(np.sum(whiten(s2 - A @ p, sd) ** 2))
-    positive = p > 0
-    dof = max(t.size - int(positive.sum()), 1)
+    tau0 = float(t.min()) if tau0_s is None else float(tau0_s)
+    chi2, dof, p, As = _gls(t, s2, nu, A, active, tau0, 0.0, n_iterations)
     chi2_dof = chi2 / dof
-    inflate = max(1.0, chi2_dof)
+    floor = 0.0 if floor_rel is None else float(floor_rel)
+    if floor_rel is None and chi2 > stats.chi2.ppf(MISFIT_LEVEL, dof):
+        floor = _floor_for_unit_chi2(t, s2, nu, A, active, tau0, n_iterations)
+    if floor > 0.0:
+        chi2_f, dof, p, As = _gls(t, s2, nu, A, active, tau0, floor, n_iterations)
+        inflate = max(1.0, chi2_f / dof)
+    else:
+        inflate = max(1.0, chi2_dof)
+    positive = p > 0
     var_p = np.zeros(len(active))
     if positive.any():
         J = As[:, positive]
@@ -226,13 +336,15 @@ def fit_noise_model_curve(
     sigmas = [math.nan] * 5
     for k, idx in enumerate(active):
         values[idx], sigmas[idx] = _root_with_sigma(float(p[k]), float(var_p[k]))
-    return _terms(values, sigmas, chi2_dof, "wls-5term", float(t[0]))
+    return _terms(values, sigmas, chi2_dof, "wls-5term", float(t[0]), floor)
 
 
 def fit_noise_model(result: AllanResult, terms: tuple[str, ...] = TERMS) -> tuple[NoiseTerms, ...]:
     """:func:`fit_noise_model_curve` for every channel of an :class:`AllanResult`."""
     return tuple(
-        fit_noise_model_curve(result.taus_s, result.adev[:, c], result.edf[:, c], terms, result.alpha[:, c])
+        fit_noise_model_curve(
+            result.taus_s, result.adev[:, c], result.edf[:, c], terms, tau0_s=1.0 / result.sample_rate_hz
+        )
         for c in range(result.n_channels)
     )
 

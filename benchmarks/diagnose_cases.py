@@ -72,11 +72,11 @@ def _pose_angles(size: float, seed: int) -> dict[str, Any]:
 CASES: dict[str, Case] = {
     c.effect: c
     for c in (
-        Case("nonlinearity_quadratic", 1.6e-4, "1/g", lambda s, _: {"k2_per_g": [0.0, 0.0, s]}, "k2_per_g", (2,)),
-        Case("scale_asymmetry", 3.0e-4, "1", lambda s, _: {"delta": [s, 0.0, 0.0]}, "delta", (0,)),
+        Case("nonlinearity_quadratic", 1.8e-4, "1/g", lambda s, _: {"k2_per_g": [0.0, 0.0, s]}, "k2_per_g", (2,)),
+        Case("scale_asymmetry", 4.1e-4, "1", lambda s, _: {"delta": [s, 0.0, 0.0]}, "delta", (0,)),
         Case(
             "cross_coupling",
-            3.0e-4,
+            3.6e-4,
             "1/g",
             lambda s, _: {"c_per_g": [[0.0, 0.0, s], [0.0] * 3, [0.0] * 3]},
             "c_per_g",
@@ -84,14 +84,22 @@ CASES: dict[str, Case] = {
         ),
         Case(
             "temperature_bias",
-            1.0e-4,
+            7.4e-4,
             "m/s²/°C",
             lambda s, _: {"tc_m_s2_per_c": [0.0, s, 0.0]},
             "tc_m_s2_per_c",
             (1,),
             CYCLING_TEMPERATURE,
         ),
-        Case("bias_drift", 2.0e-6, "m/s²/s", lambda s, _: {"drift_m_s2_per_s": [s, 0.0, 0.0]}, "drift_m_s2_per_s", (0,)),
+        Case(
+            "bias_drift",
+            7.2e-6,
+            "m/s²/s",
+            lambda s, _: {"drift_m_s2_per_s": [s, 0.0, 0.0]},
+            "drift_m_s2_per_s",
+            (0,),
+            CYCLING_TEMPERATURE,
+        ),
         Case("table_tilt", 8.0e-5, "rad", lambda s, _: {"tilt_rad": [s, 0.0]}, "tilt_rad", (0,)),
         Case("pose_error", 5.0e-5, "rad rms", _pose_angles, "angles_rad"),
         Case("encoder_offset", 6.0e-3, "deg", lambda s, _: {"offset_deg": [0.0, s, 0.0]}, "offset_deg", (1,)),

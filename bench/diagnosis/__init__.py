@@ -60,7 +60,7 @@ def _summary(model: ModelFit) -> ModelSummary:
 
 def _confounded(
     ev: StaticEvidence, K: FloatArray, chosen: list[Candidate], pool: list[Candidate]
-) -> dict[str, set[str]]:
+) -> dict[str, dict[str, float]]:
     X0 = first_order_design(ev.f_m_s2)
     Q, _ = np.linalg.qr(X0)
 
@@ -70,16 +70,27 @@ def _confounded(
         n = np.linalg.norm(a, axis=0)
         return a / np.where(n > 0, n, 1.0)
 
-    out: dict[str, set[str]] = {}
+    out: dict[str, dict[str, float]] = {}
     for c in chosen:
         sc = sig(c)
         for d in pool:
             if d.effect == c.effect or d in chosen:
                 continue
-            cos = np.abs(sc.T @ sig(d))
-            if np.max(cos) > CONFOUND_COSINE:
-                out.setdefault(c.effect, set()).add(d.effect)
+            cos = float(np.max(np.abs(sc.T @ sig(d))))
+            if cos > CONFOUND_COSINE:
+                prev = out.setdefault(c.effect, {}).get(d.effect, 0.0)
+                out[c.effect][d.effect] = max(prev, cos)
     return out
+
+
+def _why(ev: StaticEvidence, a: str, b: str) -> str:
+    if {a, b} == {"temperature_bias", "bias_drift"} and ev.temp_c is not None:
+        r = float(np.corrcoef(ev.temp_c, ev.mid_s)[0, 1])
+        return (
+            f": the temperature follows time, r = {r:.2f} between the windows' temperature and time; "
+            "vary the temperature independently of time to separate them"
+        )
+    return ""
 
 
 def diagnose(
@@ -143,17 +154,24 @@ def diagnose(
             sigma: dict[str, object] = {"angles_rad": final.pose_sigma.tolist()}
         else:
             params, sigma = effect_parameters(final, effect, K)
+        text = summary(effect, params, sigma, ev.labels, span)
+        conf = confounded.get(effect, {})
+        if conf:
+            text += "; on this recording it cannot be told from " + ", ".join(
+                f"{other} (signatures alike, |cos| = {cos:.2f}{_why(ev, effect, other)})"
+                for other, cos in sorted(conf.items())
+            )
         findings.append(
             Finding(
                 effect=effect,
-                summary=summary(effect, params, sigma, ev.labels, span),
+                summary=text,
                 parameters=params,
                 sigma=sigma,
                 delta_bic=float(seq[k + 1].bic - seq[k].bic),
                 lr=float(sum(s.lr for s in state.steps if s.effect == effect)),
                 residual_rms_after=float(np.sqrt(np.mean(seq[k + 1].resid ** 2))),
                 explanation=next(e.explanation for e in CATALOGUE if e.id == effect),
-                confounded_with=tuple(sorted(confounded.get(effect, ()))),
+                confounded_with=tuple(sorted(conf)),
             )
         )
     note_list = [f"{label}: {text}" for label, text in sorted(notes.items())]
@@ -161,7 +179,7 @@ def diagnose(
         if f.confounded_with:
             note_list.append(
                 f"{f.effect} fits this recording about as well as {', '.join(f.confounded_with)}: "
-                "the pose set cannot tell them apart"
+                "the recording cannot tell them apart (see the finding's summary)"
             )
     if settle_ok:
         assert ev.window_samples is not None and ev.sample_rate_hz is not None

@@ -50,3 +50,11 @@ def test_false_finding_rate_on_fifty_clean_recordings() -> None:
         if effects:
             false[seed] = effects
     assert len(false) <= 1, false  # 1/50 = 2 %
+
+
+def test_drift_on_the_lab_default_is_reported_as_confounded_with_warm_up_temperature() -> None:
+    """Lab default temperature (warm-up): drift and temperature_bias look alike; the finding says so."""
+    d = diagnose_recording(static_recording({"bias_drift": {"drift_m_s2_per_s": [2e-5, 0.0, 0.0]}}, seed=11))
+    f = next(f for f in d.findings if f.effect in ("bias_drift", "temperature_bias"))
+    other = "temperature_bias" if f.effect == "bias_drift" else "bias_drift"
+    assert other in f.confounded_with and "temperature follows time" in f.summary

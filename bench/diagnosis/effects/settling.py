@@ -19,9 +19,8 @@ duration_s = τ · ln(0.05 / 1e-4), its sigma from the fit's covariance.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import curve_fit

@@ -1,0 +1,41 @@
+"""Speed of ``calbench diagnose`` on a simulated static-12 recording.
+
+Times ``diagnose_recording`` (windows, window noise, REML slow noise, greedy selection,
+refit) against ``calibrate_recording`` of the same recording in the same run (the ratio is
+what matters; absolute seconds depend on the machine). Dynamic recordings are not
+diagnosed yet, so there is no dynamic timing.
+"""
+
+from __future__ import annotations
+
+import time
+
+from bench.calibration import calibrate_recording
+from bench.diagnose_recording import diagnose_recording
+from benchmarks.diagnose_cases import static_recording
+
+
+def _best_of(fn, repeats: int = 3) -> float:  # type: ignore[no-untyped-def]
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main() -> None:
+    """Print the timings (module docstring)."""
+    clean = static_recording({}, seed=7)
+    found = static_recording({"nonlinearity_quadratic": {"k2_per_g": [0.0, 0.0, 2e-3]}}, seed=7)
+    t_cal = _best_of(lambda: calibrate_recording(clean))
+    t_clean = _best_of(lambda: diagnose_recording(clean))
+    t_found = _best_of(lambda: diagnose_recording(found))
+    print(f"static-12, 12 x 30 s at 100 Hz: calibrate {t_cal * 1e3:.0f} ms (baseline)")
+    print(f"  diagnose, clean recording:        {t_clean * 1e3:.0f} ms = {t_clean / t_cal:.1f} x calibrate")
+    print(f"  diagnose, one effect to be found:  {t_found * 1e3:.0f} ms = {t_found / t_cal:.1f} x calibrate")
+    print("  dynamic recordings: not diagnosed yet (no timing)")
+
+
+if __name__ == "__main__":
+    main()

@@ -92,6 +92,20 @@ def test_rate_table_lever_arm_and_proof_masses(rate_pm) -> None:  # type: ignore
     assert res.kalman["agree"]
 
 
+def test_rate_table_lever_arm_to_a_millimetre() -> None:
+    """±200 °/s at the default three poses (the rate-table paper: offsets to mm at up to ±200 °/s)."""
+    run, rec = rate(seed=4)
+    c = calibrate_recording(rec).to_contract()
+    r, rs = np.array(c["extra"]["lever_arm"]["r_m"]), np.array(c["extra_sigma"]["lever_arm"]["r_m"])
+    assert np.max(np.abs(r - R_TRUE_M)) < 1e-3 and np.max(rs) < 1e-3
+    assert np.all(np.abs(_z(r, rs, R_TRUE_M)) < Z_MAX)
+    tilt = c["extra"]["table_tilt"]
+    assert np.all(
+        np.abs(_z(tilt["tilt_rad"], c["extra_sigma"]["table_tilt"]["tilt_rad"], TILT_TRUE_RAD)) < Z_MAX
+    )
+    assert np.all(np.abs(_z(c["bias"], c["bias_sigma"], run.bias_seen())) < Z_MAX)
+
+
 def test_independent_example_rate_recording(shared_dir: Path) -> None:
     """An independent simulator's rate recording to ±240 °/s: its truth recovered."""
     stem = shared_dir / "data" / "examples" / "example_rate_lever_known"

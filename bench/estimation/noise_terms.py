@@ -125,13 +125,8 @@ def _terms(
     """NoiseTerms from [Q, N, B, K, R] values and sigmas."""
     kwargs = dict(zip(_FIELDS, values, strict=True))
     kwargs.update({f"{name}_sigma": s for name, s in zip(_FIELDS, sigmas, strict=True)})
-    return NoiseTerms(
-        **kwargs,
-        chi2_dof=chi2_dof,
-        method=method,
-        tau_min_fit_s=tau_min_fit_s,
-        model_floor_rel=model_floor_rel,
-    )
+    kw: dict[str, float] = {"tau_min_fit_s": tau_min_fit_s, "model_floor_rel": model_floor_rel}
+    return NoiseTerms(**kwargs, chi2_dof=chi2_dof, method=method, **kw)
 
 
 def first_fit_index(adev: npt.ArrayLike) -> int:
@@ -196,14 +191,11 @@ def allan_correlation(taus_s: FloatArray, p: npt.ArrayLike, tau0_s: float) -> Fl
 
 
 def _cholesky(cov: FloatArray) -> FloatArray:
-    """Lower Cholesky factor of cov, with a diagonal ridge (10⁻¹² … 10⁻⁴ relative) if near-singular.
-
-    Closely spaced τ (e.g. 90 points over 5 decades) give correlations within 10⁻⁶ of 1.
-    """
+    """Lower Cholesky factor of cov, with a relative ridge 10⁻¹²…10⁻⁴ (closely spaced τ: ρ → 1)."""
     ridge = 1e-12
     while True:
         try:
-            return np.linalg.cholesky(cov + ridge * np.diag(np.diag(cov)))
+            return np.asarray(np.linalg.cholesky(cov + ridge * np.diag(np.diag(cov))), dtype=float)
         except np.linalg.LinAlgError:
             if ridge >= 1e-4:
                 raise

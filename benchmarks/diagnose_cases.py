@@ -72,7 +72,14 @@ def _pose_angles(size: float, seed: int) -> dict[str, Any]:
 CASES: dict[str, Case] = {
     c.effect: c
     for c in (
-        Case("nonlinearity_quadratic", 1.8e-4, "1/g", lambda s, _: {"k2_per_g": [0.0, 0.0, s]}, "k2_per_g", (2,)),
+        Case(
+            "nonlinearity_quadratic",
+            1.8e-4,
+            "1/g",
+            lambda s, _: {"k2_per_g": [0.0, 0.0, s]},
+            "k2_per_g",
+            (2,),
+        ),
         Case("scale_asymmetry", 4.1e-4, "1", lambda s, _: {"delta": [s, 0.0, 0.0]}, "delta", (0,)),
         Case(
             "cross_coupling",

@@ -22,7 +22,8 @@ from bench.diagnose_recording import diagnose_recording
 from benchmarks.diagnose_cases import CASES, Case, score, static_recording
 
 N_CANDIDATES = 21
-"""Candidates tried in the first step on static-12 (3 channels x 5 sensor effects, tilt, 3 encoder axes, pose)."""
+"""Candidates tried in the first step on static-12 (3 channels x 5 sensor effects, tilt,
+3 encoder axes, pose)."""
 N_PARAMS = 13
 
 
@@ -45,7 +46,10 @@ def study(case: Case, n: int) -> str:
     cells = []
     for mult in (3, 10):
         size = mult * case.limit
-        scores = [score(case, diagnose_recording(case.recording(size, s)), case.build(size, s)) for s in range(100, 100 + n)]
+        scores = [
+            score(case, diagnose_recording(case.recording(size, s)), case.build(size, s))
+            for s in range(100, 100 + n)
+        ]
         z = np.array([abs(s.z) for s in scores if s.found])
         found = sum(s.found for s in scores)
         zt = f"{np.median(z):.1f} / {np.max(z):.1f}" if z.size else "–"

@@ -217,7 +217,7 @@ def diagnose(
         where=where(ev, rs),
         correlations=tuple(correlations(ev, seq[0].resid, seq[0].sigma)),
         unobservable=unobservable,
-        notes=tuple(note_list) + (_noise_text(state.noise),),
+        notes=(*note_list, _noise_text(state.noise)),
         noise_text=_noise_text(state.noise),
         labels=ev.labels,
         mid_s=ev.mid_s,

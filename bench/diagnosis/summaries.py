@@ -46,7 +46,8 @@ def summary(
     if effect == "bias_drift":
         d, s = np.asarray(params["drift_m_s2_per_s"]), np.asarray(sigma["drift_m_s2_per_s"])
         parts = [
-            f"{_AX[i]} channel {d[i]:.2e} ± {s[i]:.1e} m/s²/s ({d[i] * span_s:.2e} m/s² over the {span_s:.0f} s of windows)"
+            f"{_AX[i]} channel {d[i]:.2e} ± {s[i]:.1e} m/s²/s "
+            f"({d[i] * span_s:.2e} m/s² over the {span_s:.0f} s of windows)"
             for i in _channels(d)
         ]
         return "bias drifts during the run: " + "; ".join(parts)

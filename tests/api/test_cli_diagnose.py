@@ -12,7 +12,8 @@ from benchmarks.diagnose_cases import static_recording
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "api", "diagnose", *args], capture_output=True, text=True, timeout=300)
+    cmd = [sys.executable, "-m", "api", "diagnose", *args]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=300)
 
 
 def test_json_contract_and_report(tmp_path: Path) -> None:
@@ -26,7 +27,8 @@ def test_json_contract_and_report(tmp_path: Path) -> None:
     assert set(doc["baseline"]) == {"terms", "residual_rms", "chi2_dof", "bic"}
     assert set(doc["mismatch"]) == {"channels", "where", "correlates_with"}
     assert doc["findings"][0]["effect"] == "nonlinearity_quadratic"
-    assert set(doc["findings"][0]) == {"effect", "summary", "parameters", "sigma", "delta_bic", "residual_rms_after"}
+    keys = {"effect", "summary", "parameters", "sigma", "delta_bic", "residual_rms_after"}
+    assert set(doc["findings"][0]) == keys
     assert doc["final"]["terms"] == ["bias", "scale_matrix", "nonlinearity_quadratic"]
     assert doc["mismatch"]["channels"]["az"] > 5 * doc["mismatch"]["channels"]["ax"]
     html = (tmp_path / "r.html").read_text()

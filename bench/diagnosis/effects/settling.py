@@ -78,7 +78,7 @@ def settling_duration(window_samples: tuple[FloatArray, ...], sample_rate_hz: fl
 
     :raises ValueError: windows too short or the decay cannot be fitted.
     """
-    nb = max(int(round(BIN_S * sample_rate_hz)), 4)
+    nb = max(round(BIN_S * sample_rate_hz), 4)
     ratios: list[FloatArray] = []
     for x in window_samples:
         n = x.shape[0]
@@ -101,7 +101,8 @@ def settling_duration(window_samples: tuple[FloatArray, ...], sample_rate_hz: fl
         return 1.0 + b * np.exp(-2.0 * s / tau)
 
     try:
-        p, cov = curve_fit(model, s, R, p0=(max(R[0] - 1.0, 1e-3), 2.0), sigma=sd, bounds=([0, 0.05], [np.inf, 1e3]))
+        p0 = (max(R[0] - 1.0, 1e-3), 2.0)
+        p, cov = curve_fit(model, s, R, p0=p0, sigma=sd, bounds=([0, 0.05], [np.inf, 1e3]))
     except (RuntimeError, ValueError) as exc:
         raise ValueError(f"settling: the decay of the ring could not be fitted ({exc})") from exc
     tau_sigma = float(np.sqrt(max(cov[1, 1], 0.0)))

@@ -48,7 +48,7 @@ def execute_steps(seq: Sequencer) -> None:
                 hold(seq, exc if isinstance(exc, Interruption)
                      else Interruption(RunState.SUSPENDED, f"interlock open: {exc}"))
             i, pending_move = restart_point(seq, i)
-    seq.step_index = len(proc.steps)
+    seq.step_index = len(proc.steps) - 1
     seq.progress(force=True)
 
 

@@ -37,6 +37,7 @@ r (3, m) or proof_mass_offsets q (9: q_x, q_y, q_z rows, m), nonlinearity_quadra
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,6 +53,9 @@ G0_M_S2 = 9.80665
 DERIVATIVE_WINDOW_S = 0.07
 """Span of the Savitzky–Golay window for rates, accelerations and Ġ, Ḃ (s)."""
 MIN_WINDOW_SAMPLES = 7
+GAP_FACTOR = 1.5
+"""A time step longer than this many median steps is a gap (dropped DAQ blocks): derivatives
+are taken on each stretch between gaps, and a stretch shorter than the window is left out."""
 CORNER_JERK_RAD_S3 = 2.0
 """|d³θ/dt³| above this marks a corner of the rate profile (rad/s³); a smooth oscillation
 of the procedures stays below 0.3 rad/s³."""
@@ -191,11 +195,11 @@ def prepare_motion(
 ) -> MotionData:
     """Kinematic regressors G, B and their derivatives from sampled encoder angles.
 
-    :param t_s: (n,) uniformly sampled time (s; steps within 5 % of the median).
+    :param t_s: (n,) uniformly sampled time (s; steps within 5 % of the median), gaps allowed.
     :param angles_rad_unwrapped: (n, k) unwrapped axis angles (rad).
     :param axis_vectors: (k, 3) unit axes, outermost first.
     :param mount: (3, 3) mount rotation M.
-    :raises ValueError: too few samples, non-uniform or non-increasing time.
+    :raises ValueError: too few samples, non-uniform (other than gaps) or non-increasing time.
     """
     t = np.asarray(t_s, dtype=float).reshape(-1)
     q = np.asarray(angles_rad_unwrapped, dtype=float)
@@ -207,19 +211,33 @@ def prepare_motion(
         )
     dt = np.diff(t)
     h = float(np.median(dt))
-    if not (np.all(np.isfinite(t)) and np.all(dt > 0)) or np.max(np.abs(dt - h)) > 0.05 * h:
-        raise ValueError("motion: time stamps must be finite, increasing and uniform within 5 % of the step")
+    gap = dt > GAP_FACTOR * h
+    if not (np.all(np.isfinite(t)) and np.all(dt > 0)) or np.max(np.abs(dt[~gap] - h)) > 0.05 * h:
+        raise ValueError(
+            "motion: time stamps must be finite, increasing and uniform within 5 % of the step "
+            f"(gaps longer than {GAP_FACTOR} steps are allowed)"
+        )
     w = window_samples(1.0 / h, window_s)
-    if w > t.shape[0]:
-        raise ValueError(f"motion: {t.shape[0]} samples, shorter than the {w}-sample derivative window")
+    cuts = np.concatenate([[0], np.flatnonzero(gap) + 1, [t.shape[0]]])
+    runs = [(int(a), int(b)) for a, b in itertools.pairwise(cuts) if b - a >= w]
+    if not runs:
+        raise ValueError(f"motion: no stretch without gaps as long as the {w}-sample derivative window")
+    usable = np.zeros(t.shape[0], dtype=bool)
+    for a, b in runs:
+        usable[a:b] = True
 
     def sg(x: FloatArray, deriv: int) -> FloatArray:
-        return np.asarray(savgol_filter(x, w, 3, deriv=deriv, delta=h, axis=0, mode="interp"))
+        """Savitzky–Golay derivative of x along time, run by run between gaps (zero outside runs)."""
+        out = np.zeros_like(x)
+        for a, b in runs:
+            out[a:b] = savgol_filter(x[a:b], w, 3, deriv=deriv, delta=h, axis=0, mode="interp")
+        return out
 
     rates, accels, jerk = sg(q, 1), sg(q, 2), sg(q, 3)
     corner = np.any(np.abs(jerk) > CORNER_JERK_RAD_S3, axis=1)
     if corner.any():
         corner = np.convolve(corner.astype(float), np.ones(w), mode="same") > 0
+    corner |= ~usable
     R_in = inner_attitude(axis_vectors, q)
     M = np.asarray(mount, dtype=float).reshape(3, 3)
     G = np.einsum("ji,njk->nik", M, np.transpose(R_in, (0, 2, 1)))

@@ -98,8 +98,11 @@ def test_window_and_spec_rules() -> None:
 
 
 def test_bad_motion_rejected() -> None:
-    t = np.array([0.0, 0.01, 0.02, 0.05, 0.06, 0.07, 0.08, 0.09])
+    t = np.concatenate([[0.0], np.cumsum(np.tile([0.01, 0.0112], 10))])  # 12 % jitter, no gap
     with pytest.raises(ValueError, match="uniform"):
+        prepare_motion(t, np.zeros((21, 1)), [[0, 0, 1]], np.eye(3))
+    t = np.array([0.0, 0.01, 0.02, 0.05, 0.06, 0.07, 0.08, 0.09])  # a gap leaves two short stretches
+    with pytest.raises(ValueError, match="no stretch"):
         prepare_motion(t, np.zeros((8, 1)), [[0, 0, 1]], np.eye(3))
     with pytest.raises(ValueError, match="samples"):
         prepare_motion(t[:3], np.zeros((3, 1)), [[0, 0, 1]], np.eye(3))

@@ -350,7 +350,9 @@ def test_daq_stall_is_a_timeout_not_a_hang(tmp_path: Path) -> None:
 
 
 def test_hanging_move_hits_its_deadline(tmp_path: Path) -> None:
-    seq, table, _, obs, _ = make(tmp_path, quick_static())
+    cfg = SequencerConfig(**{**FAST.__dict__, "move_timeout_factor": 0.2, "move_timeout_margin_s": 0.5,
+                             "stop_timeout_s": 0.5})
+    seq, table, _, obs, _ = make(tmp_path, quick_static(), config=cfg)
     obs.hook = lambda w: setattr(table, "hang_move", True) if w.index == 0 else None
     acq = seq.run()
     assert acq.outcome is Outcome.ERROR and "table move_to did not return within" in (acq.error or "")

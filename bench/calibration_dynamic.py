@@ -266,6 +266,10 @@ def calibrate_dynamic(
     g = rec.sidecar.g_local_m_s2
     lever = np.asarray(geo.lever_arm_m, dtype=float)
     y = np.asarray(rec.accel_raw, dtype=float)
+    bad = np.argwhere(~np.isfinite(y))
+    if bad.size:
+        row, col = bad[0]
+        raise ValueError(f"sample {row} (t = {rec.t_s[row]:.6g} s): {'xyz'[col]} channel is not finite")
     m = prepare_motion(rec.t_s, q, geo.axis_vectors, geo.mount_matrix)
     if terms is None:
         spec, dropped = choose_spec(m, y, g, lever)
@@ -288,7 +292,7 @@ def calibrate_dynamic(
             ),
         }
     fg = _corrected_gravity(fit, m, y, lever)
-    after = _g_from_magnitudes(_block_means(rec.t_s, np.linalg.norm(fg, axis=1)), g)
+    after = _g_from_magnitudes(_block_means(rec.t_s[m.valid], np.linalg.norm(fg[m.valid], axis=1)), g)
     before = None
     unit = rec.sidecar.channel_unit
     scale = nominal_scale if nominal_scale is not None else {"m/s2": 1.0, "g": 1.0 / G0_M_S2}.get(unit)

@@ -144,6 +144,8 @@ def test_dispatch_and_bad_input() -> None:
     nan[100, 1] = np.nan
     with pytest.raises(ValueError, match="finite"):
         calibrate_dynamic(replace(rec, accel_raw=nan), terms=("lever_arm",))
+    with pytest.raises(ValueError, match=r"sample 100 \(t = 1 s\): y channel is not finite"):
+        calibrate_recording(replace(rec, accel_raw=nan))
     with pytest.raises(ValueError, match="table"):
         calibrate_dynamic(replace(rec, table_deg=None))
 

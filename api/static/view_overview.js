@@ -63,7 +63,7 @@ export async function overviewView(view, session, signal) {
   view.append(h("div", { class: "page-head" }, h("h1", {}, "Bench overview")));
   const runsBox = h("div", {}, message("Loading runs…"));
   const unitsBox = h("div", {}, message("Loading units…"));
-  view.append(h("div", { class: "grid" }, startForm(session), card("Units", unitsBox), h("section", { class: "card span", "aria-label": "Runs" }, h("h2", {}, "Runs"), runsBox)));
+  view.append(h("div", { class: "grid wide" }, startForm(session), card("Units", unitsBox), h("section", { class: "card span", "aria-label": "Runs" }, h("h2", {}, "Runs"), runsBox)));
   const load = async () => {
     const [runs, units] = await Promise.all([getJson("/api/runs?limit=20", { signal }), getJson("/api/units", { signal })]);
     runsBox.replaceChildren(runsTable(runs));

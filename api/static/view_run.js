@@ -164,7 +164,19 @@ export async function runView(view, runId, session, signal) {
     catch (err) { status.textContent = `Abort failed: ${err.message}`; }
   });
   const results = h("div", { id: "results" });
-  view.append(h("div", { class: "grid" }, live.el), status, results);
+  const winBody = h("tbody");
+  const winCard = h("section", { class: "card span", "aria-label": "Completed windows", id: "windows", hidden: true },
+    h("h2", {}, "Completed windows"),
+    h("div", { class: "table-wrap" }, h("table", {},
+      h("thead", {}, h("tr", {}, ["#", "Label", "Kind", "Table pose", "Samples"].map((c, i) => h("th", { scope: "col", class: [0, 3, 4].includes(i) ? "num" : null }, c)))),
+      winBody)));
+  view.append(h("div", { class: "grid" }, live.el, winCard), status, results);
+  const addWindow = (w) => {
+    winCard.hidden = false;
+    winBody.prepend(h("tr", {}, h("td", { class: "num" }, String(w.index + 1)), h("td", {}, w.label), h("td", {}, w.kind),
+      h("td", { class: "num" }, (w.pose_deg || []).map((a) => `${Number(a).toFixed(1)}°`).join("  ")),
+      h("td", { class: "num" }, String(w.n_samples))));
+  };
   const finish = async () => {
     run = await getJson(`/api/runs/${enc(runId)}`, { signal });
     live.update({ state: run.state, progress: run.progress });
@@ -175,6 +187,7 @@ export async function runView(view, runId, session, signal) {
   try {
     await followEvents(runId, (name, data) => {
       if (name === "progress" || name === "state") live.update(data);
+      if (name === "window") addWindow(data);
       if (name === "finished") live.update({ state: data.state, progress: data.state === "completed" ? 1 : undefined });
     }, signal);
   } catch (err) {

@@ -116,6 +116,7 @@ def test_operator_runs_a_calibration_from_the_dashboard(service: str, browser: A
     moving = [v for v in seen if 0 < v < 100]
     assert len(set(moving)) >= 3, f"the progress bar did not move while the run recorded: {seen}"
     assert moving == sorted(moving), f"progress went backwards: {seen}"
+    assert page.locator("#windows tbody tr").count() >= 6  # windows listed as the stream reports them
 
     # results of the finished run
     assert "completed" in page.inner_text("#run-state"), page.inner_text("#results")

@@ -15,7 +15,7 @@ function el(name, attrs = {}, text) {
 export function fmt(v, digits = 3) {
   if (v === null || v === undefined || !Number.isFinite(v)) return "–";
   const a = Math.abs(v);
-  if (a !== 0 && (a < 1e-3 || a >= 1e5)) return v.toExponential(digits - 1).replace("e", "e");
+  if (a !== 0 && (a < 1e-3 || a >= 1e5)) return v.toExponential(digits - 1);
   return Number(v.toPrecision(digits)).toString();
 }
 

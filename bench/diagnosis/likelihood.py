@@ -27,6 +27,7 @@ parameters the difference is large).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -155,12 +156,15 @@ def fit_noise(
     estimate_pose: bool = False,
     init: NoiseParams | None = None,
     channel_gain: FloatArray | None = None,
+    tau2_cap: Callable[[float], FloatArray | None] | None = None,
 ) -> tuple[NoiseParams, GlsFit]:
     """REML estimate of the noise parameters for design X; returns them and the GLS fit under them.
 
     τ² (and σ_p² when ``estimate_pose``) are optimised on a log scale (Powell) for each
     T_c of ``CORRELATION_TIMES_FRACTION`` × span; the best ℓ_REML wins. ``init`` (a nearby
     model's estimate) gives the starting point; without it two starts are tried.
+    ``tau2_cap`` (T_c -> (3,) upper bound of τ² per channel, or ``None``) bounds the slow
+    noise by what the windows' own samples allow (``wander_cap``).
     """
     scale = float(np.median(np.diagonal(V, axis1=1, axis2=2)))
     span = float(np.ptp(mid_s)) if mid_s.shape[0] > 1 else 0.0
@@ -201,13 +205,19 @@ def fit_noise(
                 pv = init.pose_var_rad2 if init.pose_var_rad2 > 0 else g_scale * np.exp(-2.0)
                 u_init = np.append(u_init, np.log(pv / g_scale))
             starts = [np.clip(u_init, _LOG_FLOOR, 12.0)]
+        upper = np.full(n_par, 12.0)
+        cap = tau2_cap(tc) if tau2_cap is not None else None
+        if cap is not None:
+            u_cap = np.log(np.maximum(cap, 1e-300) / (scale * shape))
+            upper[:n_tau] = np.clip(u_cap if n_tau == 3 else np.min(u_cap), _LOG_FLOOR + 1e-3, 12.0)
         for u0 in starts:
+            u0 = np.minimum(u0, upper)
             res = minimize(
                 objective,
                 u0,
                 args=(tc,),
                 method="Powell",
-                bounds=[(_LOG_FLOOR, 12.0)] * n_par,
+                bounds=list(zip([_LOG_FLOOR] * n_par, upper.tolist(), strict=True)),
                 options={"xtol": 1e-3, "ftol": 1e-6},
             )
             val = float(res.fun)

@@ -31,6 +31,7 @@ from bench.diagnosis.effects import Candidate, first_order_design, leverage, pos
 from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import GlsFit, NoiseParams, covariance, fit_noise, gls
+from bench.diagnosis.wander_cap import slow_noise_cap
 
 FALSE_ALARM = 0.01
 """False-alarm probability of one selection step: split evenly (Bonferroni) over the
@@ -92,6 +93,7 @@ def fit_model(
         noise, fit = fit_noise(
             X, z, ev.V, ev.mid_s, J_pose=J, fixed=fixed, estimate_pose=pose, init=noise,
             channel_gain=np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
+            tau2_cap=lambda tc: slow_noise_cap(ev, tc),
         )
         K = scale_matrix(fit)
     assert noise is not None and fit is not None

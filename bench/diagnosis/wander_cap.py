@@ -1,0 +1,63 @@
+"""An upper bound on the slow noise between windows from what the windows themselves show.
+
+The slow noise of ``likelihood`` (bias wander: variance τ², exponential correlation time
+T_c) also moves the mean *within* each window. For a window of n samples split into two
+adjacent halves of length h, the difference d of the halves' means has, under that
+process alone (block means of a first-order Gauss-Markov process),
+
+    E[d²] = τ² g(h, T_c),
+    g(h, T) = 2 [ 2 (T/h)² (h/T − 1 + e^(−h/T)) − (T/h)² (1 − e^(−h/T))² ],
+
+and the white noise only adds to it. So, with D_w = d_w² / g(h_w, T_c) pooled over the m
+windows of one channel, the upper confidence bound
+
+    τ² ≤ τ²_max(T_c) = Σ_w D_w / χ²_{m}(α)     (α = ``CAP_ALPHA``)
+
+holds whatever the white noise is (dropping it only makes the bound looser). On a
+recording whose wander is what the noise model says, the bound lies far above the REML
+estimate (inactive); on a recording whose window means disagree by more than any wander
+the within-window data allow (a hand-held unit not where its labels say), it stops the
+slow noise from absorbing that disagreement, which is then left to the effects (e.g.
+``pose_error``) to explain.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from bench.diagnosis.evidence import FloatArray, StaticEvidence
+
+CAP_ALPHA = 1e-3
+"""Lower-tail probability of the χ² quantile used for the upper bound (one-sided 99.9 %)."""
+
+
+def half_difference_factor(h_s: FloatArray, corr_time_s: float) -> FloatArray:
+    """g(h, T_c) of the module docstring: E[d²] / τ² for halves of length h (s)."""
+    x = np.asarray(h_s, dtype=float) / corr_time_s
+    r = 1.0 / x
+    var_mean = 2.0 * r * r * (x - 1.0 + np.exp(-x))
+    cov_adj = r * r * (1.0 - np.exp(-x)) ** 2
+    return 2.0 * (var_mean - cov_adj)
+
+
+def slow_noise_cap(ev: StaticEvidence, corr_time_s: float) -> FloatArray | None:
+    """(3,) upper bound τ²_max per channel for correlation time ``corr_time_s`` (channel units²).
+
+    ``None`` when the evidence carries no window samples (the bound cannot be formed) or
+    ``corr_time_s`` ≤ 0.
+    """
+    if ev.window_samples is None or ev.sample_rate_hz is None or corr_time_s <= 0:
+        return None
+    D = []
+    for x in ev.window_samples:
+        n = x.shape[0] // 2
+        if n < 2:
+            continue
+        d = x[n : 2 * n].mean(axis=0) - x[:n].mean(axis=0)
+        g = float(half_difference_factor(np.array(n / ev.sample_rate_hz), corr_time_s))
+        D.append(d * d / g)
+    if len(D) < 2:
+        return None
+    a = np.array(D)
+    return a.sum(axis=0) / float(chi2_dist.ppf(CAP_ALPHA, a.shape[0]))

@@ -28,11 +28,13 @@ class HistoryPoint:
     :param run_id: the run.
     :param at: ISO 8601 time of the run's end (UTC).
     :param contract: its calibration contract dict.
+    :param kind: ``calibration`` (a certificate run), ``drift_check`` or ``other``.
     """
 
     run_id: str
     at: str
     contract: Mapping[str, Any]
+    kind: str = "calibration"
 
 
 def _coefficients(channel_unit: str) -> list[tuple[str, str, str, str, tuple[int, ...]]]:
@@ -63,7 +65,7 @@ def coefficient_history(points: Iterable[HistoryPoint], channel_unit: str) -> di
 
     :param points: calibrated runs (any order; sorted by ``at``).
     :param channel_unit: the unit's channel unit, for the labels.
-    :returns: ``{"coverage_k", "runs": [{"run_id", "at"}], "coefficients": [{"name", "label",
+    :returns: ``{"coverage_k", "runs": [{"run_id", "at", "kind"}], "coefficients": [{"name", "label",
         "unit", "run_index": [...], "value": [...], "U": [...]}]}``; ``U`` is ``None`` where the
         contract has no sigma.
     """
@@ -86,6 +88,6 @@ def coefficient_history(points: Iterable[HistoryPoint], channel_unit: str) -> di
         )
     return {
         "coverage_k": COVERAGE_K,
-        "runs": [{"run_id": p.run_id, "at": p.at} for p in pts],
+        "runs": [{"run_id": p.run_id, "at": p.at, "kind": p.kind} for p in pts],
         "coefficients": coeffs,
     }

@@ -147,7 +147,8 @@ def history(serial: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
             if not isinstance(cal, dict):
                 continue
             when = run.finished_at or run.started_at or run.created_at
-            points.append(HistoryPoint(run.id, when.isoformat() if when else "", cal))
+            kind = str(run.params.get("service_kind") or "other")
+            points.append(HistoryPoint(run.id, when.isoformat() if when else "", cal, kind))
         channel_unit = unit.channel_unit or "?"
     out = coefficient_history(points, channel_unit)
     out["unit_serial"] = serial

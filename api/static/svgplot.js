@@ -206,8 +206,8 @@ export function bars(opts) {
   return svg;
 }
 
-/** Sparkline: values with a ±U band, the last point marked. */
-export function sparkline(values, U, label, width = 220, height = 56) {
+/** Sparkline: values with a ±U band, the last point marked; points where hollow[i] drawn open. */
+export function sparkline(values, U, label, width = 220, height = 56, hollow = []) {
   const svg = frame(width, height, label);
   const n = values.length;
   const lo = values.map((v, i) => (U[i] == null ? v : v - U[i]));
@@ -223,7 +223,8 @@ export function sparkline(values, U, label, width = 220, height = 56) {
   }
   values.forEach((v, i) => {
     if (U[i] != null) svg.append(el("line", { x1: X(i), x2: X(i), y1: Y(lo[i]), y2: Y(hi[i]), stroke: "var(--accent)", "stroke-opacity": 0.5 }));
-    const c = el("circle", { cx: X(i), cy: Y(v), r: i === n - 1 ? 3.5 : 2.2, fill: "var(--accent)" });
+    const c = el("circle", { cx: X(i), cy: Y(v), r: i === n - 1 ? 3.5 : 2.4,
+      fill: hollow[i] ? "#fff" : "var(--accent)", stroke: "var(--accent)", "stroke-width": 1.2 });
     c.append(el("title", {}, `${fmt(v, 6)} ± ${fmt(U[i], 2)}`));
     svg.append(c);
   });

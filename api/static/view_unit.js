@@ -15,10 +15,11 @@ function trends(hist) {
       h("figcaption", {},
         h("div", { class: "name" }, `${c.label} (${c.unit})`),
         h("div", { class: "value num" }, `${fmt(c.value[last], 6)}${u == null ? "" : ` ± ${fmt(u, 2)}`}`)),
-      sparkline(c.value, c.U, `${c.label} over ${c.value.length} runs, latest ${fmt(c.value[last], 6)} ${c.unit}`)));
+      sparkline(c.value, c.U, `${c.label} over ${c.value.length} runs, latest ${fmt(c.value[last], 6)} ${c.unit}`,
+        220, 56, c.run_index.map((k) => hist.runs[k].kind === "drift_check"))));
   }
   return h("div", {}, box, h("p", { class: "note" },
-    `Each point is one calibration run (oldest left); the band is U = ${hist.coverage_k}σ.`));
+    `Each point is one fitted run, oldest left (filled: calibration, open: drift check); the band is U = ${hist.coverage_k}σ.`));
 }
 
 function certificates(certs, serial) {
@@ -58,7 +59,8 @@ export async function unitView(view, serial, signal) {
   view.append(h("div", { class: "grid wide" },
     h("section", { class: "card span", "aria-label": "Coefficient trends" }, h("h2", {}, "Coefficient trends"), trends(series)),
     card("Runs", runs.length ? table(null, ["Run", "Procedure", "State", "Finished", "Certificate"], runs.map((r) => [
-      h("a", { href: `#/runs/${encodeURIComponent(r.id)}`, class: "mono" }, r.id), r.procedure, badge(r.state),
+      h("a", { href: `#/runs/${encodeURIComponent(r.id)}`, class: "mono" }, r.id),
+      r.kind === "drift_check" ? `${r.procedure} (drift check)` : r.procedure, badge(r.state),
       when(r.finished_at), r.certificate_number || "–",
     ])) : message("No runs.")),
     card("Certificates", certificates(hist.certificates, serial)),

@@ -212,6 +212,7 @@ def test_coefficient_history_has_values_and_expanded_uncertainties(
 ) -> None:
     body = client.get(f"/api/units/{SERIAL}/plots/history", headers=VIEW).json()
     assert [r["run_id"] for r in body["runs"]] == ["run-old", "run-new", "run-gone"]
+    assert {r["kind"] for r in body["runs"]} == {"other"}  # registered here, not by the service's runner
     by = {c["name"]: c for c in body["coefficients"]}
     assert len(by) == 12 and by["K_xy"]["unit"] == "V/(m/s²)"
     bx = by["bias_x"]

@@ -155,12 +155,28 @@ def test_operator_runs_a_calibration_from_the_dashboard(service: str, browser: A
     assert f"previous calibration ({run_id})" in page.inner_text("#g-check")
     assert page.locator("#g-check svg circle").count() == 24
 
-    # the unit's history: trend sparklines with bands over both runs, their certificates
+    # a drift check of the unit against its last certificate (queued over the API)
+    queued = httpx.post(f"{service}/api/drift/run", json={"unit_serial": "SN-UI-0001"}, headers=OP)
+    assert queued.status_code == 202, queued.text
+    checks: list[Any] = []
+    deadline = time.monotonic() + RUN_TIMEOUT_S
+    while not checks and time.monotonic() < deadline:
+        time.sleep(0.5)
+        params = {"unit_serial": "SN-UI-0001"}
+        checks = httpx.get(f"{service}/api/drift/checks", params=params, headers=VIEW).json()
+    assert checks, "the drift check did not finish"
+
+    # the unit's history: trend sparklines with bands over both runs, certificates, the drift check
     page.click("a[href='#/units/SN-UI-0001']")
     page.wait_for_selector("#trends svg")
     assert page.locator("#trends figure").count() == 12
-    assert page.locator("#trends figure >> nth=0").locator("circle").count() == 2
+    spark = page.locator("#trends figure >> nth=0").locator("circle")
+    assert spark.count() == 3  # two calibrations and the drift check's own fit
+    assert spark.nth(2).get_attribute("fill") == "#fff"  # the drift check drawn open
     assert number in page.inner_text("main")
+    drift_row = page.locator("section[aria-label='Drift checks'] tbody tr")
+    assert drift_row.count() == 1
+    assert ("flagged" if checks[0]["flagged"] else "ok") in drift_row.inner_text()
     shot(page, "desk-unit-history")
     assert console.errors == []
     ctx.close()

@@ -14,7 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from bench.calibration import select_windows
+from bench.calibration_dynamic import is_dynamic
 from bench.diagnosis import Diagnosis, StaticEvidence, diagnose
+from bench.diagnosis.dynamic import diagnose_dynamic
+from bench.estimation.dynamic_model import prepare_motion
 from bench.estimation.scalar_fit import fit_scalar
 from bench.estimation.window_noise import WindowNoise, pooled_mean_covariances, window_noise
 from bench.estimation.windows import StaticWindow
@@ -105,9 +108,37 @@ def _scalar_force(rec: Recording, y: np.ndarray, V: np.ndarray, g: float) -> np.
     return g * u / np.linalg.norm(u, axis=1, keepdims=True)
 
 
+def _diagnose_moving(rec: Recording) -> Diagnosis:
+    geo = rec.sidecar.table
+    q = rec.table_rad_unwrapped()
+    assert geo is not None and q is not None
+    y = np.asarray(rec.accel_raw, dtype=float)
+    bad = np.argwhere(~np.isfinite(y))
+    if bad.size:
+        row, col = bad[0]
+        raise ValueError(f"sample {row} (t = {rec.t_s[row]:.6g} s): {'xyz'[col]} channel is not finite")
+    m = prepare_motion(rec.t_s, q, geo.axis_vectors, geo.mount_matrix)
+    return diagnose_dynamic(
+        m,
+        y,
+        rec.sidecar.g_local_m_s2,
+        np.asarray(geo.lever_arm_m, dtype=float),
+        temp_c=rec.temp_c,
+        unit=rec.sidecar.unit_serial,
+        channel_unit=rec.sidecar.channel_unit,
+        source=rec.source,
+    )
+
+
 def diagnose_recording(rec: Recording) -> Diagnosis:
-    """Diagnose one recording; every error message starts with the recording's path."""
+    """Diagnose one recording; every error message starts with the recording's path.
+
+    A moving-table recording (``calibration_dynamic.is_dynamic``) goes to
+    ``bench.diagnosis.dynamic.diagnose_dynamic``; every other one to the static diagnosis.
+    """
     try:
+        if rec.sidecar.table is not None and rec.table_deg is not None and is_dynamic(rec):
+            return _diagnose_moving(rec)
         ev = recording_evidence(rec)
         return diagnose(
             ev, unit=rec.sidecar.unit_serial, channel_unit=rec.sidecar.channel_unit, source=rec.source

@@ -110,7 +110,7 @@ CASES: dict[str, Case] = {
         Case("table_tilt", 8.0e-5, "rad", lambda s, _: {"tilt_rad": [s, 0.0]}, "tilt_rad", (0,)),
         Case("pose_error", 5.0e-5, "rad rms", _pose_angles, "angles_rad"),
         Case("encoder_offset", 6.0e-3, "deg", lambda s, _: {"offset_deg": [0.0, s, 0.0]}, "offset_deg", (1,)),
-        Case("settling", 4.0, "s", lambda s, _: {"duration_s": s}, "duration_s"),
+        Case("settling", 50.0, "s", lambda s, _: {"duration_s": s}, "duration_s"),
     )
 }
 """Every effect a static recording can show, with its measured limit (docs/diagnose.md)."""

@@ -184,22 +184,26 @@ def diagnose(
     if settle_ok:
         assert ev.window_samples is not None and ev.sample_rate_hz is not None
         st = settling_test(ev.window_samples, ev.sample_rate_hz)
-        if st.p_value() < false_alarm / 10:
-            params_s: dict[str, object] = {"early_variance_ratio": float(np.exp(st.mean_log_ratio))}
+        if st.p_value < false_alarm / 10:
+            params_s: dict[str, object] = {
+                "frequency_hz": st.frequency_hz,
+                "early_power_ratio": st.early_power_ratio,
+            }
             sigma_s: dict[str, object] = {}
             try:
-                dur, dur_sigma = settling_duration(ev.window_samples, ev.sample_rate_hz)
+                dur, dur_sigma = settling_duration(ev.window_samples, ev.sample_rate_hz, st.frequency_hz)
                 params_s["duration_s"], sigma_s["duration_s"] = dur, dur_sigma
             except ValueError as exc:
                 note_list.append(str(exc))
+            lr_s = float(st.statistic - st.dof)
             findings.append(
                 Finding(
                     effect="settling",
                     summary=summary("settling", params_s, sigma_s, ev.labels, span),
                     parameters=params_s,
                     sigma=sigma_s,
-                    delta_bic=float(-(st.t**2) + np.log(ev.n_obs)),
-                    lr=float(st.t**2),
+                    delta_bic=float(-lr_s + 2.0 * np.log(st.n_obs)),
+                    lr=lr_s,
                     residual_rms_after=float(np.sqrt(np.mean(final.resid**2))),
                     explanation=next(e.explanation for e in CATALOGUE if e.id == "settling"),
                 )

@@ -91,7 +91,14 @@ def fit_model(
         X = design(ev, K, cands)
         J = pose_response(ev, K)
         noise, fit = fit_noise(
-            X, z, ev.V, ev.mid_s, J_pose=J, fixed=fixed, estimate_pose=pose, init=noise,
+            X,
+            z,
+            ev.V,
+            ev.mid_s,
+            J_pose=J,
+            fixed=fixed,
+            estimate_pose=pose,
+            init=noise,
             channel_gain=np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
             tau2_cap=lambda tc: slow_noise_cap(ev, tc),
         )

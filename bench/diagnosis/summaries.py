@@ -71,8 +71,10 @@ def summary(
         )
     if effect == "settling":
         text = (
-            f"the table still rings when the windows start: their first seconds scatter "
-            f"{params.get('early_variance_ratio', float('nan')):.2f}× as much as their second half"
+            "the table still rings when the windows start: at "
+            f"{params.get('frequency_hz', float('nan')):.2g} Hz "
+            f"their first seconds carry {params.get('early_power_ratio', float('nan')):.2f}× the power "
+            "of their second halves"
         )
         if "duration_s" in params:
             text += f"; the ring lasts {params['duration_s']:.1f} ± {sigma['duration_s']:.1f} s after a stop"

@@ -1,20 +1,30 @@
 """``settling``: the table still rings after a move when the window starts.
 
-A ring of the table structure after a stop, δθ(s) = A·e^(−s/τ)·sin(2π f s) about the axes
-that moved, adds to the window's samples a decaying oscillation of variance
-½ (S A)² e^(−2s/τ) (S the window mean's sensitivity to that axis's angle): the early part
-of a window scatters more than its late part. Test, over the 3m window-channels, of the
-log variance ratio L = ln(s²_early / s²_late) (early: the first ``EARLY_S`` after the
-window starts; late: its second half): mean(L) / (sd(L)/√(3m)) against Student's t at the
-false-alarm level. Without the window samples (evidence reduced to means) it cannot be
-tested.
+A ring of the table structure after a stop, δθ(s) = A·e^(−s/τ)·sin(2π f_r s) about the axes
+that moved, adds to the first seconds of each window a narrow-band oscillation at f_r whose
+power decays as e^(−2s/τ). Test (a narrow-band excess-power detector, frequency unknown):
 
-Duration (the contract's ``duration_s``): the excess variance of the ring decays as
-e^(−2s/τ). With R_k the mean over window-channels of (variance in second k of the
-window) / (variance of its second half), R_k = 1 + B e^(−2 s_k/τ) is fitted by weighted
-least squares (s_k the bin centre); the bench's convention for the ring
-(docs/physics-model.md: amplitude 0.05° decaying to 1e-4°) gives
+- every window-channel is cut into consecutive segments of ``SEGMENT_S``; each segment is
+  detrended (mean and slope: bias wander) and its periodogram P(f_j) taken at the Fourier
+  frequencies f_j = j / SEGMENT_S (j ≥ 2, below 0.9 × Nyquist);
+- the reference spectrum of channel c, P_ref(c, f_j), is the mean periodogram of the
+  segments in the second half of every window at the neighbouring frequencies f_{j±2},
+  f_{j±3} (the same estimator, so the ratio is unbiased for a smooth noise spectrum; the
+  ring's own bin and its nearest neighbours are left out, since a long ring is still
+  there in the second half; averaged over all windows it has hundreds of degrees of freedom);
+- for each f_j, T_j = Σ over windows, channels and the first ``EARLY_SEGMENTS`` segments
+  of 2 P(f_j) / P_ref(c, f_j), which without a ring is ≈ χ² with 2 × (their number) degrees
+  of freedom (a periodogram ordinate of stationary noise is PSD·χ²₂/2);
+- the largest T_j is judged against that χ² at the false-alarm level / (number of f_j)
+  (Bonferroni over the frequencies tried).
+
+Duration (the contract's ``duration_s``): at the detected frequency the mean ratio
+R_k = mean_{w,c} P_k / P_ref of segment k (centre s_k after the window start) follows
+R_k = 1 + B e^(−2 s_k / τ); weighted least squares over the segments of the first half
+gives τ (its variance scaled by the fit's χ²/dof when that exceeds 1), and the bench's
+ring convention (docs/physics-model.md: amplitude 0.05° decaying to 1e-4°) gives
 duration_s = τ · ln(0.05 / 1e-4), its sigma from the fit's covariance.
+Without the window samples (evidence reduced to means) nothing can be tested.
 """
 
 from __future__ import annotations
@@ -24,88 +34,125 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import curve_fit
-from scipy.stats import t as t_dist
+from scipy.stats import chi2 as chi2_dist
 
 from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
 
-EARLY_S = 2.0
-"""Length of the early part of each window (s), capped at a quarter of the window."""
+SEGMENT_S = 2.0
+"""Length of one segment (s); frequency resolution 1/SEGMENT_S."""
+EARLY_SEGMENTS = 3
+"""Segments at the start of each window that the test looks at."""
 RING_DECADES = math.log(0.05 / 1e-4)
 """ln(initial ring amplitude / floor) of the bench's settling convention (docs/physics-model.md)."""
-BIN_S = 1.0
 
 
 @dataclass(frozen=True)
 class SettlingTest:
-    """Result of :func:`settling_test`: t statistic, its dof, mean log variance ratio."""
+    """Result of :func:`settling_test`.
 
-    t: float
+    :param statistic: the largest T_j; :param dof: its degrees of freedom under no ring.
+    :param p_value: Bonferroni-corrected p value (over the frequencies tried).
+    :param frequency_hz: the frequency of the largest T_j.
+    :param early_power_ratio: mean 2P/P_ref at that frequency in the early segments (1 without a ring).
+    :param n_obs: number of periodogram ordinates behind the statistic.
+    """
+
+    statistic: float
     dof: int
-    mean_log_ratio: float
+    p_value: float
+    frequency_hz: float
+    early_power_ratio: float
+    n_obs: int
 
-    def p_value(self) -> float:
-        """One-sided p value of the t statistic."""
-        return float(t_dist.sf(self.t, self.dof))
+
+def _segment_spectra(x: FloatArray, n_seg: int) -> FloatArray:
+    """(k, n_f, 3) periodograms of the k = len(x) // n_seg consecutive segments, detrended."""
+    k = x.shape[0] // n_seg
+    seg = x[: k * n_seg].reshape(k, n_seg, 3)
+    t = np.arange(n_seg) - (n_seg - 1) / 2.0
+    seg = seg - seg.mean(axis=1, keepdims=True)
+    slope = np.einsum("t,ktc->kc", t, seg) / float(t @ t)
+    seg = seg - slope[:, None, :] * t[None, :, None]
+    return np.abs(np.fft.rfft(seg, axis=1)) ** 2 / n_seg
+
+
+def _spectra(
+    window_samples: tuple[FloatArray, ...], sample_rate_hz: float
+) -> tuple[list[FloatArray], FloatArray]:
+    n_seg = round(SEGMENT_S * sample_rate_hz)
+    if n_seg < 16:
+        raise ValueError(f"settling: {sample_rate_hz:g} Hz is too slow for {SEGMENT_S:g} s segments")
+    spectra = [_segment_spectra(x, n_seg) for x in window_samples if x.shape[0] >= 4 * n_seg]
+    if len(spectra) < 3:
+        raise ValueError(f"settling: needs at least 3 windows of {4 * SEGMENT_S:g} s or more")
+    late = np.concatenate([s[s.shape[0] // 2 :] for s in spectra]).mean(axis=0)  # (n_f, 3)
+    n_f = late.shape[0]
+    ref = np.empty_like(late)
+    for j in range(n_f):
+        near = [k for k in (j - 3, j - 2, j + 2, j + 3) if 2 <= k < n_f]
+        ref[j] = late[near].mean(axis=0) if near else late[j]
+    return spectra, np.where(ref > 0, ref, np.inf)
+
+
+def _bins(sample_rate_hz: float, n_f: int) -> FloatArray:
+    f = np.arange(n_f) / SEGMENT_S
+    return np.flatnonzero((np.arange(n_f) >= 2) & (f < 0.45 * sample_rate_hz))
 
 
 def settling_test(window_samples: tuple[FloatArray, ...], sample_rate_hz: float) -> SettlingTest:
-    """Early-versus-late variance test of the module docstring.
+    """Narrow-band early-excess test of the module docstring.
 
-    :param window_samples: per window (n_w, 3) raw samples.
-    :param sample_rate_hz: sampling rate (Hz).
+    :param window_samples: per window (n_w, 3) raw samples; :param sample_rate_hz: rate (Hz).
+    :raises ValueError: windows too short or too slowly sampled for the test.
     """
-    L = []
-    for x in window_samples:
-        n = x.shape[0]
-        n_early = min(round(EARLY_S * sample_rate_hz), n // 4)
-        if n_early < 8:
-            continue
-        early = x[:n_early].var(axis=0, ddof=1)
-        late = x[n // 2 :].var(axis=0, ddof=1)
-        ok = (early > 0) & (late > 0)
-        L.extend(np.log(early[ok] / late[ok]).tolist())
-    a = np.array(L)
-    if a.size < 3:
-        return SettlingTest(0.0, max(a.size - 1, 1), 0.0)
-    sd = float(a.std(ddof=1))
-    t = float(a.mean() / (sd / np.sqrt(a.size))) if sd > 0 else 0.0
-    return SettlingTest(t, a.size - 1, float(a.mean()))
+    spectra, ref = _spectra(window_samples, sample_rate_hz)
+    early = np.stack([s[:EARLY_SEGMENTS] for s in spectra])  # (m, k, n_f, 3)
+    ratio = 2.0 * early / ref[None, None]
+    bins = _bins(sample_rate_hz, ref.shape[0])
+    T = ratio[:, :, bins, :].sum(axis=(0, 1, 3))
+    n = int(np.prod(ratio.shape)) // ratio.shape[2]
+    j = int(np.argmax(T))
+    p = min(1.0, float(chi2_dist.sf(T[j], 2 * n)) * bins.size)
+    return SettlingTest(
+        statistic=float(T[j]),
+        dof=2 * n,
+        p_value=p,
+        frequency_hz=float(bins[j] / SEGMENT_S),
+        early_power_ratio=float(T[j] / (2 * n)),
+        n_obs=n,
+    )
 
 
-def settling_duration(window_samples: tuple[FloatArray, ...], sample_rate_hz: float) -> tuple[float, float]:
-    """(duration_s, sigma) of the ring from the decay of the excess variance (module docstring).
+def settling_duration(
+    window_samples: tuple[FloatArray, ...], sample_rate_hz: float, frequency_hz: float
+) -> tuple[float, float]:
+    """(duration_s, sigma) of the ring from the decay of its narrow-band power (module docstring).
 
     :raises ValueError: windows too short or the decay cannot be fitted.
     """
-    nb = max(round(BIN_S * sample_rate_hz), 4)
-    ratios: list[FloatArray] = []
-    for x in window_samples:
-        n = x.shape[0]
-        k = (n // 2) // nb
-        if k < 3:
-            continue
-        late = x[n // 2 :].var(axis=0, ddof=1)
-        bins = x[: k * nb].reshape(k, nb, 3).var(axis=1, ddof=1)
-        ok = late > 0
-        ratios.extend((bins[:, ok] / late[ok]).T)
-    if len(ratios) < 3:
+    spectra, ref = _spectra(window_samples, sample_rate_hz)
+    j = round(frequency_hz * SEGMENT_S)
+    k = min(s.shape[0] for s in spectra) // 2
+    if k < 3:
         raise ValueError("settling: windows too short to follow the decay of the ring")
-    k = min(r.size for r in ratios)
-    a = np.array([r[:k] for r in ratios])
-    R = a.mean(axis=0)
-    sd = np.maximum(a.std(axis=0, ddof=1) / math.sqrt(a.shape[0]), 1e-12)
-    s = (np.arange(k) + 0.5) * BIN_S
+    a = np.stack([s[:k, j, :] / ref[j] for s in spectra])  # (m, k, 3)
+    R = a.mean(axis=(0, 2))
+    sd = np.maximum(R / math.sqrt(a.shape[0] * a.shape[2]), 1e-12)
+    s = (np.arange(k) + 0.5) * SEGMENT_S
 
     def model(s: FloatArray, b: float, tau: float) -> FloatArray:
         return 1.0 + b * np.exp(-2.0 * s / tau)
 
     try:
         p0 = (max(R[0] - 1.0, 1e-3), 2.0)
-        p, cov = curve_fit(model, s, R, p0=p0, sigma=sd, bounds=([0, 0.05], [np.inf, 1e3]))
+        p, cov = curve_fit(
+            model, s, R, p0=p0, sigma=sd, absolute_sigma=True, bounds=([0, 0.05], [np.inf, 1e3])
+        )
     except (RuntimeError, ValueError) as exc:
         raise ValueError(f"settling: the decay of the ring could not be fitted ({exc})") from exc
-    tau_sigma = float(np.sqrt(max(cov[1, 1], 0.0)))
+    chi2_red = float(np.sum(((R - model(s, *p)) / sd) ** 2)) / max(k - 2, 1)
+    tau_sigma = float(np.sqrt(max(cov[1, 1], 0.0) * max(chi2_red, 1.0)))
     return float(p[1] * RING_DECADES), tau_sigma * RING_DECADES
 
 
@@ -118,13 +165,21 @@ class Settling:
     parameters: tuple[ParamSpec, ...] = (ParamSpec("duration_s", "s", ()),)
     explanation: str = (
         "the table structure still rings after a move when the window starts, so the first "
-        "seconds of each window scatter more than the rest"
+        "seconds of each window carry a decaying oscillation at the structure's frequency"
     )
 
     def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
         if ev.window_samples is None or ev.sample_rate_hz is None:
             return False, "needs the windows' samples, not only their means"
-        return True, f"first {EARLY_S:g} s of each window against its second half"
+        if SEGMENT_S * ev.sample_rate_hz < 16:
+            return False, f"needs at least 8 Hz sampling ({ev.sample_rate_hz:g} Hz)"
+        n_min = 4 * SEGMENT_S * ev.sample_rate_hz
+        if sum(x.shape[0] >= n_min for x in ev.window_samples) < 3:
+            return False, f"needs at least 3 windows of {4 * SEGMENT_S:g} s or more"
+        return True, (
+            f"narrow-band power of the first {EARLY_SEGMENTS * SEGMENT_S:g} s of each window "
+            "against the windows' second halves"
+        )
 
     def candidates(self, ev: StaticEvidence) -> list[Candidate]:
         return []

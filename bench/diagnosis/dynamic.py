@@ -1,0 +1,213 @@
+"""Diagnosis of a moving-table recording (``rate-1axis``, ``oscillation-2axis``).
+
+Baseline: raw = b + K f with f from the believed geometry (the sidecar's lever arm, level
+table, no skew), fitted to every usable sample by the dynamic batch fit
+(``bench.estimation.dynamic_batch``). Candidates: the dynamic model's terms
+(``dynamic_model.TERM_ORDER``) that the motion determines (Fisher information of the
+extended model of full rank, ``observability``). Greedy forward selection, as for static
+windows: every candidate is fitted, its departure δ from the baseline value
+
+    lever_arm: r − r_sidecar (3);  proof_mass_offsets: q_i − mean(q) (rank 6, only once
+    the lever arm is in);  nonlinearity_quadratic: k2 (3);  table_tilt: (a, b);  time_skew: δ
+
+is judged by a Wald statistic W = δᵀ Cov(δ)⁻¹ δ with the fit's sandwich covariance (it
+carries the recording's own coloured noise: bias wander over the score blocks) against
+χ²_q at false_alarm / N (N candidates in the step); it enters if W passes and its BIC
+change, 3 n_used Σ_c ln(σ̂²_c,1 / σ̂²_c,0) / 3 + q ln(3 n_used), is negative.
+
+``sensor_lowpass``: a first-order low-pass τ ẏ = x − y is, for ωτ ≪ 1, y ≈ x − τ ẋ, the
+same signature as a delay of τ; at the procedures' rates (ωτ < 0.01) the two cannot be
+told apart, so a delay found is reported as ``time_skew`` confounded with ``sensor_lowpass``.
+
+Residuals and correlates: 1 s block means of the baseline residuals (the "windows" of the
+report) against ω² = −tr(B_sym)/2, |ω̇| (from the antisymmetric part of B), f_i², time
+and temperature, by ``regressors.block_correlations``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from bench.diagnosis.dynamic_summary import block_summary, motion_regressors
+from bench.diagnosis.effects import CATALOGUE
+from bench.diagnosis.result import Diagnosis, Finding
+from bench.diagnosis.selection import FALSE_ALARM
+from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
+from bench.estimation.dynamic_model import TERM_ORDER, ModelSpec, MotionData, initial_theta
+from bench.estimation.observability import fisher_information, information_report
+
+FloatArray = np.ndarray
+PARAM = {
+    "lever_arm": ("r_m", "m"),
+    "proof_mass_offsets": ("rho_m", "m"),
+    "nonlinearity_quadratic": ("k2_per_g", "1/g"),
+    "table_tilt": ("tilt_rad", "rad"),
+    "time_skew": ("delay_s", "s"),
+}
+STATIC_ONLY = {
+    "scale_asymmetry": "tested on static windows only (|f_i| beside f_i² needs still poses)",
+    "cross_coupling": "tested on static windows only",
+    "temperature_bias": "tested on static windows only",
+    "bias_drift": "tested on static windows only (on a moving recording it is inside the sandwich noise)",
+    "pose_error": "a moving recording has no per-window poses",
+    "encoder_offset": "tested on static windows only",
+    "settling": "tested on static windows only (needs still windows after each stop)",
+}
+
+
+def _delta(fit: DynamicFit, term: str, lever: FloatArray) -> tuple[FloatArray, FloatArray, int]:
+    """(δ, Cov δ, dof) of the module docstring."""
+    s = fit.spec.index(term)
+    th, C = fit.theta[s], fit.cov[s, s]
+    if term == "lever_arm":
+        return th - lever, C, 3
+    if term == "proof_mass_offsets":
+        T = np.eye(9) - np.tile(np.tile(np.eye(3) / 3.0, (1, 3)), (3, 1))
+        return T @ th, T @ C @ T.T, 6
+    return th, C, th.size
+
+
+def _wald(d: FloatArray, C: FloatArray, q: int) -> float:
+    w, V = np.linalg.eigh(0.5 * (C + C.T))
+    keep = np.argsort(w)[::-1][:q]
+    u = V[:, keep].T @ d
+    return float(np.sum(u * u / np.maximum(w[keep], 1e-300)))
+
+
+def _loglik_term(fit: DynamicFit) -> float:
+    return float(fit.n_used * np.sum(np.log(fit.noise_sigma**2)))
+
+
+def _params(fit: DynamicFit, term: str, lever: FloatArray) -> tuple[dict[str, object], dict[str, object]]:
+    name = PARAM[term][0]
+    d, C, _ = _delta(fit, term, lever)
+    sig = np.sqrt(np.clip(np.diag(C), 0.0, None))
+    if term == "lever_arm":
+        s = fit.spec.index(term)
+        return {name: fit.theta[s].tolist()}, {name: sig.tolist()}
+    if term == "proof_mass_offsets":
+        return {name: d.reshape(3, 3).tolist()}, {name: sig.reshape(3, 3).tolist()}
+    if term == "time_skew":
+        return {name: float(d[0])}, {name: float(sig[0])}
+    return {name: d.tolist()}, {name: sig.tolist()}
+
+
+def _summary_text(term: str, p: dict[str, object], s: dict[str, object]) -> str:
+    name, unit = PARAM[term]
+    v, e = np.atleast_1d(np.asarray(p[name], dtype=float)), np.atleast_1d(np.asarray(s[name], dtype=float))
+    k = int(np.argmax(np.abs(v) / np.maximum(e, 1e-300)))
+    return f"{term}: {name} = {v.ravel()[k]:.3g} ± {e.ravel()[k]:.2g} {unit} (largest of {v.size} in sigmas)"
+
+
+def diagnose_dynamic(
+    m: MotionData,
+    y: FloatArray,
+    g_m_s2: float,
+    lever_arm_m: FloatArray,
+    *,
+    temp_c: FloatArray | None = None,
+    unit: str = "",
+    channel_unit: str = "",
+    source: str = "",
+    false_alarm: float = FALSE_ALARM,
+) -> Diagnosis:
+    """Diagnose a moving-table recording (module docstring).
+
+    :param m: the motion (``dynamic_model.prepare_motion``); :param y: (n, 3) raw samples.
+    :param lever_arm_m: (3,) the lever arm the recording believes (m).
+    :param temp_c: (n,) temperature (°C) or ``None``.
+    :raises ValueError: a motion that cannot determine bias and K.
+    """
+    lever = np.asarray(lever_arm_m, dtype=float).reshape(3)
+    sig_w = np.maximum(white_sigma(y[m.valid]), 1e-12)
+    b0, K0 = linear_start(m, y, g_m_s2, lever)
+    unobservable = dict(STATIC_ONLY)
+    pool = []
+    for t in TERM_ORDER:
+        spec = ModelSpec(("lever_arm", t)) if t == "proof_mass_offsets" else ModelSpec((t,))
+        rep = information_report(
+            fisher_information(m, initial_theta(spec, b0, K0, lever), spec, g_m_s2, lever, sig_w), spec.names
+        )
+        if rep.ok:
+            pool.append(t)
+        else:
+            unobservable[t] = "not determined by this motion: " + "; ".join(rep.unobservable)
+    n_obs = 3 * int(m.valid.sum())
+    fits = [fit_dynamic_batch(m, y, g_m_s2, lever, ModelSpec(()))]
+    chosen: list[str] = []
+    steps: list[tuple[str, float, float]] = []
+    while True:
+        tried = [t for t in pool if t not in chosen and (t != "proof_mass_offsets" or "lever_arm" in chosen)]
+        if not tried:
+            break
+        alpha = false_alarm / len(tried)
+        best: tuple[float, str, float, DynamicFit] | None = None
+        for t in tried:
+            try:
+                f1 = fit_dynamic_batch(m, y, g_m_s2, lever, ModelSpec((*chosen, t)))
+            except ValueError:
+                continue
+            d, C, q = _delta(f1, t, lever)
+            w = _wald(d, C, q)
+            dbic = _loglik_term(f1) - _loglik_term(fits[-1]) + q * math.log(n_obs)
+            if w > float(chi2_dist.ppf(1.0 - alpha, q)) and dbic < 0 and (best is None or dbic < best[0]):
+                best = (dbic, t, w, f1)
+        if best is None:
+            break
+        chosen.append(best[1])
+        steps.append((best[1], best[0], best[2]))
+        fits.append(best[3])
+    final = fits[-1]
+    findings = []
+    for k, (t, dbic, w) in enumerate(steps):
+        p, s = _params(final, t, lever)
+        conf = ("sensor_lowpass",) if t == "time_skew" else ()
+        text = _summary_text(t, p, s)
+        if conf:
+            text += (
+                "; a first-order sensor low-pass of that time constant gives the same signature at these "
+                "rates (ωτ ≪ 1), so it cannot be told from sensor_lowpass"
+            )
+        findings.append(
+            Finding(
+                effect=t,
+                summary=text,
+                parameters=p,
+                sigma=s,
+                delta_bic=float(dbic),
+                lr=float(w),
+                residual_rms_after=float(fits[k + 1].residual_rms),
+                explanation=next(e.explanation for e in CATALOGUE if e.id == t),
+                confounded_with=conf,
+            )
+        )
+    regs = motion_regressors(m, y, final, g_m_s2, lever, temp_c)
+    bs = block_summary(m, y, fits, g_m_s2, lever, sig_w, regs, n_obs)
+    notes = (
+        "sensor_lowpass: a low-pass of time constant τ looks like a delay of τ at these rates; "
+        "a delay found is reported as time_skew",
+        f"noise: white sigma from the samples' second differences [{', '.join(f'{v:.3g}' for v in sig_w)}] "
+        "channel units; parameter sigmas from the batch fit's sandwich covariance (coloured noise included)",
+    )
+    return Diagnosis(
+        unit=unit,
+        channel_unit=channel_unit,
+        method="dynamic",
+        baseline=bs.baseline,
+        final=bs.final,
+        findings=tuple(findings),
+        channel_ratio=bs.channel_ratio,
+        where=bs.where,
+        correlations=bs.correlations,
+        unobservable=unobservable,
+        notes=notes,
+        noise_text=notes[1],
+        labels=bs.labels,
+        mid_s=bs.mid_s,
+        bias=final.theta[:3].copy(),
+        K=final.theta[3:12].reshape(3, 3).copy(),
+        source=source,
+    )

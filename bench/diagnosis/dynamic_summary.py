@@ -1,0 +1,155 @@
+"""Residuals of a moving-table diagnosis: 1 s block means, per-channel mismatch, regressor correlations.
+
+Regressors per sample (``motion_regressors``): with B = Mᵀ R_inᵀ (Ω̇ + Ω²) R_in
+(``dynamic_model``; Ω = [ω]×), the symmetric part of B is the rotated Ω², whose trace is
+−2|ω|², and the antisymmetric part the rotated Ω̇, so ω² = −tr(B)/2 and |ω̇| = |axial(B − Bᵀ)/2|;
+f_i² from the final model's specific force; time; temperature. Correlation of each
+channel's block-mean residual with each regressor's block mean after both are made
+orthogonal to [1, f̄_x, f̄_y, f̄_z] (what bias and K absorb), significant when
+|ρ|√(n_b − 5)/√(1 − ρ²) exceeds Student's t at 0.01 / (2 · 3 · number of regressors).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import t as t_dist
+
+from bench.diagnosis.regressors import SIGNIFICANCE, Correlation
+from bench.diagnosis.result import ModelSummary
+from bench.estimation.dynamic_batch import DynamicFit
+from bench.estimation.dynamic_model import MotionData, predict, specific_force
+
+FloatArray = np.ndarray
+BLOCK_S = 1.0
+WHERE_Z = 4.0
+"""A block residual beyond this many sigmas is named in ``where``."""
+
+
+@dataclass(frozen=True)
+class BlockSummary:
+    """What the report shows of a dynamic diagnosis."""
+
+    baseline: ModelSummary
+    final: ModelSummary
+    channel_ratio: FloatArray
+    where: str
+    correlations: tuple[Correlation, ...]
+    labels: tuple[str, ...]
+    mid_s: FloatArray
+
+
+def motion_regressors(
+    m: MotionData, y: FloatArray, fit: DynamicFit, g: float, lever: FloatArray, temp_c: FloatArray | None
+) -> dict[str, FloatArray]:
+    """Name -> (n,) regressor per sample (module docstring)."""
+    B = m.B
+    out = {"omega^2": -0.5 * np.trace(B, axis1=1, axis2=2)}
+    A = 0.5 * (B - np.transpose(B, (0, 2, 1)))
+    out["|omega_dot|"] = np.sqrt(A[:, 2, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 0] ** 2)
+    f = specific_force(fit.theta, m, fit.spec, g, lever)
+    for i, a in enumerate("xyz"):
+        out[f"f_{a}^2"] = f[:, i] ** 2
+    for i, a in enumerate("xyz"):
+        out[f"f_{a}"] = f[:, i]
+    out["time"] = m.t_s - m.t_s[0]
+    if temp_c is not None and np.all(np.isfinite(temp_c)):
+        out["temperature"] = np.asarray(temp_c, dtype=float)
+    return out
+
+
+def _blocks(t: FloatArray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    blk = np.floor((t - t[0]) / BLOCK_S).astype(np.int64)
+    blk = np.where(valid, blk, -1)
+    ids, inv, counts = np.unique(blk[valid], return_inverse=True, return_counts=True)
+    keep = counts >= 10
+    return ids[keep], np.where(keep[inv], inv, -1)
+
+
+def _bmean(v: FloatArray, inv: np.ndarray, nb: int) -> FloatArray:
+    ok = inv >= 0
+    cnt = np.bincount(inv[ok], minlength=nb)
+    if v.ndim == 1:
+        return np.bincount(inv[ok], weights=v[ok], minlength=nb) / cnt
+    return np.column_stack(
+        [np.bincount(inv[ok], weights=v[ok, i], minlength=nb) / cnt for i in range(v.shape[1])]
+    )
+
+
+def block_summary(
+    m: MotionData,
+    y: FloatArray,
+    fits: list[DynamicFit],
+    g: float,
+    lever: FloatArray,
+    sig_w: FloatArray,
+    regs: dict[str, FloatArray],
+    n_obs: int,
+) -> BlockSummary:
+    """Baseline and final model summaries, mismatch and correlates (module docstring)."""
+    v = m.valid
+    ids, inv = _blocks(m.t_s[v], np.ones(int(v.sum()), dtype=bool))
+    nb = ids.size
+    cnt = np.bincount(inv[inv >= 0], minlength=nb)
+    summaries = []
+    resid0 = None
+    for fit in (fits[0], fits[-1]):
+        model, _ = predict(fit.theta, m, fit.spec, g, lever)
+        r = (y - model)[v]
+        if resid0 is None:
+            resid0 = r
+        br = _bmean(r, inv, nb)
+        z = br / (sig_w[None, :] / np.sqrt(cnt)[:, None])
+        p = fit.spec.n_params
+        summaries.append(
+            ModelSummary(
+                terms=("bias", "scale_matrix", *fit.spec.terms),
+                residual_rms=float(fit.residual_rms),
+                chi2_dof=float(np.sum((r / sig_w) ** 2) / (n_obs - p)),
+                bic=float(fit.n_used * np.sum(np.log(fit.noise_sigma**2)) + p * np.log(n_obs)),
+                resid=br,
+                z=z,
+            )
+        )
+    assert resid0 is not None
+    ratio = np.sum((resid0 / sig_w) ** 2, axis=0) / max(resid0.shape[0] - 4, 1)
+    base = summaries[0]
+    w, i = np.unravel_index(int(np.argmax(np.abs(base.z))), base.z.shape)
+    mid = (ids + 0.5) * BLOCK_S + float(m.t_s[v][0])
+    where = (
+        f"a{'xyz'[i]}, strongest in the 1 s block at t = {mid[w]:.0f} s "
+        f"(block mean {base.z[w, i]:+.1f} sigma)"
+        if abs(base.z[w, i]) > WHERE_Z
+        else "nowhere beyond the noise"
+    )
+    breg = {k: _bmean(x[v], inv, nb) for k, x in regs.items() if not k.startswith("f_") or k.endswith("^2")}
+    F = np.column_stack([np.ones(nb), *(_bmean(regs[f"f_{a}"][v], inv, nb) for a in "xyz")])
+    corr: list[Correlation] = []
+    dof = nb - 5
+    if dof >= 1:
+        crit = float(t_dist.ppf(1.0 - SIGNIFICANCE / (2.0 * 3 * len(breg)), dof))
+        Q, _ = np.linalg.qr(F)
+        rr = base.resid - Q @ (Q.T @ base.resid)
+        for name, x in breg.items():
+            xt = x - Q @ (Q.T @ x)
+            nx = float(np.linalg.norm(xt))
+            if nx <= 1e-9 * max(float(np.linalg.norm(x)), 1e-300):
+                continue
+            for c in range(3):
+                ne = float(np.linalg.norm(rr[:, c]))
+                if ne == 0:
+                    continue
+                rho = float(rr[:, c] @ xt / (nx * ne))
+                tval = abs(rho) * np.sqrt(dof) / np.sqrt(max(1.0 - rho * rho, 1e-12))
+                corr.append(Correlation(name, c, rho, bool(tval > crit)))
+    corr.sort(key=lambda c: -abs(c.rho))
+    return BlockSummary(
+        baseline=base,
+        final=summaries[1],
+        channel_ratio=ratio,
+        where=where,
+        correlations=tuple(corr),
+        labels=tuple(f"t={x:.0f}s" for x in mid),
+        mid_s=mid,
+    )

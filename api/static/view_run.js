@@ -69,17 +69,43 @@ function fitCard(cal) {
     gRows.length ? table("|g| check over static windows (m/s²)", ["", "mean error", "std"], gRows, [1, 2]) : null);
 }
 
-function gCard(gc) {
-  const body = [];
+const G0 = 9.80665; // standard gravity: datasheets give sensitivity per g0
+
+function datasheetForm(runId, unit, onResult) {
+  const sens = h("input", { id: "nominal-sens", type: "number", step: "any", min: "0", required: true, inputmode: "decimal", placeholder: "0.174" });
+  const zero = h("input", { id: "nominal-zero", type: "number", step: "any", inputmode: "decimal", placeholder: "1.5" });
+  const note = h("span", { class: "note", "aria-live": "polite" });
+  const form = h("form", { class: "start", "aria-label": "compare with datasheet values" },
+    h("label", { for: "nominal-sens" }, `Datasheet sensitivity (${unit}/g)`, sens),
+    h("label", { for: "nominal-zero" }, `Zero-g output (${unit})`, zero),
+    h("button", { type: "submit", class: "ghost", style: "color: var(--accent); border-color: var(--accent)" }, "Compare"), note);
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    const q = new URLSearchParams({ nominal_scale: String(Number(sens.value) / G0) });
+    if (zero.value !== "") for (let i = 0; i < 3; i++) q.append("nominal_bias", zero.value);
+    try { onResult(await getJson(`/api/runs/${enc(runId)}/plots/g-check?${q}`)); }
+    catch (err) { note.textContent = err.message; }
+  });
+  return form;
+}
+
+function gCard(gc, runId, unit) {
   const gl = { y: gc.g_local_m_s2, label: `g local ${fmt(gc.g_local_m_s2, 7)} m/s²`, colour: "#333" };
   const panel = (title, ys, colour, mean, std) => h("figure", { style: "margin:0" },
     h("figcaption", { class: "note" }, `${title}: mean error ${fmt(mean, 3)} m/s², std ${fmt(std, 3)} m/s²`),
     chart({ categories: gc.labels, series: [{ name: title, y: ys, colour, line: false }], hlines: [gl],
       ylabel: "|f̂| (m/s²)", height: 230, label: `${title}: corrected specific force magnitude per window against local g` }));
-  if (gc.before_m_s2) body.push(panel(`before (${gc.before_label})`, gc.before_m_s2, "var(--before)", gc.before_mean_error_m_s2, gc.before_std_m_s2));
-  else body.push(message("Before: no nominal scale is known for these channels and the unit has no earlier calibration, so only the corrected values are shown."));
-  body.push(panel("after (this calibration)", gc.after_m_s2, "var(--accent)", gc.after_mean_error_m_s2, gc.after_std_m_s2));
-  return h("section", { class: "card", "aria-label": "|g| check", id: "g-check" }, h("h2", {}, "|g| check, before and after"), ...body);
+  const plots = h("div");
+  const render = (data) => {
+    const body = [];
+    if (data.before_m_s2) body.push(panel(`before (${data.before_label})`, data.before_m_s2, "var(--before)", data.before_mean_error_m_s2, data.before_std_m_s2));
+    else body.push(message("Before: no nominal scale is known for these channels and the unit has no earlier calibration; enter the datasheet values to compare."));
+    body.push(panel("after (this calibration)", data.after_m_s2, "var(--accent)", data.after_mean_error_m_s2, data.after_std_m_s2));
+    plots.replaceChildren(...body);
+  };
+  render(gc);
+  return h("section", { class: "card", "aria-label": "|g| check", id: "g-check" }, h("h2", {}, "|g| check, before and after"), plots,
+    unit === "V" || unit === "count" ? datasheetForm(runId, unit, render) : null);
 }
 
 function residualCard(rs) {
@@ -148,7 +174,7 @@ async function renderResults(box, run, signal) {
   }
   grid.append(certificateCard(run));
   const [gc, rs, al] = await Promise.all(["g-check", "residuals", "allan"].map((p) => optional(`/api/runs/${enc(run.id)}/plots/${p}`, signal)));
-  grid.append(gc.error ? card("|g| check", message(gc.error)) : gCard(gc));
+  grid.append(gc.error ? card("|g| check", message(gc.error)) : gCard(gc, run.id, run.calibration.channel_unit));
   grid.append(rs.error ? card("Residuals", message(rs.error)) : residualCard(rs));
   grid.append(al.error ? card("Allan deviation", message(al.error)) : allanCard(al));
   grid.append(diag.error ? card("Diagnosis", message(diag.error)) : diagnosisCard(diag));

@@ -129,6 +129,14 @@ def test_operator_runs_a_calibration_from_the_dashboard(service: str, browser: A
     # 12 windows of 3 channels in the residual plot, 12 windows in the |g| plot
     assert page.locator("#residuals svg rect[fill^='var(--c']").count() == 36
     assert page.locator("#g-check svg circle").count() == 12
+    # the first run of a V unit has no 'before' until the datasheet values are given
+    assert "enter the datasheet values" in page.inner_text("#g-check")
+    page.fill("#nominal-sens", "0.174")
+    page.fill("#nominal-zero", "1.5")
+    page.click("#g-check button[type=submit]")
+    page.wait_for_selector("#g-check figure >> nth=1")
+    assert "before (nominal scale" in page.inner_text("#g-check")
+    assert page.locator("#g-check svg circle").count() == 24
     page.wait_for_timeout(300)
     shot(page, "desk-run-results")
 

@@ -1,23 +1,26 @@
 """Multi-position static calibration with known orientations: bias + full 3×3 K per channel.
 
-Model (tumble test, DESIGN.md §1): the mean of static window w on channel i is
+Model (tumble test, DESIGN.md §1): the mean of static window w is
 
-    y_w,i = b_i + K_i · f_w + e_w,i,    Var(e_w,i) = V_w,ii + τ_i²
+    y_w = b + K f_w + e_w,    Cov(e_w) = S_w = V_w + t · K (I − f̂_w f̂_wᵀ) Kᵀ + diag(τ²)
 
-with f_w (3,) the specific force from the table kinematics (m/s²), V_w the covariance of
-the window mean from its own samples (``window_noise``) and τ_i² an additive
-between-window variance (pose errors, bias wander between windows) estimated from the
-scatter of the windows about the fit (``window_noise.between_window_variance``). Each channel is the
-weighted linear least-squares problem X θ_i ≈ y_i with X = [1 f_x f_y f_z] (m, 4).
+with f_w (3,) the specific force from the table kinematics (m/s²), V_w (3, 3) the
+covariance of the window mean from its own samples (``window_noise``), t (m/s²)² the
+variance of a random pose error (the unit tilted by a small angle δ_w: error K (δ_w × f_w),
+perpendicular to gravity and common to the three channels, ``window_noise.pose_scatter``)
+and τ_i² each channel's own between-window excess (bias wander). The 12 parameters are the
+generalised least-squares solution over all channels at once (θ = (Σ Hᵀ S⁻¹ H)⁻¹ Σ Hᵀ S⁻¹ y,
+H_w = [I₃, I₃ ⊗ f_wᵀ]): the pose error's cross-channel covariance is kept, so a window's
+reading along gravity (the |g| direction, free of first-order pose error) is weighted by
+its own noise and the perpendicular readings by the pose scatter. t and τ² are
+moment (Paule-Mandel) estimates from the scatter of the windows about the fit.
 
 Parameter order of ``StaticFit.cov`` (12, 12), SI/channel units:
 
     [b_x, b_y, b_z, K_xx, K_xy, K_xz, K_yx, K_yy, K_yz, K_zx, K_zy, K_zz]
 
-Cross-channel blocks carry the within-window correlation of the channels:
-Cov(θ_i, θ_j) = A_i C_ij A_jᵀ, A_i = (Xᵀ W_i X)⁻¹ Xᵀ W_i, C_ij = diag_w(V_w,ij) + δ_ij τ_i² I.
-For white noise the estimator reaches the Cramér-Rao bound σ²/L · (XᵀX)⁻¹
-(research-peers.md §4).
+Cov(θ) = (Σ_w H_wᵀ S_w⁻¹ H_w)⁻¹. For white noise and no pose error the estimator reaches the
+Cramér-Rao bound σ²/L · (XᵀX)⁻¹ per channel (research-peers.md §4).
 """
 
 from __future__ import annotations
@@ -27,7 +30,13 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.window_noise import between_window_variance
+from bench.estimation.window_noise import (
+    own_channel_variance,
+    pm_statistic,
+    pose_scatter,
+    solve_decreasing,
+    t_factor,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -49,11 +58,12 @@ class StaticFit:
     :param cov: (12, 12) covariance in the order of :data:`PARAMETER_NAMES`.
     :param residuals: (m, 3) y − b − K f per window, channel units.
     :param normalized_residuals: (m, 3) residuals over their own standard deviation
-        √(v_w,i (1 − h_w,i)) under the full noise model (≈ N(0, 1) when the model holds).
+        √((S_w − H_w Cov(θ) H_wᵀ)_ii) under the full noise model (≈ N(0, 1) when the model holds).
     :param chi2: Σ r² / V_w,ii against the within-window noise alone (tests whether the
         windows scatter more than their own samples explain).
     :param dof: 3 (m − 4).
-    :param excess_var: (m, 3) variance added between windows, channel units squared.
+    :param excess_var: (m, 3) diagonal of the between-window covariance added to each
+        window (pose scatter + own excess), channel units squared.
     :param noise_model: short description of the noise model used.
     """
 
@@ -168,11 +178,57 @@ def _validate(f_m_s2: FloatArray, y_mean: FloatArray, y_cov: FloatArray) -> tupl
     return f, y, V
 
 
-def _wls(X: FloatArray, y: FloatArray, var: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Weighted LS θ and A = (Xᵀ W X)⁻¹ Xᵀ W for one channel (W = diag(1/var))."""
-    Xw = X / var[:, None]
-    A = np.asarray(np.linalg.solve(X.T @ Xw, Xw.T), dtype=float)
-    return np.asarray(A @ y, dtype=float), A
+def _design_rows(f: FloatArray) -> FloatArray:
+    """(m, 3, 12) H_w = [I₃, I₃ ⊗ f_wᵀ]: y_w = H_w θ in the order of :data:`PARAMETER_NAMES`."""
+    m = f.shape[0]
+    H = np.zeros((m, 3, 12))
+    for i in range(3):
+        H[:, i, i] = 1.0
+        H[:, i, 3 + 3 * i : 6 + 3 * i] = f
+    return H
+
+
+def _gls(H: FloatArray, y: FloatArray, S: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+    """Joint GLS: θ (12,), Cov(θ) (12, 12) and Q = Σ rᵀ S⁻¹ r for windows with covariances S (m, 3, 3)."""
+    W = np.linalg.inv(S)
+    HtW = np.einsum("wai,wab->wib", H, W)
+    N = np.einsum("wib,wbj->ij", HtW, H)
+    C = np.linalg.inv(N)
+    theta = C @ np.einsum("wib,wb->i", HtW, y)
+    r = y - np.einsum("wai,i->wa", H, theta)
+    return theta, 0.5 * (C + C.T), float(np.einsum("wa,wab,wb->", r, W, r))
+
+
+def _variance_components(X: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray) -> FloatArray:
+    """Between-window covariance per window (m, 3, 3): t M_w + diag(τ²), inflated.
+
+    The pose variance t (m/s²)² solves the Paule-Mandel equation pooled over the channels,
+    each channel refitted with its marginal variances v_w,i + t M_w,ii (Paule & Mandel,
+    J. Res. NBS 87 (1982) 377):
+
+        Σ_i min_θi Σ_w r_w,i² / (V_w,ii + t M_w,ii) = 3 (m − 4),
+
+    which always has a solution (M_w,ii > 0 for a channel with any misalignment; the joint
+    statistic would not, since pose errors never reach the reading along gravity); then each
+    channel's own τ_i² (``own_channel_variance``). A variance estimated with ν degrees of
+    freedom makes standardised errors Student-t_ν rather than normal, so each is multiplied
+    by ν / (ν − 2), the variance of t_ν (``t_factor``): a plain χ²/dof rescaling with the
+    8 dof of one channel would give z ~ t_8 (3σ coverage 98.3 %).
+    """
+    m = X.shape[0]
+    dof = m - 4
+    M = pose_scatter(K, X[:, 1:4])
+    md = np.clip(np.diagonal(M, axis1=1, axis2=2), 0.0, None)
+    vd = np.diagonal(V, axis1=1, axis2=2)
+    t = 0.0
+    if np.any(md > 0):
+
+        def pooled_q(t: float) -> float:
+            return sum(pm_statistic(X, y[:, i], vd[:, i] + t * md[:, i]) for i in range(3))
+
+        t = solve_decreasing(pooled_q, 3 * dof, float(np.median(vd / np.maximum(md, 1e-300))))
+    own = own_channel_variance(X, y, vd + t * md)
+    return t * t_factor(3 * dof) * M + (own * t_factor(dof))[None, :, None] * np.eye(3)[None]
 
 
 def fit_static(
@@ -193,53 +249,41 @@ def fit_static(
     f, y, V = _validate(f_m_s2, y_mean, y_cov)
     m = f.shape[0]
     X = check_design(f)
-    var_within = np.diagonal(V, axis1=1, axis2=2)  # (m, 3)
-
-    def solve(tau2: FloatArray) -> tuple[FloatArray, list[FloatArray]]:
-        theta = np.empty((3, 4))
-        A = []
-        for i in range(3):
-            theta[i], Ai = _wls(X, y[:, i], var_within[:, i] + tau2[:, i])
-            A.append(Ai)
-        return theta, A
-
-    theta, _ = solve(np.zeros((m, 3)))
-    tau2 = np.zeros((m, 3))
+    H = _design_rows(f)
+    V = 0.5 * (V + np.transpose(V, (0, 2, 1)))
+    theta, C, _ = _gls(H, y, V)
+    excess = np.zeros((m, 3, 3))
     if between_window and m > 4:
-        for _ in range(2):  # the pose-scatter shape depends on K: one refinement suffices
-            tau2 = between_window_variance(X, y, var_within, theta[:, 1:])
-            theta, _ = solve(tau2)
-    theta, A = solve(tau2)
-
-    cov = np.zeros((12, 12))
-    idx = [[i, 3 + 3 * i, 4 + 3 * i, 5 + 3 * i] for i in range(3)]
-    for i in range(3):
-        for j in range(3):
-            C = np.diag(V[:, i, j] + (tau2[:, i] if i == j else 0.0))
-            cov[np.ix_(idx[i], idx[j])] = A[i] @ C @ A[j].T
-
-    resid = y - X @ theta.T
-    var_total = var_within + tau2
-    lev = np.stack([np.einsum("wk,kw->w", X, A[i]) for i in range(3)], axis=1)  # h_w,i
+        for _ in range(3):  # the pose-scatter shape depends on K: two refinements suffice
+            excess = _variance_components(X, y, V, theta[3:].reshape(3, 3))
+            theta, C, _ = _gls(H, y, V + excess)
+    S = V + excess
+    resid = y - np.einsum("wai,i->wa", H, theta)
+    # Cov(r_w) = S_w − H_w C H_wᵀ for the GLS fit with the true S
+    r_var = np.diagonal(S - np.einsum("wai,ij,wbj->wab", H, C, H), axis1=1, axis2=2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        denom = np.sqrt(np.clip(var_total * (1.0 - lev), 0.0, None))
+        denom = np.sqrt(np.clip(r_var, 0.0, None))
         norm_resid = np.where(denom > 0, resid / denom, 0.0)
+    var_within = np.diagonal(V, axis1=1, axis2=2)
     chi2 = float(np.sum(resid**2 / var_within))
-    tau_txt = ", ".join(f"{np.sqrt(t):.3g}" for t in tau2.mean(axis=0))
-    model = (
-        "window means: batch-means covariance from each window's samples; "
-        f"between windows: additive pose + channel scatter, rms sigma = [{tau_txt}] channel units"
-        if between_window
-        else "window means: batch-means covariance from each window's samples"
-    )
+    excess_var = np.diagonal(excess, axis1=1, axis2=2).copy()
+    if between_window:
+        model = (
+            "window means: batch-means covariance from each window's samples; between windows: "
+            "pose scatter common to the channels (joint fit) + each channel's own excess, rms sigma = ["
+            + ", ".join(f"{np.sqrt(t):.3g}" for t in excess_var.mean(axis=0))
+            + "] channel units"
+        )
+    else:
+        model = "window means: batch-means covariance from each window's samples"
     return StaticFit(
-        bias=theta[:, 0].copy(),
-        K=theta[:, 1:].copy(),
-        cov=0.5 * (cov + cov.T),
+        bias=theta[:3].copy(),
+        K=theta[3:].reshape(3, 3).copy(),
+        cov=C,
         residuals=resid,
         normalized_residuals=norm_resid,
         chi2=chi2,
         dof=3 * (m - 4),
-        excess_var=tau2,
+        excess_var=excess_var,
         noise_model=model,
     )

@@ -16,7 +16,7 @@ which is exact in expectation for white noise and stays consistent for correlate
 noise whose correlation time is short compared with the batch length. Slow processes
 whose correlation time exceeds the window (bias wander between windows) are invisible
 inside one window; the fit estimates them from the scatter between windows
-(``static_fit.between_window_variance``).
+(``static_fit``: a common pose scatter and each channel's own excess).
 
 A linear trend over the window is removed before batching only when asked
 (``detrend=True``): a drift inside a window is part of the window mean's error, so the
@@ -141,7 +141,7 @@ def pooled_mean_covariances(noises: list[WindowNoise]) -> FloatArray:
     return np.stack([w.white_mean_cov * np.outer(d, d) for w in noises])
 
 
-def _pm_statistic(X: FloatArray, y: FloatArray, v: FloatArray) -> float:
+def pm_statistic(X: FloatArray, y: FloatArray, v: FloatArray) -> float:
     """Generalised Q = Σ r² / v of the weighted LS fit of y on X with variances v."""
     Xw = X / v[:, None]
     theta = np.linalg.solve(X.T @ Xw, Xw.T @ y)
@@ -168,68 +168,57 @@ def t_factor(nu: int) -> float:
     return nu / (nu - 2.0) if nu > 4 else 3.0
 
 
-def between_window_variance(
-    X: FloatArray, y: FloatArray, var_within: FloatArray, K: FloatArray
-) -> FloatArray:
-    """Additive between-window variance per window and channel (Paule-Mandel moment estimator).
+def pose_scatter(K: FloatArray, f_m_s2: FloatArray) -> FloatArray:
+    """Covariance shape of a pose error in each window's mean, per unit variance of the tilt.
 
-    Window means may scatter about the fit by more than their own samples explain: the
-    unit was not exactly where the table says (pose error: the true specific force is
-    f rotated by a small angle δ, an error ≈ δ × f perpendicular to f), or a channel's
-    bias wandered between windows. Both act on every window independently and are
-    modelled as two additive variances, each chosen so that a generalised residual sum
-    of squares equals its expectation (Paule & Mandel, J. Res. NBS 87 (1982) 377):
+    A window whose unit sits tilted by a small random angle δ (rad, isotropic, variance
+    t/g² per axis) sees f + δ × f instead of f: an error perpendicular to f, which the
+    channels read as K (δ × f). Its covariance is t · K (I − f̂ f̂ᵀ) Kᵀ with f̂ = f/|f|; the
+    same tilt reaches all channels of the window, so the matrix is full, not diagonal.
 
-    1. common pose scatter, one value t (m/s²)² for all channels, acting perpendicular
-       to gravity: s_w,i² = K_i (I − f̂_w f̂_wᵀ) K_iᵀ and, with 3 (m − p) degrees of freedom,
+    :param K: (c, 3) scale matrix, channel unit per m/s².
+    :param f_m_s2: (m, 3) specific force per window (m/s²).
+    :returns: (m, c, c) K (I − f̂_w f̂_wᵀ) Kᵀ in (channel unit per m/s²)²; times t in
+        (m/s²)² it is the window's pose-error covariance in channel units².
+    """
+    K = np.asarray(K, dtype=float)
+    f = np.asarray(f_m_s2, dtype=float)
+    fh = f / np.linalg.norm(f, axis=1, keepdims=True)
+    P = np.eye(3)[None] - fh[:, :, None] * fh[:, None, :]
+    return np.einsum("ia,wab,jb->wij", K, P, K)
 
-           Σ_i Σ_w r_w,i² / (v_w,i + t s_w,i²) = 3 (m − p);
 
-    2. on top of it, each channel's own extra τ_i² (channel units²), for scatter that is
-       not common (bias wander of one channel), if that channel's χ² after step 1 exceeds
-       its 95 % quantile (``OWN_SCATTER_GATE``):
+def own_channel_variance(X: FloatArray, y: FloatArray, base: FloatArray) -> FloatArray:
+    """Each channel's own between-window variance τ_i² (Paule-Mandel, χ²-gated).
 
-           Σ_w r_w,i² / (v_w,i + t s_w,i² + τ_i²) = m − p.
+    After the common pose scatter, a channel may still scatter more than its windows'
+    variances ``base`` explain (bias wander of that channel alone). If its generalised
+    statistic Q_i = Σ_w r_w,i² / base_w,i of the weighted fit exceeds the
+    ``OWN_SCATTER_GATE`` quantile of χ²(m − p), τ_i² solves (Paule & Mandel, J. Res. NBS 87
+    (1982) 377)
 
-    Each is 0 when the residuals already agree with the noise. An estimated variance
-    with ν degrees of freedom makes standardised errors Student-t_ν rather than normal;
-    each estimate is multiplied by ν / (ν − 2), the variance of t_ν, so that the reported
-    sigmas stay honest with few windows. Pooling the common part
-    over three channels keeps z-scores close to N(0, 1): a plain χ²/dof rescaling with
-    the 8 dof of one channel makes z ~ t_8 (3σ coverage 98.3 %).
+        Σ_w r_w,i² / (base_w,i + τ_i²) = m − p;
 
-    :param X: (m, 4) design [1 f] shared by the channels, f in m/s².
+    otherwise τ_i² = 0 (under a common cause alone the channel's share is noise).
+
+    :param X: (m, p) design shared by the channels.
     :param y: (m, c) window means.
-    :param var_within: (m, c) within-window variances of the means.
-    :param K: (c, 3) current scale matrix, channel unit per m/s².
-    :returns: (m, c) excess variance per window and channel, channel units squared.
+    :param base: (m, c) variances already accounted for (within-window + pose).
+    :returns: (c,) τ² in channel units², not yet inflated by :func:`t_factor`.
     """
     m, p = X.shape
     c = y.shape[1]
     dof = m - p
-    if dof <= 0:
-        return np.zeros((m, c))
-    f = X[:, 1:4]
-    fh = f / np.linalg.norm(f, axis=1, keepdims=True)
-    Kf = np.asarray(K, dtype=float) @ fh.T  # (c, m): K_i f̂_w
-    s2 = (np.sum(np.asarray(K, dtype=float) ** 2, axis=1)[:, None] - Kf**2).T  # (m, c)
-    s2 = np.clip(s2, 0.0, None)
-    t_pool = 0.0
-    if np.any(s2 > 0):
-
-        def pooled_q(t: float) -> float:
-            return sum(_pm_statistic(X, y[:, i], var_within[:, i] + t * s2[:, i]) for i in range(c))
-
-        t_pool = solve_decreasing(pooled_q, c * dof, float(np.median(var_within / np.maximum(s2, 1e-300))))
-    base = var_within + t_pool * s2
-    gate = float(chi2.ppf(OWN_SCATTER_GATE, dof))
     own = np.zeros(c)
+    if dof <= 0:
+        return own
+    gate = float(chi2.ppf(OWN_SCATTER_GATE, dof))
     for i in range(c):
         yi, bi = y[:, i], base[:, i]
-        if _pm_statistic(X, yi, bi) > gate:
+        if pm_statistic(X, yi, bi) > gate:
 
             def q_own(t: float, yi: FloatArray = yi, bi: FloatArray = bi) -> float:
-                return _pm_statistic(X, yi, bi + t)
+                return pm_statistic(X, yi, bi + t)
 
             own[i] = solve_decreasing(q_own, dof, float(np.median(bi)))
-    return t_pool * t_factor(c * dof) * s2 + own[None, :] * t_factor(dof)
+    return own

@@ -10,14 +10,24 @@ token that is presented must still be valid.
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import hashlib
+import logging
 import secrets
+import threading
+import time
 from collections.abc import Iterable
+from concurrent.futures import ThreadPoolExecutor
 
+from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
 
-from db.repo.tokens import find_token
+from db.repo.tokens import lookup_token, touch_token
+
+log = logging.getLogger(__name__)
+TOUCH_INTERVAL_S = 60.0
+"""A database token's ``last_used_at`` is written at most this often (s)."""
 
 
 class Role(enum.IntEnum):
@@ -82,8 +92,13 @@ def new_secret() -> str:
 class Authenticator:
     """Resolves a presented secret to a role.
 
+    Database tokens are looked up in a read-only session (a request never waits for the
+    write lock to authenticate); their ``last_used_at`` is written by one background thread,
+    at most once per :data:`TOUCH_INTERVAL_S` per token.
+
     :param env_tokens: ``{sha256: Role}`` from :func:`parse_tokens`.
-    :param sessions: session factory for the ``api_token`` table, or ``None``.
+    :param sessions: writing session factory (``last_used_at``), or ``None`` for no database.
+    :param read_sessions: read-only session factory for the look-up (default: ``sessions``).
     :param public_read: anonymous requests may read.
     """
 
@@ -91,25 +106,61 @@ class Authenticator:
         self,
         env_tokens: dict[str, Role],
         sessions: sessionmaker[Session] | None = None,
+        read_sessions: sessionmaker[Session] | None = None,
         *,
         public_read: bool = False,
     ) -> None:
         self._env = dict(env_tokens)
         self._sessions = sessions
+        self._read_sessions = read_sessions or sessions
         self.public_read = public_read
+        self._touched: dict[int, float] = {}
+        self._touch_lock = threading.Lock()
+        self._toucher = ThreadPoolExecutor(max_workers=1, thread_name_prefix="token-last-used")
 
     def add(self, secret: str, role: Role) -> None:
         """Accept one more secret (e.g. the operator token generated at start)."""
         self._env[_digest(secret)] = role
 
+    def is_env_secret(self, secret: str) -> bool:
+        """``secret`` is one of the configured (not database) tokens."""
+        return _digest(secret) in self._env
+
     def role_of(self, secret: str) -> Role | None:
         """The role of ``secret``, or ``None`` when no live token matches."""
         role = self._env.get(_digest(secret))
-        if role is not None or self._sessions is None:
+        if role is not None or self._read_sessions is None:
             return role
-        with self._sessions.begin() as s:
-            token = find_token(s, secret)
-            return None if token is None else Role[token.role.name]
+        with self._read_sessions.begin() as s:
+            token = lookup_token(s, secret)
+            if token is None:
+                return None
+            token_id, role = token.id, Role[token.role.name]
+        self._schedule_touch(token_id)
+        return role
+
+    def _schedule_touch(self, token_id: int) -> None:
+        now = time.monotonic()
+        with self._touch_lock:
+            last = self._touched.get(token_id)
+            if last is not None and now - last < TOUCH_INTERVAL_S:
+                return
+            self._touched[token_id] = now
+        with contextlib.suppress(RuntimeError):  # closed: the service is stopping
+            self._toucher.submit(self._touch, token_id)
+
+    def _touch(self, token_id: int) -> None:
+        if self._sessions is None:
+            return
+        try:
+            with self._sessions.begin() as s:
+                touch_token(s, token_id)
+        except SQLAlchemyError:
+            log.warning("could not record the use of API token %d", token_id, exc_info=True)
+
+    def close(self) -> None:
+        """Finish pending ``last_used_at`` writes and stop the background thread."""
+        self._toucher.shutdown(wait=True)
 
     def require(self, secret: str | None, minimum: Role) -> Role:
         """The role of ``secret`` if it is at least ``minimum``.

@@ -1,7 +1,9 @@
 """FastAPI dependencies: the service's parts, a session per request, and the role checks.
 
 Routes take ``SessionDep`` and open the transaction themselves (``with session.begin():``);
-repo functions only add, flush and select.
+repo functions only add, flush and select. A ``GET``/``HEAD`` request gets a read-only session
+(on SQLite a deferred transaction that an open write transaction does not block); every
+other method gets a writing one (``BEGIN IMMEDIATE`` on SQLite).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ class Services:
     settings: Settings
     engine: Engine
     sessions: sessionmaker[Session]
+    read_sessions: sessionmaker[Session]
     hub: ProgressHub
     runner: BenchRunner
     drift: DriftScheduler
@@ -46,9 +49,13 @@ def get_services(request: Request) -> Services:
 ServicesDep = Annotated[Services, Depends(get_services)]
 
 
-def get_session(services: ServicesDep) -> Iterator[Session]:
-    """A session for the request; the route opens the transaction."""
-    with services.sessions() as session:
+READ_METHODS = frozenset({"GET", "HEAD"})
+
+
+def get_session(request: Request, services: ServicesDep) -> Iterator[Session]:
+    """A session for the request (read-only for ``GET``/``HEAD``); the route opens the transaction."""
+    factory = services.read_sessions if request.method in READ_METHODS else services.sessions
+    with factory() as session:
         yield session
 
 
@@ -105,6 +112,14 @@ def require_viewer_or_query(
     return _check(services, secret, Role.VIEWER)
 
 
+def require_admin(
+    services: ServicesDep, creds: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
+) -> Role:
+    """An admin token (token management)."""
+    return _check(services, creds.credentials if creds else None, Role.ADMIN)
+
+
 ViewerDep = Annotated[Role, Depends(require_viewer)]
+AdminDep = Annotated[Role, Depends(require_admin)]
 OperatorDep = Annotated[Role, Depends(require_operator)]
 ViewerLinkDep = Annotated[Role, Depends(require_viewer_or_query)]

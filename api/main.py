@@ -25,7 +25,7 @@ from fastapi.staticfiles import StaticFiles
 from sqlalchemy.orm import Session, sessionmaker
 
 from api.auth import Authenticator, Role, parse_tokens
-from api.certificates.issue import finish_calibration
+from api.certificates.issue import analyse_run, finish_calibration
 from api.deps import Services
 from api.drift import DriftScheduler, record_drift_check
 from api.progress_hub import ProgressHub
@@ -54,10 +54,11 @@ def make_finisher(
     """What the runner's worker does after a run: results, certificate or drift comparison."""
 
     def finish(live: LiveRun, record: RunRecord) -> None:
+        analysis = analyse_run(record) if live.kind == "calibration" else None
         with sessions.begin() as s:
             merge_params(s, record.run_id, {"service_kind": live.kind})
             if live.kind == "calibration":
-                cert = finish_calibration(s, settings, record)
+                cert = finish_calibration(s, settings, record, analysis)
                 live.extra["certificate_number"] = cert.number if cert is not None else None
             else:
                 check = record_drift_check(s, settings, live.unit_serial, record)
@@ -75,6 +76,7 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     env_tokens = parse_tokens(settings.tokens)
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)
+    read_sessions = make_session_factory(engine, read_only=True)
     with sessions.begin() as s:
         marked = mark_interrupted_runs(s, socket.gethostname())
     if marked:
@@ -82,8 +84,8 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     hub = ProgressHub()
     runner = BenchRunner(settings, sessions, hub, make_finisher(settings, sessions), clock=clock)
     drift = DriftScheduler(settings, sessions, runner, clock=clock)
-    auth = Authenticator(env_tokens, sessions, public_read=settings.public_read)
-    return Services(settings, engine, sessions, hub, runner, drift, auth)
+    auth = Authenticator(env_tokens, sessions, read_sessions, public_read=settings.public_read)
+    return Services(settings, engine, sessions, read_sessions, hub, runner, drift, auth)
 
 
 def create_app(
@@ -114,6 +116,7 @@ def create_app(
         finally:
             services.drift.stop()
             services.runner.shutdown()
+            services.auth.close()
             app.state.services = None
             services.engine.dispose()
 

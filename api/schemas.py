@@ -82,6 +82,17 @@ class RunOut(BaseModel):
         default=None, description="the fit as `calbench calibrate --json` prints it"
     )
     certificate_number: str | None = None
+    n_findings: int | None = Field(
+        default=None, description="number of diagnosis findings; null while not diagnosed"
+    )
+    diagnosis: dict[str, Any] | None = Field(
+        default=None,
+        description="the `calbench diagnose --json` object of the run's recording (in `GET /api/runs/{id}`; "
+        "null in lists, while running, or when not diagnosed)",
+    )
+    diagnosis_note: str | None = Field(
+        default=None, description="why there is no diagnosis, when there is none"
+    )
 
 
 class AbortOut(BaseModel):
@@ -185,3 +196,32 @@ class WhoAmI(BaseModel):
     """The role of the presented token."""
 
     role: Literal["viewer", "operator", "admin", "anonymous"]
+
+
+TokenRoleName = Literal["viewer", "operator", "admin"]
+
+
+class TokenCreate(BaseModel):
+    """A new API token: its role and a label saying whose it is."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    role: TokenRoleName
+    label: str = Field(default="", max_length=200, description="who or what uses it, e.g. 'wall screen'")
+
+
+class TokenOut(BaseModel):
+    """A stored API token (never its secret)."""
+
+    id: int
+    role: TokenRoleName
+    label: str
+    created_at: dt.datetime
+    last_used_at: dt.datetime | None = None
+    revoked_at: dt.datetime | None = None
+
+
+class TokenCreated(TokenOut):
+    """A token just created, with its secret: shown this once, only its SHA-256 is stored."""
+
+    secret: str

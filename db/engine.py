@@ -11,6 +11,12 @@ safe against process crashes). The driver's own transaction handling is switched
 every transaction starts with ``BEGIN IMMEDIATE``: the write lock is taken up front, so
 two writers queue on the busy timeout instead of failing on a lock upgrade, and
 SAVEPOINTs and transactional DDL (Alembic) work (SQLAlchemy's pysqlite recipe).
+
+Readers do not take that lock: a session from ``make_session_factory(engine, read_only=True)``
+runs on the engine with the execution option ``calbench_read_only`` and its transactions
+start with a plain (deferred) ``BEGIN``, so under WAL a read sees the last committed state
+while a write transaction is open, instead of queueing behind it. Such a session refuses to
+flush ORM changes (:class:`ReadOnlySessionError`), on every backend.
 """
 
 from __future__ import annotations
@@ -28,6 +34,12 @@ from sqlalchemy.orm import Session, sessionmaker
 DATABASE_URL_ENV = "CALBENCH_DATABASE_URL"
 DATA_DIR_ENV = "CALBENCH_DATA_DIR"
 SQLITE_BUSY_TIMEOUT_MS = 30_000
+READ_ONLY_OPTION = "calbench_read_only"
+"""Execution option of a read-only engine: SQLite transactions start deferred."""
+
+
+class ReadOnlySessionError(RuntimeError):
+    """A read-only session was asked to write (a programming error, named by what it would write)."""
 
 
 def default_data_dir(env: Mapping[str, str] | None = None) -> Path:
@@ -58,7 +70,8 @@ def _sqlite_on_connect(dbapi_connection: Any, _record: Any) -> None:
 
 
 def _sqlite_on_begin(conn: sa.Connection) -> None:
-    conn.exec_driver_sql("BEGIN IMMEDIATE")
+    read_only = bool(conn.get_execution_options().get(READ_ONLY_OPTION))
+    conn.exec_driver_sql("BEGIN" if read_only else "BEGIN IMMEDIATE")
 
 
 def make_engine(url: str | sa.URL | None = None, **kwargs: Any) -> Engine:
@@ -91,12 +104,31 @@ def make_engine(url: str | sa.URL | None = None, **kwargs: Any) -> Engine:
     )
 
 
-def make_session_factory(engine: Engine) -> sessionmaker[Session]:
+def _refuse_writes(session: Session, _context: Any, _instances: Any) -> None:
+    if session.info.get(READ_ONLY_OPTION) and (session.new or session.dirty or session.deleted):
+        changed = [type(o).__name__ for o in (*session.new, *session.dirty, *session.deleted)]
+        raise ReadOnlySessionError(f"read-only session asked to write {', '.join(sorted(set(changed)))}")
+
+
+def make_session_factory(engine: Engine, *, read_only: bool = False) -> sessionmaker[Session]:
     """``sessionmaker`` bound to ``engine``; use ``with factory.begin() as session:``.
 
     ``expire_on_commit=False`` so objects read in a transaction stay usable after it.
+
+    :param read_only: sessions for reading only: on SQLite their transactions begin deferred
+        (no write lock, not blocked by an open write transaction); a flush with changes
+        raises :class:`ReadOnlySessionError`.
     """
-    return sessionmaker(engine, expire_on_commit=False)
+    if not read_only:
+        return sessionmaker(engine, expire_on_commit=False)
+    factory = sessionmaker(
+        engine.execution_options(**{READ_ONLY_OPTION: True}),
+        expire_on_commit=False,
+        info={READ_ONLY_OPTION: True},
+    )
+    if not event.contains(factory, "before_flush", _refuse_writes):
+        event.listen(factory, "before_flush", _refuse_writes)
+    return factory
 
 
 def open_database(url: str | sa.URL | None = None) -> Engine:

@@ -1,4 +1,7 @@
-"""After a run: store the fit and the diagnosis, issue the certificate (one transaction each).
+"""After a run: diagnose it, store the fit and the diagnosis, issue the certificate.
+
+The slow part (reading the recording and diagnosing it, :func:`analyse_run`) happens before
+the write transaction opens; :func:`finish_calibration` then stores and issues in one.
 
 The certificate number is allocated race-free by ``db.repo.certificates.issue_certificate``
 (unique ``(year, serial)``, retried on conflict); the content, which names its own number,
@@ -11,6 +14,7 @@ from __future__ import annotations
 import datetime as dt
 import importlib.util
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -67,25 +71,56 @@ def _temperature(record: RunRecord) -> tuple[float, float, float] | None:
     return float(min(temps)), float(np.mean(temps)), float(max(temps))
 
 
-def store_results(s: Session, record: RunRecord, rec: Recording | None) -> tuple[dict[str, Any] | None, str]:
-    """Store the fit and, when possible, the diagnosis of a finished run.
+@dataclass(frozen=True)
+class RunAnalysis:
+    """What a finished run's recording gave, computed outside any transaction.
 
-    :returns: (diagnosis contract or ``None``, why there is none).
+    :param rec: the recording, or ``None`` when unreadable or not needed.
+    :param diagnosis: the ``calbench diagnose --json`` object, or ``None``.
+    :param note: why there is no diagnosis (empty when there is one).
     """
-    if record.calibration is None:
-        return None, "no fit"
-    add_fit(s, record.run_id, FitKind.STATIC, record.calibration)
-    if rec is None:
-        return None, "recording not readable"
+
+    rec: Recording | None
+    diagnosis: dict[str, Any] | None
+    note: str
+
+
+def analyse_recording(path: str | None) -> RunAnalysis:
+    """Read the recording at ``path`` and diagnose it (no database)."""
+    if not path:
+        return RunAnalysis(None, None, "diagnosis not performed: the run has no recording")
     try:
-        diagnosis = diagnose(rec)
+        rec = read_recording(path)
+    except (OSError, ValueError) as exc:
+        return RunAnalysis(None, None, f"diagnosis not performed: recording {path} cannot be read: {exc}")
+    try:
+        return RunAnalysis(rec, diagnose(rec), "")
     except (RuntimeError, ValueError) as exc:
-        note = f"diagnosis not performed: {exc}"
-        merge_params(s, record.run_id, {"diagnosis_error": note})
-        return None, note
-    add_findings(s, record.run_id, diagnosis.get("findings", []))
-    merge_params(s, record.run_id, {"diagnosis": diagnosis})
-    return diagnosis, ""
+        return RunAnalysis(rec, None, f"diagnosis not performed: {exc}")
+
+
+def analyse_run(record: RunRecord) -> RunAnalysis:
+    """The analysis of a finished run: only a run with a fit is diagnosed."""
+    if record.calibration is None:
+        return RunAnalysis(None, None, "diagnosis not performed: the run has no fit")
+    return analyse_recording(str(record.start.recording_path))
+
+
+def store_diagnosis(s: Session, run_id: str, analysis: RunAnalysis) -> None:
+    """Store the findings (``finding`` rows) and the whole diagnosis object (run params), or
+    why there is none."""
+    if analysis.diagnosis is None:
+        merge_params(s, run_id, {"diagnosis_error": analysis.note})
+        return
+    add_findings(s, run_id, analysis.diagnosis.get("findings", []))
+    merge_params(s, run_id, {"diagnosis": analysis.diagnosis, "diagnosis_error": None})
+
+
+def store_results(s: Session, record: RunRecord, analysis: RunAnalysis) -> None:
+    """Store the fit and the diagnosis (or why there is none) of a finished run."""
+    if record.calibration is not None:
+        add_fit(s, record.run_id, FitKind.STATIC, record.calibration)
+    store_diagnosis(s, record.run_id, analysis)
 
 
 def issue_for_run(
@@ -142,20 +177,19 @@ def issue_for_run(
     return cert
 
 
-def finish_calibration(s: Session, settings: Settings, record: RunRecord) -> Certificate | None:
-    """Fit, diagnosis and certificate of a finished calibration run (``None``: no certificate)."""
-    rec = None
-    if record.calibration is not None:
-        try:
-            rec = read_recording(record.start.recording_path)
-        except (OSError, ValueError):
-            rec = None
-    diagnosis, note = store_results(s, record, rec)
+def finish_calibration(
+    s: Session, settings: Settings, record: RunRecord, analysis: RunAnalysis | None = None
+) -> Certificate | None:
+    """Store fit and diagnosis of a finished calibration run and issue its certificate when
+    it passed (``None``: no certificate). Pass ``analysis`` from :func:`analyse_run`, computed
+    before the transaction; without it the analysis runs here."""
+    analysis = analysis if analysis is not None else analyse_run(record)
+    store_results(s, record, analysis)
     if record.calibration is None or record.outcome is None or record.outcome.value != "PASS":
         return None
     return issue_for_run(
-        s, settings, record.run_id, rec=rec, diagnosis=diagnosis, diagnosis_note=note,
-        temp_c=_temperature(record),
+        s, settings, record.run_id, rec=analysis.rec, diagnosis=analysis.diagnosis,
+        diagnosis_note=analysis.note, temp_c=_temperature(record),
     )
 
 

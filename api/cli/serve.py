@@ -1,10 +1,10 @@
 """``calbench serve [--sim] [--sim-speed N] [--host H] [--port P]``: the REST service and dashboard.
 
 Settings come from ``CALBENCH_*`` (see ``docs/service.md``). Without ``CALBENCH_TOKENS``
-an operator token is generated and printed once on stderr, so there is never an
-unauthenticated write endpoint; with ``--sim`` and no tokens, reads are also opened
-(``CALBENCH_PUBLIC_READ`` set explicitly wins) so the dashboard of a development bench
-opens without a token.
+an admin token is generated and printed once on stderr (it may also create database tokens
+at ``/api/tokens``), so there is never an unauthenticated write endpoint; with ``--sim``
+and no tokens, reads are also opened (``CALBENCH_PUBLIC_READ`` set explicitly wins) so the
+dashboard of a development bench opens without a token.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         update["sim_speed"] = args.sim_speed
     generated: dict[str, str] = {}
     if not settings.tokens:
-        generated[new_secret()] = "operator"
+        generated[new_secret()] = "admin"
         if settings.sim or args.sim:
             explicit = os.environ.get("CALBENCH_PUBLIC_READ") is not None
             update["public_read"] = settings.public_read if explicit else True

@@ -7,7 +7,7 @@ from typing import Any
 import sqlalchemy as sa
 from fastapi import APIRouter, HTTPException, Response, status
 
-from api.certificates.issue import issue_for_run
+from api.certificates.issue import analyse_recording, issue_for_run, store_diagnosis
 from api.deps import OperatorDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
 from api.routes.views import certificate_out
 from api.schemas import CertificateOut
@@ -68,19 +68,37 @@ def certificate_pdf(run_id: str, session: SessionDep, _: ViewerLinkDep) -> Respo
                422: {"description": "the run has no fit"}},
 )
 def issue(run_id: str, session: SessionDep, settings: SettingsDep, _: OperatorDep) -> CertificateOut:
-    """Issue the certificate of a completed run that has none (e.g. one run from the CLI)."""
+    """Issue the certificate of a completed run that has none (e.g. one run from the CLI); a run
+    not yet diagnosed is diagnosed first and its findings stored."""
     with session.begin():
-        run = get_run(session, run_id, with_unit=True)
-        if run is None:
-            raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
-        existing = session.scalar(sa.select(Certificate.number).where(Certificate.run_id == run_id))
-        if existing is not None:
-            raise HTTPException(status.HTTP_409_CONFLICT, f"run {run_id} already has certificate {existing}")
+        _issuable(session, run_id)
+        run = get_run(session, run_id)
+        assert run is not None
+        path, diagnosed = run.recording_path, isinstance(run.params.get("diagnosis"), dict)
+    analysis = analyse_recording(str(path) if path else None) if not diagnosed else None
+    with session.begin():
+        serial = _issuable(session, run_id)
+        if analysis is not None:
+            store_diagnosis(session, run_id, analysis)
         try:
-            cert = issue_for_run(session, settings, run_id)
+            cert = issue_for_run(
+                session, settings, run_id, rec=analysis.rec if analysis else None,
+                diagnosis_note=analysis.note if analysis else "",
+            )
         except ValueError as exc:
             raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
-        return certificate_out(cert, run.unit.serial)
+        return certificate_out(cert, serial)
+
+
+def _issuable(session: SessionDep, run_id: str) -> str:
+    """The serial of the run's unit. :raises HTTPException: 404 no such run, 409 already issued."""
+    run = get_run(session, run_id, with_unit=True)
+    if run is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
+    existing = session.scalar(sa.select(Certificate.number).where(Certificate.run_id == run_id))
+    if existing is not None:
+        raise HTTPException(status.HTTP_409_CONFLICT, f"run {run_id} already has certificate {existing}")
+    return run.unit.serial
 
 
 @router.get("/api/certificates/{number}", response_model=CertificateOut, responses=_404)

@@ -17,8 +17,8 @@ def health(services: ServicesDep) -> Health:
     """Is the service up, is its database reachable, is the bench busy."""
     ok = True
     try:
-        with services.engine.connect() as conn:
-            conn.execute(sa.text("SELECT 1"))
+        with services.read_sessions.begin() as s:
+            s.execute(sa.text("SELECT 1"))
     except sa.exc.SQLAlchemyError:
         ok = False
     cur = services.runner.current

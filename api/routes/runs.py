@@ -74,12 +74,13 @@ def runs(
 
 @router.get("/{run_id}", response_model=RunOut, responses={404: {"description": "no such run"}})
 def run(run_id: str, session: SessionDep, runner: RunnerDep, settings: SettingsDep, _: ViewerDep) -> RunOut:
-    """One run: state, progress 0..1, outcome, error, the fit when there is one."""
+    """One run: state, progress 0..1, outcome, error, the fit and the diagnosis (the
+    ``calbench diagnose --json`` object, findings included) when there are."""
     with session.begin():
         row = get_run(session, run_id, with_unit=True)
         if row is not None:
             number = session.scalar(sa.select(Certificate.number).where(Certificate.run_id == run_id))
-            return run_out(row, row.unit.serial, runner.live(run_id), number)
+            return run_out(row, row.unit.serial, runner.live(run_id), number, with_diagnosis=True)
     live = runner.live(run_id)
     if live is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
@@ -121,7 +122,7 @@ async def events(run_id: str, request: Request, services: ServicesDep, _: Viewer
     runner, hub = services.runner, services.hub
     live = runner.live(run_id)
     if live is None:
-        with services.sessions.begin() as s:
+        with services.read_sessions.begin() as s:
             row = get_run(s, run_id)
             if row is None:
                 raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")

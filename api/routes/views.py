@@ -16,9 +16,22 @@ def _kind(run: Run, live: LiveRun | None) -> str:
     return kind if kind in ("calibration", "drift_check") else "other"
 
 
-def run_out(run: Run, serial: str, live: LiveRun | None = None, certificate: str | None = None) -> RunOut:
-    """A stored run; a live one shows the runner's fresher progress."""
+def run_out(
+    run: Run,
+    serial: str,
+    live: LiveRun | None = None,
+    certificate: str | None = None,
+    *,
+    with_diagnosis: bool = False,
+) -> RunOut:
+    """A stored run; a live one shows the runner's fresher progress.
+
+    :param with_diagnosis: include the whole diagnosis object (one run's view, not lists).
+    """
     cal = run.params.get("calibration")
+    diag = run.params.get("diagnosis")
+    diag = diag if isinstance(diag, dict) else None
+    note = run.params.get("diagnosis_error")
     progress = run.progress
     if live is not None and run.state.value in ("queued", "running", "paused", "suspended"):
         progress = max(progress, live.progress)
@@ -39,6 +52,9 @@ def run_out(run: Run, serial: str, live: LiveRun | None = None, certificate: str
         last_complete_window=run.last_complete_window,
         calibration=cal if isinstance(cal, dict) else None,
         certificate_number=certificate,
+        n_findings=len(diag.get("findings", [])) if diag is not None else None,
+        diagnosis=diag if with_diagnosis else None,
+        diagnosis_note=str(note) if diag is None and note else None,
     )
 
 

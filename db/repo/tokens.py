@@ -38,6 +38,18 @@ def find_token(session: Session, secret: str, *, now: dt.datetime | None = None)
     return token
 
 
+def lookup_token(session: Session, secret: str) -> ApiToken | None:
+    """The live (not revoked) token for ``secret``, else ``None``; reads only."""
+    return session.scalars(
+        sa.select(ApiToken).where(ApiToken.token_hash == hash_token(secret), ApiToken.revoked_at.is_(None))
+    ).one_or_none()
+
+
+def touch_token(session: Session, token_id: int, *, now: dt.datetime | None = None) -> None:
+    """Set a token's ``last_used_at``."""
+    session.execute(sa.update(ApiToken).where(ApiToken.id == token_id).values(last_used_at=now or utc_now()))
+
+
 def revoke_token(session: Session, token_id: int, *, now: dt.datetime | None = None) -> bool:
     """Revoke a token; False if it does not exist or was already revoked."""
     result = session.execute(

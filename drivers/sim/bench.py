@@ -64,7 +64,11 @@ class SimBench:
         ``lever_arm`` effect, zero without it).
     :param temperature: the sensor temperature course (default: the physics' model).
     :param ring_capacity: DAQ ring size (samples); default: as much as the controller's
-        motion history allows, at most 8192.
+        motion history allows, at most 65535.
+    :param buffer_wall_s: wall seconds of data the simulated bench keeps for a host that
+        falls behind (motion history and DAQ ring both scale with ``speed``), so that a busy
+        host at a high simulation speed sees what it would see at speed 1: a DAQ buffer of
+        about a minute of simulated time, or more.
     :param table_latency_s: wall seconds the table takes to answer a command.
     """
 
@@ -82,6 +86,7 @@ class SimBench:
         temperature: TemperatureModel | None = None,
         ring_capacity: int | None = None,
         table_latency_s: float = 0.0,
+        buffer_wall_s: float = 10.0,
     ) -> None:
         axes_arr = np.atleast_2d(np.asarray(axes, dtype=float))
         if axes_arr.ndim != 2 or axes_arr.shape[1] != 3 or not 1 <= axes_arr.shape[0] <= 3:
@@ -105,9 +110,12 @@ class SimBench:
             sample_rate_hz=sample_rate_hz,
         )
         self.geometry = BenchGeometry(axes_arr, self.physics.mount.copy(), arm)
-        self.controller = TableController(self.clock, n_axes=axes_arr.shape[0], seed=seed)
+        history_s = max(60.0, buffer_wall_s * float(speed))
+        self.controller = TableController(
+            self.clock, n_axes=axes_arr.shape[0], seed=seed, history_s=history_s
+        )
         if ring_capacity is None:
-            ring_capacity = max(1, min(8192, int(0.8 * self.controller.history_s * sample_rate_hz)))
+            ring_capacity = max(1, min(0xFFFF, int(0.8 * history_s * sample_rate_hz)))
         self.engine = DaqEngine(
             self.clock,
             self.physics,

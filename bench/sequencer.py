@@ -19,7 +19,6 @@ Step execution is in :mod:`bench.sequencer_steps`; this module has the loop and 
 
 from __future__ import annotations
 
-import queue
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -146,13 +145,10 @@ class Sequencer:
             raise AbortRequested(self.control.abort_reason)
         if self.control.pause_requested and not (self._holding or self._in_call):
             raise Interruption(RunState.PAUSED, "operator pause")
-        try:
-            item = self._pump.items.get(timeout=wait_s)
-        except queue.Empty:
-            if time.monotonic() - self._last_sample_wall > self.config.stall_timeout_s:
-                gaps = f" ({self._gaps} sample gaps reported meanwhile)" if self._gaps else ""
-                raise DeviceTimeout(f"no DAQ samples for {self.config.stall_timeout_s:g} s{gaps}") from None
-            item = None
+        item = self._pump.next_item(wait_s, self.config.block_max_samples)
+        if item is None and time.monotonic() - self._last_sample_wall > self.config.stall_timeout_s:
+            gaps = f" ({self._gaps} sample gaps reported meanwhile)" if self._gaps else ""
+            raise DeviceTimeout(f"no DAQ samples for {self.config.stall_timeout_s:g} s{gaps}")
         if isinstance(item, Failed):
             raise item.error
         if isinstance(item, Restarted):

@@ -10,6 +10,10 @@ A reader that fell behind a fast DAQ can keep losing the race for the oldest sam
 ring (each read starts at a sample about to be overwritten). After ``restart_after_gaps``
 consecutive gaps the pump restarts acquisition (``stop()``, ``start()``: the DAQ's counter and
 clock restart at 0) and says so with :class:`Restarted`, so the recording clock is re-based.
+
+The consumer takes items with :meth:`DaqPump.next_item`, which joins the sample blocks
+queued back to back into one (up to ``max_samples``): a fast stream then costs the
+sequencer one pass per backlog instead of one per driver read.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ from __future__ import annotations
 import queue
 import threading
 from dataclasses import dataclass
+
+import numpy as np
 
 from drivers.base import Daq, SampleBlock
 from drivers.errors import DataGap
@@ -61,6 +67,7 @@ class DaqPump:
         self.read_timeout_s = read_timeout_s
         self.restart_after_gaps = restart_after_gaps
         self.items: queue.Queue[Item] = queue.Queue()
+        self._pending: Item | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name="daq-pump", daemon=True)
 
@@ -96,6 +103,42 @@ class DaqPump:
             else:
                 self._stop.wait(0.002)
 
+    def next_item(self, wait_s: float, max_samples: int) -> Item | None:
+        """The next item (``None`` if none came within ``wait_s``); consecutive queued blocks
+        are joined into one of at most ``max_samples`` samples (a single larger block is kept whole).
+        """
+        item = self._pending
+        self._pending = None
+        if item is None:
+            try:
+                item = self.items.get(timeout=wait_s)
+            except queue.Empty:
+                return None
+        if not isinstance(item, SampleBlock):
+            return item
+        blocks, n = [item], item.n
+        while n < max_samples:
+            try:
+                nxt = self.items.get_nowait()
+            except queue.Empty:
+                break
+            if not isinstance(nxt, SampleBlock) or n + nxt.n > max_samples:
+                self._pending = nxt
+                break
+            blocks.append(nxt)
+            n += nxt.n
+        return join_blocks(blocks)
+
+    def drain(self) -> list[Item]:
+        """Every item still queued (after :meth:`stop`), in order."""
+        out: list[Item] = [] if self._pending is None else [self._pending]
+        self._pending = None
+        while True:
+            try:
+                out.append(self.items.get_nowait())
+            except queue.Empty:
+                return out
+
     def stop(self, timeout_s: float) -> str | None:
         """Stop the thread and the acquisition; return a problem description or ``None``."""
         self._stop.set()
@@ -109,3 +152,19 @@ class DaqPump:
         except Exception as exc:
             problem = f"DAQ stop failed: {type(exc).__name__}: {exc}"
         return problem
+
+
+def join_blocks(blocks: list[SampleBlock]) -> SampleBlock:
+    """One block of consecutive blocks (no gap between them: the driver reports gaps as items)."""
+    if len(blocks) == 1:
+        return blocks[0]
+    tables = [b.table_deg for b in blocks]
+    flags = tuple(sorted({f for b in blocks for f in b.flags}))
+    return SampleBlock(
+        blocks[0].first_seq,
+        np.concatenate([b.t_s for b in blocks]),
+        np.concatenate([b.accel for b in blocks]),
+        np.concatenate([b.temp_c for b in blocks]),
+        None if any(t is None for t in tables) else np.concatenate(tables),  # type: ignore[arg-type]
+        flags,
+    )

@@ -9,11 +9,11 @@ a table that no longer answers cannot hang the end of a run; what failed is repo
 
 from __future__ import annotations
 
-import queue
 import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from bench.sequencer_daq import Restarted
 from drivers.base import SampleBlock
 from drivers.errors import DeviceTimeout
 
@@ -62,12 +62,10 @@ def make_safe(seq: Sequencer) -> list[str]:
     if pump_problem:
         problems.append(pump_problem)
     # Samples still queued belong to the recording too.
-    while True:
-        try:
-            item = seq._pump.items.get_nowait()
-        except queue.Empty:
-            break
-        if isinstance(item, SampleBlock):
+    for item in seq._pump.drain():
+        if isinstance(item, Restarted):
+            seq.recorder.rebase()
+        elif isinstance(item, SampleBlock):
             try:
                 seq.window = None
                 seq._holding = True

@@ -9,14 +9,14 @@ line (and any zero bytes a crash left behind) and continues after the last compl
 :func:`write_recording` writes a whole :class:`Recording` through the same code.
 
 Floats are written with Python's shortest round-trip representation (``repr``), so
-reading the file back gives bit-identical arrays.
+reading the file back gives bit-identical arrays; a block is formatted by one C-level
+operation (:func:`bench.recording.rows.format_block`).
 """
 
 from __future__ import annotations
 
 import csv
 import dataclasses
-import io
 import json
 import math
 import os
@@ -40,6 +40,7 @@ from bench.recording.reader import (
     sidecar_path_for,
     table_columns,
 )
+from bench.recording.rows import format_block, format_rows_with_extras
 from bench.recording.sidecar import check_segments_disjoint, sidecar_to_dict
 
 
@@ -171,53 +172,46 @@ class RecordingWriter:
             raise ValueError(f"{self.csv_path}: writer is closed")
         t = np.asarray(t_s, dtype=float).reshape(-1)
         n = t.shape[0]
-        cols: list[np.ndarray] = [t]
         a = np.asarray(accel, dtype=float)
         if a.shape != (n, 3):
             raise ValueError(f"accel has shape {a.shape}, expected ({n}, 3)")
-        cols.extend(a.T)
+        n_req = 4 + self.n_axes
+        block = np.empty((n, len(self.columns) - len(self.extra_columns)))
+        block[:, 0] = t
+        block[:, 1:4] = a
         if self.n_axes:
             if table_deg is None:
                 raise ValueError(f"table_deg is required: the recording has {self.n_axes} table axes")
             q = np.asarray(table_deg, dtype=float).reshape(n, -1) if n else np.zeros((0, self.n_axes))
             if q.shape != (n, self.n_axes):
                 raise ValueError(f"table_deg has shape {q.shape}, expected ({n}, {self.n_axes})")
-            cols.extend(q.T)
+            block[:, 4:n_req] = q
         elif table_deg is not None:
             raise ValueError("table_deg given but the recording has no table")
-        finite = np.all(np.isfinite(np.column_stack(cols)), axis=1) if n else np.ones(0, bool)
-        if not np.all(finite):
+        finite = np.isfinite(block[:, :n_req]).all(axis=1)
+        if not finite.all():
             bad = int(np.flatnonzero(~finite)[0])
             raise ValueError(f"non-finite t, accel or table value in sample {bad} of the block")
-        if n and (np.any(np.diff(t) <= 0) or (self.last_t_s is not None and t[0] <= self.last_t_s)):
+        after_last = self.last_t_s is None or not n or t[0] > self.last_t_s
+        if not after_last or (n > 1 and np.any(t[1:] <= t[:-1])):
             raise ValueError(
                 f"time stamps must increase strictly (last written: {self.last_t_s}, "
                 f"block starts at {t[0]!r})"
             )
-        optional: list[np.ndarray] = []
+        col = n_req
         if self.has_temp:
-            optional.append(self._column(temp_c, (n,), "temp_c").reshape(n, 1))
+            block[:, col] = self._column(temp_c, (n,), "temp_c")
+            col += 1
         elif temp_c is not None:
             raise ValueError("temp_c given but the writer has no temp column")
         if self.has_gyro:
-            optional.append(self._column(gyro, (n, 3), "gyro"))
+            block[:, col : col + 3] = self._column(gyro, (n, 3), "gyro")
         elif gyro is not None:
             raise ValueError("gyro given but the writer has no gyro columns")
-        rows: list[list[object]] = np.column_stack(cols).tolist() if n else []
-        if optional and n:
-            opt = np.column_stack(optional)
-            for r, o in zip(rows, opt.tolist(), strict=True):
-                r.extend("" if math.isnan(v) else v for v in o)
         if self.extra_columns:
-            for name in self.extra_columns:
-                values = (extra or {}).get(name)
-                if values is None or len(values) != n:
-                    raise ValueError(f"extra column {name!r} needs {n} values")
-                for r, v in zip(rows, values, strict=True):
-                    r.append(v)
-        buf = io.StringIO()
-        csv.writer(buf, lineterminator="\n").writerows(rows)
-        self._file.write(buf.getvalue())
+            self._file.write(format_rows_with_extras(block, self.extra_columns, extra or {}))
+        else:
+            self._file.write(format_block(block))
         if n:
             self.last_t_s = float(t[-1])
             self.n_rows += n

@@ -45,7 +45,10 @@ def run(args: argparse.Namespace) -> int:
         raise BadInput(f"{path}: no such recording file")
     if args.nominal_bias is not None and args.nominal_scale is None:
         raise BadInput("--nominal-bias needs --nominal-scale")
-    rec = read_recording(path)
+    try:
+        rec = read_recording(path)
+    except OSError as exc:  # a missing or unreadable sidecar is bad input, one line
+        raise BadInput(str(exc)) from exc
     bias0 = None if args.nominal_bias is None else np.array(args.nominal_bias, dtype=float)
     result = calibrate_recording(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0)
     if args.json:

@@ -87,3 +87,26 @@ def test_missing_file_and_degenerate_set_exit_2(tmp_path, example, capsys) -> No
     assert main(["calibrate", str(example), "--json"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "at least 4 static windows" in err[0]
+
+
+def test_missing_sidecar_exits_2_with_one_line(example, capsys) -> None:
+    example.with_suffix(".json").unlink()
+    assert main(["calibrate", str(example), "--json"]) == 2
+    cap = capsys.readouterr()
+    err = cap.err.strip().splitlines()
+    assert cap.out == "" and len(err) == 1 and "rec.json" in err[0] and "sidecar" in err[0]
+
+
+def test_imucal_annotated_session_prints_per_window_residuals(shared_dir, tmp_path, capsys) -> None:
+    """The converted imucal session from the command line: one row per pose with its residuals."""
+    src = shared_dir / "data" / "real" / "imucal-ferraris" / "annotated_session.csv"
+    out = tmp_path / "ann.csv"
+    assert main(["convert", "imucal", str(src), "--sample-rate-hz", "204.8", "-o", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", str(out)]) == 0
+    rows = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines() if line[:2] in {
+        "x_", "y_", "z_"}}  # fmt: skip
+    assert sorted(rows) == ["x_a", "x_p", "y_a", "y_p", "z_a", "z_p"]
+    # columns: label, t, n, residual x y z (counts), z-scores x y z, |g| error after
+    assert rows["z_p"][2] == "881" and float(rows["z_p"][4]) == pytest.approx(-24.85, abs=0.1)
+    assert abs(float(rows["z_p"][-1])) < 1e-3

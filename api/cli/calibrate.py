@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-_FMT = {"float_kind": lambda x: f"{x:.5g}"}
+_FMT: Any = {"float_kind": lambda x: f"{x:.5g}"}
 
 
 def _pm(value: float, sigma: float) -> str:

@@ -25,7 +25,7 @@ from fastapi.staticfiles import StaticFiles
 from sqlalchemy.orm import Session, sessionmaker
 
 from api.auth import Authenticator, Role, parse_tokens
-from api.certificates.issue import analyse_run, finish_calibration
+from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
 from api.deps import Services
 from api.drift import DriftScheduler, record_drift_check
 from api.progress_hub import ProgressHub
@@ -36,6 +36,7 @@ from bench.records import RunRecord, utc_now
 from db.engine import make_session_factory, open_database
 from db.repo.recovery import mark_interrupted_runs
 from db.repo.runs import merge_params
+from db.repo.units import get_unit_by_serial
 
 log = logging.getLogger(__name__)
 STATIC_DIR = Path(__file__).resolve().parent / "static"
@@ -49,12 +50,18 @@ start gets 409.
 
 
 def make_finisher(
-    settings: Settings, sessions: sessionmaker[Session]
+    settings: Settings, sessions: sessionmaker[Session], read_sessions: sessionmaker[Session]
 ) -> Callable[[LiveRun, RunRecord], None]:
-    """What the runner's worker does after a run: results, certificate or drift comparison."""
+    """What the runner's worker does after a run: results, certificate or drift comparison.
+
+    The recording is read and diagnosed before the write transaction opens."""
 
     def finish(live: LiveRun, record: RunRecord) -> None:
-        analysis = analyse_run(record) if live.kind == "calibration" else None
+        analysis = None
+        if live.kind == "calibration":
+            with read_sessions.begin() as s:
+                nominal = unit_nominal(get_unit_by_serial(s, live.unit_serial))
+            analysis = analyse_run(record, nominal)
         with sessions.begin() as s:
             merge_params(s, record.run_id, {"service_kind": live.kind})
             if live.kind == "calibration":
@@ -82,7 +89,8 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     if marked:
         log.warning("runs left live by a dead process, now interrupted: %s", ", ".join(marked))
     hub = ProgressHub()
-    runner = BenchRunner(settings, sessions, hub, make_finisher(settings, sessions), clock=clock)
+    finisher = make_finisher(settings, sessions, read_sessions)
+    runner = BenchRunner(settings, sessions, hub, finisher, clock=clock)
     drift = DriftScheduler(settings, sessions, runner, clock=clock)
     auth = Authenticator(env_tokens, sessions, read_sessions, public_read=settings.public_read)
     return Services(settings, engine, sessions, read_sessions, hub, runner, drift, auth)

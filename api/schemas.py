@@ -103,12 +103,54 @@ class AbortOut(BaseModel):
     state: RunStateName
 
 
+class UnitRegistration(BaseModel):
+    """What the laboratory states about a unit (ISO/IEC 17025 7.8.2.1 e, g, h). Fields not sent
+    keep their value; ``null`` clears one."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    model: str | None = Field(default=None, max_length=200, examples=["ADXL335"])
+    description: str | None = Field(
+        default=None, max_length=200, examples=["triaxial MEMS accelerometer"]
+    )
+    channel_unit: Literal["V", "count", "m/s2", "g"] | None = None
+    customer_name: str | None = Field(default=None, max_length=200)
+    customer_address: str | None = Field(default=None, max_length=500)
+    received_on: dt.date | None = Field(default=None, description="date the unit was received")
+    nominal_scale: float | None = Field(
+        default=None, description="nominal scale factor, channel unit per m/s² (non-zero)"
+    )
+    nominal_bias: float | None = Field(default=None, description="nominal zero-g output, channel unit")
+    condition: str | None = Field(default=None, max_length=500, examples=["as received, no damage"])
+
+    @field_validator("nominal_scale", "nominal_bias")
+    @classmethod
+    def _finite_number(cls, value: float | None) -> float | None:
+        if value is not None and not math.isfinite(value):
+            raise ValueError("must be a finite number")
+        return value
+
+    @field_validator("nominal_scale")
+    @classmethod
+    def _non_zero(cls, value: float | None) -> float | None:
+        if value is not None and (value == 0.0 or abs(value) > 1e9):
+            raise ValueError("nominal_scale must be non-zero and below 1e9 (channel unit per m/s²)")
+        return value
+
+
 class UnitOut(BaseModel):
     """A unit (sensor) known to the service."""
 
     serial: str
     model: str | None = None
     channel_unit: str | None = None
+    description: str | None = None
+    customer_name: str | None = None
+    customer_address: str | None = None
+    received_on: dt.date | None = None
+    nominal_scale: float | None = None
+    nominal_bias: float | None = None
+    condition: str | None = None
     bench: str | None = None
     n_runs: int = 0
     last_certificate: str | None = None

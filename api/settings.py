@@ -37,8 +37,14 @@ class Settings(BaseSettings):
     :param drift_k: coverage factor of the drift test |Δ| > k·sqrt(u_cert² + u_check²), per
         coefficient; with 12 coefficients k = 3 flags an unchanged unit with probability
         about 3 % (k = 2: about 43 %).
+    :param limits_file: JSON file of unit-model limits (``calbench-unit-limits/1``); ``None``:
+        the one shipped with calbench (``bench/data/unit_limits.json``).
+    :param limits_model: model whose limits judge a run when the unit's registration names
+        none (or one the file lacks); empty: no limits, every completed fit PASSes.
     :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c).
     :param authorized_by: who authorises certificates (7.8.2.1 o).
+    :param customer_name, customer_address: the customer of units registered without one
+        (7.8.2.1 e; an in-house laboratory's own department); empty: "not stated".
     """
 
     model_config = SettingsConfigDict(env_prefix="CALBENCH_", extra="ignore")
@@ -60,10 +66,14 @@ class Settings(BaseSettings):
     drift_procedure: str = "static-12"
     drift_dwell_s: float = 20.0
     drift_k: float = 3.0
+    limits_file: Path | None = None
+    limits_model: str = "ADXL325"
     lab_name: str = "calbench calibration laboratory"
     lab_address: str = "address not configured (CALBENCH_LAB_ADDRESS)"
     lab_location: str = "bench room"
     authorized_by: str = "not configured (CALBENCH_AUTHORIZED_BY)"
+    customer_name: str = ""
+    customer_address: str = ""
 
     @field_validator("tokens", mode="before")
     @classmethod

@@ -26,6 +26,42 @@ COVERAGE_STATEMENT = (
     "(JCGM 100:2008): Type A from the within-window noise of the recording (batch means) and "
     "the scatter between windows."
 )
+REQUIRED_ITEMS = {
+    "7.8.2.1 a title": "title",
+    "7.8.2.1 b laboratory name": "laboratory.name",
+    "7.8.2.1 b laboratory address": "laboratory.address",
+    "7.8.2.1 c location": "location",
+    "7.8.2.1 d unique identification": "number",
+    "7.8.2.1 d end": "end",
+    "7.8.2.1 e customer name": "customer.name",
+    "7.8.2.1 e customer address": "customer.address",
+    "7.8.2.1 f method": "method.description",
+    "7.8.2.1 g item description": "item.description",
+    "7.8.2.1 g item identification": "item.serial",
+    "7.8.2.1 g item condition": "item.condition",
+    "7.8.2.1 h date of receipt": "dates.received",
+    "7.8.2.1 i date of calibration": "dates.calibration_start",
+    "7.8.2.1 j date of issue": "dates.issued",
+    "7.8.2.1 k sampling": "method.sampling",
+    "7.8.2.1 l results relate to the item": "statements",
+    "7.8.2.1 m results with units": "results.bias.unit",
+    "7.8.2.1 n deviations": "method.deviations",
+    "7.8.2.1 o authorisation": "authorized_by",
+    "7.8.2.1 p external providers": "external_providers",
+    "7.8.4.1 a uncertainty": "results.bias.expanded_uncertainty",
+    "7.8.4.1 b conditions: temperature": "conditions.sensor_temperature",
+    "7.8.4.1 b conditions: local g": "conditions.g_local_m_s2",
+    "7.8.4.1 c traceability": "traceability",
+    "7.8.4.1 d before adjustment": "g_check.before",
+    "7.8.4.1 d after adjustment": "g_check.after",
+    "7.8.4.1 e conformity": "conformity",
+    "7.8.4.1 f opinions": "diagnosis.note",
+}
+"""Each ISO/IEC 17025:2017 item a certificate must carry, and where it is in the content
+(dotted path); every one is filled, with :data:`NOT_STATED` where the laboratory gave nothing."""
+
+NOT_STATED = "not stated"
+"""What a certificate says where the laboratory did not give an item (never a null)."""
 ONLY_ITEM = "The results relate only to the item calibrated."
 NOT_REPRODUCED = (
     "This certificate shall not be reproduced except in full without the approval of the laboratory."
@@ -43,7 +79,9 @@ class CertificateInputs:
     """What a certificate is built from.
 
     :param run: ``{"id", "procedure", "started_at", "finished_at", "parameters", "bench"}``.
-    :param unit: ``{"serial", "model", "channel_unit"}``.
+    :param unit: ``{"serial", "model", "channel_unit"}`` and the registration
+        (``description``, ``condition``, ``customer_name``, ``customer_address``,
+        ``received_on`` ISO date, ``nominal_scale``, ``nominal_bias``), ``None`` where not given.
     :param calibration: the ``calibrate --json`` contract.
     :param g_local_m_s2: local gravity used (m/s²), ``None`` when unknown.
     :param temp_c: (min, mean, max) sensor temperature over the windows (°C), or ``None``.
@@ -68,18 +106,50 @@ class CertificateInputs:
 
 @dataclass(frozen=True)
 class Laboratory:
-    """Who issues: name, address, location of the work, who authorises (7.8.2.1 b, c, o)."""
+    """Who issues: name, address, location of the work, who authorises (7.8.2.1 b, c, o), and
+    the customer of units registered without one (an in-house laboratory's own department)."""
 
     name: str
     address: str
     location: str
     authorized_by: str
+    default_customer_name: str = ""
+    default_customer_address: str = ""
 
 
 def _iso(value: Any) -> str | None:
     if value is None:
         return None
     return value.isoformat() if isinstance(value, dt.datetime) else str(value)
+
+
+def _stated(value: Any) -> Any:
+    """``value``, or :data:`NOT_STATED` when it is ``None`` or blank."""
+    return NOT_STATED if value is None or (isinstance(value, str) and not value.strip()) else value
+
+
+def _item(unit: dict[str, Any]) -> dict[str, Any]:
+    cu = unit.get("channel_unit") or NOT_STATED
+    return {
+        "description": unit.get("description") or "triaxial accelerometer",
+        "serial": unit.get("serial"),
+        "model": _stated(unit.get("model")),
+        "channel_unit": cu,
+        "nominal_scale": {"value": _stated(unit.get("nominal_scale")), "unit": f"{cu}/(m/s2)"},
+        "nominal_zero_g_output": {"value": _stated(unit.get("nominal_bias")), "unit": cu},
+        "condition": _stated(unit.get("condition")),
+        "adjustment": "none: the item was not adjusted; results are as found",
+    }
+
+
+def _customer(unit: dict[str, Any], lab: Laboratory) -> dict[str, Any]:
+    name, address = unit.get("customer_name"), unit.get("customer_address")
+    source = "unit registration"
+    if not name and not address and (lab.default_customer_name or lab.default_customer_address):
+        name, address, source = lab.default_customer_name, lab.default_customer_address, "laboratory default"
+    if not name and not address:
+        source = "not given to the laboratory"
+    return {"name": _stated(name), "address": _stated(address), "source": source}
 
 
 def _two_digits(value: Any) -> float | None:
@@ -114,11 +184,20 @@ def _g_check(cal: dict[str, Any]) -> dict[str, Any]:
         "description": "|K⁻¹(raw − b)| − g_local over the static windows: mean error and standard "
         "deviation, before adjustment (nominal scale) and after (this calibration)",
     }
+    missing = {"before": f"{NOT_STATED}: no nominal scale known for this unit", "after": NOT_STATED}
     for when in ("before", "after"):
-        if when in g:
-            out[when] = {k: _two_digits(v) for k, v in g[when].items()}
+        if isinstance(g.get(when), dict):
+            out[when] = {k: _two_digits(v) for k, v in g[when].items() if k != "nominal"}
         else:
-            out[when] = None
+            out[when] = missing[when]
+    nominal = g.get("before", {}).get("nominal") if isinstance(g.get("before"), dict) else None
+    out["before_basis"] = (
+        f"nominal scale {nominal['scale']:g} and zero-g output {nominal['bias']:g} ({nominal['source']})"
+        if isinstance(nominal, dict)
+        else "the raw output in its own physical unit"
+        if isinstance(g.get("before"), dict)
+        else NOT_STATED
+    )
     return out
 
 
@@ -158,7 +237,7 @@ def certificate_content(
         else "Traceable to the SI through the calibrated reference standards of the bench: table angle "
         "encoders, DAQ voltage reference, thermometer, and the local gravity value stated under conditions."
     )
-    temp = None
+    temp: dict[str, float] | str = "not measured"
     if inp.temp_c is not None:
         lo, mean, hi = inp.temp_c
         temp = {"min_c": round(lo, 2), "mean_c": round(mean, 2), "max_c": round(hi, 2)}
@@ -167,7 +246,7 @@ def certificate_content(
         "number": number,
         "laboratory": {"name": lab.name, "address": lab.address},
         "location": lab.location,
-        "customer": {"name": None, "note": "not recorded by the bench"},
+        "customer": _customer(unit, lab),
         "method": {
             "procedure": procedure,
             "description": METHOD.get(procedure, procedure),
@@ -175,25 +254,19 @@ def certificate_content(
             "deviations": list(inp.deviations) or ["none"],
             "sampling": "not applicable",
         },
-        "item": {
-            "description": "triaxial accelerometer",
-            "serial": unit.get("serial"),
-            "model": unit.get("model"),
-            "channel_unit": unit.get("channel_unit"),
-            "condition": "as received; no adjustment made",
-        },
+        "item": _item(unit),
         "dates": {
-            "received": None,
+            "received": _stated(unit.get("received_on")),
             "calibration_start": _iso(run.get("started_at")),
             "calibration_end": _iso(run.get("finished_at")),
             "issued": _iso(issued_at),
         },
         "run_id": run.get("id"),
-        "bench": run.get("bench"),
+        "bench": _stated(run.get("bench")),
         "conditions": {
             "sensor_temperature": temp,
-            "g_local_m_s2": inp.g_local_m_s2,
-            "table": inp.table,
+            "g_local_m_s2": _stated(inp.g_local_m_s2),
+            "table": _stated(inp.table),
         },
         "results": _results(inp.calibration),
         "g_check": _g_check(inp.calibration),
@@ -203,6 +276,8 @@ def certificate_content(
         "traceability": traceability,
         "statements": [ONLY_ITEM, NOT_REPRODUCED],
         "authorized_by": lab.authorized_by,
+        "authorization": "Authorised for issue by the person named above; the SHA-256 of this content "
+        "identifies the authorised version.",
         "external_providers": "none",
         "end": "End of certificate",
     }

@@ -23,6 +23,7 @@ from sqlalchemy.orm import Session
 from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
 from api.certificates.pdf import render_pdf
 from api.settings import Settings
+from bench.calibration import calibrate_recording
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
 from db.models import Certificate, FitKind, Run, Unit
@@ -50,7 +51,10 @@ def diagnose(rec: Recording) -> dict[str, Any]:
 
 def laboratory(settings: Settings) -> Laboratory:
     """The issuing laboratory from the settings."""
-    return Laboratory(settings.lab_name, settings.lab_address, settings.lab_location, settings.authorized_by)
+    return Laboratory(
+        settings.lab_name, settings.lab_address, settings.lab_location, settings.authorized_by,
+        settings.customer_name, settings.customer_address,
+    )
 
 
 def _table(rec: Recording) -> dict[str, Any] | None:
@@ -78,32 +82,59 @@ class RunAnalysis:
     :param rec: the recording, or ``None`` when unreadable or not needed.
     :param diagnosis: the ``calbench diagnose --json`` object, or ``None``.
     :param note: why there is no diagnosis (empty when there is one).
+    :param g_before: the |g| check with the unit's registered nominal scale (``before``
+        adjustment, ``calibrate --json`` names) when the fit had none, with ``nominal``.
     """
 
     rec: Recording | None
     diagnosis: dict[str, Any] | None
     note: str
+    g_before: dict[str, Any] | None = None
 
 
-def analyse_recording(path: str | None) -> RunAnalysis:
-    """Read the recording at ``path`` and diagnose it (no database)."""
+Nominal = tuple[float, float | None]
+"""A unit's registered nominal scale (channel unit per m/s²) and zero-g output (channel unit)."""
+
+
+def g_check_before(rec: Recording, nominal: Nominal) -> dict[str, Any] | None:
+    """The |g| check of ``rec`` with the nominal scale and zero-g output (no adjustment), as
+    ``{"mean_error_m_s2", "std_m_s2", "nominal": {...}}``; ``None`` if it cannot be formed."""
+    scale, bias = nominal
+    try:
+        cal = calibrate_recording(rec, nominal_scale=scale, nominal_bias=np.full(3, bias or 0.0))
+    except ValueError:
+        return None
+    before = cal.to_contract().get("g_check", {}).get("before")
+    if not isinstance(before, dict):
+        return None
+    return {**before, "nominal": {"scale": scale, "bias": bias or 0.0, "source": "unit registration"}}
+
+
+def analyse_recording(path: str | None, nominal: Nominal | None = None) -> RunAnalysis:
+    """Read the recording at ``path``, diagnose it and, with a nominal scale, form the |g|
+    check before adjustment (no database)."""
     if not path:
         return RunAnalysis(None, None, "diagnosis not performed: the run has no recording")
     try:
         rec = read_recording(path)
     except (OSError, ValueError) as exc:
         return RunAnalysis(None, None, f"diagnosis not performed: recording {path} cannot be read: {exc}")
+    before = g_check_before(rec, nominal) if nominal is not None else None
     try:
-        return RunAnalysis(rec, diagnose(rec), "")
+        return RunAnalysis(rec, diagnose(rec), "", before)
     except (RuntimeError, ValueError) as exc:
-        return RunAnalysis(rec, None, f"diagnosis not performed: {exc}")
+        return RunAnalysis(rec, None, f"diagnosis not performed: {exc}", before)
 
 
-def analyse_run(record: RunRecord) -> RunAnalysis:
-    """The analysis of a finished run: only a run with a fit is diagnosed."""
+def analyse_run(record: RunRecord, nominal: Nominal | None = None) -> RunAnalysis:
+    """The analysis of a finished run: only a run with a fit is diagnosed; the nominal
+    |g| check is formed only when the fit has no ``before`` of its own."""
     if record.calibration is None:
         return RunAnalysis(None, None, "diagnosis not performed: the run has no fit")
-    return analyse_recording(str(record.start.recording_path))
+    g_check = record.calibration.get("g_check")
+    if isinstance(g_check, dict) and "before" in g_check:
+        nominal = None
+    return analyse_recording(str(record.start.recording_path), nominal)
 
 
 def store_diagnosis(s: Session, run_id: str, analysis: RunAnalysis) -> None:
@@ -116,11 +147,40 @@ def store_diagnosis(s: Session, run_id: str, analysis: RunAnalysis) -> None:
     merge_params(s, run_id, {"diagnosis": analysis.diagnosis, "diagnosis_error": None})
 
 
+def store_g_before(s: Session, run_id: str, g_before: dict[str, Any] | None) -> None:
+    """Add the nominal |g| check to the run's stored fit as ``g_check.before``."""
+    run = s.get(Run, run_id)
+    cal = run.params.get("calibration") if run is not None else None
+    if g_before is None or not isinstance(cal, dict) or "before" in cal.get("g_check", {}):
+        return
+    g_check = {**cal.get("g_check", {}), "before": g_before}
+    merge_params(s, run_id, {"calibration": {**cal, "g_check": g_check}})
+
+
 def store_results(s: Session, record: RunRecord, analysis: RunAnalysis) -> None:
-    """Store the fit and the diagnosis (or why there is none) of a finished run."""
+    """Store the fit, the nominal |g| check and the diagnosis (or why there is none)."""
     if record.calibration is not None:
         add_fit(s, record.run_id, FitKind.STATIC, record.calibration)
+    store_g_before(s, record.run_id, analysis.g_before)
     store_diagnosis(s, record.run_id, analysis)
+
+
+def unit_inputs(unit: Unit) -> dict[str, Any]:
+    """What the certificate states about the item and its customer, from the unit's registration."""
+    return {
+        "serial": unit.serial, "model": unit.model, "channel_unit": unit.channel_unit,
+        "description": unit.description, "condition": unit.condition,
+        "customer_name": unit.customer_name, "customer_address": unit.customer_address,
+        "received_on": unit.received_on.isoformat() if unit.received_on else None,
+        "nominal_scale": unit.nominal_scale, "nominal_bias": unit.nominal_bias,
+    }
+
+
+def unit_nominal(unit: Unit | None) -> Nominal | None:
+    """The unit's registered nominal (scale, zero-g output), or ``None``."""
+    if unit is None or unit.nominal_scale is None:
+        return None
+    return unit.nominal_scale, unit.nominal_bias
 
 
 def issue_for_run(
@@ -158,7 +218,7 @@ def issue_for_run(
         run={"id": run.id, "procedure": run.procedure, "started_at": run.started_at,
              "finished_at": run.finished_at, "parameters": run.params.get("parameters", {}),
              "bench": run.params.get("bench")},
-        unit={"serial": unit.serial, "model": unit.model, "channel_unit": unit.channel_unit},
+        unit=unit_inputs(unit),
         calibration=calibration,
         g_local_m_s2=g_local,
         temp_c=temp_c,

@@ -1,115 +1,238 @@
 """The certificate as a PDF, rendered from its JSON content with matplotlib's PDF backend.
 
-A4 pages of monospaced text: the header (title, number, laboratory) and "page n of N" on
-every page, "End of certificate" on the last (ISO/IEC 17025 7.8.2.1 d). The content hash
-is printed so a reader can check the PDF against the JSON.
+A4 pages laid out like a laboratory's certificate: a title block on every page (laboratory,
+"Calibration Certificate", number, "Page n of N"), tables of the item, the method, the
+conditions and the results with their units and expanded uncertainties U (k = 2), the |g|
+check before and after, the diagnosis findings, the traceability and conformity statements,
+the authorisation with a signature line, "End of certificate" (ISO/IEC 17025 7.8.2.1 d), and
+in the footer of every page the SHA-256 of the JSON content, so a reader can check the
+paper against the stored record. Text only comes from the content; nothing is recomputed.
 """
 
 from __future__ import annotations
 
+import datetime as dt
 import io
-import json
-import textwrap
+import math
 from typing import Any
 
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
+from api.certificates.pdf_layout import Flow, Page, wrap
+
 A4_IN = (8.27, 11.69)
-LINES_PER_PAGE = 58
-WIDTH_CHARS = 92
+AXES = ("x", "y", "z")
+FONT = "DejaVu Sans"
 
 
-def _fmt_matrix(rows: list[list[float]], us: list[list[float]]) -> list[str]:
-    return [
-        "    " + "   ".join(f"{v: .6e} ± {u:.1e}" for v, u in zip(r, ur, strict=True))
-        for r, ur in zip(rows, us, strict=True)
-    ]
+def _unit(text: str) -> str:
+    return text.replace("m/s2", "m/s²")
 
 
-def _quantity(name: str, q: dict[str, Any]) -> list[str]:
-    head = f"  {name} ({q['unit']}), expanded uncertainty U (k = {q['k']:g}):"
-    v, u = q["value"], q["expanded_uncertainty"]
-    if v and isinstance(v[0], list):
-        return [head, *_fmt_matrix(v, u)]
-    return [head, "    " + "   ".join(f"{a:.7g} ± {b:.1e}" for a, b in zip(v, u, strict=True))]
+def _decimals(u: float) -> int | None:
+    """Decimal places that show U to two significant digits (``None``: use exponent form)."""
+    if not (math.isfinite(u) and u > 0):
+        return None
+    d = 1 - math.floor(math.log10(u))
+    return d if 0 <= d <= 9 else None
 
 
-def _wrap(text: str, indent: str = "  ") -> list[str]:
-    return textwrap.wrap(text, WIDTH_CHARS, initial_indent=indent, subsequent_indent=indent) or [indent]
+def value_and_u(v: float, u: float) -> tuple[str, str]:
+    """``v`` and ``u`` printed to the decimal place of U's second significant digit."""
+    d = _decimals(u)
+    if d is None:
+        return f"{v:.4e}", f"{u:.1e}"
+    return f"{v:.{d}f}", f"{u:.{d}f}"
+
+
+def _when(value: Any) -> str:
+    """An ISO 8601 time as ``YYYY-MM-DD HH:MM:SS UTC`` (other text unchanged)."""
+    try:
+        t = dt.datetime.fromisoformat(str(value))
+    except ValueError:
+        return _text(value)
+    if t.tzinfo is None or len(str(value)) <= 10:
+        return _text(value)
+    return t.astimezone(dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:g}"
+    return "" if value is None else str(value)
+
+
+def _identification(f: Flow, c: dict[str, Any]) -> None:
+    item, dates, cust = c["item"], c["dates"], c["customer"]
+    when = f"{_when(dates['calibration_start'])} to {_when(dates['calibration_end'])}"
+    nominal = item.get("nominal_scale", {})
+    zero_g = item.get("nominal_zero_g_output", {})
+    f.heading("1  Customer and item")
+    f.table(
+        [
+            ("Customer", _text(cust.get("name"))),
+            ("Customer address", _text(cust.get("address"))),
+            ("Item", f"{item['description']}, model {item['model']}"),
+            ("Serial number", _text(item["serial"])),
+            ("Output unit", _unit(_text(item["channel_unit"]))),
+            ("Nominal scale factor", f"{_text(nominal.get('value'))} {_unit(_text(nominal.get('unit')))}"),
+            ("Nominal zero-g output", f"{_text(zero_g.get('value'))} {_unit(_text(zero_g.get('unit')))}"),
+            ("Condition as received", _text(item["condition"])),
+            ("Adjustment", _text(item.get("adjustment"))),
+            ("Date of receipt", _text(dates["received"])),
+            ("Date(s) of calibration", when),
+            ("Date of issue", _when(dates["issued"])),
+            ("Place of calibration", f"{c['location']}, bench {c.get('bench')}"),
+            ("Run identifier", _text(c.get("run_id"))),
+        ],
+        widths=(0.3, 0.7),
+    )
+
+
+def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
+    m, cond = c["method"], c["conditions"]
+    params = ", ".join(f"{k} = {_text(v)}" for k, v in sorted(m.get("parameters", {}).items())) or "defaults"
+    f.heading("2  Method")
+    f.table(
+        [
+            ("Procedure", f"{m['procedure']}: {m['description']}"),
+            ("Parameters", params),
+            ("Deviations from the method", "; ".join(m["deviations"])),
+            ("Sampling", _text(m.get("sampling"))),
+        ],
+        widths=(0.3, 0.7),
+    )
+    t = cond["sensor_temperature"]
+    temp = _text(t)
+    if isinstance(t, dict):
+        temp = f"{t['mean_c']:.2f} °C (min {t['min_c']:.2f} °C, max {t['max_c']:.2f} °C)"
+    g_local = cond["g_local_m_s2"]
+    table = cond.get("table")
+    if isinstance(table, dict):
+        axes = ", ".join(f"{a['name']} about {tuple(a['axis'])}" for a in table.get("axes", []))
+        arm = ", ".join(f"{1000 * x:.1f}" for x in table.get("lever_arm_m", []))
+        table_text = f"axes {axes}; lever arm ({arm}) mm"
+    else:
+        table_text = _text(table)
+    f.heading("3  Conditions of calibration")
+    f.table(
+        [
+            ("Sensor temperature", temp),
+            ("Local gravity g_local", f"{g_local:.6f} m/s²" if isinstance(g_local, float) else str(g_local)),
+            ("Rotary table", table_text),
+        ],
+        widths=(0.3, 0.7),
+    )
+
+
+def _results(f: Flow, c: dict[str, Any]) -> None:
+    res = c["results"]
+    f.heading("4  Results")
+    f.paragraph(f"Model: {_unit(res['model'])}.  Terms fitted: {', '.join(res['terms'])}.")
+    bias = res["bias"]
+    rows = [("Axis", f"Bias ({_unit(bias['unit'])})", f"U, k = {bias['k']:g} ({_unit(bias['unit'])})")]
+    for a, v, u in zip(AXES, bias["value"], bias["expanded_uncertainty"], strict=True):
+        rows.append((a, *value_and_u(v, u)))
+    f.subheading("Bias b (zero-g output)")
+    f.table(rows, widths=(0.2, 0.4, 0.4), header=True, align="right")
+    sm = res["scale_matrix"]
+    f.subheading(f"Scale and misalignment matrix K ({_unit(sm['unit'])}), value ± U (k = {sm['k']:g})")
+    rows = [("output \\ input", "x", "y", "z")]
+    for a, vr, ur in zip(AXES, sm["value"], sm["expanded_uncertainty"], strict=True):
+        rows.append((a, *(" ± ".join(value_and_u(v, u)) for v, u in zip(vr, ur, strict=True))))
+    f.table(rows, widths=(0.16, 0.28, 0.28, 0.28), header=True, align="right")
+    rms = res["residual_rms"]
+    f.paragraph(f"Residual RMS of the fit: {_text(rms['value']) or 'not available'} {_unit(rms['unit'])}.")
+    g = c["g_check"]
+    f.subheading("|g| check: |K⁻¹(raw − b)| − g_local over the static positions (m/s²)")
+    rows = [("", "mean error", "standard deviation")]
+    for when, label in (("before", "before adjustment (nominal)"), ("after", "after (this calibration)")):
+        v = g[when]
+        rows.append(
+            (label, _text(v.get("mean_error_m_s2")), _text(v.get("std_m_s2")))
+            if isinstance(v, dict)
+            else (label, _text(v), "")
+        )
+    f.table(rows, widths=(0.36, 0.32, 0.32), header=True, align="right")
+    if g.get("before_basis"):
+        f.paragraph(f"Basis of 'before': {g['before_basis']}.", size=7.5)
+    f.paragraph(c["uncertainty_statement"], size=7.5)
+
+
+def _statements(f: Flow, c: dict[str, Any]) -> None:
+    diag = c["diagnosis"]
+    f.heading("5  Diagnosis of unmodelled effects (opinion, ISO/IEC 17025 7.8.7)")
+    f.paragraph(diag["note"][:1].upper() + diag["note"][1:] + ".")
+    if diag["findings"]:
+        rows = [("Effect", "Finding")] + [(str(x["effect"]), str(x["summary"])) for x in diag["findings"]]
+        f.table(rows, widths=(0.25, 0.75), header=True)
+    f.heading("6  Conformity, traceability, external providers")
+    f.table(
+        [
+            ("Conformity", c["conformity"]),
+            ("Traceability", c["traceability"]),
+            ("External providers", _text(c["external_providers"])),
+        ],
+        widths=(0.22, 0.78),
+    )
+    for s in c["statements"]:
+        f.paragraph(s, size=7.5)
+    f.signature(c["authorized_by"], _when(c["dates"]["issued"]), c.get("authorization", ""))
+    f.end(c["end"])
+
+
+def _decorate(fig: Figure, page: Page, n: int, total: int, c: dict[str, Any], sha256: str) -> None:
+    lab = c["laboratory"]
+    fig.text(0.07, 0.962, lab["name"], fontsize=11, weight="bold", family=FONT)
+    fig.text(0.07, 0.947, lab["address"], fontsize=7.5, family=FONT, color="0.25")
+    fig.text(0.93, 0.962, c["title"], fontsize=13, weight="bold", ha="right", family=FONT)
+    fig.text(0.93, 0.947, f"Certificate No. {c['number']}", fontsize=9, ha="right", family=FONT)
+    fig.text(0.93, 0.934, f"Page {n} of {total}", fontsize=8, ha="right", family=FONT)
+    fig.add_artist(_rule(0.927))
+    fig.add_artist(_rule(0.052))
+    foot = f"Certificate No. {c['number']}  ·  SHA-256 of the content: {sha256}"
+    fig.text(0.07, 0.040, foot, fontsize=6.2, family="DejaVu Sans Mono", color="0.25")
+    fig.text(0.07, 0.028, c["statements"][-1], fontsize=6.2, family=FONT, color="0.25")
+    fig.text(0.93, 0.028, f"Page {n} of {total}", fontsize=7, ha="right", family=FONT)
+    page.draw(fig)
+
+
+def _rule(y: float) -> Any:
+    from matplotlib.lines import Line2D
+
+    return Line2D([0.07, 0.93], [y, y], lw=0.8, color="0.3")
+
+
+def certificate_pages(c: dict[str, Any]) -> list[Page]:
+    """The laid-out body pages of a certificate."""
+    f = Flow(top=0.915, bottom=0.065, left=0.07, right=0.93)
+    _identification(f, c)
+    _method_conditions(f, c)
+    _results(f, c)
+    _statements(f, c)
+    return f.pages
 
 
 def certificate_lines(c: dict[str, Any], sha256: str) -> list[str]:
-    """The certificate's body as text lines (without page headers)."""
-    res, cond, dates = c["results"], c["conditions"], c["dates"]
-    lines = [
-        f"Laboratory: {c['laboratory']['name']}",
-        f"Address: {c['laboratory']['address']}",
-        f"Location of calibration: {c['location']}   Bench: {c.get('bench')}",
-        f"Customer: {c['customer']['name'] or c['customer']['note']}",
-        "",
-        "ITEM",
-        f"  {c['item']['description']}, serial {c['item']['serial']}, model {c['item']['model'] or 'n/a'}",
-        f"  output unit {c['item']['channel_unit']}; condition: {c['item']['condition']}",
-        "DATES",
-        f"  calibrated {dates['calibration_start']} .. {dates['calibration_end']}",
-        f"  issued {dates['issued']}   received: {dates['received'] or 'not recorded'}",
-        "METHOD",
-        *_wrap(f"{c['method']['procedure']}: {c['method']['description']}"),
-        *_wrap("deviations: " + "; ".join(c["method"]["deviations"])),
-        "CONDITIONS",
-    ]
-    t = cond["sensor_temperature"]
-    lines.append(
-        "  sensor temperature: "
-        + (f"{t['mean_c']:.2f} °C (min {t['min_c']:.2f}, max {t['max_c']:.2f})" if t else "not measured")
-    )
-    g_local = cond["g_local_m_s2"]
-    g_text = f"{g_local:.6f} m/s²" if g_local is not None else "not recorded"
-    lines.append(f"  local gravity g_local = {g_text}")
-    if cond.get("table"):
-        lines.extend(_wrap("table: " + json.dumps(cond["table"])))
-    lines += ["RESULTS", *_wrap(res["model"]), *_quantity("bias", res["bias"])]
-    lines += _quantity("scale_matrix K", res["scale_matrix"])
-    rms = res["residual_rms"]["value"]
-    lines.append(f"  residual RMS: {'n/a' if rms is None else f'{rms:.2g}'} {res['residual_rms']['unit']}")
-    lines.append("|g| CHECK (mean error / std over static windows, m/s²)")
-    for when in ("before", "after"):
-        g = c["g_check"][when]
-        lines.append(
-            f"  {when:7s}: " + (f"{g['mean_error_m_s2']} / {g['std_m_s2']}" if g else "not available")
-        )
-    lines += ["UNCERTAINTY", *_wrap(c["uncertainty_statement"])]
-    diag = c["diagnosis"]
-    lines += ["DIAGNOSIS", *_wrap(diag["note"])]
-    for f in diag["findings"]:
-        lines += _wrap(f"- {f['effect']}: {f['summary']}", "    ")
-    lines += ["CONFORMITY", *_wrap(c["conformity"]), "TRACEABILITY", *_wrap(c["traceability"])]
-    lines += ["STATEMENTS", *[x for s in c["statements"] for x in _wrap(s)]]
-    lines += [
-        f"Authorised by: {c['authorized_by']}",
-        f"Results from external providers: {c['external_providers']}",
-    ]
-    lines += ["", f"SHA-256 of the JSON content: {sha256}", "", c["end"]]
-    return lines
+    """The certificate's text, line by line (for a text rendering or a search)."""
+    lines = [c["title"], c["number"], c["laboratory"]["name"]]
+    for page in certificate_pages(c):
+        lines += page.texts()
+    return [*lines, f"SHA-256 of the content: {sha256}"]
 
 
 def render_pdf(content: dict[str, Any], sha256: str) -> bytes:
     """The certificate PDF (bytes)."""
-    body = certificate_lines(content, sha256)
-    pages = [body[i : i + LINES_PER_PAGE] for i in range(0, len(body), LINES_PER_PAGE)] or [[]]
+    pages = certificate_pages(content)
     buf = io.BytesIO()
-    meta = {"Title": f"{content['title']} {content['number']}", "Creator": "calbench"}
+    meta = {"Title": f"{content['title']} {content['number']}", "Creator": "calbench", "Subject": sha256}
     with PdfPages(buf, metadata=meta) as pdf:
         for n, page in enumerate(pages, start=1):
             fig = Figure(figsize=A4_IN)
-            fig.text(0.08, 0.955, content["title"], fontsize=16, weight="bold", family="DejaVu Sans")
-            fig.text(0.92, 0.955, f"No. {content['number']}", fontsize=10, ha="right", family="DejaVu Sans")
-            fig.text(0.08, 0.935, content["laboratory"]["name"], fontsize=9, family="DejaVu Sans")
-            fig.text(0.92, 0.935, f"page {n} of {len(pages)}", fontsize=9, ha="right", family="DejaVu Sans")
-            y = 0.905
-            for line in page:
-                fig.text(0.06, y, line, fontsize=7.2, family="DejaVu Sans Mono", va="top")
-                y -= 0.0148
+            _decorate(fig, page, n, len(pages), content, sha256)
             pdf.savefig(fig)
     return buf.getvalue()
+
+
+__all__ = ["certificate_lines", "render_pdf", "value_and_u", "wrap"]

@@ -7,7 +7,13 @@ from typing import Any
 import sqlalchemy as sa
 from fastapi import APIRouter, HTTPException, Response, status
 
-from api.certificates.issue import analyse_recording, issue_for_run, store_diagnosis
+from api.certificates.issue import (
+    analyse_recording,
+    issue_for_run,
+    store_diagnosis,
+    store_g_before,
+    unit_nominal,
+)
 from api.deps import OperatorDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
 from api.routes.views import certificate_out
 from api.schemas import CertificateOut
@@ -75,11 +81,18 @@ def issue(run_id: str, session: SessionDep, settings: SettingsDep, _: OperatorDe
         run = get_run(session, run_id)
         assert run is not None
         path, diagnosed = run.recording_path, isinstance(run.params.get("diagnosis"), dict)
-    analysis = analyse_recording(str(path) if path else None) if not diagnosed else None
+        cal = run.params.get("calibration")
+        g_check = cal.get("g_check", {}) if isinstance(cal, dict) else {}
+        nominal = None if "before" in g_check else unit_nominal(session.get(Unit, run.unit_id))
+    analysis = None
+    if not diagnosed or nominal is not None:
+        analysis = analyse_recording(str(path) if path else None, nominal)
     with session.begin():
         serial = _issuable(session, run_id)
         if analysis is not None:
-            store_diagnosis(session, run_id, analysis)
+            store_g_before(session, run_id, analysis.g_before)
+            if not diagnosed:
+                store_diagnosis(session, run_id, analysis)
         try:
             cert = issue_for_run(
                 session, settings, run_id, rec=analysis.rec if analysis else None,

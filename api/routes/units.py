@@ -1,18 +1,20 @@
-"""Units: the list, and one unit's history (runs, certificates, drift checks)."""
+"""Units: the list, registration (operator), and one unit's history (runs, certificates, drift checks)."""
 
 from __future__ import annotations
 
-import sqlalchemy as sa
-from fastapi import APIRouter, HTTPException, status
+from typing import Annotated
 
-from api.deps import RunnerDep, SessionDep, ViewerDep
+import sqlalchemy as sa
+from fastapi import APIRouter, HTTPException, Path, status
+
+from api.deps import OperatorDep, RunnerDep, SessionDep, ViewerDep
 from api.routes.views import certificate_out, drift_out, run_out
-from api.schemas import UnitHistory, UnitOut
+from api.schemas import SERIAL_PATTERN, UnitHistory, UnitOut, UnitRegistration
 from db.models import Bench, Certificate, DriftCheck, Run, Unit
 from db.repo.certificates import list_certificates
 from db.repo.drift import list_drift_checks
 from db.repo.runs import list_runs
-from db.repo.units import get_unit_by_serial, list_units
+from db.repo.units import get_or_create_unit, get_unit_by_serial, list_units
 
 router = APIRouter(prefix="/api/units", tags=["units"])
 
@@ -29,7 +31,14 @@ def _unit_out(session: SessionDep, unit: Unit) -> UnitOut:
     return UnitOut(
         serial=unit.serial, model=unit.model, channel_unit=unit.channel_unit, bench=bench,
         n_runs=int(n_runs), last_certificate=last_cert, last_drift_flagged=last_drift,
+        **{name: getattr(unit, name) for name in REGISTRATION_FIELDS},
     )
+
+
+REGISTRATION_FIELDS = (
+    "description", "customer_name", "customer_address", "received_on", "nominal_scale", "nominal_bias",
+    "condition",
+)
 
 
 @router.get("", response_model=list[UnitOut])
@@ -37,6 +46,28 @@ def units(session: SessionDep, _: ViewerDep) -> list[UnitOut]:
     """Every unit, by serial, with its last certificate and whether its last drift check flagged it."""
     with session.begin():
         return [_unit_out(session, u) for u in list_units(session)]
+
+
+@router.put(
+    "/{serial}",
+    response_model=UnitOut,
+    responses={422: {"description": "a bad field or serial, named"}},
+)
+def register(
+    serial: Annotated[str, Path(pattern=SERIAL_PATTERN)],
+    body: UnitRegistration,
+    session: SessionDep,
+    _: OperatorDep,
+) -> UnitOut:
+    """Register a unit or update what the laboratory states about it (customer, date of
+    receipt, model, nominal scale...); these go on its next certificates. Fields not sent
+    keep their value, ``null`` clears one."""
+    with session.begin():
+        unit = get_or_create_unit(session, serial)
+        for name in body.model_fields_set:
+            setattr(unit, name, getattr(body, name))
+        session.flush()
+        return _unit_out(session, unit)
 
 
 @router.get("/{serial}/history", response_model=UnitHistory, responses={404: {"description": "no such unit"}})

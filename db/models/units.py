@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as dt
 from typing import TYPE_CHECKING
 
 import sqlalchemy as sa
@@ -33,6 +34,13 @@ class Unit(IntId, Base):
 
     :param channel_unit: unit of the raw channels (``V``, ``count``, ``m/s2``, ``g``).
     :param bench_id: the bench it was last calibrated on, if known.
+    :param description: what the item is (e.g. ``triaxial MEMS accelerometer``).
+    :param customer_name, customer_address: who the unit is calibrated for (ISO/IEC 17025
+        7.8.2.1 e); ``None``: not stated by the laboratory.
+    :param received_on: date the unit was received (7.8.2.1 h).
+    :param nominal_scale: the manufacturer's nominal scale factor, in ``channel_unit`` per m/s².
+    :param nominal_bias: the nominal zero-g output of each axis, in ``channel_unit``.
+    :param condition: condition as received (7.8.2.1 g).
     """
 
     __tablename__ = "unit"
@@ -41,6 +49,13 @@ class Unit(IntId, Base):
     model: Mapped[str | None] = mapped_column(sa.String(200))
     channel_unit: Mapped[str | None] = mapped_column(sa.String(16))
     bench_id: Mapped[int | None] = mapped_column(sa.ForeignKey("bench.id", ondelete="SET NULL"), index=True)
+    description: Mapped[str | None] = mapped_column(sa.String(200))
+    customer_name: Mapped[str | None] = mapped_column(sa.String(200))
+    customer_address: Mapped[str | None] = mapped_column(sa.String(500))
+    received_on: Mapped[dt.date | None] = mapped_column(sa.Date)
+    nominal_scale: Mapped[float | None] = mapped_column(sa.Float)
+    nominal_bias: Mapped[float | None] = mapped_column(sa.Float)
+    condition: Mapped[str | None] = mapped_column(sa.String(500))
 
     bench: Mapped[Bench | None] = relationship(back_populates="units", lazy="raise")
     runs: Mapped[list[Run]] = relationship(back_populates="unit", lazy="raise")

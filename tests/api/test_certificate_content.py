@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import datetime as dt
+import re
 import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
 
-from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
+from api.certificates.certificate import REQUIRED_ITEMS, CertificateInputs, Laboratory, certificate_content
 from api.certificates.pdf import render_pdf
 from api.certificates.rounding import expanded_quantity, round_expanded
 from db.repo.certificates import canonical_sha256
@@ -71,7 +72,7 @@ def test_content_carries_the_17025_items_and_the_model_under_the_contract_names(
     assert res["bias"]["value"] == [1.5042, 1.5003, 1.4955]
     assert res["bias"]["expanded_uncertainty"] == [2.2e-5, 2.4e-5, 1.8e-5]
     assert res["scale_matrix"]["expanded_uncertainty"][0] == [3.2e-6] * 3
-    assert c["g_check"]["before"] is None and c["g_check"]["after"]["std_m_s2"] == 3.3e-4
+    assert c["g_check"]["before"].startswith("not stated") and c["g_check"]["after"]["std_m_s2"] == 3.3e-4
     assert c["diagnosis"]["findings"][0]["effect"] == "nonlinearity_quadratic"
     assert c["conditions"]["sensor_temperature"]["mean_c"] == 24.6
     assert "k = 2" in c["uncertainty_statement"]
@@ -86,6 +87,41 @@ def test_pdf_text_holds_number_results_and_hash(tmp_path: Path) -> None:
     path.write_bytes(render_pdf(c, digest))
     text = subprocess.run(["pdftotext", "-layout", str(path), "-"], capture_output=True, text=True,
                           check=True).stdout
-    for needle in ("Calibration Certificate", "CB-2025-00007", "page 1 of 1", digest, "End of certificate",
-                   "nonlinearity_quadratic", "1.5042 ± 2.2e-05", "1.4955 ± 1.8e-05"):
+    for needle in ("Calibration Certificate", "CB-2025-00007", "Page 1 of 2", "Page 2 of 2", digest,
+                   "End of certificate", "nonlinearity_quadratic", "Customer address", "not stated",
+                   "Authorised by", "A. Person",
+                   "2025-01-01 00:00:00 UTC to 2025-01-01 00:05:00 UTC", "U, k = 2 (V)"):
         assert needle in text, needle
+    # bias and its U on one table row, to U's second significant digit (U = 2.2e-5 V: 6 decimals)
+    assert re.search(r"x\s+1\.504200\s+0\.000022", text), text
+    assert re.search(r"0\.0174400 ± 0\.0000032", text)
+
+
+def test_every_17025_item_is_filled_and_missing_ones_say_not_stated() -> None:
+    c = _content()
+    missing = [clause for clause, path in REQUIRED_ITEMS.items() if _blank(_at(c, path))]
+    assert missing == []
+    not_given = {"name": "not stated", "address": "not stated", "source": "not given to the laboratory"}
+    assert c["customer"] == not_given
+    assert c["dates"]["received"] == "not stated" and c["item"]["model"] == "ADXL325"
+    lab = Laboratory("L", "A", "room", "P", default_customer_name="Dept. 7", default_customer_address="B 2")
+    inputs = CertificateInputs(run={"procedure": "static-12"}, unit={"serial": "S", "customer_name": "Acme",
+                               "received_on": "2025-01-01"}, calibration=CAL, g_local_m_s2=None)
+    c2 = certificate_content(inputs, lab, number="N", issued_at=dt.datetime(2025, 1, 2, tzinfo=dt.UTC))
+    assert c2["customer"] == {"name": "Acme", "address": "not stated", "source": "unit registration"}
+    assert c2["dates"]["received"] == "2025-01-01" and c2["conditions"]["g_local_m_s2"] == "not stated"
+    inputs3 = CertificateInputs(run={}, unit={"serial": "S"}, calibration=CAL, g_local_m_s2=9.8)
+    c3 = certificate_content(inputs3, lab, number="N", issued_at=dt.datetime(2025, 1, 2, tzinfo=dt.UTC))
+    assert c3["customer"]["name"] == "Dept. 7" and c3["customer"]["source"] == "laboratory default"
+
+
+def _at(content: dict[str, object], path: str) -> object:
+    value: object = content
+    for key in path.split("."):
+        assert isinstance(value, dict) and key in value, path
+        value = value[key]
+    return value
+
+
+def _blank(value: object) -> bool:
+    return value is None or value == "" or value == [] or value == {}

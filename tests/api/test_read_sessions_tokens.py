@@ -101,3 +101,18 @@ def test_bad_token_request_names_the_field(client: TestClient) -> None:
     assert r.status_code == 422 and "role" in r.text
     r = client.post("/api/tokens", json={"role": "viewer", "lable": "x"}, headers=ADMIN)
     assert r.status_code == 422 and "lable" in r.text
+
+
+def test_unit_registration_updates_given_fields_and_refuses_bad_ones(client: TestClient) -> None:
+    r = client.put("/api/units/SN-REG", json={"customer_name": "Acme", "nominal_scale": 0.0177}, headers=OP)
+    assert r.status_code == 200, r.text
+    change = {"customer_address": "1 Road", "customer_name": None}
+    body = client.put("/api/units/SN-REG", json=change, headers=OP).json()
+    assert body["customer_name"] is None and body["customer_address"] == "1 Road"
+    assert body["nominal_scale"] == 0.0177
+    for bad, field in (({"nominal_scale": 0}, "nominal_scale"), ({"received_on": "yesterday"}, "received_on"),
+                       ({"colour": "red"}, "colour"), ({"channel_unit": "mV"}, "channel_unit")):
+        r = client.put("/api/units/SN-REG", json=bad, headers=OP)
+        assert r.status_code == 422 and field in r.text, (bad, r.text)
+    assert client.put("/api/units/bad%20serial", json={}, headers=OP).status_code == 422
+    assert client.put("/api/units/SN-REG", json={}, headers=VIEW).status_code == 403

@@ -1,4 +1,5 @@
-"""A calibration run through the REST API, from POST to certificate, with its diagnosis stored."""
+"""A unit registered and calibrated through the REST API, from PUT and POST to the certificate,
+with its diagnosis stored."""
 
 from __future__ import annotations
 
@@ -12,10 +13,15 @@ from api.main import create_app
 from tests.api.service_helpers import OP, VIEW, service_settings, wait_final
 
 pytestmark = pytest.mark.timeout(300)
+NOMINAL_SCALE = 0.174 / 9.80665  # V/(m/s2): the simulated unit's 174 mV/g
 
 
 def test_run_to_certificate(tmp_path: Path) -> None:
     with TestClient(create_app(service_settings(tmp_path), start_scheduler=False)) as client:
+        reg = {"customer_name": "Acme Robotics", "received_on": "2025-03-04", "model": "ADXL325",
+               "nominal_scale": NOMINAL_SCALE, "nominal_bias": 1.5}
+        r = client.put("/api/units/SN-SMOKE", json=reg, headers=OP)
+        assert r.status_code == 200 and r.json()["customer_address"] is None, r.text
         r = client.post("/api/runs", json={"unit_serial": "SN-SMOKE", "procedure": "static-12"}, headers=OP)
         assert r.status_code == 202, r.text
         run_id = r.json()["id"]
@@ -35,5 +41,14 @@ def test_run_to_certificate(tmp_path: Path) -> None:
         certified = cert.json()["content"]["diagnosis"]
         assert certified["performed"] is True
         assert [f["effect"] for f in certified["findings"]] == [f["effect"] for f in diag["findings"]]
+        content = cert.json()["content"]
+        assert content["customer"] == {"name": "Acme Robotics", "address": "not stated",
+                                       "source": "unit registration"}
+        assert content["dates"]["received"] == "2025-03-04" and content["item"]["model"] == "ADXL325"
+        before, after = content["g_check"]["before"], content["g_check"]["after"]
+        # the nominal 174 mV/g, 1.5 V model of a unit with ~1 % scale and ~25 mg zero-g errors
+        # misses |g| by far more than the fitted one does
+        assert before["std_m_s2"] > 5 * after["std_m_s2"] and 1e-3 < abs(before["mean_error_m_s2"]) < 1.0
+        assert "0.0177" in content["g_check"]["before_basis"]
         listed = client.get("/api/runs", headers=VIEW).json()
         assert listed[0]["diagnosis"] is None and listed[0]["n_findings"] == len(diag["findings"])

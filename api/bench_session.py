@@ -9,35 +9,31 @@ procedure and, when every step completed, fit the recording and give the verdict
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import os
 import socket
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy.orm import Session, sessionmaker
+import numpy as np
 
 from api.settings import Settings
-from bench.calibration import calibrate_recording
+from bench.calibration import CalibrationResult, calibrate_recording
 from bench.dwell_policy import fixed_dwell
+from bench.estimation.scalar_fit import PARAMETER_NAMES as SCALAR_NAMES
+from bench.estimation.static_fit import PARAMETER_NAMES as STATIC_NAMES
+from bench.limits import UnitLimits, describe, load_limits, verdict
 from bench.procedures import build_procedure, preview
 from bench.recording.model import Sidecar, TableAxis, TableGeometry
 from bench.recording.reader import read_recording
 from bench.records import (
-    ChunkRecord,
     DwellChoice,
-    NullObserver,
+    LimitCheck,
     Outcome,
-    Progress,
     RunObserver,
     RunRecord,
     RunStart,
     RunState,
-    StateChange,
-    WindowRecord,
     new_run_id,
 )
 from bench.run_recorder import RunRecorder
@@ -46,9 +42,9 @@ from bench.sequencer_control import RunControl, SequencerConfig
 from db.engine import make_session_factory, open_database
 from db.models import Run, Unit
 from db.models import RunState as DbRunState
-from db.repo.progress import record_chunk, record_window
+from db.observer import DbRunObserver
 from db.repo.recovery import claim_for_resume, mark_interrupted_runs
-from db.repo.runs import create_run, finish_run, heartbeat, merge_params, set_live_state
+from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
 from drivers.factory import BenchDevices, open_bench
 from drivers.sim.physics import SensorTruth
@@ -100,100 +96,40 @@ def bench_sidecar(devices: BenchDevices, unit_serial: str, procedure: str, g_loc
     )
 
 
-_FINAL = {
-    Outcome.PASS: DbRunState.COMPLETED,
-    Outcome.FAIL: DbRunState.COMPLETED,
-    Outcome.ERROR: DbRunState.ERROR,
-    Outcome.ABORTED: DbRunState.ABORTED,
-}
-_LIVE = {
-    RunState.RUNNING: DbRunState.RUNNING,
-    RunState.PAUSED: DbRunState.PAUSED,
-    RunState.SUSPENDED: DbRunState.SUSPENDED,
-}
+def fit_covariance(result: CalibrationResult) -> tuple[tuple[tuple[float, ...], ...], tuple[str, ...]]:
+    """The fit's parameter covariance and the names of its rows (static, scalar or dynamic fit)."""
+    dynamic = getattr(result, "fit", None)
+    if dynamic is not None:
+        names = tuple(dynamic.names)
+    else:
+        names = SCALAR_NAMES if result.method == "scalar" else STATIC_NAMES
+    cov = tuple(tuple(float(v) for v in row) for row in np.asarray(result.cov, dtype=float))
+    if len(cov) != len(names):
+        raise ValueError(f"fit covariance is {len(cov)}x{len(cov)} for {len(names)} parameter names")
+    return cov, names
 
 
-class DbObserver(NullObserver):
-    """Writes a run's progress to the database through ``db.repo`` (one short transaction each).
-
-    Chunks and windows are stored as they become durable, so a restart knows the last
-    complete window; progress events become heartbeats (at most one per ``heartbeat_s``).
-    """
-
-    def __init__(self, sessions: sessionmaker[Session], heartbeat_s: float = 1.0) -> None:
-        self.sessions = sessions
-        self.heartbeat_s = heartbeat_s
-        self._last_beat = 0.0
-
-    def on_state(self, run_id: str, change: StateChange) -> None:
-        if change.state in _LIVE:
-            with self.sessions.begin() as s:
-                set_live_state(s, run_id, _LIVE[change.state])
-
-    def on_progress(self, run_id: str, progress: Progress) -> None:
-        if time.monotonic() - self._last_beat >= self.heartbeat_s:
-            self._last_beat = time.monotonic()
-            with self.sessions.begin() as s:
-                heartbeat(s, run_id, progress=progress.fraction)
-
-    def on_chunk(self, run_id: str, chunk: ChunkRecord) -> None:
-        with self.sessions.begin() as s:
-            record_chunk(
-                s,
-                run_id,
-                chunk.seq,
-                first_sample=chunk.first_sample,
-                n_samples=chunk.n_samples,
-                last_t_s=chunk.last_t_s,
-                end_byte=chunk.end_byte,
-                window_index=chunk.window_index,
-            )
-
-    def on_window(self, run_id: str, window: WindowRecord) -> None:
-        means = {k: (None if not math.isfinite(v) else v) for k, v in window.means.items()}
-        with self.sessions.begin() as s:
-            record_window(
-                s,
-                run_id,
-                window.index,
-                start_s=window.start_s,
-                end_s=window.end_s,
-                n_samples=window.n_samples,
-                label=window.label,
-                kind=window.kind.value,
-                pose_deg=window.pose_deg,
-                means=means,
-                step_index=window.step_index,
-            )
-
-    def on_dwell(self, run_id: str, dwell: DwellChoice) -> None:
-        with self.sessions.begin() as s:
-            merge_params(s, run_id, {"dwell": dataclasses.asdict(dwell)})
-
-    def on_finish(self, record: RunRecord) -> None:
-        if record.outcome is None:
-            return
-        with self.sessions.begin() as s:
-            if record.calibration is not None:
-                merge_params(s, record.run_id, {"calibration": record.calibration})
-            finish_run(
-                s,
-                record.run_id,
-                _FINAL[record.outcome],
-                outcome=record.outcome.value.lower(),
-                error=record.error,
-            )
-
-
-def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_path: Path) -> RunRecord:
+def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_path: Path,
+            limits: UnitLimits | None) -> RunRecord:
     calibration: dict[str, object] | None = None
     outcome = acq_outcome
+    checks: tuple[LimitCheck, ...] = ()
+    cov: tuple[tuple[float, ...], ...] | None = None
+    names: tuple[str, ...] = ()
     if outcome is None:
         try:
-            calibration = calibrate_recording(read_recording(csv_path)).to_contract()
-            outcome = Outcome.PASS  # no limits configured for the unit: the fit itself is the result
+            result = calibrate_recording(read_recording(csv_path))
+            calibration = result.to_contract()
+            cov, names = fit_covariance(result)
         except ValueError as exc:
             outcome, error = Outcome.ERROR, f"fit failed: {exc}"
+    if calibration is not None:
+        try:
+            outcome, checks = verdict(calibration, limits)
+        except ValueError as exc:
+            outcome, error = Outcome.ERROR, f"limits check failed: {exc}"
+        if outcome is Outcome.FAIL:
+            error = "outside limits: " + "; ".join(describe(c) for c in checks if not c.passed)
     return RunRecord(
         start=seq.start,
         state=RunState.FINISHED,
@@ -201,14 +137,18 @@ def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_
         windows=tuple(seq.recorder.windows),
         error=error,
         calibration=calibration,
+        limit_checks=checks,
         n_samples=seq.recorder.n_rows,
         dwell=seq.dwell,
+        fit_covariance=cov,
+        fit_param_names=names,
     )
 
 
-def _execute(seq: Sequencer, csv_path: Path, observers: Sequence[RunObserver]) -> RunRecord:
+def _execute(seq: Sequencer, csv_path: Path, observers: Sequence[RunObserver],
+             limits: UnitLimits | None) -> RunRecord:
     acq = seq.run()
-    record = _finish(seq, acq.outcome, acq.error, csv_path)
+    record = _finish(seq, acq.outcome, acq.error, csv_path, limits)
     for obs in observers:
         obs.on_finish(record)
     return record
@@ -216,6 +156,18 @@ def _execute(seq: Sequencer, csv_path: Path, observers: Sequence[RunObserver]) -
 
 def _config(settings: Settings) -> SequencerConfig:
     return SequencerConfig(temp_band_c=settings.temp_band_c)
+
+
+def limits_for(settings: Settings, model: str | None, channel_unit: str) -> UnitLimits | None:
+    """The limits that judge a unit: its registered ``model`` if the limits file has it, else
+    ``settings.limits_model``; ``None`` when neither applies to ``channel_unit`` outputs.
+
+    :raises ValueError: the limits file is unreadable or malformed (named).
+    """
+    table = load_limits(settings.limits_file)
+    name = model if model in table else settings.limits_model
+    chosen = table.get(name) if name else None
+    return chosen if chosen is not None and chosen.channel_unit == channel_unit else None
 
 
 def start_run(
@@ -234,8 +186,12 @@ def start_run(
     truth: SensorTruth | None = None,
     devices: BenchDevices | None = None,
     config: SequencerConfig | None = None,
+    limits: UnitLimits | str | None = "settings",
 ) -> RunRecord:
     """Run a procedure on the bench from start to verdict.
+
+    :param limits: the limits that give PASS or FAIL; default ``"settings"``:
+        :func:`limits_for` the unit's registered model; ``None``: every completed fit PASSes.
 
     :param config: sequencer deadlines and policies; default from the settings.
     :param devices: devices already open (the caller keeps them and closes them); default:
@@ -270,6 +226,8 @@ def start_run(
         with sessions.begin() as s:
             bench = get_or_create_bench(s, settings.bench_name)
             unit = get_or_create_unit(s, unit_serial, channel_unit=sidecar.channel_unit, bench_id=bench.id)
+            if limits == "settings":  # before the run exists: a bad limits file refuses the run
+                limits = limits_for(settings, getattr(unit, "model", None), sidecar.channel_unit)
             create_run(
                 s,
                 run_id,
@@ -298,7 +256,7 @@ def start_run(
             dwell=dwell,
             parameters=meta,
         )
-        obs = [DbObserver(sessions), *observers]
+        obs = [DbRunObserver(sessions), *observers]
         seq = Sequencer(
             devices.table,
             devices.daq,
@@ -310,7 +268,7 @@ def start_run(
             (config or _config(settings)),
             dwell,
         )
-        return _execute(seq, csv_path, obs)
+        return _execute(seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None)
     finally:
         if owned:
             devices.close()
@@ -345,6 +303,7 @@ def resume_run(
             procedure_name, params = run.procedure, dict(run.params)
             unit = s.get(Unit, run.unit_id)
             serial = unit.serial if unit is not None else "?"
+            model = getattr(unit, "model", None)
         if point.recording_path is None:
             raise ValueError(f"run {run_id}: no recording path stored")
         csv_path = Path(point.recording_path)
@@ -376,7 +335,7 @@ def resume_run(
                 parameters=dict(stored),
                 resumed_from_window=point.next_window_index,
             )
-            obs = [DbObserver(sessions), *observers]
+            obs = [DbRunObserver(sessions), *observers]
             seq = Sequencer(
                 devices.table,
                 devices.daq,
@@ -389,7 +348,8 @@ def resume_run(
                 dwell,
                 start_window=point.next_window_index,
             )
-            return _execute(seq, csv_path, obs)
+            limits = limits_for(settings, model, devices.daq.channel_unit)
+            return _execute(seq, csv_path, obs, limits)
         finally:
             devices.close()
     finally:

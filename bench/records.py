@@ -287,6 +287,8 @@ class RunRecord:
     :param limit_checks: the unit's limits evaluated on the fit (empty: no limits given).
     :param n_samples: samples in the recording.
     :param dwell: the dwell choice actually used.
+    :param fit_covariance: (p, p) covariance of the fitted parameters, or ``None``.
+    :param fit_param_names: the p parameter names in covariance order.
     """
 
     start: RunStart
@@ -299,6 +301,8 @@ class RunRecord:
     limit_checks: tuple[LimitCheck, ...] = ()
     n_samples: int = 0
     dwell: DwellChoice | None = None
+    fit_covariance: tuple[tuple[float, ...], ...] | None = None
+    fit_param_names: tuple[str, ...] = ()
 
     @property
     def run_id(self) -> str:

@@ -217,7 +217,9 @@ class DbRunObserver(br.NullObserver):
         self._tx(lambda s: runs.merge_params(s, run_id, {"dwell": dataclasses.asdict(dwell)}))
 
     def on_finish(self, record: br.RunRecord) -> None:
-        """Outcome, error, limit checks, any window not yet stored, and the fit."""
+        """Outcome, error, limit checks, any window not yet stored, and the fit (the contract
+        object also in ``params["calibration"]``, with its covariance) — the only place a
+        bench run's fit is stored."""
         run_id = record.run_id
 
         def write(s: Session) -> None:
@@ -246,7 +248,9 @@ class DbRunObserver(br.NullObserver):
             )
             if record.calibration is not None:
                 contract = dict(record.calibration)
-                results.add_fit(s, run_id, fit_kind_for(run.procedure, contract), contract)
+                run.params = {**run.params, "calibration": contract}
+                results.add_fit(s, run_id, fit_kind_for(run.procedure, contract), contract,
+                                covariance=record.fit_covariance, param_names=record.fit_param_names)
 
         self._tx(write)
         self._first_chunk_pending.discard(run_id)

@@ -9,6 +9,7 @@ aborts the run cleanly (table to its safe state, recording kept). Exit code 0 fo
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import signal
 import sys
@@ -17,6 +18,7 @@ from typing import Any, TextIO
 
 from api.bench_session import start_run
 from api.settings import Settings
+from bench.limits import describe
 from bench.procedures import PROCEDURES
 from bench.records import NullObserver, Outcome, Progress, RunRecord, StateChange
 from bench.sequencer_control import RunControl
@@ -90,6 +92,7 @@ def record_as_dict(record: RunRecord) -> dict[str, Any]:
         if dwell is None
         else {"dwell_s": dwell.dwell_s, "source": dwell.source, "reason": dwell.reason},
         "calibration": record.calibration,
+        "limit_checks": [dataclasses.asdict(c) for c in record.limit_checks],
     }
 
 
@@ -114,6 +117,10 @@ def report(record: RunRecord, as_json: bool) -> int:
         print(f"{'|g| check':12s} {'mean error (m/s²)':>18s} {'std (m/s²)':>12s}")
         for name, g in cal["g_check"].items():
             print(f"{name:12s} {g['mean_error_m_s2']:18.3e} {g['std_m_s2']:12.3e}")
+    if record.limit_checks:
+        bad = [c for c in record.limit_checks if not c.passed]
+        print(f"limits: {len(record.limit_checks) - len(bad)}/{len(record.limit_checks)} within"
+              + "".join(f"\n  OUT {describe(c)}" for c in bad))
     return 0 if record.outcome is Outcome.PASS else 1
 
 

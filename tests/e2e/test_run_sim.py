@@ -13,8 +13,12 @@ import pytest
 import sqlalchemy as sa
 
 from api.bench_session import start_run
+from bench.estimation.static_fit import PARAMETER_NAMES as STATIC_NAMES
 from bench.recording.reader import read_recording
 from bench.records import NullObserver, Outcome, Progress, RunRecord, WindowKind
+from db.engine import make_session_factory
+from db.models import Run
+from db.repo.results import list_fits
 from drivers.sim.physics import SensorTruth
 from tests.e2e.helpers import settings_for, z_scores
 
@@ -52,12 +56,25 @@ def test_static12_on_the_simulated_bench_recovers_the_unit(tmp_path: Path) -> No
     assert rec.sidecar.extra["calbench_run"]["dwell"]["source"] == "fixed"  # type: ignore[index]
     engine = sa.create_engine(settings.effective_database_url)
     with engine.connect() as conn:
-        state, outcome, last = conn.execute(sa.text(
-            "SELECT state, outcome, last_complete_window FROM run WHERE id = :i"), {"i": record.run_id}).one()
+        state, outcome, last, n_rows = conn.execute(sa.text(
+            "SELECT state, outcome, last_complete_window, n_samples FROM run WHERE id = :i"),
+            {"i": record.run_id}).one()
         n_windows = conn.execute(sa.text("SELECT count(*) FROM run_window WHERE run_id = :i"),
                                  {"i": record.run_id}).scalar()
         samples = conn.execute(sa.text("SELECT sum(n_samples) FROM sample_chunk WHERE run_id = :i"),
                                {"i": record.run_id}).scalar()
+    with make_session_factory(engine).begin() as s:
+        fits = [(f.kind.value, np.asarray(f.covariance), list(f.param_names), f.contract)
+                for f in list_fits(s, record.run_id)]
+        checks = s.get(Run, record.run_id).limit_checks  # type: ignore[union-attr]
     engine.dispose()
-    assert (state, outcome, last, n_windows) == ("completed", "pass", 11, 12)
-    assert samples == rec.n_samples
+    assert (state, outcome, last, n_windows) == ("completed", "PASS", 11, 12)
+    assert samples == rec.n_samples == n_rows
+    assert len(fits) == 1  # stored once, with its covariance in parameter order
+    kind, cov, names, contract = fits[0]
+    assert kind == "static" and names == list(STATIC_NAMES) and cov.shape == (12, 12)
+    sigma = np.sqrt(np.diag(cov))
+    np.testing.assert_allclose(sigma[:3], contract["bias_sigma"], rtol=1e-12)
+    np.testing.assert_allclose(sigma[3:], np.ravel(contract["scale_matrix_sigma"]), rtol=1e-12)
+    assert [c["name"] for c in checks][:3] == ["bias_x", "bias_y", "bias_z"]
+    assert all(c["passed"] for c in checks)

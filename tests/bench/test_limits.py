@@ -1,0 +1,73 @@
+"""Unit-model limits: the intervals from the file, the checks of a fit, malformed files named."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from bench.limits import Limit, load_limits, verdict
+from bench.records import Outcome
+
+SPEC = {"channel_unit": "V", "nominal_bias": [1.5, 1.5, 1.5], "bias_tolerance": 0.05,
+        "nominal_scale": [0.02, 0.02, 0.02], "scale_tolerance_rel": 0.01, "cross_axis_max": 0.005,
+        "g_error_after_max_m_s2": 0.004}
+
+
+def write(tmp_path: Path, models: object, fmt: str = "calbench-unit-limits/1") -> Path:
+    p = tmp_path / "limits.json"
+    p.write_text(json.dumps({"format": fmt, "models": models}))
+    return p
+
+
+def contract(bias: list[float], K: list[list[float]], g_err: float = 0.001) -> dict[str, object]:
+    return {"channel_unit": "V", "bias": bias, "scale_matrix": K,
+            "g_check": {"after": {"mean_error_m_s2": g_err, "std_m_s2": 0.001}}}
+
+
+def test_a_fit_inside_every_interval_passes_and_each_excursion_is_named(tmp_path: Path) -> None:
+    lim = load_limits(write(tmp_path, {"M": SPEC}))["M"]
+    good_K = [[0.0201, 0.0201 * 0.004, 0.0], [0.0, 0.0199, -0.0199 * 0.004], [0.0, 0.0, 0.02]]
+    outcome, checks = verdict(contract([1.54, 1.46, 1.5], good_K), lim)
+    assert outcome is Outcome.PASS and len(checks) == 13 and all(c.passed for c in checks)
+    bad_K = [[0.0203, 0.0203 * 0.006, 0.0], [0.0, 0.02, 0.0], [0.0, 0.0, 0.01979]]
+    outcome, checks = verdict(contract([1.56, 1.5, 1.449], bad_K, g_err=-0.005), lim)
+    assert outcome is Outcome.FAIL
+    # bias 1.56 > 1.55 and 1.449 < 1.45; K_xx = 1.5 % high; K_zz 1.05 % low; K_xy/K_xx = 0.006
+    assert [c.name for c in checks if not c.passed] == [
+        "bias_x", "bias_z", "scale_x", "scale_z", "cross_axis_xy", "g_error_after"]
+    scale_x = next(c for c in checks if c.name == "scale_x")
+    assert scale_x.low == pytest.approx(0.0198) and scale_x.high == pytest.approx(0.0202)
+    assert scale_x.unit == "V/(m/s2)"
+
+
+def test_no_limits_pass_and_nan_never_passes() -> None:
+    assert verdict(contract([0.0] * 3, [[1, 0, 0], [0, 1, 0], [0, 0, 1]]), None) == (Outcome.PASS, ())
+    assert not Limit("x", "V", -1.0, 1.0).check(math.nan).passed
+    assert Limit("x", "V", None, 1.0).check(-1e9).passed
+
+
+def test_the_shipped_file_loads_and_a_fit_in_other_units_is_refused() -> None:
+    lim = load_limits()["ADXL325"]
+    assert lim.channel_unit == "V"
+    with pytest.raises(ValueError, match="for V outputs, the fit is in 'g'"):
+        verdict({**contract([0.0] * 3, [[1, 0, 0], [0, 1, 0], [0, 0, 1]]), "channel_unit": "g"}, lim)
+
+
+@pytest.mark.parametrize("models,fmt,what", [
+    ({"M": {k: v for k, v in SPEC.items() if k != "bias_tolerance"}}, None, "model 'M' lacks bias_tolerance"),
+    ({"M": {**SPEC, "scale_tolerance_rel": -0.01}}, None, "scale_tolerance_rel must be a finite number > 0"),
+    ({"M": {**SPEC, "nominal_bias": [1.5, 1.5]}}, None, "nominal_bias must be 3 finite numbers"),
+    ({"M": SPEC}, "other/1", "expected an object with format"),
+])
+def test_malformed_files_name_the_file_and_key(tmp_path: Path, models: object, fmt: str | None,
+                                               what: str) -> None:
+    path = write(tmp_path, models, fmt or "calbench-unit-limits/1")
+    with pytest.raises(ValueError, match=what) as info:
+        load_limits(path)
+    assert str(path) in str(info.value)
+    path.write_text("{not json")
+    with pytest.raises(ValueError, match="not JSON"):
+        load_limits(path)

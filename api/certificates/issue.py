@@ -28,7 +28,7 @@ from bench.recording import Recording, read_recording
 from bench.records import RunRecord
 from db.models import Certificate, FitKind, Run, Unit
 from db.repo.certificates import canonical_sha256, issue_certificate
-from db.repo.results import add_findings, add_fit, list_findings
+from db.repo.results import add_findings, add_fit, list_findings, list_fits
 from db.repo.runs import merge_params
 from db.types import utc_now
 
@@ -158,8 +158,9 @@ def store_g_before(s: Session, run_id: str, g_before: dict[str, Any] | None) -> 
 
 
 def store_results(s: Session, record: RunRecord, analysis: RunAnalysis) -> None:
-    """Store the fit, the nominal |g| check and the diagnosis (or why there is none)."""
-    if record.calibration is not None:
+    """Store the fit (unless the run's database observer already did), the nominal |g| check
+    and the diagnosis (or why there is none)."""
+    if record.calibration is not None and not list_fits(s, record.run_id):
         add_fit(s, record.run_id, FitKind.STATIC, record.calibration)
     store_g_before(s, record.run_id, analysis.g_before)
     store_diagnosis(s, record.run_id, analysis)

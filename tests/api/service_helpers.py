@@ -57,7 +57,7 @@ def wait_final(client: TestClient, run_id: str, timeout_s: float = 240.0) -> dic
     while time.monotonic() < deadline:
         body = client.get(f"/api/runs/{run_id}", headers=VIEW).json()
         final = body.get("state") in ("completed", "failed", "error", "aborted")
-        if final and services.runner.current is None:
-            return body
+        if final and services.runner.current is None:  # results stored: read them
+            return client.get(f"/api/runs/{run_id}", headers=VIEW).json()
         time.sleep(0.2)
     raise AssertionError(f"run {run_id} did not finish within {timeout_s} s: {body}")

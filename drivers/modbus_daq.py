@@ -5,8 +5,10 @@ next expected sequence number S the driver writes S to HR 420-421 and reads the 
 header and first records in the same transaction (FC23, read/write multiple registers),
 then the rest of the window in reads of at most 125 registers. If the window does not
 start at S, the samples in between are gone and :class:`DataGap` names them; the driver
-then continues from the first sample the DAQ still has, so nothing after the gap is lost
-and nothing is ever skipped silently.
+continues from the first sample the DAQ still has (a hole the module dropped) or, after a
+ring overflow, half a ring behind the newest sample, so one gap names the whole lost range
+instead of a gap on every read while the reader chases the oldest sample; nothing is ever
+skipped silently.
 
 Errors, each naming the device, the operation and the register range:
 
@@ -238,8 +240,8 @@ class ModbusDaq:
             raise ProtocolError(f"{self._where}: HR {reg.HR_WINDOW}: {exc}", str(regs[:4])) from None
         first = reg.unwrap_seq(header.first_seq32, expected)
         if first != expected:
-            self._next_seq = first
-            raise DataGap(expected, first)
+            self._next_seq = self._resync_point(first, deadline)
+            raise DataGap(expected, self._next_seq)
         n = min(header.n_valid, want)
         words = regs[reg.WINDOW_HEADER_REGS :]
         need = n * reg.RECORD_WORDS
@@ -253,6 +255,20 @@ class ModbusDaq:
                 f"{self._where}: window records out of sequence from {expected}", str(records.seq16[:8])
             )
         return header.n_valid, records
+
+    def _resync_point(self, first: int, deadline: float) -> int:
+        """Where to continue after a gap whose first sample still held is ``first``.
+
+        Samples dropped by the module leave a hole and the ring is not full: continue at
+        ``first``. When the ring overflowed (the reader fell behind), ``first`` is the oldest
+        sample, about to be overwritten; continuing there would lose the race again on every
+        read. Continue half a ring behind the newest sample instead, so one gap names the
+        whole lost range and the reader has half the ring as slack to catch up.
+        """
+        stream = self._read_stream_status(deadline)
+        counter = reg.unwrap_seq(stream.counter32, first)
+        slack = max(1, stream.ring_capacity // 2)
+        return max(first, counter - slack)
 
     def _block(self, first_seq: int, parts: list[blk.DecodedRecords]) -> SampleBlock:
         n_axes = self._stream.n_axes

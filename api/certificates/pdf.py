@@ -92,7 +92,8 @@ def _identification(f: Flow, c: dict[str, Any]) -> None:
 
 def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
     m, cond = c["method"], c["conditions"]
-    params = ", ".join(f"{k} = {_text(v)}" for k, v in sorted(m.get("parameters", {}).items())) or "defaults"
+    given = sorted((k, v) for k, v in m.get("parameters", {}).items() if v is not None)
+    params = ", ".join(f"{k} = {_text(v)}" for k, v in given) or "defaults"
     f.heading("2  Method")
     f.table(
         [

@@ -132,7 +132,9 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
     f.heading("4  Results")
     f.paragraph(f"Model: {_unit(res['model'])}.  Terms fitted: {', '.join(res['terms'])}.")
     bias = res["bias"]
-    rows = [("Axis", f"Bias ({_unit(bias['unit'])})", f"U, k = {bias['k']:g} ({_unit(bias['unit'])})")]
+    rows: list[tuple[str, ...]] = [
+        ("Axis", f"Bias ({_unit(bias['unit'])})", f"U, k = {bias['k']:g} ({_unit(bias['unit'])})")
+    ]
     for a, v, u in zip(AXES, bias["value"], bias["expanded_uncertainty"], strict=True):
         rows.append((a, *value_and_u(v, u)))
     f.subheading("Bias b (zero-g output)")

@@ -187,9 +187,12 @@ def start_run(
     devices: BenchDevices | None = None,
     config: SequencerConfig | None = None,
     limits: UnitLimits | str | None = "settings",
+    procedure_kw: dict[str, Any] | None = None,
 ) -> RunRecord:
     """Run a procedure on the bench from start to verdict.
 
+    :param procedure_kw: the procedure's own parameters (e.g. ``rates_deg_s``), stored with the
+        run so a resume rebuilds the same steps.
     :param limits: the limits that give PASS or FAIL; default ``"settings"``:
         :func:`limits_for` the unit's registered model; ``None``: every completed fit PASSes.
 
@@ -202,7 +205,7 @@ def start_run(
     :param truth: the simulated unit (``sim`` only), e.g. an aged one; default the seed's.
     :raises ValueError: unknown procedure, a limit violation in the preview, bad dwell.
     """
-    proc = build_procedure(procedure_name, dwell_s=dwell_s)
+    proc = build_procedure(procedure_name, dwell_s=dwell_s, **(procedure_kw or {}))
     pv = preview(proc, (config or _config(settings)).limits)
     if not pv.ok:
         raise ValueError(f"{procedure_name}: " + "; ".join(pv.problems))

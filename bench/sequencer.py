@@ -96,7 +96,8 @@ class Sequencer:
         self.where = "start"
         self.last_temp_c = float("nan")
         self.positions_deg: tuple[float, ...] = (0.0,) * table.n_axes
-        self._pump = DaqPump(daq, self.config.block_max_samples, self.config.read_timeout_s)
+        self._pump = DaqPump(daq, self.config.block_max_samples, self.config.read_timeout_s,
+                             idle_wait_s=self.config.daq_idle_wait_s)
         self._last_sample_wall = time.monotonic()
         self._last_status_wall = 0.0
         self._last_progress_wall = 0.0

@@ -42,6 +42,7 @@ class RunControl:
         self._lock = threading.Lock()
         self._abort = threading.Event()
         self._pause = False
+        self._resume = threading.Event()
         self.abort_reason = ""
 
     def abort(self, reason: str = "operator abort") -> None:
@@ -56,9 +57,18 @@ class RunControl:
             self._pause = True
 
     def resume(self) -> None:
-        """Continue a paused run."""
+        """Continue a paused run; for a suspended one, the operator's go-ahead: the table is
+        prepared again (faults reset, interlocks closed) and the run continues once the
+        condition has cleared."""
         with self._lock:
             self._pause = False
+        self._resume.set()
+
+    def take_resume_request(self) -> bool:
+        """Whether the operator asked to resume since the last call (the request is consumed)."""
+        asked = self._resume.is_set()
+        self._resume.clear()
+        return asked
 
     @property
     def abort_requested(self) -> bool:
@@ -82,6 +92,8 @@ class SequencerConfig:
     :param stall_timeout_s: no DAQ samples for this long is a fault (DeviceTimeout).
     :param block_max_samples: samples per DAQ read.
     :param read_timeout_s: timeout of one DAQ read.
+    :param daq_idle_wait_s: the DAQ reader's pause after a read that emptied the buffer
+        (:class:`bench.sequencer_daq.DaqPump`); 20 ms is 1/400 of a 8192-sample ring at 1 kHz.
     :param status_poll_s: interval of table status polls (interlock) between calls.
     :param progress_interval_s: interval of progress events.
     :param temp_band_c: allowed sensor temperature (°C), ``None``: not watched.
@@ -102,6 +114,7 @@ class SequencerConfig:
     stall_timeout_s: float = 10.0
     block_max_samples: int = 4096
     read_timeout_s: float = 2.0
+    daq_idle_wait_s: float = 0.02
     status_poll_s: float = 0.5
     progress_interval_s: float = 0.25
     temp_band_c: tuple[float, float] | None = None

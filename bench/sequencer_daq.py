@@ -58,13 +58,19 @@ class DaqPump:
     :param daq: a started or unstarted DAQ (``start()`` is called by :meth:`start`).
     :param max_samples: samples per read.
     :param read_timeout_s: per-read timeout.
+    :param restart_after_gaps: consecutive gaps after which acquisition is restarted.
+    :param idle_wait_s: wait after a read that emptied the DAQ's buffer (wall s): samples
+        gather into one block per read instead of a request per fresh sample, which would
+        cost a core in round trips whatever the data rate. Keep it far below the time the
+        DAQ's ring takes to fill.
     """
 
     def __init__(self, daq: Daq, max_samples: int, read_timeout_s: float,
-                 restart_after_gaps: int = 3) -> None:
+                 restart_after_gaps: int = 3, idle_wait_s: float = 0.0) -> None:
         self.daq = daq
         self.max_samples = max_samples
         self.read_timeout_s = read_timeout_s
+        self.idle_wait_s = idle_wait_s
         self.restart_after_gaps = restart_after_gaps
         self.items: queue.Queue[Item] = queue.Queue()
         self._pending: Item | None = None
@@ -100,8 +106,9 @@ class DaqPump:
             gaps = 0
             if block.n:
                 self.items.put(block)
-            else:
-                self._stop.wait(0.002)
+            if block.n < self.max_samples:
+                # Caught up: let samples gather instead of one request per fresh sample.
+                self._stop.wait(max(self.idle_wait_s, 0.002 if not block.n else 0.0))
 
     def next_item(self, wait_s: float, max_samples: int) -> Item | None:
         """The next item (``None`` if none came within ``wait_s``); consecutive queued blocks

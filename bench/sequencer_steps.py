@@ -65,6 +65,7 @@ def hold(seq: Sequencer, intr: Interruption) -> None:
     """Hold the table until the interruption clears (or abort, or the suspension deadline)."""
     seq._holding = True
     try:
+        seq.control.take_resume_request()  # only a request made during this hold counts
         seq.set_state(intr.state, intr.reason)
         # An open interlock has already stopped the table; a failed stop is not news then.
         with contextlib.suppress(DeviceError, DeviceTimeout, InterlockOpen, OSError):
@@ -74,10 +75,27 @@ def hold(seq: Sequencer, intr: Interruption) -> None:
         while not _cleared(seq, intr):
             if limit is not None and time.monotonic() - begun > limit:
                 raise DeviceError(f"suspended for more than {limit:g} s ({intr.reason})")
+            if intr.state is RunState.SUSPENDED and seq.control.take_resume_request():
+                _operator_resume(seq, intr)
             seq.pump_once(0.05)
         seq.set_state(RunState.RUNNING, f"resumed after: {intr.reason}")
     finally:
         seq._holding = False
+
+
+def _operator_resume(seq: Sequencer, intr: Interruption) -> None:
+    """Prepare the table again (reset faults, close the interlocks); a refusal keeps the run
+    suspended and says why."""
+    prepare = getattr(seq.table, "prepare", None)
+    if not callable(prepare):
+        return
+    timeout = seq.config.move_timeout_margin_s
+    try:
+        seq.call(lambda: prepare(timeout), timeout + seq.config.stop_timeout_s, "prepare")
+    except (DeviceError, DeviceTimeout, InterlockOpen, OSError) as exc:
+        seq.set_state(RunState.SUSPENDED, f"{intr.reason}; resume refused: {type(exc).__name__}: {exc}")
+        return
+    seq._last_status_wall = 0.0  # check the interlock now
 
 
 def _cleared(seq: Sequencer, intr: Interruption) -> bool:

@@ -9,6 +9,7 @@ import pytest
 import sqlalchemy as sa
 
 from api.cli import main
+from tests.e2e.helpers import SIM_SPEED
 
 
 @pytest.fixture
@@ -21,7 +22,8 @@ def bench_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 @pytest.mark.slow
 def test_run_prints_the_fit_and_the_g_table(bench_env: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code = main(["run", "static-12", "--unit", "SN-CLI", "--sim", "--sim-speed", "50", "--dwell-s", "5"])
+    code = main(["run", "static-12", "--unit", "SN-CLI", "--sim", "--sim-speed", str(SIM_SPEED),
+                 "--dwell-s", "5"])
     out = capsys.readouterr()
     assert code == 0, out.err
     assert ": PASS" in out.out and "bias:" in out.out and "scale matrix K" in out.out
@@ -33,7 +35,7 @@ def test_run_prints_the_fit_and_the_g_table(bench_env: Path, capsys: pytest.Capt
 def test_run_json_with_the_dwell_from_a_noise_window(
     bench_env: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    code = main(["run", "static-12", "--unit", "SN-CLI2", "--sim", "--sim-speed", "50", "--json"])
+    code = main(["run", "static-12", "--unit", "SN-CLI2", "--sim", "--sim-speed", str(SIM_SPEED), "--json"])
     out = json.loads(capsys.readouterr().out)
     assert code == 0 and out["outcome"] == "PASS"
     assert out["n_windows"] == 13 and out["dwell"]["source"] == "noise_window"

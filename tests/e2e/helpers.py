@@ -10,6 +10,16 @@ from api.settings import Settings
 from drivers.sim.physics import SensorTruth
 
 RATE_HZ = 100.0
+SIM_SPEED = 25.0
+"""Simulation speed of the end-to-end runs: 2 500 samples/s over Modbus, a simulated ring of
+4 800 samples lasting ~2 s of wall time, and a run needing about a fifth of a core, so
+two test workers on two loaded cores keep up with margin."""
+
+
+def wall_budget_s(sim_s: float, speed: float = SIM_SPEED) -> float:
+    """A wall-clock deadline for ``sim_s`` simulated seconds of bench work: ten times the
+    nominal wall time plus 30 s (start-up, a loaded machine), never a fixed guess."""
+    return 30.0 + 10.0 * sim_s / speed
 
 
 def settings_for(tmp_path: Path, database_url: str | None = None, bench_name: str = "bench-e2e") -> Settings:

@@ -24,19 +24,25 @@ from api.bench_session import start_run
 from bench.recording.reader import read_recording
 from bench.records import Outcome
 from drivers.sim.physics import SensorTruth
-from tests.e2e.helpers import RATE_HZ, difference_z, settings_for, z_scores
+from tests.e2e.helpers import RATE_HZ, SIM_SPEED, difference_z, settings_for, wall_budget_s, z_scores
 
 pytestmark = pytest.mark.slow
 SEED = 11
 CALBENCH = str(Path(sys.executable).with_name("calbench"))
 
 
-def calbench(*args: str, env: dict[str, str], timeout_s: float = 300) -> subprocess.CompletedProcess[str]:
+RUN_SIM_S = 12 * (8.0 + 15.0)
+"""Simulated duration of the run: twelve 8 s windows with their moves and settling (bounded)."""
+
+
+def calbench(*args: str, env: dict[str, str], timeout_s: float = wall_budget_s(RUN_SIM_S)
+             ) -> subprocess.CompletedProcess[str]:
     return subprocess.run([CALBENCH, *args], env=env, capture_output=True, text=True,
                           timeout=timeout_s, check=False)
 
 
-def wait_for_windows(db: Path, n: int, proc: subprocess.Popen[str], timeout_s: float = 120) -> str:
+def wait_for_windows(db: Path, n: int, proc: subprocess.Popen[str]) -> str:
+    timeout_s = wall_budget_s(n * RUN_SIM_S / 12)
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
         assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
@@ -57,7 +63,7 @@ def test_sigkill_mid_window_then_resume(tmp_path: Path) -> None:
     env = {**os.environ, "CALBENCH_DATABASE_URL": f"sqlite:///{db}", "CALBENCH_DATA_DIR": str(tmp_path),
            "CALBENCH_SIM_SAMPLE_RATE_HZ": str(RATE_HZ), "CALBENCH_BENCH_NAME": "bench-crash"}
     cmd = [CALBENCH, "run", "static-12", "--unit", "SN-CRASH", "--sim",
-           "--sim-speed", "50", "--seed", str(SEED), "--dwell-s", "8", "--json"]
+           "--sim-speed", str(SIM_SPEED), "--seed", str(SEED), "--dwell-s", "8", "--json"]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         run_id = wait_for_windows(db, 5, proc)
@@ -87,7 +93,7 @@ def test_sigkill_mid_window_then_resume(tmp_path: Path) -> None:
     (listed,) = json.loads(runs.stdout)
     assert listed["id"] == run_id and listed["state"] == "interrupted"
 
-    resumed = calbench("resume", run_id, "--sim", "--sim-speed", "50", "--json", env=env)
+    resumed = calbench("resume", run_id, "--sim", "--sim-speed", str(SIM_SPEED), "--json", env=env)
     assert resumed.returncode == 0, resumed.stderr
     out = json.loads(resumed.stdout)
     assert out["outcome"] == "PASS" and out["n_windows"] == 12
@@ -100,8 +106,8 @@ def test_sigkill_mid_window_then_resume(tmp_path: Path) -> None:
 
     # An uninterrupted run of the same unit: the two fits agree within their uncertainty,
     # and both agree with the truth.
-    clean = start_run(settings_for(tmp_path / "clean"), "static-12", "SN-CRASH", sim=True, sim_speed=50,
-                      seed=SEED, dwell_s=8.0)
+    clean = start_run(settings_for(tmp_path / "clean"), "static-12", "SN-CRASH", sim=True,
+                      sim_speed=SIM_SPEED, seed=SEED, dwell_s=8.0)
     assert clean.outcome is Outcome.PASS and clean.calibration is not None
     dz = difference_z(out["calibration"], clean.calibration)
     assert np.max(np.abs(dz)) < 4.5, dz

@@ -20,7 +20,7 @@ from bench.records import NullObserver, Outcome, RunRecord, RunState, StateChang
 from bench.sequencer_control import SequencerConfig
 from drivers.base import AxisMode
 from drivers.factory import BenchDevices, open_bench
-from tests.e2e.helpers import settings_for
+from tests.e2e.helpers import SIM_SPEED, settings_for
 
 pytestmark = pytest.mark.slow
 
@@ -45,7 +45,7 @@ class InjectAfter(NullObserver):
 def run_with_fault(tmp_path: Path, inject: Callable[[BenchDevices], None]) -> tuple[RunRecord, BenchDevices,
                                                                                       InjectAfter]:
     settings = settings_for(tmp_path)
-    devices = open_bench(sim_url(settings, 50, 7))
+    devices = open_bench(sim_url(settings, SIM_SPEED, 7))
     obs = InjectAfter(1, lambda: inject(devices))
     try:
         record = start_run(settings, "static-12", "SN-FAULT", sim=True, seed=7, dwell_s=5.0, observers=[obs],

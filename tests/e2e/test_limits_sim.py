@@ -15,7 +15,7 @@ from db.engine import make_session_factory, open_database
 from db.models import Run
 from db.repo.results import list_fits
 from drivers.sim.physics import SensorTruth
-from tests.e2e.helpers import settings_for
+from tests.e2e.helpers import SIM_SPEED, settings_for
 
 pytestmark = pytest.mark.slow
 
@@ -27,7 +27,7 @@ def test_a_unit_with_its_x_bias_outside_the_limits_fails(tmp_path: Path) -> None
     truth = SensorTruth.typical("V", 5)
     bad = dataclasses.replace(truth, bias=truth.bias + np.array([bias_x.high - truth.bias[0] + 0.03, 0, 0]))
     settings = settings_for(tmp_path)
-    record = start_run(settings, "static-12", "SN-OUT", sim=True, sim_speed=50, seed=5, dwell_s=6.0,
+    record = start_run(settings, "static-12", "SN-OUT", sim=True, sim_speed=SIM_SPEED, seed=5, dwell_s=6.0,
                        truth=bad)
     assert record.outcome is Outcome.FAIL, record.error
     assert record.error is not None and record.error.startswith("outside limits: bias_x = ")
@@ -48,12 +48,12 @@ def test_a_unit_with_its_x_bias_outside_the_limits_fails(tmp_path: Path) -> None
 
 def test_the_same_unit_passes_without_limits_and_the_typical_unit_passes_with_them(tmp_path: Path) -> None:
     settings = settings_for(tmp_path)
-    record = start_run(settings, "static-12", "SN-IN", sim=True, sim_speed=50, seed=5, dwell_s=6.0)
+    record = start_run(settings, "static-12", "SN-IN", sim=True, sim_speed=SIM_SPEED, seed=5, dwell_s=6.0)
     assert record.outcome is Outcome.PASS, record.error
     assert len(record.limit_checks) == 13 and all(c.passed for c in record.limit_checks)
     unlimited = settings.model_copy(update={"limits_model": ""})
     truth = SensorTruth.typical("V", 5)
     bad = dataclasses.replace(truth, bias=truth.bias + np.array([0.2, 0.0, 0.0]))
-    free = start_run(unlimited, "static-12", "SN-FREE", sim=True, sim_speed=50, seed=5, dwell_s=3.0,
+    free = start_run(unlimited, "static-12", "SN-FREE", sim=True, sim_speed=SIM_SPEED, seed=5, dwell_s=3.0,
                      truth=bad)
     assert free.outcome is Outcome.PASS and free.limit_checks == ()

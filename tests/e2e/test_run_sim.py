@@ -20,7 +20,7 @@ from db.engine import make_session_factory
 from db.models import Run
 from db.repo.results import list_fits
 from drivers.sim.physics import SensorTruth
-from tests.e2e.helpers import settings_for, z_scores
+from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores
 
 pytestmark = pytest.mark.slow
 
@@ -40,7 +40,7 @@ class Collect(NullObserver):
 def test_static12_on_the_simulated_bench_recovers_the_unit(tmp_path: Path) -> None:
     settings = settings_for(tmp_path)
     seen = Collect()
-    record = start_run(settings, "static-12", "SN-E2E-1", sim=True, sim_speed=50, seed=3, dwell_s=8.0,
+    record = start_run(settings, "static-12", "SN-E2E-1", sim=True, sim_speed=SIM_SPEED, seed=3, dwell_s=8.0,
                        observers=[seen])
     assert record.outcome is Outcome.PASS, record.error
     assert len(record.windows) == 12 and all(w.kind is WindowKind.STATIC for w in record.windows)

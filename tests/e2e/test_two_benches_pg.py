@@ -12,7 +12,7 @@ import sqlalchemy as sa
 from api.bench_session import start_run
 from bench.records import Outcome, RunRecord
 from drivers.sim.physics import SensorTruth
-from tests.e2e.helpers import settings_for, z_scores
+from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores
 from tests.pg import pg_database, pg_unreachable_reason
 
 pytestmark = [pytest.mark.slow, pytest.mark.postgres]
@@ -29,7 +29,7 @@ def test_two_simulated_benches_share_one_postgresql_database(tmp_path: Path) -> 
         def bench(name: str, seed: int) -> None:
             try:
                 settings = settings_for(tmp_path / name, database_url=url, bench_name=name)
-                results[name] = start_run(settings, "static-12", f"SN-{name}", sim=True, sim_speed=50,
+                results[name] = start_run(settings, "static-12", f"SN-{name}", sim=True, sim_speed=SIM_SPEED,
                                           seed=seed, dwell_s=5.0)
             except BaseException as exc:
                 errors.append(exc)

@@ -31,3 +31,13 @@ def test_an_overflow_is_one_gap_then_the_reader_continues_half_a_ring_behind_the
             assert b.first_seq == seq
             seq += b.n
             got += b.n
+
+
+def test_a_backlog_read_returns_within_the_call_time_with_what_it_read() -> None:
+    with sim_daq(rate_hz=1000.0, speed=4.0, ring_capacity=8000, timeout_s=2.0) as rig:
+        rig.daq.start()
+        time.sleep(1.5)  # ~6000 samples waiting: about 850 round trips to read them all
+        b = rig.daq.read_block(100_000, timeout_s=0.05)
+        rest = rig.daq.read_block(100_000, timeout_s=5.0)
+        assert 0 < b.n < 6000  # handed over part of the backlog, not all of it...
+        assert rest.first_seq == b.first_seq + b.n  # ...and the next call continues after it

@@ -74,6 +74,15 @@ class Settings(BaseSettings):
     authorized_by: str = "not configured (CALBENCH_AUTHORIZED_BY)"
     customer_name: str = ""
     customer_address: str = ""
+    # Type B standard uncertainties of the certificate's uncertainty budget (bench.uncertainty_budget);
+    # each is one standard uncertainty (k = 1), normal, with infinite degrees of freedom.
+    table_angle_u_deg: float = Field(0.001, ge=0, description="each table axis's angle (encoder), deg")
+    base_tilt_u_rad: float = Field(1e-5, ge=0, description="base levelling, each horizontal axis, rad")
+    g_local_u_m_s2: float = Field(1e-5, ge=0, description="the local gravity value, m/s2")
+    daq_gain_u_rel: float = Field(1e-5, ge=0, description="each DAQ channel's gain, relative")
+    daq_offset_u: float = Field(1e-5, ge=0, description="each DAQ channel's offset, channel units (V)")
+    temp_coeff_bias_u_m_s2_per_k: float = Field(5e-4, ge=0, description="bias tempco, m/s2 per K")
+    temp_coeff_scale_u_rel_per_k: float = Field(3e-5, ge=0, description="scale tempco, per K")
 
     @field_validator("tokens", mode="before")
     @classmethod

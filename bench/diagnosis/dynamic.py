@@ -59,7 +59,14 @@ STATIC_ONLY = {
 
 
 def _delta(fit: DynamicFit, term: str, lever: FloatArray) -> tuple[FloatArray, FloatArray, int]:
-    """(δ, Cov δ, dof) of the module docstring."""
+    """(δ, Cov δ, dof) of the module docstring.
+
+    Once the proof masses are in, the lever arm is their mean position r = (q_x + q_y + q_z)/3.
+    """
+    if term == "lever_arm" and "lever_arm" not in fit.spec.terms:
+        s = fit.spec.index("proof_mass_offsets")
+        A = np.tile(np.eye(3) / 3.0, (1, 3))
+        return A @ fit.theta[s] - lever, A @ fit.cov[s, s] @ A.T, 3
     s = fit.spec.index(term)
     th, C = fit.theta[s], fit.cov[s, s]
     if term == "lever_arm":
@@ -86,8 +93,7 @@ def _params(fit: DynamicFit, term: str, lever: FloatArray) -> tuple[dict[str, ob
     d, C, _ = _delta(fit, term, lever)
     sig = np.sqrt(np.clip(np.diag(C), 0.0, None))
     if term == "lever_arm":
-        s = fit.spec.index(term)
-        return {name: fit.theta[s].tolist()}, {name: sig.tolist()}
+        return {name: (d + lever).tolist()}, {name: sig.tolist()}
     if term == "proof_mass_offsets":
         return {name: d.reshape(3, 3).tolist()}, {name: sig.reshape(3, 3).tolist()}
     if term == "time_skew":

@@ -4,8 +4,11 @@
 that is hashed (``db.repo.certificates.canonical_sha256``) and rendered to PDF. The fitted
 model is carried under the names of ``calbench calibrate --json`` (``bias``,
 ``scale_matrix``, ``residual_rms``, ``g_check``), each quantity as
-``{"value", "expanded_uncertainty", "unit", "k"}`` with U = k·σ, k = 2, two significant
-digits (:mod:`api.certificates.rounding`).
+``{"value", "expanded_uncertainty", "unit", "k"}`` with U = k·u_c to two significant digits
+(:mod:`api.certificates.rounding`): u_c the combined standard uncertainty of the uncertainty
+budget (``results.uncertainty_budget``, Type A + Type B, :mod:`api.certificates.budget`) and k
+the largest of the quantity's elements' t_95.45 %(ν_eff) (2 for ν_eff = ∞); without a budget,
+u_c is the fit's Type A σ and k = 2.
 """
 
 from __future__ import annotations
@@ -15,16 +18,27 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from api.certificates.budget import combined
 from api.certificates.rounding import expanded_quantity
 
 TITLE = "Calibration Certificate"
 COVERAGE_K = 2.0
 COVERAGE_STATEMENT = (
+    "The reported expanded uncertainty is the combined standard uncertainty multiplied by the coverage "
+    "factor k, which for a normal distribution corresponds to a coverage probability of approximately "
+    "95 %; k = t_95.45 %(ν_eff) with the effective degrees of freedom ν_eff from the Welch–Satterthwaite "
+    "formula, k = 2 for ν_eff = ∞. The standard uncertainty was determined in accordance with the GUM "
+    "(JCGM 100:2008): Type A from the within-window noise of the recording (batch means) and the scatter "
+    "between windows; Type B from the table angles, the levelling of the table base, the local gravity "
+    "value, the DAQ gain and offset and the unit's temperature coefficients over the run's temperature "
+    "changes, propagated by linearisation of the fit (uncertainty budget)."
+)
+TYPE_A_ONLY_STATEMENT = (
     "The reported expanded uncertainty is the standard uncertainty multiplied by the coverage "
     "factor k = 2, which for a normal distribution corresponds to a coverage probability of "
     "approximately 95 %. The standard uncertainty was determined in accordance with the GUM "
-    "(JCGM 100:2008): Type A from the within-window noise of the recording (batch means) and "
-    "the scatter between windows."
+    "(JCGM 100:2008): Type A only, from the within-window noise of the recording (batch means) and "
+    "the scatter between windows; no Type B budget could be formed ({reason})."
 )
 REQUIRED_ITEMS = {
     "7.8.2.1 a title": "title",
@@ -90,6 +104,9 @@ class CertificateInputs:
     :param diagnosis_note: why there is no diagnosis, when there is none.
     :param simulated: the bench was simulated (results are then not traceable).
     :param deviations: additions to / deviations from the method (7.8.2.1 n).
+    :param budget: the uncertainty budget (``api.certificates.budget.certificate_budget``), or
+        ``None`` (Type A only, k = 2).
+    :param budget_note: why there is no budget, when there is none.
     """
 
     run: dict[str, Any]
@@ -102,6 +119,8 @@ class CertificateInputs:
     diagnosis_note: str = ""
     simulated: bool = False
     deviations: list[str] = field(default_factory=list)
+    budget: dict[str, Any] | None = None
+    budget_note: str = ""
 
 
 @dataclass(frozen=True)
@@ -159,19 +178,23 @@ def _two_digits(value: Any) -> float | None:
     return float(f"{float(value):.2g}")
 
 
-def _results(cal: dict[str, Any]) -> dict[str, Any]:
+def _results(cal: dict[str, Any], budget: dict[str, Any] | None) -> dict[str, Any]:
     unit = str(cal.get("channel_unit", ""))
     for key in ("bias", "bias_sigma", "scale_matrix", "scale_matrix_sigma"):
         if key not in cal:
             raise ValueError(f"calibration has no {key!r}: cannot state the result")
+    (u_b, k_b), (u_k, k_k) = (
+        (combined(budget, "bias"), combined(budget, "scale_matrix"))
+        if budget is not None
+        else ((cal["bias_sigma"], COVERAGE_K), (cal["scale_matrix_sigma"], COVERAGE_K))
+    )
     results: dict[str, Any] = {
         "channel_unit": unit,
         "model": "raw = bias + scale_matrix · f, f the specific force in m/s²",
         "terms": list(cal.get("terms", ["bias", "scale_matrix"])),
-        "bias": expanded_quantity(cal["bias"], cal["bias_sigma"], unit, COVERAGE_K),
-        "scale_matrix": expanded_quantity(
-            cal["scale_matrix"], cal["scale_matrix_sigma"], f"{unit}/(m/s2)", COVERAGE_K
-        ),
+        "bias": expanded_quantity(cal["bias"], u_b, unit, k_b),
+        "scale_matrix": expanded_quantity(cal["scale_matrix"], u_k, f"{unit}/(m/s2)", k_k),
+        "uncertainty_budget": budget if budget is not None else NOT_STATED,
         "residual_rms": {"value": _two_digits(cal.get("residual_rms")), "unit": unit},
         "extra": cal.get("extra", {}),
     }
@@ -268,9 +291,11 @@ def certificate_content(
             "g_local_m_s2": _stated(inp.g_local_m_s2),
             "table": _stated(inp.table),
         },
-        "results": _results(inp.calibration),
+        "results": _results(inp.calibration, inp.budget),
         "g_check": _g_check(inp.calibration),
-        "uncertainty_statement": COVERAGE_STATEMENT,
+        "uncertainty_statement": COVERAGE_STATEMENT
+        if inp.budget is not None
+        else TYPE_A_ONLY_STATEMENT.format(reason=inp.budget_note or "no budget given"),
         "diagnosis": _findings(inp),
         "conformity": "no statement of conformity was requested (no limits configured for the unit)",
         "traceability": traceability,

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
+from api.certificates.budget import TypeBSettings, certificate_budget
 from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
 from api.certificates.pdf import render_pdf
 from api.settings import Settings
@@ -184,6 +185,18 @@ def unit_nominal(unit: Unit | None) -> Nominal | None:
     return unit.nominal_scale, unit.nominal_bias
 
 
+def run_budget(
+    rec: Recording | None, calibration: dict[str, Any], settings: Settings
+) -> tuple[dict[str, Any] | None, str]:
+    """The uncertainty budget of a run's fit with the bench's Type B settings, or ``None`` and why not."""
+    if rec is None:
+        return None, "the run's recording cannot be read, so the fit's design is unknown"
+    try:
+        return certificate_budget(rec, calibration, TypeBSettings.of(settings)), ""
+    except (KeyError, ValueError) as exc:
+        return None, f"budget not formed: {exc}"
+
+
 def issue_for_run(
     s: Session,
     settings: Settings,
@@ -215,6 +228,7 @@ def issue_for_run(
     if diagnosis is None and isinstance(run.params.get("diagnosis"), dict):
         diagnosis = run.params["diagnosis"]
     g_local = rec.sidecar.g_local_m_s2 if rec is not None else None
+    budget, budget_note = run_budget(rec, calibration, settings)
     inputs = CertificateInputs(
         run={"id": run.id, "procedure": run.procedure, "started_at": run.started_at,
              "finished_at": run.finished_at, "parameters": run.params.get("parameters", {}),
@@ -227,6 +241,8 @@ def issue_for_run(
         diagnosis=diagnosis,
         diagnosis_note=diagnosis_note or str(run.params.get("diagnosis_error", "")),
         simulated=bool(run.params.get("sim")),
+        budget=budget,
+        budget_note=budget_note,
     )
     now = now or utc_now()
     cert = issue_certificate(s, run_id, {"pending": run_id}, now=now)

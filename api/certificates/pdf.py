@@ -19,6 +19,7 @@ from typing import Any
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
+from api.certificates.pdf_budget import budget_section
 from api.certificates.pdf_layout import Flow, Page, wrap
 
 A4_IN = (8.27, 11.69)
@@ -133,14 +134,14 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
     f.paragraph(f"Model: {_unit(res['model'])}.  Terms fitted: {', '.join(res['terms'])}.")
     bias = res["bias"]
     rows: list[tuple[str, ...]] = [
-        ("Axis", f"Bias ({_unit(bias['unit'])})", f"U, k = {bias['k']:g} ({_unit(bias['unit'])})")
+        ("Axis", f"Bias ({_unit(bias['unit'])})", f"U, k = {bias['k']:.3g} ({_unit(bias['unit'])})")
     ]
     for a, v, u in zip(AXES, bias["value"], bias["expanded_uncertainty"], strict=True):
         rows.append((a, *value_and_u(v, u)))
     f.subheading("Bias b (zero-g output)")
     f.table(rows, widths=(0.2, 0.4, 0.4), header=True, align="right")
     sm = res["scale_matrix"]
-    f.subheading(f"Scale and misalignment matrix K ({_unit(sm['unit'])}), value ± U (k = {sm['k']:g})")
+    f.subheading(f"Scale and misalignment matrix K ({_unit(sm['unit'])}), value ± U (k = {sm['k']:.3g})")
     rows = [("output \\ input", "x", "y", "z")]
     for a, vr, ur in zip(AXES, sm["value"], sm["expanded_uncertainty"], strict=True):
         rows.append((a, *(" ± ".join(value_and_u(v, u)) for v, u in zip(vr, ur, strict=True))))
@@ -165,12 +166,12 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
 
 def _statements(f: Flow, c: dict[str, Any]) -> None:
     diag = c["diagnosis"]
-    f.heading("5  Diagnosis of unmodelled effects (opinion, ISO/IEC 17025 7.8.7)")
+    f.heading("6  Diagnosis of unmodelled effects (opinion, ISO/IEC 17025 7.8.7)")
     f.paragraph(diag["note"][:1].upper() + diag["note"][1:] + ".")
     if diag["findings"]:
         rows = [("Effect", "Finding")] + [(str(x["effect"]), str(x["summary"])) for x in diag["findings"]]
         f.table(rows, widths=(0.25, 0.75), header=True)
-    f.heading("6  Conformity, traceability, external providers")
+    f.heading("7  Conformity, traceability, external providers")
     f.table(
         [
             ("Conformity", c["conformity"]),
@@ -213,6 +214,7 @@ def certificate_pages(c: dict[str, Any]) -> list[Page]:
     _identification(f, c)
     _method_conditions(f, c)
     _results(f, c)
+    budget_section(f, c)
     _statements(f, c)
     return f.pages
 

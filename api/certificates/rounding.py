@@ -26,6 +26,7 @@ def round_expanded(value: float, sigma: float, k: float = 2.0) -> tuple[float, f
     :param k: coverage factor.
     :raises ValueError: non-finite value or sigma, or a negative sigma.
     """
+    value, sigma, k = float(value), float(sigma), float(k)  # numpy scalars' repr is not a number
     if not (math.isfinite(value) and math.isfinite(sigma)) or sigma < 0:
         raise ValueError(f"cannot round value {value!r} with standard uncertainty {sigma!r}")
     u_expanded = k * sigma

@@ -1,0 +1,171 @@
+"""The certificate's uncertainty budget: Type B inputs of the bench from its settings, the fit's
+design from the recording, the budget of ``bench.uncertainty_budget`` as JSON.
+
+The design is the run's recording refitted by ``calibrate_recording`` (the same windows and
+specific forces as the stored fit); values and Type A standard uncertainties are the stored
+fit's (``calibrate --json``). Inputs that do not apply are listed under ``not_evaluated``
+with the reason (no table in the sidecar, no temperature channel, a digital output).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bench.calibration import calibrate_recording, select_windows
+from bench.estimation.static_fit import PARAMETER_NAMES
+from bench.recording import Recording
+from bench.uncertainty_budget import RULE, TYPE_A_NAME, Budget, TypeBInput, uncertainty_budget
+from bench.uncertainty_inputs import daq_inputs, gravity_input, table_inputs, temperature_inputs
+
+ANALOG_UNITS = ("V", "mV")
+"""Channel units measured through the DAQ (its gain and offset apply)."""
+TYPE_A_BASIS = (
+    "the fit's covariance: batch-means noise of each window and the scatter between windows; "
+    "ν = ∞ (the fit states the standard deviation of the Student-t of its variance components)"
+)
+
+
+@dataclass(frozen=True)
+class TypeBSettings:
+    """Type B standard uncertainties (k = 1) of a bench; see ``api.settings.Settings``."""
+
+    table_angle_u_deg: float
+    base_tilt_u_rad: float
+    g_local_u_m_s2: float
+    daq_gain_u_rel: float
+    daq_offset_u: float
+    temp_coeff_bias_u_m_s2_per_k: float
+    temp_coeff_scale_u_rel_per_k: float
+
+    @classmethod
+    def of(cls, settings: Any) -> TypeBSettings:
+        """The values from a ``Settings`` object (or anything with these attributes)."""
+        return cls(**{name: float(getattr(settings, name)) for name in cls.__dataclass_fields__})
+
+
+def _sig3(x: float) -> float:
+    return float(f"{x:.3g}")
+
+
+def _window_angles_rad(rec: Recording) -> np.ndarray | None:
+    """(m, k) circular-mean table angles of the fit's windows (rad), ``None`` without a table."""
+    if rec.table_deg is None or rec.sidecar.table is None:
+        return None
+    out = []
+    for w in select_windows(rec):
+        q = rec.table_deg[w.start : w.stop]
+        d = (q - q[:1] + 180.0) % 360.0 - 180.0
+        out.append(np.deg2rad(q[0] + d.mean(axis=0)))
+    return np.array(out)
+
+
+def _window_temps(rec: Recording) -> np.ndarray | None:
+    if rec.temp_c is None:
+        return None
+    t = np.array([float(np.mean(rec.temp_c[w.start : w.stop])) for w in select_windows(rec)])
+    return t if np.all(np.isfinite(t)) else None
+
+
+def budget_inputs(
+    rec: Recording, cal: dict[str, Any], tb: TypeBSettings
+) -> tuple[np.ndarray, np.ndarray, list[TypeBInput], list[str]]:
+    """The design (f (m, 3), window covariances (m, 3, 3)), the Type B inputs and what was not evaluated.
+
+    :raises ValueError: the recording's fit is not the known-orientation static fit.
+    """
+    fit = calibrate_recording(rec)
+    if fit.method != "static" or any(w.f_m_s2 is None for w in fit.windows):
+        raise ValueError(f"the {fit.method} fit has no known specific force per window")
+    f = np.array([w.f_m_s2 for w in fit.windows], dtype=float)
+    S = np.array([np.diag(np.asarray(w.mean_sigma, dtype=float) ** 2) for w in fit.windows])
+    b, K = np.asarray(cal["bias"], dtype=float), np.asarray(cal["scale_matrix"], dtype=float)
+    g = rec.sidecar.g_local_m_s2
+    inputs: list[TypeBInput] = [gravity_input(f, g, tb.g_local_u_m_s2)]
+    skipped: list[str] = []
+    angles, table = _window_angles_rad(rec), rec.sidecar.table
+    if angles is not None and table is not None and angles.shape[0] == f.shape[0]:
+        inputs += table_inputs(
+            table.axis_vectors, angles, table.mount_matrix, g,
+            angle_u_rad=math.radians(tb.table_angle_u_deg), tilt_u_rad=tb.base_tilt_u_rad,
+            axis_names=[f"axis {a.name}" for a in table.axes],
+        )  # fmt: skip
+    else:
+        skipped.append("table angles and base levelling: the recording has no table angles")
+    unit = str(cal.get("channel_unit", rec.sidecar.channel_unit))
+    if unit in ANALOG_UNITS:
+        inputs += daq_inputs(b + f @ K.T, tb.daq_gain_u_rel, tb.daq_offset_u, unit)
+    else:
+        skipped.append(f"DAQ gain and offset: the output ({unit}) is digital, not measured by the DAQ")
+    temps = _window_temps(rec)
+    if temps is not None and temps.shape[0] == f.shape[0]:
+        inputs += temperature_inputs(
+            temps, f, K, tb.temp_coeff_bias_u_m_s2_per_k, tb.temp_coeff_scale_u_rel_per_k
+        )
+    else:
+        skipped.append("temperature coefficients: no sensor temperature was recorded")
+    return f, S, inputs, skipped
+
+
+def budget_json(budget: Budget, unit: str, skipped: list[str]) -> dict[str, Any]:
+    """The budget as certificate JSON: inputs, and per parameter its lines, u_c, ν_eff, k and U
+    (contributions and U to three significant digits, u_c unrounded; ν_eff ``"infinite"`` when
+    every contribution has ν = ∞)."""
+    units = [unit] * 3 + [f"{unit}/(m/s2)"] * 9
+    quantities: dict[str, Any] = {}
+    for q, qunit in zip(budget.quantities, units, strict=True):
+        lines = [
+            {"name": c.name, "group": c.group, "channel": c.channel, "u": _sig3(c.u), "unit": c.unit,
+             "sensitivity": _sig3(c.sensitivity), "contribution": _sig3(c.contribution)}
+            for c in q.contributions
+            if c.name == TYPE_A_NAME or c.contribution > 1e-6 * q.u_c
+        ]  # fmt: skip
+        quantities[q.name] = {
+            "value": q.value, "unit": qunit, "u_c": q.u_c, "k": round(q.k, 3), "U": _sig3(q.U),
+            "nu_eff": "infinite" if math.isinf(q.nu_eff) else round(q.nu_eff, 1), "contributions": lines,
+        }  # fmt: skip
+    return {
+        "rule": RULE,
+        "type_a": TYPE_A_BASIS,
+        "sensitivity_method": "linearisation of the generalised least-squares fit (analytic derivative)",
+        "inputs": [
+            {
+                "name": i.name,
+                "group": i.group,
+                "u": i.u,
+                "unit": i.unit,
+                "basis": i.basis,
+                "dof": "infinite" if math.isinf(i.dof) else i.dof,
+            }
+            for i in budget.inputs
+        ],
+        "not_evaluated": skipped,
+        "quantities": quantities,
+    }
+
+
+def certificate_budget(rec: Recording, cal: dict[str, Any], tb: TypeBSettings) -> dict[str, Any]:
+    """The budget of a stored fit (``calibrate --json``) whose recording is ``rec``.
+
+    :raises ValueError: the fit is not a known-orientation static fit, or its values are missing.
+    """
+    f, S, inputs, skipped = budget_inputs(rec, cal, tb)
+    sigma = np.concatenate(
+        [np.asarray(cal["bias_sigma"], float), np.asarray(cal["scale_matrix_sigma"], float).ravel()]
+    )
+    b, K = np.asarray(cal["bias"], dtype=float), np.asarray(cal["scale_matrix"], dtype=float)
+    budget = uncertainty_budget(f, b, K, np.diag(sigma**2), inputs, window_cov=S)
+    return budget_json(budget, str(cal.get("channel_unit", "")), skipped)
+
+
+def combined(budget: dict[str, Any], quantity: str) -> tuple[np.ndarray, float]:
+    """u_c of ``"bias"`` (3,) or ``"scale_matrix"`` (3, 3) from a budget's JSON, and the quantity's
+    coverage factor: the largest k of its elements (one k per quantity, never smaller than any
+    element's own)."""
+    names = PARAMETER_NAMES[:3] if quantity == "bias" else PARAMETER_NAMES[3:]
+    qs = [budget["quantities"][n] for n in names]
+    u = np.array([q["u_c"] for q in qs], dtype=float)
+    return (u if quantity == "bias" else u.reshape(3, 3)), max(float(q["k"]) for q in qs)

@@ -59,10 +59,10 @@ class DaqPump:
     :param max_samples: samples per read.
     :param read_timeout_s: per-read timeout.
     :param restart_after_gaps: consecutive gaps after which acquisition is restarted.
-    :param idle_wait_s: wait after a read that emptied the DAQ's buffer (wall s): samples
-        gather into one block per read instead of a request per fresh sample, which would
-        cost a core in round trips whatever the data rate. Keep it far below the time the
-        DAQ's ring takes to fill.
+    :param idle_wait_s: wait (wall s) after a read that found the DAQ's buffer nearly empty
+        (fewer than ``max_samples / 8``): samples gather into one block per read instead of
+        a request per fresh sample, which would cost most of a core in round trips whatever
+        the data rate. Keep it far below the time the DAQ's ring takes to fill.
     """
 
     def __init__(self, daq: Daq, max_samples: int, read_timeout_s: float,
@@ -106,8 +106,9 @@ class DaqPump:
             gaps = 0
             if block.n:
                 self.items.put(block)
-            if block.n < self.max_samples:
-                # Caught up: let samples gather instead of one request per fresh sample.
+            if block.n < self.max_samples // 8:
+                # Caught up: let samples gather instead of one request per fresh sample
+                # (a reader with a backlog reads on at once).
                 self._stop.wait(max(self.idle_wait_s, 0.002 if not block.n else 0.0))
 
     def next_item(self, wait_s: float, max_samples: int) -> Item | None:

@@ -225,8 +225,8 @@ def real_drivers(tmp: Path) -> None:
             wall = time.perf_counter() - t0
             outcome = acq.outcome.value if acq.outcome else "completed"
             why = f" ({acq.error})" if acq.error else ""
-            print(f"real drivers at 1 kHz, simulation x{speed:g}: x{acq.n_samples / RATE_HZ / wall:.1f} real "
-                  f"time sustained over {wall:.1f} s, gaps {seq._gaps}, outcome {outcome}{why}")
+            print(f"  simulation x{speed:g}: x{acq.n_samples / RATE_HZ / wall:.1f} real time sustained over "
+                  f"{wall:.1f} s, gaps {seq._gaps} (one per ring overflow), outcome {outcome}{why}")
         finally:
             devices.close()
 
@@ -234,12 +234,17 @@ def real_drivers(tmp: Path) -> None:
 def main() -> None:
     print("pipeline (sequencer + recording + database), synthetic 1 kHz stream:")
     ok = True
+    capacity = 0.0
     for speed, min_wall in ((SPEED, 0.2), (SPEED, 0.0), (1000.0, 0.2)):
         with tempfile.TemporaryDirectory() as d:
             sustained, gaps = pipeline(Path(d), speed, min_wall, DATA_S if speed == SPEED else 3 * DATA_S)
         if speed == SPEED:
-            ok = ok and gaps == 0 and sustained >= 0.97 * SPEED
-    print(f"  x{SPEED:g} sustained with zero gaps: {'yes' if ok else 'NO'}")
+            ok = ok and gaps == 0
+        else:
+            capacity = sustained
+    # Wall time includes start-up; the paced ring (2 s of wall time) turns any lasting lag into gaps.
+    print(f"  x{SPEED:g} sustained with zero gaps: {'yes' if ok else 'NO'}; most the pipeline takes: "
+          f"x{capacity:.0f} = {capacity / SPEED:.1f} x the requirement")
     with tempfile.TemporaryDirectory() as d:
         base = writer_baseline(Path(d), 400_000)
     print(f"  RecordingWriter.append alone (4096-row blocks, flush every 25): x{400 / base:.0f} real time")

@@ -20,7 +20,7 @@ same signature as a delay of τ; at the procedures' rates (ωτ < 0.01) the two 
 told apart, so a delay found is reported as ``time_skew`` confounded with ``sensor_lowpass``.
 
 Residuals and correlates: 1 s block means of the baseline residuals (the "windows" of the
-report) against ω² = −tr(B_sym)/2, |ω̇| (from the antisymmetric part of B), f_i², time
+report) against ω² = −tr(B_sym)/2, |ω̇| (from the antisymmetric part of B), f_i², |f_i|, time
 and temperature, by ``regressors.block_correlations``.
 """
 
@@ -48,12 +48,18 @@ PARAM = {
     "time_skew": ("delay_s", "s"),
 }
 STATIC_ONLY = {
-    "scale_asymmetry": "tested on static windows only (|f_i| beside f_i² needs still poses)",
-    "cross_coupling": "tested on static windows only",
-    "temperature_bias": "tested on static windows only",
-    "bias_drift": "tested on static windows only (on a moving recording it is inside the sandwich noise)",
+    "scale_asymmetry": "not a term of the dynamic model; |f_i| is shown among the residual's correlates "
+    "(after bias and K), not fitted: tested on static windows",
+    "cross_coupling": "f_j·f_k terms are not in the dynamic model (K's off-diagonal is the linear part): "
+    "tested on static windows",
+    "temperature_bias": "over one moving run the temperature changes little and, on a warm-up, follows time: "
+    "as bias_drift, it cannot be told from the bias wander's own trend here",
+    "bias_drift": "a linear drift over one run cannot be told from the bias wander's own trend: nothing in a "
+    "moving recording measures the wander at the run's length (no still windows), and the batch fit's "
+    "covariance sees the noise only at its score-block scale; time is shown among the correlates",
     "pose_error": "a moving recording has no per-window poses",
-    "encoder_offset": "tested on static windows only",
+    "encoder_offset": "not a term of the dynamic model: an outer-axis offset is a turn about the rotation "
+    "axis that K absorbs; a middle- or inner-axis offset tilts gravity and needs static windows",
     "settling": "tested on static windows only (needs still windows after each stop)",
 }
 

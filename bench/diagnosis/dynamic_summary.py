@@ -3,7 +3,8 @@
 Regressors per sample (``motion_regressors``): with B = Mᵀ R_inᵀ (Ω̇ + Ω²) R_in
 (``dynamic_model``; Ω = [ω]×), the symmetric part of B is the rotated Ω², whose trace is
 −2|ω|², and the antisymmetric part the rotated Ω̇, so ω² = −tr(B)/2 and |ω̇| = |axial(B − Bᵀ)/2|;
-f_i² from the final model's specific force; time; temperature. Correlation of each
+f_i² and |f_i| (quadratic nonlinearity, scale asymmetry) from the final model's specific
+force; time; temperature. Correlation of each
 channel's block-mean residual with each regressor's block mean after both are made
 orthogonal to [1, f̄_x, f̄_y, f̄_z] (what bias and K absorb), significant when
 |ρ|√(n_b − 5)/√(1 − ρ²) exceeds Student's t at 0.01 / (2 · 3 · number of regressors).
@@ -51,6 +52,8 @@ def motion_regressors(
     f = specific_force(fit.theta, m, fit.spec, g, lever)
     for i, a in enumerate("xyz"):
         out[f"f_{a}^2"] = f[:, i] ** 2
+    for i, a in enumerate("xyz"):
+        out[f"|f_{a}|"] = np.abs(f[:, i])
     for i, a in enumerate("xyz"):
         out[f"f_{a}"] = f[:, i]
     out["time"] = m.t_s - m.t_s[0]

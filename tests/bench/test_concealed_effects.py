@@ -3,8 +3,8 @@
 Scenarios and measured detection limits: ``benchmarks/diagnose_cases.py`` (the full table,
 more recordings per cell: ``python -m benchmarks.study_diagnose_detection``, docs/diagnose.md).
 At 10x its limit each effect must be found and its parameter recovered within 3 of its own
-sigmas; at 3x it must be found in at least the stated share of recordings. On 50 clean
-recordings at most one may report anything (2 %).
+sigmas; at 3x it must be found in at least the stated share of recordings. On 100 clean
+recordings at most two may report anything (2 %).
 """
 
 from __future__ import annotations
@@ -47,13 +47,14 @@ def test_effect_at_three_times_its_limit_is_found_mostly(effect: str) -> None:
 
 
 @pytest.mark.slow
-def test_false_finding_rate_on_fifty_clean_recordings() -> None:
+def test_false_finding_rate_on_a_hundred_clean_recordings() -> None:
+    """At most 2 % of clean recordings report anything (measured: 3 of 250, 1.2 %, docs/diagnose.md)."""
     false = {}
-    for seed in range(1000, 1050):
+    for seed in range(1000, 1100):
         effects = [f.effect for f in diagnose_recording(static_recording({}, seed=seed)).findings]
         if effects:
             false[seed] = effects
-    assert len(false) <= 1, false  # 1/50 = 2 %
+    assert len(false) <= 2, false
 
 
 def test_drift_on_the_lab_default_is_reported_as_confounded_with_warm_up_temperature() -> None:

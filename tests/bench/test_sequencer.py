@@ -274,55 +274,6 @@ def test_abort_stops_the_table_and_keeps_the_recording(tmp_path: Path) -> None:
     assert len(rec.sidecar.segments or ()) == 4 and rec.n_samples == acq.n_samples
 
 
-def test_interlock_open_suspends_and_the_window_is_recorded_again(tmp_path: Path) -> None:
-    seq, table, _, obs, _ = make(tmp_path, quick_static())
-
-    def trip(w: WindowRecord) -> None:
-        if w.index == 2:
-            table.interlock_ok = False
-            threading.Timer(0.3, lambda: setattr(table, "interlock_ok", True)).start()
-
-    obs.hook = trip
-    acq = seq.run()
-    assert acq.outcome is None, acq.error
-    assert [s.state for s in obs.states] == [RunState.RUNNING, RunState.SUSPENDED, RunState.RUNNING]
-    assert "interlock open" in obs.states[1].reason
-    assert [w.index for w in acq.windows] == list(range(12))
-    assert [w.label for w in acq.windows] == [f"pos{i:02d}" for i in range(1, 13)]
-
-
-def test_temperature_out_of_band_suspends_until_back(tmp_path: Path) -> None:
-    cfg = SequencerConfig(**{**FAST.__dict__, "temp_band_c": (20.0, 30.0)})
-    seq, _table, daq, obs, _ = make(tmp_path, quick_static(), config=cfg)
-
-    def heat(w: WindowRecord) -> None:
-        if w.index == 5:
-            daq.temp_c = 35.0
-            threading.Timer(0.3, lambda: setattr(daq, "temp_c", 25.0)).start()
-
-    obs.hook = heat
-    acq = seq.run()
-    assert acq.outcome is None, acq.error
-    suspended = [s for s in obs.states if s.state is RunState.SUSPENDED]
-    assert len(suspended) == 1 and "35.00 °C outside its band [20, 30]" in suspended[0].reason
-    assert len(acq.windows) == 12 and all(w.temp_c_mean == 25.0 for w in acq.windows)
-
-
-def test_pause_and_resume(tmp_path: Path) -> None:
-    seq, _table, _, obs, ctl = make(tmp_path, quick_static())
-
-    def pause(w: WindowRecord) -> None:
-        if w.index == 1:
-            ctl.pause()
-            threading.Timer(0.2, ctl.resume).start()
-
-    obs.hook = pause
-    acq = seq.run()
-    assert acq.outcome is None
-    assert [s.state for s in obs.states] == [RunState.RUNNING, RunState.PAUSED, RunState.RUNNING]
-    assert len(acq.windows) == 12
-
-
 @pytest.mark.parametrize("fault", [DeviceTimeout("table did not reach position"), LinkLost("port closed")])
 def test_table_fault_is_error_with_safe_state(tmp_path: Path, fault: Exception) -> None:
     seq, table, _, obs, _ = make(tmp_path, quick_static())

@@ -107,13 +107,15 @@ def _finite(x: object) -> bool:
 def load_limits(path: str | Path | None = None) -> dict[str, UnitLimits]:
     """Every model of a limits file (default: the one shipped with calbench).
 
-    :raises ValueError: not JSON, another format, or a model entry missing or bad (named).
+    :raises ValueError: unreadable, not JSON, another format, or a model entry missing or bad (named).
     """
     path = Path(path) if path is not None else DEFAULT_LIMITS_FILE
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not JSON: {exc}") from exc
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the limits file: {exc.strerror or exc}") from exc
     if not isinstance(doc, dict) or doc.get("format") != FORMAT or not isinstance(doc.get("models"), dict):
         raise ValueError(f"{path}: expected an object with format {FORMAT!r} and a 'models' object")
     return {name: UnitLimits.from_spec(name, spec, str(path)) for name, spec in doc["models"].items()}

@@ -71,3 +71,5 @@ def test_malformed_files_name_the_file_and_key(tmp_path: Path, models: object, f
     path.write_text("{not json")
     with pytest.raises(ValueError, match="not JSON"):
         load_limits(path)
+    with pytest.raises(ValueError, match="cannot read the limits file"):
+        load_limits(tmp_path / "missing.json")

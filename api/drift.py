@@ -2,12 +2,17 @@
 
 Test per coefficient c (the 3 biases and 9 elements of K):
 
-    |Δc| > k · sqrt(u_cert(c)² + u_check(c)²),   Δc = c_check − c_cert
+    |Δc| > k · sqrt(u_cert(c)² + u_check(c)² + u_rep(c)²),   Δc = c_check − c_cert
 
 with u_cert = U_cert / k_cert from the certificate's stated expanded uncertainty and
 u_check the standard uncertainty of the check's fit (both independent measurements; the
-certificate's rounding of U to two digits is part of its statement). A unit is flagged
-when any coefficient exceeds its limit.
+certificate's rounding of U to two digits is part of its statement). u_rep is the unit's
+run-to-run bias repeatability (biases only): each fit estimates the bias its own run saw,
+which includes the run's mean of the slow bias wander (bias instability); no single run
+can separate it, so neither fit's σ contains it, yet it differs between two runs of an
+unchanged unit. Without it an ADXL-class unit (40 µg wander, 200 s correlation time) was
+flagged in 13 % of unchanged pairs at a stated 3.2 % (tests/api/test_drift_false_alarm.py).
+A unit is flagged when any coefficient exceeds its limit.
 
 :class:`DriftScheduler` runs the check once a day at ``CALBENCH_DRIFT_TIME`` (``HH:MM``,
 local time of the clock) for every unit of the bench that has a certificate, one after
@@ -53,16 +58,24 @@ def parse_time_of_day(text: str) -> dt.time | None:
         raise ValueError(f"CALBENCH_DRIFT_TIME={text!r}: expected HH:MM (00:00..23:59) or empty") from None
 
 
-def compare(cert: dict[str, Any], check: dict[str, Any], k: float) -> dict[str, Any]:
+def compare(
+    cert: dict[str, Any], check: dict[str, Any], k: float, *, bias_repeatability: Any = None
+) -> dict[str, Any]:
     """Compare a check's fit (``calibrate --json``) with a certificate's content.
+
+    :param bias_repeatability: (3,) standard deviation of the change of each channel's bias
+        between two runs of an unchanged unit (channel units), or ``None`` (zero).
 
     :returns: ``{"k", "false_alarm_probability", "coefficients": [...], "flagged", "max_ratio"}``
         (the probability that an unchanged unit is flagged, for independent normal errors);
         each coefficient has
-        name, unit, reference, check, delta, u_reference, u_check, limit, exceeded.
+        name, unit, reference, check, delta, u_reference, u_check, u_repeatability, limit, exceeded.
     :raises ValueError: a quantity missing or of another shape.
     """
     rows: list[dict[str, Any]] = []
+    u_rep_bias = np.zeros(3) if bias_repeatability is None else np.abs(np.asarray(bias_repeatability, float))
+    if u_rep_bias.shape != (3,) or not np.all(np.isfinite(u_rep_bias)):
+        raise ValueError(f"bias repeatability must be 3 finite values, got {bias_repeatability!r}")
     res = cert["results"]
     for name, sigma_key in (("bias", "bias_sigma"), ("scale_matrix", "scale_matrix_sigma")):
         q = res[name]
@@ -70,11 +83,12 @@ def compare(cert: dict[str, Any], check: dict[str, Any], k: float) -> dict[str, 
         u_ref = np.asarray(q["expanded_uncertainty"], dtype=float) / float(q["k"])
         val = np.asarray(check[name], dtype=float)
         u_val = np.asarray(check[sigma_key], dtype=float)
+        u_rep = u_rep_bias if name == "bias" else np.zeros_like(val)
         if ref.shape != val.shape or u_val.shape != val.shape:
             raise ValueError(f"{name}: certificate shape {ref.shape}, check shape {val.shape}")
         for idx in np.ndindex(ref.shape):
             delta = float(val[idx] - ref[idx])
-            limit = k * math.hypot(float(u_ref[idx]), float(u_val[idx]))
+            limit = k * math.hypot(float(u_ref[idx]), float(u_val[idx]), float(u_rep[idx]))
             rows.append({
                 "name": f"{name}[{','.join(map(str, idx))}]",
                 "unit": q["unit"],
@@ -83,6 +97,7 @@ def compare(cert: dict[str, Any], check: dict[str, Any], k: float) -> dict[str, 
                 "delta": delta,
                 "u_reference": float(u_ref[idx]),
                 "u_check": float(u_val[idx]),
+                "u_repeatability": float(u_rep[idx]),
                 "limit": limit,
                 "exceeded": abs(delta) > limit,
             })
@@ -115,7 +130,10 @@ def record_drift_check(s: Session, settings: Settings, serial: str, record: RunR
     elif record.calibration is None:
         result["error"] = record.error or "the check run produced no fit"
     else:
-        result = {**result, **compare(cert.content, dict(record.calibration), settings.drift_k)}
+        check = dict(record.calibration)
+        k_diag = np.abs(np.diag(np.asarray(check["scale_matrix"], dtype=float)))
+        rep = k_diag * float(getattr(settings, "drift_bias_repeatability_m_s2", 0.0))
+        result = {**result, **compare(cert.content, check, settings.drift_k, bias_repeatability=rep)}
         result["status"] = "compared"
         result["reference_number"] = cert.number
         flagged = bool(result["flagged"])

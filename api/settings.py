@@ -37,6 +37,10 @@ class Settings(BaseSettings):
     :param drift_k: coverage factor of the drift test |Δ| > k·sqrt(u_cert² + u_check²), per
         coefficient; with 12 coefficients k = 3 flags an unchanged unit with probability
         about 3 % (k = 2: about 43 %).
+    :param drift_bias_repeatability_m_s2: standard deviation of a unit's bias change between two
+        runs when nothing changed (its bias instability: the run's mean of the slow wander), m/s²;
+        added to the drift test's bias limits (default ≈ √2·0.9·40 µg: two runs of a unit whose
+        bias wanders by 40 µg with a 200 s correlation time).
     :param limits_file: JSON file of unit-model limits (``calbench-unit-limits/1``); ``None``:
         the one shipped with calbench (``bench/data/unit_limits.json``).
     :param limits_model: model whose limits judge a run when the unit's registration names
@@ -66,6 +70,7 @@ class Settings(BaseSettings):
     drift_procedure: str = "static-12"
     drift_dwell_s: float = 20.0
     drift_k: float = 3.0
+    drift_bias_repeatability_m_s2: float = Field(5e-4, ge=0, description="bias run-to-run, m/s2")
     limits_file: Path | None = None
     limits_model: str = "ADXL325"
     lab_name: str = "calbench calibration laboratory"

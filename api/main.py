@@ -1,8 +1,12 @@
 """The service: ``create_app(settings)`` wires database, runner, drift scheduler, auth and routes.
 
 The lifespan opens (creates and migrates) the database, marks runs left live by a dead
-process ``interrupted``, starts the drift scheduler's thread, and on shutdown aborts the
-run holding the bench and stops the scheduler. Nothing is read from the environment here:
+process ``interrupted`` (and runs a previous shutdown stopped, see
+:mod:`api.service_resume`), starts the drift scheduler's thread, and on shutdown stops the
+scheduler and leaves the run holding the bench ``interrupted`` — table safe, recording
+closed, resumable with ``POST /api/runs/{id}/resume`` after the restart. On SIGTERM/SIGINT
+the open event streams end first, so the server does not wait for them before the run is
+stopped. Nothing is read from the environment here:
 the caller builds ``Settings`` (``calbench serve`` does, from ``CALBENCH_*``).
 
 The dashboard (``api/static``, ``api/templates`` and a router in ``api.routes.dashboard``,
@@ -11,13 +15,16 @@ when installed) is mounted beside the JSON API.
 
 from __future__ import annotations
 
+import asyncio
 import datetime as dt
 import importlib
 import importlib.util
 import logging
+import signal
 import socket
-from collections.abc import AsyncIterator, Callable
-from contextlib import asynccontextmanager
+import threading
+from collections.abc import AsyncIterator, Callable, Iterator
+from contextlib import asynccontextmanager, contextmanager
 from pathlib import Path
 
 from fastapi import FastAPI
@@ -31,6 +38,7 @@ from api.drift import DriftScheduler, record_drift_check
 from api.progress_hub import ProgressHub
 from api.routes import api_router
 from api.runner import BenchRunner, LiveRun
+from api.service_resume import recover_shutdown_aborts
 from api.settings import Settings
 from bench.records import RunRecord, utc_now
 from db.engine import make_session_factory, open_database
@@ -85,7 +93,7 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     sessions = make_session_factory(engine)
     read_sessions = make_session_factory(engine, read_only=True)
     with sessions.begin() as s:
-        marked = mark_interrupted_runs(s, socket.gethostname())
+        marked = mark_interrupted_runs(s, socket.gethostname()) + recover_shutdown_aborts(s)
     if marked:
         log.warning("runs left live by a dead process, now interrupted: %s", ", ".join(marked))
     hub = ProgressHub()
@@ -94,6 +102,33 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     drift = DriftScheduler(settings, sessions, runner, clock=clock)
     auth = Authenticator(env_tokens, sessions, read_sessions, public_read=settings.public_read)
     return Services(settings, engine, sessions, read_sessions, hub, runner, drift, auth)
+
+
+@contextmanager
+def streams_end_on_signal(hub: ProgressHub) -> Iterator[None]:
+    """While the server runs, SIGTERM and SIGINT first end every open event stream, then go to
+    the server's own handler (which waits for open responses before the lifespan's shutdown
+    stops the run). Outside the main thread (a test client) nothing is installed."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    loop = asyncio.get_running_loop()
+    previous: dict[int, object] = {}
+
+    def handler(signum: int, frame: object) -> None:
+        loop.call_soon_threadsafe(hub.close_all, f"the service is stopping ({signal.Signals(signum).name})")
+        prev = previous.get(signum)
+        if callable(prev):
+            prev(signum, frame)
+
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        previous[sig] = signal.getsignal(sig)
+        signal.signal(sig, handler)
+    try:
+        yield
+    finally:
+        for sig, prev in previous.items():
+            signal.signal(sig, prev)  # type: ignore[arg-type]
 
 
 def create_app(
@@ -120,10 +155,14 @@ def create_app(
         if start_scheduler and services.drift.time_of_day is not None:
             services.drift.start()
         try:
-            yield
+            with streams_end_on_signal(services.hub):
+                yield
         finally:
+            services.hub.close_all("the service is stopping")
             services.drift.stop()
-            services.runner.shutdown()
+            stopped = services.runner.shutdown()
+            if stopped is not None:
+                log.warning("run %s interrupted by the shutdown; resume it after the restart", stopped)
             services.auth.close()
             app.state.services = None
             services.engine.dispose()

@@ -16,6 +16,8 @@ from typing import Any
 
 QUEUE_SIZE = 256
 TERMINAL_EVENT = "finished"
+CLOSED_EVENT = "shutdown"
+"""Sent to every open stream when the service shuts down; the stream ends after it."""
 
 
 class Subscription:
@@ -39,6 +41,7 @@ class ProgressHub:
         self._lock = threading.Lock()
         self._subs: dict[str, list[Subscription]] = defaultdict(list)
         self._last: dict[str, tuple[str, dict[str, Any]]] = {}
+        self._closed: str | None = None
 
     def subscribe(self, run_id: str) -> Subscription:
         """A new subscription on the running loop; it first receives the run's last event."""
@@ -70,6 +73,23 @@ class ProgressHub:
                 sub.loop.call_soon_threadsafe(sub._put, item)
             except RuntimeError:  # the subscriber's loop is closed: it went away
                 self.unsubscribe(sub)
+
+    def close_all(self, reason: str) -> None:
+        """End every open stream with a :data:`CLOSED_EVENT` (the service is shutting down, so
+        the server need not wait for long-lived streams before stopping the run)."""
+        with self._lock:
+            self._closed = reason
+            subs = [sub for group in self._subs.values() for sub in group]
+        for sub in subs:
+            try:
+                sub.loop.call_soon_threadsafe(sub._put, (CLOSED_EVENT, {"reason": reason}))
+            except RuntimeError:
+                self.unsubscribe(sub)
+
+    @property
+    def closed(self) -> str | None:
+        """Why the hub was closed (streams opened after it end at once), ``None`` while open."""
+        return self._closed
 
     def last(self, run_id: str) -> tuple[str, dict[str, Any]] | None:
         """The last event published for ``run_id``."""

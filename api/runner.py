@@ -3,47 +3,46 @@
 :meth:`BenchRunner.start` validates the request, allocates the run id, and starts a worker
 thread that calls :func:`api.bench_session.start_run` with a :class:`HubObserver` (progress
 to the event streams) and then the finisher (fit, diagnosis, certificate or drift
-comparison, in the database). A second start while a run holds the bench raises
-:class:`BenchBusy` (HTTP 409). The simulated unit behind a serial is
-``SensorTruth.typical(seed=crc32(serial)).aged(age_days)``, its age counted from the unit's
-first registration on the runner's clock, so a sensor ages from day to day and tests can
-move the clock.
+comparison, in the database). :meth:`BenchRunner.resume` claims an ``interrupted`` run and
+continues it from its next window in the same way (:mod:`api.service_resume`);
+:meth:`~BenchRunner.pause` and :meth:`~BenchRunner.continue_run` hold and release the live
+run. A second start while a run holds the bench raises :class:`BenchBusy` (HTTP 409).
+:meth:`~BenchRunner.shutdown` leaves the live run ``interrupted`` (table safe, recording
+closed), not aborted, so it is resumed after a restart.
+
+The simulated unit behind a serial is ``SensorTruth.typical(seed=crc32(serial)).aged(age_days)``,
+its age counted from the unit's first registration on the runner's clock, so a sensor ages
+from day to day and tests can move the clock; a resumed run keeps the age it started with.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as dt
 import logging
 import threading
 import zlib
 from collections.abc import Callable
-from typing import Any, Literal
 
 from sqlalchemy.orm import Session, sessionmaker
 
+from api import service_resume
 from api.bench_session import start_run
+from api.live_run import HubObserver, LiveRun, RunKind, ServiceParamsObserver
 from api.progress_hub import TERMINAL_EVENT, ProgressHub
+from api.service_resume import SHUTDOWN_REASON, NotResumable
 from api.settings import Settings
 from bench.procedures import build_procedure, preview
-from bench.records import (
-    NullObserver,
-    Progress,
-    RunRecord,
-    RunStart,
-    StateChange,
-    WindowRecord,
-    new_run_id,
-    utc_now,
-)
+from bench.records import Outcome, RunObserver, RunRecord, new_run_id, utc_now
 from bench.sequencer_control import RunControl, SequencerConfig
+from db.repo.recovery import mark_run_interrupted
 from db.repo.units import get_unit_by_serial
 from drivers.sim.physics import SensorTruth
 
+__all__ = ["BenchBusy", "BenchRunner", "LiveRun", "NotResumable", "RunKind", "simulated_unit", "unit_seed"]
+
 log = logging.getLogger(__name__)
 
-RunKind = Literal["calibration", "drift_check"]
-Finisher = Callable[["LiveRun", RunRecord], None]
+Finisher = Callable[[LiveRun, RunRecord], None]
 
 
 class BenchBusy(Exception):
@@ -63,69 +62,6 @@ def simulated_unit(serial: str, age_days: float) -> SensorTruth:
     """The simulated sensor with this serial, ``age_days`` after its first registration."""
     seed = unit_seed(serial)
     return SensorTruth.typical("V", seed).aged(max(0.0, age_days), seed)
-
-
-@dataclasses.dataclass
-class LiveRun:
-    """What the runner knows of the run holding the bench (thread-safe enough: the worker
-    writes plain attributes, readers take snapshots)."""
-
-    id: str
-    unit_serial: str
-    procedure: str
-    kind: RunKind
-    control: RunControl
-    age_days: float
-    state: str = "queued"
-    progress: float = 0.0
-    created_at: dt.datetime = dataclasses.field(default_factory=utc_now)
-    record: RunRecord | None = None
-    error: str | None = None
-    done: threading.Event = dataclasses.field(default_factory=threading.Event)
-    extra: dict[str, Any] = dataclasses.field(default_factory=dict)
-
-
-class HubObserver(NullObserver):
-    """Run observer that publishes state, progress and windows to the hub and the live run."""
-
-    def __init__(self, live: LiveRun, hub: ProgressHub) -> None:
-        self.live, self.hub = live, hub
-
-    def on_start(self, start: RunStart) -> None:
-        self.live.state = "running"
-        self.hub.publish(self.live.id, "state", {"state": "running", "reason": "started"})
-
-    def on_state(self, run_id: str, change: StateChange) -> None:
-        self.live.state = change.state.value
-        self.hub.publish(run_id, "state", {"state": change.state.value, "reason": change.reason})
-
-    def on_progress(self, run_id: str, progress: Progress) -> None:
-        self.live.state = "running" if progress.state.value == "running" else progress.state.value
-        self.live.progress = progress.fraction
-        self.hub.publish(
-            run_id,
-            "progress",
-            {
-                "progress": progress.fraction,
-                "step_index": progress.step_index,
-                "n_steps": progress.n_steps,
-                "step_label": progress.step_label,
-                "window_index": progress.window_index,
-                "n_windows": progress.n_windows,
-                "elapsed_s": progress.elapsed_s,
-                "expected_total_s": progress.expected_total_s,
-                "table_deg": list(progress.table_deg),
-                "state": progress.state.value,
-            },
-        )
-
-    def on_window(self, run_id: str, window: WindowRecord) -> None:
-        self.hub.publish(
-            run_id,
-            "window",
-            {"index": window.index, "label": window.label, "kind": window.kind.value,
-             "pose_deg": list(window.pose_deg), "n_samples": window.n_samples},
-        )
 
 
 class BenchRunner:
@@ -176,6 +112,13 @@ class BenchRunner:
             return 0.0
         return max(0.0, (self.clock() - first).total_seconds() / 86400.0)
 
+    def _claim_bench(self, live: LiveRun, target: Callable[[LiveRun], None]) -> None:
+        """Make ``live`` the run holding the bench and start its worker (caller holds the lock)."""
+        if self._current is not None:
+            raise BenchBusy(self._current.id)
+        self._current = live
+        self._thread = threading.Thread(target=target, args=(live,), name=f"bench-run-{live.id}", daemon=True)
+
     def start(
         self, unit_serial: str, procedure: str, *, dwell_s: float | None = None, kind: RunKind = "calibration"
     ) -> LiveRun:
@@ -191,58 +134,123 @@ class BenchRunner:
             raise ValueError(f"{procedure}: " + "; ".join(pv.problems))
         age = self.age_days(unit_serial)
         with self._lock:
-            if self._current is not None:
-                raise BenchBusy(self._current.id)
             live = LiveRun(
                 new_run_id(unit_serial, self.clock()), unit_serial, procedure, kind, RunControl(), age
             )
             live.extra["dwell_s"] = dwell_s
-            self._current = live
-            self._thread = threading.Thread(
-                target=self._work, args=(live,), name=f"bench-run-{live.id}", daemon=True
-            )
+            self._claim_bench(live, self._work)
         self.hub.publish(live.id, "state", {"state": "queued", "reason": "accepted"})
+        assert self._thread is not None
         self._thread.start()
         return live
 
+    def resume(self, run_id: str) -> LiveRun:
+        """Continue an ``interrupted`` run from the window after its last complete one.
+
+        The run is claimed in the database before this returns, so a refusal is immediate.
+
+        :raises LookupError: no such run. :raises NotResumable: its state or recording forbids it.
+        :raises BenchBusy: another run holds the bench.
+        """
+        with self.sessions.begin() as s:
+            service_resume.check_resumable(s, run_id)
+        with self._lock:
+            if self._current is not None:
+                raise BenchBusy(self._current.id)
+            with self.sessions.begin() as s:
+                claimed = service_resume.claim(s, run_id)
+            age = claimed.sim_age_days
+            live = LiveRun(run_id, claimed.unit_serial, claimed.procedure, claimed.kind,  # type: ignore[arg-type]
+                           RunControl(), age if age is not None else 0.0, resumed=True)
+            live.extra["claimed"] = claimed
+            live.extra["resumed_from_window"] = claimed.point.next_window_index
+            self._claim_bench(live, self._work)
+        self.hub.publish(live.id, "state", {"state": "queued", "reason": "resume accepted"})
+        assert self._thread is not None
+        self._thread.start()
+        return live
+
+    def _held(self, run_id: str) -> LiveRun | None:
+        live = self._current
+        return live if live is not None and live.id == run_id else None
+
     def abort(self, run_id: str, reason: str = "operator abort over REST") -> bool:
         """Ask the run to abort (table to its safe state, recording kept); False if not live."""
-        live = self._current
-        if live is None or live.id != run_id:
+        live = self._held(run_id)
+        if live is None:
             return False
         live.control.abort(reason)
         return True
 
+    def pause(self, run_id: str) -> bool:
+        """Hold the live run: the window in progress is dropped and recorded again on continue;
+        False if the run does not hold the bench."""
+        live = self._held(run_id)
+        if live is None:
+            return False
+        live.control.pause()
+        return True
+
+    def continue_run(self, run_id: str) -> bool:
+        """Release a pause; for a run suspended by an interlock or the temperature band, the
+        operator's go-ahead (the table is prepared again). False if the run does not hold the bench."""
+        live = self._held(run_id)
+        if live is None:
+            return False
+        live.control.resume()
+        return True
+
+    def _observers(self, live: LiveRun) -> list[RunObserver]:
+        return [ServiceParamsObserver(live, self.sessions, self.settings.sim), HubObserver(live, self.hub)]
+
+    def _acquire(self, live: LiveRun) -> RunRecord:
+        """Execute (or continue) the run on the bench, to its verdict."""
+        if live.resumed:
+            claimed = live.extra["claimed"]
+            truth = None
+            if self.settings.sim and claimed.sim_age_days is not None:
+                truth = simulated_unit(live.unit_serial, claimed.sim_age_days)
+            return service_resume.execute(self.settings, self.sessions, claimed, truth=truth,
+                                          observers=self._observers(live), control=live.control)
+        return start_run(
+            self.settings,
+            live.procedure,
+            live.unit_serial,
+            sim=self.settings.sim,
+            seed=self.settings.sim_seed,
+            dwell_s=live.extra.get("dwell_s"),
+            observers=self._observers(live),
+            control=live.control,
+            run_id=live.id,
+            truth=simulated_unit(live.unit_serial, live.age_days) if self.settings.sim else None,
+        )
+
     def _work(self, live: LiveRun) -> None:
         record: RunRecord | None = None
+        interrupted = False
         try:
-            record = start_run(
-                self.settings,
-                live.procedure,
-                live.unit_serial,
-                sim=self.settings.sim,
-                seed=self.settings.sim_seed,
-                dwell_s=live.extra.get("dwell_s"),
-                observers=[HubObserver(live, self.hub)],
-                control=live.control,
-                run_id=live.id,
-                truth=simulated_unit(live.unit_serial, live.age_days) if self.settings.sim else None,
-            )
+            record = self._acquire(live)
             live.record = record
             live.error = record.error
-            if self.finisher is not None:
+            if live.shutdown and record.outcome is Outcome.ABORTED:
+                with self.sessions.begin() as s:
+                    interrupted = service_resume.interrupt_shutdown_abort(s, live.id)
+            elif self.finisher is not None:
                 self.finisher(live, record)
         except Exception as exc:  # the worker must report, not die silently
             log.exception("run %s failed in the service", live.id)
             live.error = f"{type(exc).__name__}: {exc}"
+            if live.resumed and record is None:  # claimed but not continued: resumable again
+                interrupted = self._release_claim(live)
         finally:
-            live.state = _final_state(record)
+            live.state = "interrupted" if interrupted else _final_state(record)
             live.progress = 1.0 if live.state == "completed" else live.progress
+            hidden = ("dwell_s", "claimed")
             self.hub.publish(
                 live.id,
                 TERMINAL_EVENT,
                 {"state": live.state, "outcome": record.outcome.value if record and record.outcome else None,
-                 "error": live.error, **{k: v for k, v in live.extra.items() if k != "dwell_s"}},
+                 "error": live.error, **{k: v for k, v in live.extra.items() if k not in hidden}},
             )
             with self._lock:
                 self._recent[live.id] = live
@@ -251,17 +259,32 @@ class BenchRunner:
                 self._current = None
             live.done.set()
 
+    def _release_claim(self, live: LiveRun) -> bool:
+        try:
+            with self.sessions.begin() as s:
+                return mark_run_interrupted(s, live.id, f"resume failed: {live.error}")
+        except Exception:
+            log.exception("run %s: could not mark it interrupted again", live.id)
+            return False
+
     def wait_idle(self, timeout_s: float) -> bool:
         """Wait until no run holds the bench; False on timeout."""
         live = self._current
         return True if live is None else live.done.wait(timeout_s)
 
-    def shutdown(self, timeout_s: float = 30.0) -> None:
-        """Abort the current run (if any) and wait for its worker."""
+    def shutdown(self, timeout_s: float = 60.0) -> str | None:
+        """Stop the live run for a service shutdown and wait for its worker: the table goes to
+        its safe state, the recording is closed with its durable chunks, and the run is stored
+        ``interrupted`` (resumable after the restart), not aborted. Returns its id, if any."""
         live = self._current
-        if live is not None:
-            live.control.abort("service shutting down")
-            live.done.wait(timeout_s)
+        if live is None:
+            return None
+        live.shutdown = True
+        live.control.abort(SHUTDOWN_REASON)
+        if not live.done.wait(timeout_s):
+            log.error("run %s did not stop within %g s of the shutdown; the next start marks it "
+                      "interrupted", live.id, timeout_s)
+        return live.id
 
 
 def _final_state(record: RunRecord | None) -> str:

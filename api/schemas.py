@@ -103,6 +103,20 @@ class AbortOut(BaseModel):
     state: RunStateName
 
 
+class RunActionOut(BaseModel):
+    """Result of a pause, continue or resume request."""
+
+    id: str
+    action: Literal["pause", "continue", "resume"] = Field(
+        description="pause: the live run holds; continue: a paused or suspended run goes on; "
+        "resume: an interrupted run continues on this bench from its next window"
+    )
+    state: RunStateName
+    resumed_from_window: int | None = Field(
+        default=None, description="resume: the index of the first window recorded again"
+    )
+
+
 class UnitRegistration(BaseModel):
     """What the laboratory states about a unit (ISO/IEC 17025 7.8.2.1 e, g, h). Fields not sent
     keep their value; ``null`` clears one."""

@@ -1,4 +1,4 @@
-"""Runs: start (operator), list, read, abort (operator), and the live event stream."""
+"""Runs: start (operator), list, read, abort, pause, resume (operator), and the live event stream."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ from fastapi import APIRouter, HTTPException, Query, Request, status
 from fastapi.responses import StreamingResponse
 
 from api.deps import OperatorDep, RunnerDep, ServicesDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
-from api.progress_hub import TERMINAL_EVENT
+from api.progress_hub import CLOSED_EVENT, TERMINAL_EVENT
 from api.routes.views import live_out, run_out
-from api.runner import BenchBusy
-from api.schemas import AbortOut, RunCreate, RunCreated, RunOut, RunStateName
+from api.runner import BenchBusy, NotResumable
+from api.schemas import AbortOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
 from db.models import Certificate, RunState
 from db.repo.runs import get_run, list_runs
 
@@ -96,13 +96,62 @@ def abort(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -
     """Abort a live run: the table goes to its safe state, the recording is kept."""
     if runner.abort(run_id):
         return AbortOut(id=run_id, abort_requested=True, state="running")
+    raise _not_live(session, run_id, "nothing to abort")
+
+
+_NOT_LIVE = {404: {"description": "no such run"}, 409: {"description": "the run does not hold the bench"}}
+
+
+def _not_live(session: SessionDep, run_id: str, what: str) -> HTTPException:
     with session.begin():
         row = get_run(session, run_id)
         if row is None:
-            raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
+            return HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
         state = row.state.value
-    raise HTTPException(
-        status.HTTP_409_CONFLICT, f"run {run_id} is {state}, not running on this bench: nothing to abort"
+    detail = f"run {run_id} is {state}, not running on this bench: {what}"
+    return HTTPException(status.HTTP_409_CONFLICT, detail)
+
+
+@router.post("/{run_id}/pause", response_model=RunActionOut, responses=_NOT_LIVE)
+def pause(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
+    """Hold the live run: the table stops, the window in progress is dropped and recorded again
+    when the run continues (``POST /api/runs/{id}/resume``). Idempotent."""
+    if runner.pause(run_id):
+        return RunActionOut(id=run_id, action="pause", state="paused")
+    raise _not_live(session, run_id, "nothing to pause")
+
+
+@router.post(
+    "/{run_id}/resume",
+    status_code=status.HTTP_202_ACCEPTED,
+    response_model=RunActionOut,
+    responses={
+        404: {"description": "no such run"},
+        409: {"description": "the bench is busy with another run, or the run cannot be resumed"},
+    },
+)
+def resume(run_id: str, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
+    """Continue a run. A paused or suspended run holding the bench goes on (for a suspension,
+    the operator's go-ahead: the table is prepared again once the interlock has closed). An
+    ``interrupted`` run (its process died or the service shut down) continues on this bench
+    from the window after its last complete one, with live events on ``/events`` and its
+    certificate issued at the end as for a fresh run."""
+    cur = runner.current
+    if cur is not None and cur.id == run_id:
+        if cur.state not in ("paused", "suspended"):
+            raise HTTPException(
+                status.HTTP_409_CONFLICT, f"run {run_id} is {cur.state} on this bench: nothing to resume"
+            )
+        runner.continue_run(run_id)
+        return RunActionOut(id=run_id, action="continue", state="running")
+    try:
+        live = runner.resume(run_id)
+    except LookupError as exc:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, str(exc)) from None
+    except (BenchBusy, NotResumable) as exc:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
+    return RunActionOut(
+        id=run_id, action="resume", state="queued", resumed_from_window=live.extra.get("resumed_from_window")
     )
 
 
@@ -117,7 +166,8 @@ def _sse(event: str, data: Mapping[str, object]) -> str:
 )
 async def events(run_id: str, request: Request, services: ServicesDep, _: ViewerLinkDep) -> StreamingResponse:
     """Live progress as server-sent events: ``state``, ``progress``, ``window``, and a final
-    ``finished`` (state, outcome, error, certificate_number) after which the stream ends.
+    ``finished`` (state, outcome, error, certificate_number) after which the stream ends; a
+    ``shutdown`` event ends it when the service stops (the run is then ``interrupted``).
     A run that is not live gets one ``finished`` event with its stored state."""
     runner, hub = services.runner, services.hub
     live = runner.live(run_id)
@@ -136,6 +186,9 @@ async def events(run_id: str, request: Request, services: ServicesDep, _: Viewer
 
     async def stream() -> AsyncIterator[str]:
         try:
+            if hub.closed is not None:
+                yield _sse(CLOSED_EVENT, {"reason": hub.closed})
+                return
             if live.done.is_set() and hub.last(run_id) is None:
                 yield _sse(TERMINAL_EVENT, {"state": live.state, "error": live.error})
                 return
@@ -148,7 +201,7 @@ async def events(run_id: str, request: Request, services: ServicesDep, _: Viewer
                     yield ": keepalive\n\n"
                     continue
                 yield _sse(event, data)
-                if event == TERMINAL_EVENT:
+                if event in (TERMINAL_EVENT, CLOSED_EVENT):
                     return
         finally:
             hub.unsubscribe(sub)

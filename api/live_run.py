@@ -1,0 +1,104 @@
+"""What the service knows of the run holding its bench, and the observers that tell it.
+
+:class:`LiveRun` is the runner's view of one run (state, progress, control handle);
+:class:`HubObserver` publishes the run's state, progress and windows to the event streams;
+:class:`ServiceParamsObserver` stores with the run what a later resume needs (the kind of
+service run, the age of the simulated unit).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import threading
+from typing import Any, Literal
+
+from sqlalchemy.orm import Session, sessionmaker
+
+from api.progress_hub import ProgressHub
+from api.service_resume import SIM_AGE_KEY
+from bench.records import NullObserver, Progress, RunRecord, RunStart, StateChange, WindowRecord, utc_now
+from bench.sequencer_control import RunControl
+from db.repo.runs import merge_params
+
+RunKind = Literal["calibration", "drift_check"]
+
+
+@dataclasses.dataclass
+class LiveRun:
+    """What the runner knows of the run holding the bench (thread-safe enough: the worker
+    writes plain attributes, readers take snapshots)."""
+
+    id: str
+    unit_serial: str
+    procedure: str
+    kind: RunKind
+    control: RunControl
+    age_days: float
+    resumed: bool = False
+    shutdown: bool = False
+    state: str = "queued"
+    progress: float = 0.0
+    created_at: dt.datetime = dataclasses.field(default_factory=utc_now)
+    record: RunRecord | None = None
+    error: str | None = None
+    done: threading.Event = dataclasses.field(default_factory=threading.Event)
+    extra: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+
+class HubObserver(NullObserver):
+    """Run observer that publishes state, progress and windows to the hub and the live run."""
+
+    def __init__(self, live: LiveRun, hub: ProgressHub) -> None:
+        self.live, self.hub = live, hub
+
+    def on_start(self, start: RunStart) -> None:
+        self.live.state = "running"
+        self.hub.publish(self.live.id, "state", {"state": "running", "reason": "started"})
+
+    def on_state(self, run_id: str, change: StateChange) -> None:
+        self.live.state = change.state.value
+        self.hub.publish(run_id, "state", {"state": change.state.value, "reason": change.reason})
+
+    def on_progress(self, run_id: str, progress: Progress) -> None:
+        self.live.state = "running" if progress.state.value == "running" else progress.state.value
+        self.live.progress = progress.fraction
+        self.hub.publish(
+            run_id,
+            "progress",
+            {
+                "progress": progress.fraction,
+                "step_index": progress.step_index,
+                "n_steps": progress.n_steps,
+                "step_label": progress.step_label,
+                "window_index": progress.window_index,
+                "n_windows": progress.n_windows,
+                "elapsed_s": progress.elapsed_s,
+                "expected_total_s": progress.expected_total_s,
+                "table_deg": list(progress.table_deg),
+                "state": progress.state.value,
+            },
+        )
+
+    def on_window(self, run_id: str, window: WindowRecord) -> None:
+        self.hub.publish(
+            run_id,
+            "window",
+            {"index": window.index, "label": window.label, "kind": window.kind.value,
+             "pose_deg": list(window.pose_deg), "n_samples": window.n_samples},
+        )
+
+
+class ServiceParamsObserver(NullObserver):
+    """Stores ``service_kind`` and, on a simulated bench, the simulated unit's age with the run
+    when it starts (or resumes), so a resume after a restart continues the same measurement."""
+
+    def __init__(self, live: LiveRun, sessions: sessionmaker[Session], sim: bool) -> None:
+        self.live, self.sessions, self.sim = live, sessions, sim
+
+    def on_start(self, start: RunStart) -> None:
+        extra: dict[str, Any] = {"service_kind": self.live.kind}
+        if self.sim:
+            extra[SIM_AGE_KEY] = self.live.age_days
+        with self.sessions.begin() as s:
+            merge_params(s, start.run_id, extra)

@@ -19,7 +19,8 @@ TABLES = (("Bias b", ("b_x", "b_y", "b_z")), ("Scale factors K_ii", ("K_xx", "K_
 
 
 def _g(x: float) -> str:
-    return f"{x:.2g}" if x != 0 else "0"
+    """Two significant digits, a trailing zero kept (U = 3.96e-5 is "4.0e-05", not "4e-05")."""
+    return f"{x:#.2g}".rstrip(".") if x != 0 else "0"
 
 
 def _input_u(inputs: list[dict[str, Any]], group: str) -> str:

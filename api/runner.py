@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+import socket
 import threading
 import zlib
 from collections.abc import Callable
@@ -34,7 +35,7 @@ from api.settings import Settings
 from bench.procedures import build_procedure, preview
 from bench.records import Outcome, RunObserver, RunRecord, new_run_id, utc_now
 from bench.sequencer_control import RunControl, SequencerConfig
-from db.repo.recovery import mark_run_interrupted
+from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
 from db.repo.units import get_unit_by_serial
 from drivers.sim.physics import SensorTruth
 
@@ -153,6 +154,7 @@ class BenchRunner:
         :raises BenchBusy: another run holds the bench.
         """
         with self.sessions.begin() as s:
+            mark_interrupted_runs(s, socket.gethostname())  # a run whose owner has died since
             service_resume.check_resumable(s, run_id)
         with self._lock:
             if self._current is not None:

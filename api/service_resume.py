@@ -38,7 +38,7 @@ from db.repo.recovery import ResumePoint, claim_for_resume
 from db.types import utc_now
 from drivers.sim.physics import SensorTruth
 
-SHUTDOWN_REASON = "service shutdown: resumable, POST /api/runs/{id}/resume after the restart"
+SHUTDOWN_REASON = "service shutdown: resumable after the restart"
 """The abort reason of a run stopped by a service shutdown (it is in the stored error)."""
 
 SIM_AGE_KEY = "service_sim_age_days"
@@ -60,7 +60,7 @@ def interrupt_shutdown_abort(session: Session, run_id: str) -> bool:
             finished_at=None,
             heartbeat_at=utc_now(),
             error="interrupted: the service shut down during the run (table made safe, recording "
-            "closed); resume it with POST /api/runs/{id}/resume",
+            f"closed); resume it with POST /api/runs/{run_id}/resume",
         )
         .execution_options(synchronize_session="fetch")
     )

@@ -15,7 +15,7 @@ function seconds(s) {
   return m ? `${m} min ${Math.round(s % 60)} s` : `${s.toFixed(1)} s`;
 }
 
-function liveCard(run, session, onAbort) {
+function liveCard(run, session, act) {
   const bar = progressBar(run.progress, true, "run progress");
   const pct = h("strong", { id: "progress-text", class: "num" }, `${Math.round(run.progress * 100)} %`);
   const state = h("span", { id: "run-state" }, badge(run.state));
@@ -24,16 +24,37 @@ function liveCard(run, session, onAbort) {
   const time = h("dd", { id: "run-time" }, "–");
   const pose = h("dd", { id: "run-pose", class: "num" }, "–");
   const poseLabel = h("dt", {}, "Table");
-  const canAbort = session.role === "operator" || session.role === "admin";
-  const abort = h("button", { type: "button", class: "danger", id: "abort-run", disabled: !canAbort || !LIVE.has(run.state),
-    title: canAbort ? "stop the run; the table goes to its safe state and the recording is kept" : "needs an operator token",
-    onclick: onAbort }, "Abort");
+  const canAct = session.role === "operator" || session.role === "admin";
+  const needs = "needs an operator token";
+  const abort = h("button", { type: "button", class: "danger", id: "abort-run", disabled: !canAct || !LIVE.has(run.state),
+    title: canAct ? "stop the run; the table goes to its safe state and the recording is kept" : needs,
+    onclick: act.abort }, "Abort");
+  const pause = h("button", { type: "button", class: "ghost", id: "pause-run", disabled: !canAct,
+    title: canAct ? "hold the run: the table stops, the window in progress is recorded again on continue" : needs,
+    onclick: act.pause }, "Pause");
+  const cont = h("button", { type: "button", id: "continue-run", disabled: !canAct,
+    title: canAct ? "continue the held run (after a suspension: the table is prepared again)" : needs,
+    onclick: act.resume }, "Continue");
+  const resume = h("button", { type: "button", id: "resume-run", disabled: !canAct,
+    title: canAct ? "continue this run on the bench from the window after its last complete one" : needs,
+    onclick: act.resume }, "Resume");
+  const controls = (st) => {
+    pause.hidden = !(st === "running" || st === "queued");
+    cont.hidden = !(st === "paused" || st === "suspended");
+    resume.hidden = st !== "interrupted";
+    abort.hidden = st === "interrupted";
+    abort.disabled = !canAct || !LIVE.has(st);
+  };
+  controls(run.state);
   const el = h("section", { class: "card span", "aria-label": "Progress" },
     h("header", {}, h("h2", {}, "Progress"), state),
     h("div", { class: "progress-line" }, bar, pct),
     h("dl", { class: "kv" }, h("dt", {}, "Step"), step, h("dt", {}, "Window"), windows,
       h("dt", {}, "Time"), time, poseLabel, pose),
-    h("p", {}, abort));
+    h("p", { class: "actions" }, pause, " ", cont, " ", resume, " ", abort),
+    run.state === "interrupted" ? h("p", { class: "note", id: "interrupted-note" },
+      "The run stopped before finishing. Every complete window is kept: Resume continues it on this bench "
+      + "from the next window, and the certificate is issued at the end.") : null);
   const update = (p) => {
     if (p.progress !== undefined) { setProgress(bar, p.progress); pct.textContent = `${Math.round(p.progress * 100)} %`; }
     if (p.state) state.replaceChildren(badge(p.state));
@@ -41,7 +62,7 @@ function liveCard(run, session, onAbort) {
     if (p.n_windows) windows.textContent = p.window_index == null ? `between windows (${p.n_windows} planned)` : `${p.window_index + 1} of ${p.n_windows}`;
     if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} of about ${seconds(p.expected_total_s)} (bench clock)`;
     if (p.table_deg) pose.textContent = p.table_deg.map((a) => `${a.toFixed(1)}°`).join("  ");
-    if (p.state && !LIVE.has(p.state)) abort.disabled = true;
+    if (p.state) controls(p.state);
   };
   if (!LIVE.has(run.state)) {
     step.textContent = `ended ${run.state}${run.outcome ? ` (${run.outcome})` : ""}`;
@@ -185,9 +206,16 @@ export async function runView(view, runId, session, signal) {
   view.append(h("div", { class: "page-head" }, h("h1", {}, "Run ", h("span", { class: "mono" }, run.id)),
     h("span", { class: "muted" }, "unit ", h("a", { href: `#/units/${enc(run.unit_serial)}` }, run.unit_serial), ` · ${run.procedure} · ${when(run.started_at || run.created_at)}`)));
   const status = h("p", { class: "note", "aria-live": "polite" });
-  const live = liveCard(run, session, async () => {
-    try { await postJson(`/api/runs/${enc(runId)}/abort`); status.textContent = "Abort requested."; }
-    catch (err) { status.textContent = `Abort failed: ${err.message}`; }
+  const post = (action, done, then) => async () => {
+    try { await postJson(`/api/runs/${enc(runId)}/${action}`); status.textContent = done; if (then) then(); }
+    catch (err) { status.textContent = `${action[0].toUpperCase()}${action.slice(1)} failed: ${err.message}`; }
+  };
+  // A resumed run is live again: draw the page anew to follow its events.
+  const reload = () => window.dispatchEvent(new HashChangeEvent("hashchange"));
+  const live = liveCard(run, session, {
+    abort: post("abort", "Abort requested."),
+    pause: post("pause", "Pause requested: the table holds; the window in progress is recorded again on continue."),
+    resume: post("resume", "Resume requested.", () => { if (run.state === "interrupted") reload(); }),
   });
   const results = h("div", { id: "results" });
   const winBody = h("tbody");
@@ -215,6 +243,7 @@ export async function runView(view, runId, session, signal) {
       if (name === "progress" || name === "state") live.update(data);
       if (name === "window") addWindow(data);
       if (name === "finished") live.update({ state: data.state, progress: data.state === "completed" ? 1 : undefined });
+      if (name === "shutdown") status.textContent = "The service is restarting: the run will be stored interrupted and can be resumed.";
     }, signal);
   } catch (err) {
     if (err.name === "AbortError") return;
@@ -224,7 +253,13 @@ export async function runView(view, runId, session, signal) {
   // A completed fit gets its certificate just after the state turns final: wait a few polls for it.
   let grace = 10;
   while (!signal.aborted) {
-    run = await getJson(`/api/runs/${enc(runId)}`, { signal });
+    try { run = await getJson(`/api/runs/${enc(runId)}`, { signal }); }
+    catch (err) {
+      if (err.name === "AbortError") return;
+      status.textContent = `Service unreachable (${err.message}); retrying.`;
+      await new Promise((r) => setTimeout(r, POLL_MS * 2));
+      continue;
+    }
     live.update({ state: run.state, progress: run.progress });
     const awaitingCertificate = run.state === "completed" && run.calibration && !run.certificate_number;
     if (!LIVE.has(run.state) && (!awaitingCertificate || grace-- <= 0)) break;

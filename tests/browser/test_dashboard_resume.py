@@ -1,0 +1,104 @@
+"""The run page's Pause, Continue and Resume controls in headless Chromium.
+
+A run is started over REST and the service stops with it live (its lifespan ends), so the
+run is stored ``interrupted``. On a new service over the same database an operator opens the
+run page, presses Resume and follows the resumed run live to its certificate; a viewer sees
+the controls disabled. A second run is paused and continued from the page.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from tests.api.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
+from tests.browser.live_server import live_service
+from tests.browser.test_dashboard import CHROMIUM, CHROMIUM_ARGS, DESK, ConsoleWatch, shot
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.timeout(600),
+    pytest.mark.skipif(
+        not CHROMIUM.exists(),
+        reason="Debian's chromium is not installed at /usr/bin/chromium (`make browser` installs it)",
+    ),
+]
+DEADLINE_S = 240.0
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    sync_api = pytest.importorskip("playwright.sync_api")
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, headless=True)
+        yield b
+        b.close()
+
+
+def poll(base: str, run_id: str, cond: Any, what: str) -> dict[str, Any]:
+    deadline = time.monotonic() + DEADLINE_S
+    while time.monotonic() < deadline:
+        run = httpx.get(f"{base}/api/runs/{run_id}", headers=VIEW, timeout=30).json()
+        if cond(run):
+            return run
+        time.sleep(0.2)
+    raise AssertionError(f"waited {DEADLINE_S} s for {what}: {run}")
+
+
+def page_as(browser: Any, token: str) -> tuple[Any, Any, ConsoleWatch]:
+    ctx = browser.new_context(viewport=DESK)
+    ctx.add_init_script(f"localStorage.setItem('calbench.token', {json.dumps(token)})")
+    page = ctx.new_page()
+    return ctx, page, ConsoleWatch(page)
+
+
+def test_resume_pause_and_continue_from_the_run_page(tmp_path: Path, browser: Any) -> None:
+    settings = service_settings(tmp_path, sim_speed=20.0, bench_name="bench-ui-resume")
+    with live_service(settings) as base:
+        r = httpx.post(f"{base}/api/runs", json={"unit_serial": "SN-UI-RES", "procedure": "static-12"},
+                       headers=OP, timeout=30)
+        run_id = r.json()["id"]
+        poll(base, run_id, lambda b: (b.get("last_complete_window") or -1) >= 2, "three windows")
+    with live_service(settings) as base:
+        assert poll(base, run_id, lambda b: True, "the run")["state"] == "interrupted"
+        viewer_ctx, vpage, _ = page_as(browser, VIEWER)
+        vpage.goto(f"{base}/#/runs/{run_id}")
+        vpage.wait_for_selector("#resume-run")
+        assert vpage.is_disabled("#resume-run") and vpage.is_visible("#interrupted-note")
+        viewer_ctx.close()
+
+        ctx, page, console = page_as(browser, OPERATOR)
+        page.goto(f"{base}/#/runs/{run_id}")
+        page.wait_for_selector("#resume-run:not([disabled])")
+        assert "interrupted" in page.inner_text("#run-state") and page.is_hidden("#pause-run")
+        shot(page, "desk-run-interrupted")
+        page.click("#resume-run")
+        page.wait_for_selector("#run-state .badge.running", timeout=DEADLINE_S * 1000)
+        assert page.is_visible("#pause-run") and page.is_hidden("#resume-run")
+        page.wait_for_selector("#certificate strong", timeout=DEADLINE_S * 1000)
+        assert "completed" in page.inner_text("#run-state")
+        body = poll(base, run_id, lambda b: b.get("certificate_number"), "the certificate")
+        assert page.inner_text("#certificate strong") == body["certificate_number"]
+        shot(page, "desk-run-resumed")
+
+        r = httpx.post(f"{base}/api/runs", json={"unit_serial": "SN-UI-PAUSE", "procedure": "static-12"},
+                       headers=OP, timeout=30)
+        second = r.json()["id"]
+        page.goto(f"{base}/#/runs/{second}")
+        page.wait_for_selector("#pause-run:visible:not([disabled])")
+        page.click("#pause-run")
+        page.wait_for_selector("#run-state .badge.paused", timeout=DEADLINE_S * 1000)
+        assert page.is_visible("#continue-run") and page.is_hidden("#pause-run")
+        shot(page, "desk-run-paused")
+        page.click("#continue-run")
+        page.wait_for_selector("#certificate strong", timeout=DEADLINE_S * 1000)
+        done = poll(base, second, lambda b: b.get("certificate_number"), "the certificate")
+        assert done["state"] == "completed"
+        assert console.errors == []
+        ctx.close()

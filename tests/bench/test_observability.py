@@ -55,13 +55,23 @@ def test_single_pose_rate_plan_cannot_determine_scale() -> None:
     assert "scale_matrix" in why and "no information" in why["scale_matrix"]
 
 
+UP_ONLY_POSES_DEG = ((0.0, 0.0), (90.0, 90.0), (90.0, 0.0))
+
+
 def test_tilted_rate_plan_determines_proof_masses() -> None:
-    _, plain = plan_observability(rate_1axis(dwell_s=10.0), ("proof_mass_offsets", "nonlinearity_quadratic"))
-    _, tilted = plan_observability(
-        rate_1axis(dwell_s=10.0, tilted_deg=10.0), ("proof_mass_offsets", "nonlinearity_quadratic")
-    )
-    assert "nonlinearity_quadratic" in plain  # every axis only ever points up at a pose
+    terms = ("proof_mass_offsets", "nonlinearity_quadratic")
+    _, up_only = plan_observability(rate_1axis(dwell_s=10.0, poses_deg=UP_ONLY_POSES_DEG), terms)
+    _, tilted = plan_observability(rate_1axis(dwell_s=10.0, tilted_deg=10.0), terms)
+    assert "nonlinearity_quadratic" in up_only  # every axis only ever points up at a pose
     assert tilted == {}
+
+
+def test_default_rate_plan_points_each_axis_up_and_down() -> None:
+    up_only, _ = plan_observability(rate_1axis(dwell_s=10.0, poses_deg=UP_ONLY_POSES_DEG), ("lever_arm",))
+    both, why = plan_observability(rate_1axis(dwell_s=10.0), ("lever_arm", "nonlinearity_quadratic"))
+    assert both.ok and why == {}
+    # bias and scale bounds (first 12 parameters) tighten by far more than the doubled duration gives
+    assert np.all(both.crb_sigma[:12] < up_only.crb_sigma[:12] / 3.0)
 
 
 def test_procedure_angles_follow_the_steps() -> None:

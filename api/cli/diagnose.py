@@ -51,7 +51,8 @@ def format_human(d: Diagnosis) -> str:
     b = d.baseline
     lines = [
         f"unit {d.unit}   {d.source}",
-        f"first-order model: residual rms {b.residual_rms:.3g} {u}, chi2/dof {b.chi2_dof:.3g}, BIC {b.bic:.1f}",
+        f"first-order model: residual rms {b.residual_rms:.3g} {u}, "
+        f"chi2/dof {b.chi2_dof:.3g}, BIC {b.bic:.1f}",
         "mismatch (chi2/dof per channel): "
         + ", ".join(f"{c} {r:.2f}" for c, r in zip(("ax", "ay", "az"), d.channel_ratio, strict=True)),
         f"where: {d.where}",
@@ -64,7 +65,8 @@ def format_human(d: Diagnosis) -> str:
         lines += [
             f"FOUND {f.effect}: {f.summary}",
             f"    why: {f.explanation}",
-            f"    delta BIC {f.delta_bic:.1f}, likelihood ratio {f.lr:.1f}, residual rms after {f.residual_rms_after:.3g} {u}",
+            f"    delta BIC {f.delta_bic:.1f}, likelihood ratio {f.lr:.1f}, "
+            f"residual rms after {f.residual_rms_after:.3g} {u}",
         ]
     fin = d.final
     lines += [

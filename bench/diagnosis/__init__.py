@@ -135,7 +135,7 @@ def diagnose(
             settle_ok = True
     fixed = None
     if not ev.orientation_known:
-        K0 = np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12].reshape(3, 3)
+        K0 = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
         J = pose_response(ev, K0)
         fixed = free_orientation_rad**2 * np.einsum("wik,wjk->wij", J, J)
     state, notes = select(ev, pool, pose_allowed=pose_ok, fixed=fixed, false_alarm=false_alarm)

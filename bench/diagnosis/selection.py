@@ -139,7 +139,7 @@ def select(
     n = ev.n_obs
     state = ModelState()
     X0 = first_order_design(ev.f_m_s2)
-    K = np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12].reshape(3, 3)
+    K = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
     state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2)
     notes: dict[str, str] = {}
     for _ in range(MAX_STEPS):
@@ -182,12 +182,12 @@ def select(
                     admissible.append((dbic, None, lr, (noise1, fit1, K1)))
         if not admissible:
             break
-        dbic, cand, lr, model1 = min(admissible, key=lambda a: a[0])
-        if cand is None:
+        dbic, chosen, lr, model1 = min(admissible, key=lambda a: a[0])
+        if chosen is None:
             state.pose = True
             state.steps.append(Step("pose_error", "pose_error", lr, dbic, 1))
         else:
-            state.candidates.append(cand)
-            state.steps.append(Step(cand.label, cand.effect, lr, dbic, len(cand.names)))
+            state.candidates.append(chosen)
+            state.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
         state.noise, state.fit, K = model1
     return state, notes

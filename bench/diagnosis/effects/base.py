@@ -55,12 +55,27 @@ class Candidate:
 
 
 class Effect(Protocol):
-    """A catalogue effect (``cli-contract.md``)."""
+    """A catalogue effect (``cli-contract.md``); implementations are frozen dataclasses."""
 
-    id: str
-    kind: str
-    parameters: tuple[ParamSpec, ...]
-    explanation: str
+    @property
+    def id(self) -> str:
+        """The contract's effect id."""
+        ...
+
+    @property
+    def kind(self) -> str:
+        """How the effect enters the model: columns, variance, window or motion."""
+        ...
+
+    @property
+    def parameters(self) -> tuple[ParamSpec, ...]:
+        """The contract's parameter names with units."""
+        ...
+
+    @property
+    def explanation(self) -> str:
+        """One sentence of physics."""
+        ...
 
     def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
         """Whether the recording can show the effect, and why (not)."""

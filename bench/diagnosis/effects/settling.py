@@ -41,6 +41,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import curve_fit
 from scipy.stats import f as f_dist
 
@@ -110,7 +111,7 @@ def _spectra(
     return spectra, np.where(ref > 0, ref, np.inf), ref_dof
 
 
-def _bins(sample_rate_hz: float, n_f: int) -> FloatArray:
+def _bins(sample_rate_hz: float, n_f: int) -> npt.NDArray[np.intp]:
     f = np.arange(n_f) / SEGMENT_S
     return np.flatnonzero((np.arange(n_f) >= 2) & (f < 0.45 * sample_rate_hz))
 

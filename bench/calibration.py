@@ -191,6 +191,10 @@ def _specific_force(rec: Recording, wins: list[StaticWindow]) -> FloatArray | No
     return None
 
 
+NATURAL_ZERO_UNITS = ("m/s2", "g")
+"""Channel units whose nominal zero-g output is 0 (a nominal scale may come without a bias)."""
+
+
 def _nominal_force(
     rec: Recording, y: FloatArray, scale: float | None, bias: FloatArray | None
 ) -> FloatArray | None:
@@ -219,13 +223,21 @@ def calibrate_recording(
     :param rec: the recording.
     :param nominal_scale: nominal sensitivity (channel unit per m/s²) for the "before"
         g check of a channel unit without a natural scale (V, count).
-    :param nominal_bias: (3,) nominal zero-g output (channel units) with ``nominal_scale``.
+    :param nominal_bias: (3,) nominal zero-g output (channel units) with ``nominal_scale``;
+        required with it unless the channel unit is in :data:`NATURAL_ZERO_UNITS`.
     :returns: :class:`CalibrationResult`.
-    :raises ValueError: no usable windows, a degenerate orientation set (the message
-        names the undeterminable parameters), too few windows for the scalar fit, or
-        non-finite data; every message starts with the recording's path.
+    :raises ValueError: a nominal scale without a zero-g output for a V or count channel, no
+        usable windows, a degenerate orientation set (the message names the undeterminable
+        parameters), too few windows for the scalar fit, or non-finite data; every message
+        starts with the recording's path.
     """
     try:
+        unit = rec.sidecar.channel_unit
+        if nominal_scale is not None and nominal_bias is None and unit not in NATURAL_ZERO_UNITS:
+            raise ValueError(
+                f"a nominal scale for a {unit} channel needs the nominal zero-g output (nominal_bias): "
+                f"a {unit} output is not 0 at zero g"
+            )
         # moving-table recordings (rate-1axis, oscillation-2axis): the dynamic model
         from bench.calibration_dynamic import calibrate_dynamic, is_dynamic
 

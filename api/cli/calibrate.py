@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from api.cli import BadInput
-from bench.calibration import CalibrationResult, calibrate_recording
+from bench.calibration import NATURAL_ZERO_UNITS, CalibrationResult, calibrate_recording
 from bench.recording import read_recording
 
 
@@ -35,7 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs=3,
         default=None,
         metavar=("BX", "BY", "BZ"),
-        help="nominal zero-g output (channel unit) used with --nominal-scale",
+        help="nominal zero-g output (channel unit) used with --nominal-scale; required with it for V or "
+        "count channels (0 is implied for g and m/s2)",
     )
 
 
@@ -50,6 +51,12 @@ def run(args: argparse.Namespace) -> int:
         rec = read_recording(path)
     except OSError as exc:  # a missing or unreadable sidecar is bad input, one line
         raise BadInput(str(exc)) from exc
+    unit = rec.sidecar.channel_unit
+    if args.nominal_scale is not None and args.nominal_bias is None and unit not in NATURAL_ZERO_UNITS:
+        raise BadInput(
+            f"{path}: --nominal-scale for a {unit} channel needs --nominal-bias BX BY BZ "
+            f"(the nominal zero-g output; a {unit} output is not 0 at zero g)"
+        )
     bias0 = None if args.nominal_bias is None else np.array(args.nominal_bias, dtype=float)
     result = calibrate_recording(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0)
     if args.json:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from api.certificates.budget import combined
-from api.certificates.rounding import expanded_quantity
+from api.certificates.rounding import expanded_quantity, round_significant
 
 TITLE = "Calibration Certificate"
 COVERAGE_K = 2.0
@@ -172,10 +172,11 @@ def _customer(unit: dict[str, Any], lab: Laboratory) -> dict[str, Any]:
 
 
 def _two_digits(value: Any) -> float | None:
-    """A statistic shown to two significant digits; ``None`` when absent or not finite."""
+    """A statistic stated to two significant digits (half-up, :mod:`api.certificates.rounding`);
+    ``None`` when absent or not finite. Printed with both digits by ``format_significant``."""
     if value is None or not math.isfinite(float(value)):
         return None
-    return float(f"{float(value):.2g}")
+    return round_significant(float(value))
 
 
 def _results(cal: dict[str, Any], budget: dict[str, Any] | None) -> dict[str, Any]:

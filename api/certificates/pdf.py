@@ -21,6 +21,7 @@ from matplotlib.figure import Figure
 
 from api.certificates.pdf_budget import budget_section
 from api.certificates.pdf_layout import Flow, Page, wrap
+from api.certificates.rounding import format_significant
 
 A4_IN = (8.27, 11.69)
 AXES = ("x", "y", "z")
@@ -62,6 +63,13 @@ def _text(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:g}"
     return "" if value is None else str(value)
+
+
+def _stat(value: Any) -> str:
+    """A statistic the content states to two significant digits, printed with both (2.0e-05)."""
+    if isinstance(value, float | int) and not isinstance(value, bool) and math.isfinite(value):
+        return format_significant(value)
+    return _text(value)
 
 
 def _identification(f: Flow, c: dict[str, Any]) -> None:
@@ -147,14 +155,14 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
         rows.append((a, *(" ± ".join(value_and_u(v, u)) for v, u in zip(vr, ur, strict=True))))
     f.table(rows, widths=(0.16, 0.28, 0.28, 0.28), header=True, align="right")
     rms = res["residual_rms"]
-    f.paragraph(f"Residual RMS of the fit: {_text(rms['value']) or 'not available'} {_unit(rms['unit'])}.")
+    f.paragraph(f"Residual RMS of the fit: {_stat(rms['value']) or 'not available'} {_unit(rms['unit'])}.")
     g = c["g_check"]
     f.subheading("|g| check: |K⁻¹(raw − b)| − g_local over the static positions (m/s²)")
     rows = [("", "mean error", "standard deviation")]
     for when, label in (("before", "before adjustment (nominal)"), ("after", "after (this calibration)")):
         v = g[when]
         rows.append(
-            (label, _text(v.get("mean_error_m_s2")), _text(v.get("std_m_s2")))
+            (label, _stat(v.get("mean_error_m_s2")), _stat(v.get("std_m_s2")))
             if isinstance(v, dict)
             else (label, _text(v), "")
         )

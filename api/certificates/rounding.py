@@ -43,6 +43,31 @@ def round_expanded(value: float, sigma: float, k: float = 2.0) -> tuple[float, f
     return float(v_r), float(u_r)
 
 
+def round_significant(x: float, digits: int = SIGNIFICANT_DIGITS) -> float:
+    """``x`` to ``digits`` significant digits, half-up on its decimal representation (0.125 -> 0.13).
+
+    :raises ValueError: ``x`` not finite.
+    """
+    x = float(x)
+    if not math.isfinite(x):
+        raise ValueError(f"cannot round {x!r} to {digits} significant digits")
+    if x == 0.0:
+        return 0.0
+    d = Decimal(repr(x))
+    r = d.quantize(Decimal(1).scaleb(d.adjusted() - (digits - 1)), rounding=ROUND_HALF_UP)
+    return float(r)
+
+
+def format_significant(x: float, digits: int = SIGNIFICANT_DIGITS) -> str:
+    """``x`` rounded by :func:`round_significant` and printed with all ``digits`` significant
+    digits, trailing zeros kept: 2.0e-5 -> ``"2.0e-05"``, 0.1 -> ``"0.10"``, 12 -> ``"12"``.
+
+    :raises ValueError: ``x`` not finite.
+    """
+    r = round_significant(x, digits)
+    return "0" if r == 0.0 else f"{r:#.{digits}g}".rstrip(".")
+
+
 def expanded_quantity(values: Any, sigmas: Any, unit: str, k: float = 2.0) -> dict[str, Any]:
     """A quantity (scalar, vector or matrix) as ``{"value", "expanded_uncertainty", "unit", "k"}``.
 

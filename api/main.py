@@ -113,11 +113,11 @@ def streams_end_on_signal(hub: ProgressHub) -> Iterator[None]:
         yield
         return
     loop = asyncio.get_running_loop()
-    previous: dict[int, object] = {}
+    previous: dict[signal.Signals, object] = {}
 
     def handler(signum: int, frame: object) -> None:
         loop.call_soon_threadsafe(hub.close_all, f"the service is stopping ({signal.Signals(signum).name})")
-        prev = previous.get(signum)
+        prev = previous.get(signal.Signals(signum))
         if callable(prev):
             prev(signum, frame)
 

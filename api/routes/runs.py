@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 from collections.abc import AsyncIterator, Mapping
-from typing import Annotated
+from typing import Annotated, Any
 
 import sqlalchemy as sa
 from fastapi import APIRouter, HTTPException, Query, Request, status
@@ -99,7 +99,10 @@ def abort(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -
     raise _not_live(session, run_id, "nothing to abort")
 
 
-_NOT_LIVE = {404: {"description": "no such run"}, 409: {"description": "the run does not hold the bench"}}
+_NOT_LIVE: dict[int | str, dict[str, Any]] = {
+    404: {"description": "no such run"},
+    409: {"description": "the run does not hold the bench"},
+}
 
 
 def _not_live(session: SessionDep, run_id: str, what: str) -> HTTPException:

@@ -34,8 +34,11 @@ class Settings(BaseSettings):
     :param drift_time: local time of the nightly drift check, ``HH:MM``; empty: no scheduler.
     :param drift_procedure: the short check procedure.
     :param drift_dwell_s: its static dwell per pose (s).
-    :param drift_k: coverage factor of the drift test |Δ| > k·sqrt(u_cert² + u_check²), per
-        coefficient; with 12 coefficients k = 3 flags an unchanged unit with probability
+    :param drift_k: coverage factor of the drift test |Δ| > k·sqrt(u_ref² + u_check² + u_rep²)
+        per coefficient (u_ref: the certificate's standard uncertainty without the contributions
+        common to both runs on the same bench, u_rep: the bias repeatability below, bias terms
+        only; see
+        api/drift.py); with 12 coefficients k = 3 flags an unchanged unit with probability
         about 3 % (k = 2: about 43 %).
     :param drift_bias_repeatability_m_s2: standard deviation of a unit's bias change between two
         runs when nothing changed (its bias instability: the run's mean of the slow wander), m/s²;

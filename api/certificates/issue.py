@@ -24,7 +24,7 @@ from api.certificates.budget import TypeBSettings, certificate_budget
 from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
 from api.certificates.pdf import render_pdf
 from api.settings import Settings
-from bench.calibration import calibrate_recording
+from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
 from db.models import Certificate, FitKind, Run, Unit
@@ -99,8 +99,12 @@ Nominal = tuple[float, float | None]
 
 def g_check_before(rec: Recording, nominal: Nominal) -> dict[str, Any] | None:
     """The |g| check of ``rec`` with the nominal scale and zero-g output (no adjustment), as
-    ``{"mean_error_m_s2", "std_m_s2", "nominal": {...}}``; ``None`` if it cannot be formed."""
+    ``{"mean_error_m_s2", "std_m_s2", "nominal": {...}}``; ``None`` if it cannot be formed
+    (also when a V or count unit was registered without its zero-g output: assuming 0 would
+    give a meaningless check)."""
     scale, bias = nominal
+    if bias is None and rec.sidecar.channel_unit not in NATURAL_ZERO_UNITS:
+        return None
     try:
         cal = calibrate_recording(rec, nominal_scale=scale, nominal_bias=np.full(3, bias or 0.0))
     except ValueError:

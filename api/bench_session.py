@@ -43,7 +43,7 @@ from db.engine import make_session_factory, open_database
 from db.models import Run, Unit
 from db.models import RunState as DbRunState
 from db.observer import DbRunObserver
-from db.repo.recovery import claim_for_resume, mark_interrupted_runs
+from db.repo.recovery import ResumePoint, claim_for_resume, mark_interrupted_runs
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
 from drivers.factory import BenchDevices, open_bench
@@ -309,54 +309,71 @@ def resume_run(
             model = getattr(unit, "model", None)
         if point.recording_path is None:
             raise ValueError(f"run {run_id}: no recording path stored")
-        csv_path = Path(point.recording_path)
-        recorder = RunRecorder.resume(
-            csv_path, point.keep_end_byte, point.next_window_index, point.keep_chunks
+        return continue_run(
+            settings, sessions, run_id, serial, model, procedure_name, params, point,
+            sim=sim, sim_speed=sim_speed, observers=observers, control=control,
         )
-        stored = recorder.run_meta
-        parameters = dict(stored.get("parameters", params.get("parameters", {})))  # type: ignore[call-overload]
-        dwell_s = parameters.pop("dwell_s", None)
-        proc = build_procedure(procedure_name, dwell_s=dwell_s, **parameters_for(procedure_name, parameters))
-        dwell_dict = stored.get("dwell")
-        dwell = DwellChoice(**dwell_dict) if isinstance(dwell_dict, dict) else None  # type: ignore[arg-type]
-        sim_meta = stored.get("sim") or params.get("sim")
-        seed = int(sim_meta.get("seed", 0)) if isinstance(sim_meta, dict) else 0
-        devices = open_devices(settings, sim, sim_speed, seed)
-        try:
-            pv = preview(proc, _config(settings).limits)
-            start = RunStart(
-                run_id,
-                serial,
-                procedure_name,
-                settings.bench_name,
-                str(csv_path),
-                devices.daq.sample_rate_hz,
-                devices.table.n_axes,
-                proc.n_windows,
-                pv.duration_s,
-                dwell=dwell,
-                parameters=dict(stored),
-                resumed_from_window=point.next_window_index,
-            )
-            obs = [DbRunObserver(sessions), *observers]
-            seq = Sequencer(
-                devices.table,
-                devices.daq,
-                proc,
-                recorder,
-                start,
-                obs,
-                control,
-                _config(settings),
-                dwell,
-                start_window=point.next_window_index,
-            )
-            limits = limits_for(settings, model, devices.daq.channel_unit)
-            return _execute(seq, csv_path, obs, limits)
-        finally:
-            devices.close()
     finally:
         engine.dispose()
+
+
+def continue_run(
+    settings: Settings,
+    sessions: Any,
+    run_id: str,
+    serial: str,
+    model: str | None,
+    procedure_name: str,
+    params: dict[str, Any],
+    point: ResumePoint,
+    *,
+    sim: bool,
+    sim_speed: float | None = None,
+    truth: SensorTruth | None = None,
+    observers: Sequence[RunObserver] = (),
+    control: RunControl | None = None,
+) -> RunRecord:
+    """Continue a run claimed for resumption from ``point`` to its verdict.
+
+    The recording is cut to the last durable chunk holding the last complete window; the
+    procedure is rebuilt from the parameters stored in the recording's run metadata (falling
+    back to the run row's ``params``); the simulated unit is ``truth`` or the stored seed's.
+    Shared by ``calbench resume`` and the service's resume.
+    """
+    csv_path = Path(str(point.recording_path))
+    recorder = RunRecorder.resume(csv_path, point.keep_end_byte, point.next_window_index, point.keep_chunks)
+    stored = recorder.run_meta
+    parameters = dict(stored.get("parameters", params.get("parameters", {})))  # type: ignore[call-overload]
+    dwell_s = parameters.pop("dwell_s", None)
+    proc = build_procedure(procedure_name, dwell_s=dwell_s, **parameters_for(procedure_name, parameters))
+    dwell_dict = stored.get("dwell")
+    dwell = DwellChoice(**dwell_dict) if isinstance(dwell_dict, dict) else None  # type: ignore[arg-type]
+    sim_meta = stored.get("sim") or params.get("sim")
+    seed = int(sim_meta.get("seed", 0)) if isinstance(sim_meta, dict) else 0
+    config = _config(settings)
+    devices = open_devices(settings, sim, sim_speed, seed, truth)
+    try:
+        start = RunStart(
+            run_id,
+            serial,
+            procedure_name,
+            settings.bench_name,
+            str(csv_path),
+            devices.daq.sample_rate_hz,
+            devices.table.n_axes,
+            proc.n_windows,
+            preview(proc, config.limits).duration_s,
+            dwell=dwell,
+            parameters=dict(stored),
+            resumed_from_window=point.next_window_index,
+        )
+        obs = [DbRunObserver(sessions), *observers]
+        seq = Sequencer(devices.table, devices.daq, proc, recorder, start, obs, control, config, dwell,
+                        start_window=point.next_window_index)
+        limits = limits_for(settings, model, devices.daq.channel_unit)
+        return _execute(seq, csv_path, obs, limits)
+    finally:
+        devices.close()
 
 
 def parameters_for(procedure_name: str, stored: dict[str, Any]) -> dict[str, Any]:

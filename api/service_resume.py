@@ -19,21 +19,16 @@ import dataclasses
 import os
 import socket
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from api.bench_session import _execute, limits_for, open_devices, parameters_for
+from api.bench_session import continue_run
 from api.settings import Settings
-from bench.procedures import build_procedure, preview
-from bench.records import DwellChoice, RunObserver, RunRecord, RunStart
-from bench.run_recorder import RunRecorder
-from bench.sequencer import Sequencer
-from bench.sequencer_control import RunControl, SequencerConfig
+from bench.records import RunObserver, RunRecord
+from bench.sequencer_control import RunControl
 from db.models import Run, RunState, Unit
-from db.observer import DbRunObserver
 from db.repo.recovery import ResumePoint, claim_for_resume
 from db.types import utc_now
 from drivers.sim.physics import SensorTruth
@@ -149,47 +144,12 @@ def execute(
     observers: Sequence[RunObserver] = (),
     control: RunControl | None = None,
 ) -> RunRecord:
-    """Continue a claimed run from ``claimed.point`` to its verdict (the fit as a fresh run's).
-
-    The recording is cut to the last durable chunk holding the last complete window; the
-    procedure is rebuilt from the parameters stored in the recording's run metadata.
+    """Continue a claimed run from ``claimed.point`` to its verdict (the fit as a fresh run's),
+    with the same simulated unit it started with (``truth``; ``None``: the stored seed's).
 
     :param sessions: database session factory (the run's database observer writes with it).
-    :param truth: the simulated unit (``settings.sim``), ``None``: the stored seed's.
     """
-    point = claimed.point
-    csv_path = Path(str(point.recording_path))
-    recorder = RunRecorder.resume(csv_path, point.keep_end_byte, point.next_window_index, point.keep_chunks)
-    stored = recorder.run_meta
-    parameters = dict(stored.get("parameters", claimed.params.get("parameters", {})))  # type: ignore[call-overload]
-    dwell_s = parameters.pop("dwell_s", None)
-    kwargs = parameters_for(claimed.procedure, parameters)
-    proc = build_procedure(claimed.procedure, dwell_s=dwell_s, **kwargs)
-    dwell_dict = stored.get("dwell")
-    dwell = DwellChoice(**dwell_dict) if isinstance(dwell_dict, dict) else None  # type: ignore[arg-type]
-    sim_meta = stored.get("sim") or claimed.params.get("sim")
-    seed = int(sim_meta.get("seed", 0)) if isinstance(sim_meta, dict) else 0
-    config = SequencerConfig(temp_band_c=settings.temp_band_c)
-    devices = open_devices(settings, settings.sim, None, seed, truth)
-    try:
-        start = RunStart(
-            claimed.run_id,
-            claimed.unit_serial,
-            claimed.procedure,
-            settings.bench_name,
-            str(csv_path),
-            devices.daq.sample_rate_hz,
-            devices.table.n_axes,
-            proc.n_windows,
-            preview(proc, config.limits).duration_s,
-            dwell=dwell,
-            parameters=dict(stored),
-            resumed_from_window=point.next_window_index,
-        )
-        obs = [DbRunObserver(sessions), *observers]
-        seq = Sequencer(devices.table, devices.daq, proc, recorder, start, obs, control, config, dwell,
-                        start_window=point.next_window_index)
-        limits = limits_for(settings, claimed.model, devices.daq.channel_unit)
-        return _execute(seq, csv_path, obs, limits)
-    finally:
-        devices.close()
+    return continue_run(
+        settings, sessions, claimed.run_id, claimed.unit_serial, claimed.model, claimed.procedure,
+        claimed.params, claimed.point, sim=settings.sim, truth=truth, observers=observers, control=control,
+    )

@@ -250,18 +250,26 @@ def calibrate_recording(
         raise ValueError(msg if msg.startswith(where) else f"{where}: {msg}") from exc
 
 
-def _calibrate(
-    rec: Recording, nominal_scale: float | None, nominal_bias: FloatArray | None
-) -> CalibrationResult:
-    wins = select_windows(rec)
+def window_means(rec: Recording, wins: list[StaticWindow]) -> tuple[FloatArray, FloatArray]:
+    """(m, 3) window means of the raw outputs and (m, 3, 3) honest covariances of those means
+    (batch means per window, correlation factor pooled over the run: ``window_noise``).
+
+    :raises ValueError: a window whose noise cannot be estimated (named with its times).
+    """
     noises: list[WindowNoise] = []
     for w in wins:
         try:
             noises.append(window_noise(rec.accel_raw[w.start : w.stop]))
         except ValueError as exc:
             raise ValueError(f"window {w.label!r} ({w.start_s:.3f}-{w.end_s:.3f} s): {exc}") from exc
-    y = np.array([q.mean for q in noises])
-    V = pooled_mean_covariances(noises)
+    return np.array([q.mean for q in noises]), pooled_mean_covariances(noises)
+
+
+def _calibrate(
+    rec: Recording, nominal_scale: float | None, nominal_bias: FloatArray | None
+) -> CalibrationResult:
+    wins = select_windows(rec)
+    y, V = window_means(rec, wins)
     g = rec.sidecar.g_local_m_s2
     f = _specific_force(rec, wins)
     if f is not None:

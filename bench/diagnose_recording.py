@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.calibration import select_windows
+from bench.calibration import select_windows, window_means
 from bench.calibration_dynamic import is_dynamic
 from bench.diagnosis import Diagnosis, StaticEvidence, diagnose
 from bench.diagnosis.dynamic import diagnose_dynamic
 from bench.estimation.dynamic_model import prepare_motion
 from bench.estimation.scalar_fit import fit_scalar
-from bench.estimation.window_noise import WindowNoise, pooled_mean_covariances, window_noise
 from bench.estimation.windows import StaticWindow
 from bench.kinematics import attitude, static_specific_force
 from bench.recording import Recording
@@ -37,14 +36,10 @@ def recording_evidence(rec: Recording) -> StaticEvidence:
     :raises ValueError: no usable windows, a window whose noise cannot be estimated.
     """
     wins = select_windows(rec)
-    noises: list[WindowNoise] = []
-    for w in wins:
-        try:
-            noises.append(window_noise(rec.accel_raw[w.start : w.stop]))
-        except ValueError as exc:
-            raise ValueError(f"{_where(rec)}: window {w.label!r}: {exc}") from exc
-    y = np.array([q.mean for q in noises])
-    V = pooled_mean_covariances(noises)
+    try:
+        y, V = window_means(rec, wins)
+    except ValueError as exc:
+        raise ValueError(f"{_where(rec)}: {exc}") from exc
     g = rec.sidecar.g_local_m_s2
     t = rec.t_s
     mid = np.array([(t[w.start] + t[w.stop - 1]) / 2 for w in wins])

@@ -45,7 +45,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import t as student_t
 
-from bench.estimation.static_fit import PARAMETER_NAMES
+from bench.estimation.static_fit import PARAMETER_NAMES, design_rows
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -156,18 +156,9 @@ def welch_satterthwaite(u: Sequence[float], dof: Sequence[float]) -> float:
     return uc2**2 / float(np.sum(ua[finite] ** 4 / na[finite]))
 
 
-def _design(f: FloatArray) -> FloatArray:
-    m = f.shape[0]
-    H = np.zeros((m, 3, 12))
-    for i in range(3):
-        H[:, i, i] = 1.0
-        H[:, i, 3 + 3 * i : 6 + 3 * i] = f
-    return H
-
-
 def _gls(f: FloatArray, y: FloatArray, W: FloatArray) -> FloatArray:
     """θ (12,) of the joint GLS with window weights W (m, 3, 3)."""
-    H = _design(f)
+    H = design_rows(f)
     HtW = np.einsum("wai,wab->wib", H, W)
     N = np.einsum("wib,wbj->ij", HtW, H)
     return np.asarray(np.linalg.solve(N, np.einsum("wib,wb->i", HtW, y)), dtype=float)
@@ -222,7 +213,7 @@ def sensitivities(
     y0 = b + f @ Km.T
     out = np.zeros((len(inputs), 12))
     if method == "analytic":
-        H = _design(f)
+        H = design_rows(f)
         HtW = np.einsum("wai,wab->wib", H, W)
         N = np.einsum("wib,wbj->ij", HtW, H)
         for n, inp in enumerate(inputs):

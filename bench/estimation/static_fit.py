@@ -178,7 +178,7 @@ def _validate(f_m_s2: FloatArray, y_mean: FloatArray, y_cov: FloatArray) -> tupl
     return f, y, V
 
 
-def _design_rows(f: FloatArray) -> FloatArray:
+def design_rows(f: FloatArray) -> FloatArray:
     """(m, 3, 12) H_w = [I₃, I₃ ⊗ f_wᵀ]: y_w = H_w θ in the order of :data:`PARAMETER_NAMES`."""
     m = f.shape[0]
     H = np.zeros((m, 3, 12))
@@ -249,7 +249,7 @@ def fit_static(
     f, y, V = _validate(f_m_s2, y_mean, y_cov)
     m = f.shape[0]
     X = check_design(f)
-    H = _design_rows(f)
+    H = design_rows(f)
     V = 0.5 * (V + np.transpose(V, (0, 2, 1)))
     theta, C, _ = _gls(H, y, V)
     excess = np.zeros((m, 3, 3))

@@ -9,11 +9,15 @@ The one place where a :class:`~bench.recording.Recording` becomes a calibration;
 * no table, every window labelled with ``nominal_up`` (a hand-placed six-position
   calibration): the same fit with f_w = ±g along the named axis;
 * otherwise the orientation-free fit of |f| = g (``scalar_fit``), K reported as the
-  lower-triangular L with L Lᵀ = K Kᵀ (K up to a rotation of the sensor frame).
+  lower-triangular L with L Lᵀ = K Kᵀ (K up to a rotation of the sensor frame);
+* a moving-table recording (``calibration_dynamic.is_dynamic``: a ``rate-1axis`` or
+  ``oscillation-2axis`` procedure, or no procedure and a segment in which the table turns):
+  none of the above, but the sample-by-sample dynamic fit of
+  :func:`bench.calibration_dynamic.calibrate_dynamic` (method ``"dynamic"``).
 
-Windows come from the sidecar's segments (those in which the table did not move; without
-a table, those with ``nominal_up`` when any segment has one), or are detected when the
-sidecar has none.
+For the static and scalar fits, windows come from the sidecar's segments (those in which
+the table did not move; without a table, those with ``nominal_up`` when any segment has
+one), or are detected when the sidecar has none.
 """
 
 from __future__ import annotations
@@ -76,14 +80,20 @@ class WindowResult:
 class CalibrationResult:
     """A fitted first-order model of one recording, with its evidence.
 
-    :param method: ``"static"`` (known orientations) or ``"scalar"`` (|f| = g only).
+    :param method: ``"static"`` (known orientations), ``"scalar"`` (|f| = g only) or
+        ``"dynamic"`` (moving table; the instance is then a
+        :class:`bench.calibration_dynamic.DynamicCalibrationResult`).
     :param bias: (3,) channel units.
     :param K: (3, 3) channel unit per m/s² (lower-triangular L for ``"scalar"``).
-    :param cov: (12, 12) for ``"static"`` in ``static_fit.PARAMETER_NAMES`` order, or
-        (9, 9) for ``"scalar"`` in ``scalar_fit.PARAMETER_NAMES`` order.
-    :param bias_sigma: (3,); :param K_sigma: (3, 3) one-sigma uncertainties.
-    :param residual_rms: RMS of the window residuals (channel units).
-    :param chi2: residual χ² against the within-window noise; :param dof: its degrees of freedom.
+    :param cov: (12, 12) for ``"static"`` in ``static_fit.PARAMETER_NAMES`` order,
+        (9, 9) for ``"scalar"`` in ``scalar_fit.PARAMETER_NAMES`` order, or (p, p) for
+        ``"dynamic"`` in ``fit.names`` order (bias and K first, then the extra terms).
+    :param bias_sigma: (3,); :param K_sigma: (3, 3) one-sigma (Type A) uncertainties.
+    :param residual_rms: RMS of the window residuals (channel units); for ``"dynamic"`` the
+        RMS of the per-sample residuals.
+    :param chi2: residual χ² against the within-window noise; :param dof: its degrees of
+        freedom. For ``"dynamic"``, whose residuals are scaled by their own fitted sigma,
+        ``chi2`` is 3·n_samples by construction and carries no goodness-of-fit information.
     """
 
     unit_serial: str

@@ -2,10 +2,12 @@
 
 A calibration contract (``shared/cli-contract.md``) carries ``bias`` (3,) and
 ``scale_matrix`` K (3, 3) with one-sigma uncertainties of the same shapes. The dashboard
-plots, per coefficient, the value of each run and the expanded uncertainty U = k·σ with
-k = 2 (about 95 % coverage for a normal distribution; JCGM 100:2008 §6.2), the convention of
-the certificates. Runs whose contract lacks a coefficient, or whose value is not finite, are
-left out of that coefficient's series rather than plotted as zero.
+plots, per coefficient, the value of each run and U = k·σ with k = 2 (about 95 % coverage for
+a normal distribution; JCGM 100:2008 §6.2), σ being the fit's Type A standard uncertainty
+from the contract. This is not the certificate's U: a certificate states U = k·u_c from its
+GUM budget (Type A + Type B, k from ν_eff; :mod:`api.certificates.budget`). Runs whose
+contract lacks a coefficient, or whose value is not finite, are left out of that
+coefficient's series rather than plotted as zero.
 """
 
 from __future__ import annotations

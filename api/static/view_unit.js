@@ -19,7 +19,7 @@ function trends(hist) {
         220, 56, c.run_index.map((k) => hist.runs[k].kind === "drift_check"))));
   }
   return h("div", {}, box, h("p", { class: "note" },
-    `Each point is one fitted run, oldest left (filled: calibration, open: drift check); the band is U = ${hist.coverage_k}σ.`));
+    `Each point is one fitted run, oldest left (filled: calibration, open: drift check); the band is U = ${hist.coverage_k}σ, σ the fit's Type A standard uncertainty (the certificate's U adds Type B).`));
 }
 
 function certificates(certs, serial) {

@@ -119,7 +119,7 @@ class Authenticator:
         self._toucher = ThreadPoolExecutor(max_workers=1, thread_name_prefix="token-last-used")
 
     def add(self, secret: str, role: Role) -> None:
-        """Accept one more secret (e.g. the operator token generated at start)."""
+        """Accept one more secret (e.g. the admin token generated at start)."""
         self._env[_digest(secret)] = role
 
     def is_env_secret(self, secret: str) -> bool:

@@ -9,8 +9,8 @@ the open event streams end first, so the server does not wait for them before th
 stopped. Nothing is read from the environment here:
 the caller builds ``Settings`` (``calbench serve`` does, from ``CALBENCH_*``).
 
-The dashboard (``api/static``, ``api/templates`` and a router in ``api.routes.dashboard``,
-when installed) is mounted beside the JSON API.
+The dashboard (``api/static`` at ``/static`` and ``GET /`` from ``api.routes.dashboard``,
+each when present) is mounted beside the JSON API.
 """
 
 from __future__ import annotations
@@ -143,7 +143,7 @@ def create_app(
     :param clock: wall clock of the runner and scheduler (tests move it to age units).
     :param start_scheduler: start the drift scheduler's thread (tests call ``tick`` instead).
     :param extra_tokens: ``{secret: role}`` accepted besides ``settings.tokens`` (the
-        operator token ``calbench serve`` generates when none is configured).
+        admin token ``calbench serve`` generates when none is configured).
     """
 
     @asynccontextmanager

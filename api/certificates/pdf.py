@@ -2,7 +2,8 @@
 
 A4 pages laid out like a laboratory's certificate: a title block on every page (laboratory,
 "Calibration Certificate", number, "Page n of N"), tables of the item, the method, the
-conditions and the results with their units and expanded uncertainties U (k = 2), the |g|
+conditions and the results with their units and expanded uncertainties U = k·u_c (the k of
+each quantity in the content: 2 unless the budget has finite degrees of freedom), the |g|
 check before and after, the diagnosis findings, the traceability and conformity statements,
 the authorisation with a signature line, "End of certificate" (ISO/IEC 17025 7.8.2.1 d), and
 in the footer of every page the SHA-256 of the JSON content, so a reader can check the

@@ -136,7 +136,7 @@ def diagnosis(run_id: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
 
 @router.get("/api/units/{serial}/plots/history", responses={404: {"description": "no such unit"}})
 def history(serial: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
-    """Every fitted coefficient of the unit over its calibrated runs, with U = 2σ."""
+    """Every fitted coefficient of the unit over its calibrated runs, with U = 2σ of the fit's Type A σ."""
     with session.begin():
         unit = get_unit_by_serial(session, serial)
         if unit is None:

@@ -1,6 +1,8 @@
 """Diagnose a recording: windows -> window noise -> evidence -> ``bench.diagnosis.diagnose``.
 
-Which specific force each window is compared with (as in ``bench.calibration``):
+A moving-table recording (``calibration_dynamic.is_dynamic``, with a table) goes to
+``bench.diagnosis.dynamic.diagnose_dynamic`` instead. For the others, which specific force
+each window is compared with (as in ``bench.calibration``):
 
 * a table in the sidecar: f_w = Rᵀ [0, 0, g] at the window's circular-mean encoder angles;
 * no table, every window labelled ``nominal_up`` (hand-held six-position): ±g along the

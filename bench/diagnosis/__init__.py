@@ -1,9 +1,10 @@
 """Diagnosis: where a recording and the first-order model differ, which physics was left out.
 
-``diagnose(evidence)`` runs the whole chain on a static recording's evidence:
+``diagnose(evidence)`` runs the whole chain on a static recording's evidence (a moving-table
+recording goes to :func:`bench.diagnosis.dynamic.diagnose_dynamic` instead):
 
 1. observability of every catalogue effect on this recording (``effects``);
-2. greedy forward selection with a likelihood-ratio gate and BIC (``selection``), the
+2. greedy forward selection with an F gate and BIC (``selection``), the
    noise taken from the recording (window scatter, plus slow noise estimated by REML);
 3. refit with the chosen effects: parameters with sigmas, residuals before/after (``refit``);
 4. where the first-order residuals are largest and what they correlate with

@@ -1,4 +1,4 @@
-"""Greedy forward selection of effects: BIC to rank, a likelihood-ratio gate to admit.
+"""Greedy forward selection of effects: a significance gate to admit, BIC to choose.
 
 At each step every candidate not yet in the model is tried (fixed columns appended to the
 design; the pose error as a variance component). A candidate is admitted only if
@@ -6,10 +6,13 @@ design; the pose error as a variance component). A candidate is admitted only if
 1. it is observable: its columns keep at least ``RELATIVE_LEVERAGE_MIN`` of their norm
    outside the span of the current design (else bias, K and the effects already in the
    model would absorb it: it is reported as indistinguishable, not guessed);
-2. the likelihood-ratio statistic, with the noise re-estimated (REML) under the extended
-   model, exceeds the χ²_q quantile at ``false_alarm`` / N (N candidates in the step; the pose variance, a
-   boundary parameter, uses the 50:50 mixture of χ²_0 and χ²_1); for fixed columns under a
-   common covariance the statistic is Δχ² = χ²_current − χ²_extended;
+2. its statistic passes the gate at α = ``false_alarm`` / N (N candidates in the step).
+   Fixed columns: LR = Δχ² = χ²_current − χ²_extended, both under the noise re-estimated
+   (REML) under the extended model (the Wald statistic of the q new columns), must exceed
+   q·F_{1−α}(q, n − p), p the extended design's columns (F rather than χ²_q because the
+   noise level is estimated from the same n observations). The pose variance, a boundary
+   parameter: LR = 2 Δℓ_REML against the 50:50 mixture of χ²_0 and χ²_1 (the χ²_1
+   quantile at 2α);
 3. its BIC change Δ = −LR + q ln n is negative.
 
 Among the admissible candidates the one with the lowest BIC change enters; selection stops
@@ -35,7 +38,7 @@ from bench.diagnosis.wander_cap import slow_noise_cap
 
 FALSE_ALARM = 0.01
 """False-alarm probability of one selection step: split evenly (Bonferroni) over the
-candidates tried in that step, so each likelihood-ratio gate runs at FALSE_ALARM / N."""
+candidates tried in that step, so each gate runs at FALSE_ALARM / N."""
 SHORTLIST = 4
 MAX_STEPS = 8
 

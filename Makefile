@@ -37,7 +37,7 @@ bench: install
 	$(BIN)/python -m benchmarks
 
 lint: install
-	$(BIN)/ruff check bench drivers db api tests
+	$(BIN)/ruff check bench drivers db api tests benchmarks
 	$(BIN)/mypy
 	$(BIN)/lint-imports
 

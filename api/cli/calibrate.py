@@ -103,7 +103,9 @@ def format_human(r: CalibrationResult) -> str:
         "",
         "correction: f = K⁻¹ (raw − bias)   (m/s²)",
         f"noise model: {r.noise_model}",
-        f"residual rms {r.residual_rms:.3g} {u}   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}",
+        # a dynamic fit scales its residuals by their own fitted sigma: its chi2 is no test of fit
+        f"residual rms {r.residual_rms:.3g} {u}"
+        + ("" if r.method == "dynamic" else f"   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}"),
         "",
         f"{'window':<10}{'t (s)':>17}{'n':>7}  {'residual x,y,z (' + u + ')':<36}{'z-scores':<20}"
         f"{'|g| err after':>14}{'before':>11}",

@@ -23,6 +23,7 @@ from matplotlib.figure import Figure
 from api.certificates.pdf_budget import budget_section
 from api.certificates.pdf_layout import Flow, Page, wrap
 from api.certificates.rounding import format_significant
+from bench.calibration_dynamic import DYNAMIC_PROCEDURES
 
 A4_IN = (8.27, 11.69)
 AXES = ("x", "y", "z")
@@ -158,7 +159,12 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
     rms = res["residual_rms"]
     f.paragraph(f"Residual RMS of the fit: {_stat(rms['value']) or 'not available'} {_unit(rms['unit'])}.")
     g = c["g_check"]
-    f.subheading("|g| check: |K⁻¹(raw − b)| − g_local over the static positions (m/s²)")
+    where = (
+        "over 1 s blocks of the moving recording, gravity with the fitted motion terms removed"
+        if c["method"]["procedure"] in DYNAMIC_PROCEDURES
+        else "over the static positions"
+    )
+    f.subheading(f"|g| check: |K⁻¹(raw − b)| − g_local {where} (m/s²)")
     rows = [("", "mean error", "standard deviation")]
     for when, label in (("before", "before adjustment (nominal)"), ("after", "after (this calibration)")):
         v = g[when]

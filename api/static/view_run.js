@@ -87,7 +87,9 @@ function fitCard(cal) {
   const gRows = ["before", "after"].filter((k) => g[k]).map((k) => [k, fmt(g[k].mean_error_m_s2, 3), fmt(g[k].std_m_s2, 3)]);
   return card("Fitted model", bias, K,
     h("p", { class: "note" }, `terms: ${(cal.terms || []).join(", ")} · residual RMS ${fmt(cal.residual_rms, 3)} ${unit}`),
-    gRows.length ? table("|g| check over static windows (m/s²)", ["", "mean error", "std"], gRows, [1, 2]) : null);
+    gRows.length ? table(String(cal.method || "").startsWith("dynamic")
+      ? "|g| check over 1 s blocks of the moving recording (m/s²)"
+      : "|g| check over static windows (m/s²)", ["", "mean error", "std"], gRows, [1, 2]) : null);
 }
 
 const G0 = 9.80665; // standard gravity: datasheets give sensitivity per g0

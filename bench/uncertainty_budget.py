@@ -254,10 +254,28 @@ def uncertainty_budget(
         )
     sens = sensitivities(f_m_s2, bias, K, inputs, window_cov=window_cov, method=method)
     theta = np.concatenate([np.asarray(bias, dtype=float).reshape(3), np.asarray(K, dtype=float).ravel()])
+    return combine(theta, C, inputs, sens, method)
+
+
+def combine(
+    theta: FloatArray,
+    cov_type_a: FloatArray,
+    inputs: Sequence[TypeBInput],
+    sens: FloatArray,
+    method: str,
+    type_a_name: str = TYPE_A_NAME,
+) -> Budget:
+    """The budget from the sensitivities ``sens`` (n_inputs, 12) of θ (12,) to each input, however found.
+
+    :param cov_type_a: (12, 12) the fit's covariance, the Type A part (its diagonal is used).
+    :param method: how ``sens`` was found (stored in :class:`Budget`).
+    :param type_a_name: the Type A line's name (its group is ``"Type A"``).
+    """
+    C = np.asarray(cov_type_a, dtype=float)
     quantities = []
     for j, name in enumerate(PARAMETER_NAMES):
         u_a = math.sqrt(C[j, j])
-        lines = [Contribution(TYPE_A_NAME, "Type A", None, u_a, "", 1.0, u_a, math.inf)]
+        lines = [Contribution(type_a_name, "Type A", None, u_a, "", 1.0, u_a, math.inf)]
         for n, inp in enumerate(inputs):
             c = float(sens[n, j])
             lines.append(

@@ -16,9 +16,12 @@ from typing import Any
 import numpy as np
 
 from bench.calibration import calibrate_recording, select_windows
+from bench.calibration_dynamic import calibrate_dynamic, is_dynamic
 from bench.estimation.static_fit import PARAMETER_NAMES
 from bench.recording import Recording
-from bench.uncertainty_budget import RULE, TYPE_A_NAME, Budget, TypeBInput, uncertainty_budget
+from bench.uncertainty_budget import RULE, Budget, TypeBInput, uncertainty_budget
+from bench.uncertainty_dynamic import METHOD as DYNAMIC_METHOD
+from bench.uncertainty_dynamic import dynamic_budget, dynamic_inputs
 from bench.uncertainty_inputs import daq_inputs, gravity_input, table_inputs, temperature_inputs
 
 ANALOG_UNITS = ("V", "mV")
@@ -27,6 +30,11 @@ TYPE_A_BASIS = (
     "the fit's covariance: batch-means noise of each window and the scatter between windows; "
     "ν = ∞ (the fit states the standard deviation of the Student-t of its variance components)"
 )
+DYNAMIC_TYPE_A_BASIS = (
+    "the dynamic fit's covariance: Newey–West sandwich over blocks of the samples, never below "
+    "the white-noise bound; ν = ∞ (many blocks)"
+)
+STATIC_METHOD = "linearisation of the generalised least-squares fit (analytic derivative)"
 
 
 @dataclass(frozen=True)
@@ -110,7 +118,14 @@ def budget_inputs(
     return f, S, inputs, skipped
 
 
-def budget_json(budget: Budget, unit: str, skipped: list[str]) -> dict[str, Any]:
+def budget_json(
+    budget: Budget,
+    unit: str,
+    skipped: list[str],
+    *,
+    type_a_basis: str = TYPE_A_BASIS,
+    method: str = STATIC_METHOD,
+) -> dict[str, Any]:
     """The budget as certificate JSON: inputs, and per parameter its lines, u_c, ν_eff, k and U
     (contributions and U to three significant digits, u_c unrounded; ν_eff ``"infinite"`` when
     every contribution has ν = ∞)."""
@@ -121,7 +136,7 @@ def budget_json(budget: Budget, unit: str, skipped: list[str]) -> dict[str, Any]
             {"name": c.name, "group": c.group, "channel": c.channel, "u": _sig3(c.u), "unit": c.unit,
              "sensitivity": _sig3(c.sensitivity), "contribution": _sig3(c.contribution)}
             for c in q.contributions
-            if c.name == TYPE_A_NAME or c.contribution > 1e-6 * q.u_c
+            if c.group == "Type A" or c.contribution > 1e-6 * q.u_c
         ]  # fmt: skip
         quantities[q.name] = {
             "value": q.value, "unit": qunit, "u_c": q.u_c, "k": round(q.k, 3), "U": _sig3(q.U),
@@ -129,8 +144,8 @@ def budget_json(budget: Budget, unit: str, skipped: list[str]) -> dict[str, Any]
         }  # fmt: skip
     return {
         "rule": RULE,
-        "type_a": TYPE_A_BASIS,
-        "sensitivity_method": "linearisation of the generalised least-squares fit (analytic derivative)",
+        "type_a": type_a_basis,
+        "sensitivity_method": method,
         "inputs": [
             {
                 "name": i.name,
@@ -150,15 +165,38 @@ def budget_json(budget: Budget, unit: str, skipped: list[str]) -> dict[str, Any]
 def certificate_budget(rec: Recording, cal: dict[str, Any], tb: TypeBSettings) -> dict[str, Any]:
     """The budget of a stored fit (``calibrate --json``) whose recording is ``rec``.
 
-    :raises ValueError: the fit is not a known-orientation static fit, or its values are missing.
+    A moving-table recording (``is_dynamic``) gets the budget of ``bench.uncertainty_dynamic``
+    (sensitivities by refits, the extra terms those the stored recording's fit chooses).
+
+    :raises ValueError: the fit is not a known-orientation static or a dynamic fit, or its values are missing.
     """
-    f, S, inputs, skipped = budget_inputs(rec, cal, tb)
     sigma = np.concatenate(
         [np.asarray(cal["bias_sigma"], float), np.asarray(cal["scale_matrix_sigma"], float).ravel()]
     )
     b, K = np.asarray(cal["bias"], dtype=float), np.asarray(cal["scale_matrix"], dtype=float)
+    if is_dynamic(rec):
+        return _dynamic_budget(rec, cal, tb, b, K, np.diag(sigma**2))
+    f, S, inputs, skipped = budget_inputs(rec, cal, tb)
     budget = uncertainty_budget(f, b, K, np.diag(sigma**2), inputs, window_cov=S)
     return budget_json(budget, str(cal.get("channel_unit", "")), skipped)
+
+
+def _dynamic_budget(
+    rec: Recording, cal: dict[str, Any], tb: TypeBSettings, b: np.ndarray, K: np.ndarray, cov: np.ndarray
+) -> dict[str, Any]:
+    fit = calibrate_dynamic(rec, cross_check=False)
+    assert fit.fit is not None
+    terms = fit.fit.spec.terms
+    unit = str(cal.get("channel_unit", rec.sidecar.channel_unit))
+    inputs, skipped = dynamic_inputs(
+        rec, terms, b, K,
+        angle_u_rad=math.radians(tb.table_angle_u_deg), tilt_u_rad=tb.base_tilt_u_rad,
+        g_local_u_m_s2=tb.g_local_u_m_s2,
+        daq=(tb.daq_gain_u_rel, tb.daq_offset_u) if unit in ANALOG_UNITS else None,
+        temp_coeff=(tb.temp_coeff_bias_u_m_s2_per_k, tb.temp_coeff_scale_u_rel_per_k),
+    )  # fmt: skip
+    budget = dynamic_budget(rec, terms, b, K, cov, inputs)
+    return budget_json(budget, unit, skipped, type_a_basis=DYNAMIC_TYPE_A_BASIS, method=DYNAMIC_METHOD)
 
 
 def combined(budget: dict[str, Any], quantity: str) -> tuple[np.ndarray, float]:

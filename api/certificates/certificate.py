@@ -33,6 +33,11 @@ COVERAGE_STATEMENT = (
     "value, the DAQ gain and offset and the unit's temperature coefficients over the run's temperature "
     "changes, propagated by linearisation of the fit (uncertainty budget)."
 )
+DYNAMIC_COVERAGE_STATEMENT = COVERAGE_STATEMENT.replace(
+    "Type A from the within-window noise of the recording (batch means) and the scatter between windows",
+    "Type A from the sample noise of the moving-table fit and its correlation (sandwich covariance)",
+).replace("propagated by linearisation of the fit", "propagated by refitting the changed recording")
+"""The statement of a moving-table (``dynamic-batch``) fit with a budget."""
 TYPE_A_ONLY_STATEMENT = (
     "The reported expanded uncertainty is the standard uncertainty multiplied by the coverage "
     "factor k = 2, which for a normal distribution corresponds to a coverage probability of "
@@ -294,7 +299,11 @@ def certificate_content(
         },
         "results": _results(inp.calibration, inp.budget),
         "g_check": _g_check(inp.calibration),
-        "uncertainty_statement": COVERAGE_STATEMENT
+        "uncertainty_statement": (
+            DYNAMIC_COVERAGE_STATEMENT
+            if inp.calibration.get("method") == "dynamic-batch"
+            else COVERAGE_STATEMENT
+        )
         if inp.budget is not None
         else TYPE_A_ONLY_STATEMENT.format(reason=inp.budget_note or "no budget given"),
         "diagnosis": _findings(inp),

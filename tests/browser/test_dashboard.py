@@ -19,18 +19,9 @@ import httpx
 import pytest
 
 from tests.api.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
+from tests.browser.conftest import CHROMIUM
 from tests.browser.live_server import live_service
 
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--no-first-run",
-    "--disable-sync",
-]
 SHOTS = Path(__file__).resolve().parents[2] / "test-artifacts" / "screenshots"
 DESK = {"width": 1440, "height": 900}
 PHONE = {"width": 390, "height": 844}
@@ -51,15 +42,6 @@ def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     settings = service_settings(tmp_path_factory.mktemp("dashboard"), sim_speed=20.0, bench_name="bench-ui")
     with live_service(settings) as base:
         yield base
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, headless=True)
-        yield b
-        b.close()
 
 
 class ConsoleWatch:

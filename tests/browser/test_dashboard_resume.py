@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -18,8 +17,9 @@ import httpx
 import pytest
 
 from tests.api.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
+from tests.browser.conftest import CHROMIUM
 from tests.browser.live_server import live_service
-from tests.browser.test_dashboard import CHROMIUM, CHROMIUM_ARGS, DESK, ConsoleWatch, shot
+from tests.browser.test_dashboard import DESK, ConsoleWatch, shot
 
 pytestmark = [
     pytest.mark.browser,
@@ -30,15 +30,6 @@ pytestmark = [
     ),
 ]
 DEADLINE_S = 240.0
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS, headless=True)
-        yield b
-        b.close()
 
 
 def poll(base: str, run_id: str, cond: Any, what: str) -> dict[str, Any]:

@@ -37,9 +37,10 @@ from bench.records import (
     new_run_id,
 )
 from bench.run_recorder import RunRecorder
-from bench.sequencer import Sequencer
-from bench.sequencer_control import RunControl, SequencerConfig
-from db.engine import make_session_factory, open_database
+from bench.sequencer.control import RunControl, SequencerConfig
+from bench.sequencer.loop import Sequencer
+from db.engine import make_session_factory
+from db.migrate import open_database
 from db.models import Run, Unit
 from db.models import RunState as DbRunState
 from db.observer import DbRunObserver

@@ -18,7 +18,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from api.progress_hub import ProgressHub
 from api.service_resume import SIM_AGE_KEY
 from bench.records import NullObserver, Progress, RunRecord, RunStart, StateChange, WindowRecord, utc_now
-from bench.sequencer_control import RunControl
+from bench.sequencer.control import RunControl
 from db.repo.runs import merge_params
 
 RunKind = Literal["calibration", "drift_check"]

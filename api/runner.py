@@ -34,7 +34,7 @@ from api.service_resume import SHUTDOWN_REASON, NotResumable
 from api.settings import Settings
 from bench.procedures import build_procedure, preview
 from bench.records import Outcome, RunObserver, RunRecord, new_run_id, utc_now
-from bench.sequencer_control import RunControl, SequencerConfig
+from bench.sequencer.control import RunControl, SequencerConfig
 from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
 from db.repo.units import get_unit_by_serial
 from drivers.sim.physics import SensorTruth

@@ -27,7 +27,7 @@ from sqlalchemy.orm import Session
 from api.bench_session import continue_run
 from api.settings import Settings
 from bench.records import RunObserver, RunRecord
-from bench.sequencer_control import RunControl
+from bench.sequencer.control import RunControl
 from db.models import Run, RunState, Unit
 from db.repo.recovery import ResumePoint, claim_for_resume
 from db.types import utc_now

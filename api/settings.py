@@ -82,7 +82,7 @@ class Settings(BaseSettings):
     authorized_by: str = "not configured (CALBENCH_AUTHORIZED_BY)"
     customer_name: str = ""
     customer_address: str = ""
-    # Type B standard uncertainties of the certificate's uncertainty budget (bench.uncertainty_budget);
+    # Type B standard uncertainties of the certificate's uncertainty budget (bench.uncertainty.budget);
     # each is one standard uncertainty (k = 1), normal, with infinite degrees of freedom.
     table_angle_u_deg: float = Field(0.001, ge=0, description="each table axis's angle (encoder), deg")
     base_tilt_u_rad: float = Field(1e-5, ge=0, description="base levelling, each horizontal axis, rad")

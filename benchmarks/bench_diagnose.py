@@ -12,7 +12,7 @@ from __future__ import annotations
 import time
 
 from bench.calibration import calibrate_recording
-from bench.diagnose_recording import diagnose_recording
+from bench.calibration.diagnose import diagnose_recording
 from benchmarks.diagnose_cases import static_recording
 from benchmarks.diagnose_dynamic_cases import moving_recording
 

@@ -37,9 +37,10 @@ from bench.recording.rows import format_block
 from bench.recording.writer import RecordingWriter
 from bench.records import ChunkRecord, NullObserver, RunStart
 from bench.run_recorder import RunRecorder
-from bench.sequencer import Sequencer
-from bench.sequencer_control import SequencerConfig
-from db.engine import make_session_factory, open_database
+from bench.sequencer.control import SequencerConfig
+from bench.sequencer.loop import Sequencer
+from db.engine import make_session_factory
+from db.migrate import open_database
 from db.observer import DbRunObserver
 from drivers.base import AxisMode, AxisStatus, SampleBlock, TableStatus
 from drivers.errors import DataGap

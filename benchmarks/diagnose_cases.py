@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from api.simulated_recording import to_recording
-from bench.diagnose_recording import diagnose_recording
+from bench.calibration.diagnose import diagnose_recording
 from bench.diagnosis import Diagnosis
 from bench.recording import Recording
 from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg

@@ -18,7 +18,7 @@ import time
 import numpy as np
 from scipy.stats import f as f_dist
 
-from bench.diagnose_recording import diagnose_recording
+from bench.calibration.diagnose import diagnose_recording
 from benchmarks.diagnose_cases import CASES, Case, score, static_recording
 
 N_CANDIDATES = 21

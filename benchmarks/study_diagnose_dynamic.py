@@ -16,7 +16,7 @@ from collections import Counter
 
 import numpy as np
 
-from bench.diagnose_recording import diagnose_recording
+from bench.calibration.diagnose import diagnose_recording
 from benchmarks.diagnose_dynamic_cases import DYNAMIC_CASES, DynamicCase, dynamic_z, moving_recording
 
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from api.simulated_recording import to_recording
 from bench.calibration import calibrate_recording
-from bench.calibration_dynamic import calibrate_dynamic
+from bench.calibration.dynamic import calibrate_dynamic
 from drivers.sim.offline import DEFAULT_AXES, simulate_oscillation, simulate_static, static12_poses_deg
 from drivers.sim.physics import SensorPhysics, SensorTruth
 

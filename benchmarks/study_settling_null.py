@@ -21,7 +21,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import f as f_dist
 
-from bench.diagnose_recording import diagnose_recording, recording_evidence
+from bench.calibration.diagnose import diagnose_recording, recording_evidence
 from bench.diagnosis.effects.settling import frequency_p_values, settling_test
 from benchmarks.diagnose_cases import static_recording
 

@@ -1,5 +1,5 @@
 """The certificate's uncertainty budget: Type B inputs of the bench from its settings, the fit's
-design from the recording, the budget of ``bench.uncertainty_budget`` as JSON.
+design from the recording, the budget of ``bench.uncertainty.budget`` as JSON.
 
 The design is the run's recording refitted by ``calibrate_recording`` (the same windows and
 specific forces as the stored fit); values and Type A standard uncertainties are the stored
@@ -16,13 +16,14 @@ from typing import Any
 import numpy as np
 
 from bench.calibration import calibrate_recording, select_windows
-from bench.calibration_dynamic import calibrate_dynamic, is_dynamic
+from bench.calibration.dynamic import calibrate_dynamic, is_dynamic
+from bench.calibration.windows import table_window_angles
 from bench.estimation.static_fit import PARAMETER_NAMES
 from bench.recording import Recording
-from bench.uncertainty_budget import RULE, Budget, TypeBInput, uncertainty_budget
-from bench.uncertainty_dynamic import METHOD as DYNAMIC_METHOD
-from bench.uncertainty_dynamic import dynamic_budget, dynamic_inputs
-from bench.uncertainty_inputs import daq_inputs, gravity_input, table_inputs, temperature_inputs
+from bench.uncertainty.budget import RULE, Budget, TypeBInput, uncertainty_budget
+from bench.uncertainty.dynamic import METHOD as DYNAMIC_METHOD
+from bench.uncertainty.dynamic import dynamic_budget, dynamic_inputs
+from bench.uncertainty.inputs import daq_inputs, gravity_input, table_inputs, temperature_inputs
 
 ANALOG_UNITS = ("V", "mV")
 """Channel units measured through the DAQ (its gain and offset apply)."""
@@ -60,15 +61,10 @@ def _sig3(x: float) -> float:
 
 
 def _window_angles_rad(rec: Recording) -> np.ndarray | None:
-    """(m, k) circular-mean table angles of the fit's windows (rad), ``None`` without a table."""
+    """(m, k) mean table angles of the fit's windows (rad), ``None`` without a table."""
     if rec.table_deg is None or rec.sidecar.table is None:
         return None
-    out = []
-    for w in select_windows(rec):
-        q = rec.table_deg[w.start : w.stop]
-        d = (q - q[:1] + 180.0) % 360.0 - 180.0
-        out.append(np.deg2rad(q[0] + d.mean(axis=0)))
-    return np.array(out)
+    return table_window_angles(rec, select_windows(rec))
 
 
 def _window_temps(rec: Recording) -> np.ndarray | None:
@@ -165,7 +161,7 @@ def budget_json(
 def certificate_budget(rec: Recording, cal: dict[str, Any], tb: TypeBSettings) -> dict[str, Any]:
     """The budget of a stored fit (``calibrate --json``) whose recording is ``rec``.
 
-    A moving-table recording (``is_dynamic``) gets the budget of ``bench.uncertainty_dynamic``
+    A moving-table recording (``is_dynamic``) gets the budget of ``bench.uncertainty.dynamic``
     (sensitivities by refits, the extra terms those the stored recording's fit chooses).
 
     :raises ValueError: the fit is not a known-orientation static or a dynamic fit, or its values are missing.

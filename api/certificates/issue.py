@@ -33,7 +33,7 @@ from db.repo.results import add_findings, add_fit, list_findings, list_fits
 from db.repo.runs import merge_params
 from db.types import utc_now
 
-DIAGNOSIS_AVAILABLE = importlib.util.find_spec("bench.diagnose_recording") is not None
+DIAGNOSIS_AVAILABLE = importlib.util.find_spec("bench.calibration.diagnose") is not None
 """The diagnosis module is installed (it is optional for the service)."""
 
 
@@ -44,8 +44,8 @@ def diagnose(rec: Recording) -> dict[str, Any]:
     :raises ValueError: the recording cannot be diagnosed (message names it).
     """
     if not DIAGNOSIS_AVAILABLE:
-        raise RuntimeError("the diagnosis module (bench.diagnose_recording) is not installed")
-    from bench.diagnose_recording import diagnose_recording
+        raise RuntimeError("the diagnosis module (bench.calibration.diagnose) is not installed")
+    from bench.calibration.diagnose import diagnose_recording
 
     return dict(diagnose_recording(rec).to_contract())
 

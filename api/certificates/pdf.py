@@ -23,7 +23,7 @@ from matplotlib.figure import Figure
 from api.certificates.pdf_budget import budget_section
 from api.certificates.pdf_layout import Flow, Page, wrap
 from api.certificates.rounding import format_significant
-from bench.calibration_dynamic import DYNAMIC_PROCEDURES
+from bench.calibration.dynamic import DYNAMIC_PROCEDURES
 
 A4_IN = (8.27, 11.69)
 AXES = ("x", "y", "z")

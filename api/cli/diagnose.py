@@ -11,11 +11,12 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from api.cli import BadInput
-from bench.diagnose_recording import diagnose_recording
-from bench.diagnosis.result import Diagnosis
-from bench.recording import read_recording
+
+if TYPE_CHECKING:
+    from bench.diagnosis.result import Diagnosis
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,6 +28,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose one recording and print the result."""
+    from bench.calibration.diagnose import diagnose_recording  # numerical stack: only when it runs
+    from bench.recording import read_recording
+
     path: Path = args.recording
     if not path.is_file():
         raise BadInput(f"{path}: no such recording file")

@@ -11,7 +11,7 @@ import argparse
 from api.bench_session import resume_run
 from api.cli.run import ProgressBar, add_device_arguments, install_abort_handler, report
 from api.settings import Settings
-from bench.sequencer_control import RunControl
+from bench.sequencer.control import RunControl
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

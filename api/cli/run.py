@@ -21,7 +21,7 @@ from api.settings import Settings
 from bench.limits import describe
 from bench.procedures import PROCEDURES
 from bench.records import NullObserver, Outcome, Progress, RunRecord, StateChange
-from bench.sequencer_control import RunControl
+from bench.sequencer.control import RunControl
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -17,7 +17,7 @@ from api.certificates.certificate import (
 )
 from api.certificates.rounding import round_expanded
 from api.settings import Settings
-from bench.calibration_dynamic import calibrate_dynamic
+from bench.calibration.dynamic import calibrate_dynamic
 from bench.recording import Recording
 from tests.bench.dynamic_sim import oscillation
 

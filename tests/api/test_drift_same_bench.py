@@ -19,7 +19,7 @@ from api.settings import Settings
 from api.simulated_recording import write_simulated
 from bench.calibration import calibrate_recording
 from bench.recording import read_recording
-from bench.uncertainty_budget import TYPE_A_NAME
+from bench.uncertainty.budget import TYPE_A_NAME
 from db.models import Certificate
 from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg
 from drivers.sim.physics import SensorPhysics, SensorTruth

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.diagnose_recording import diagnose_recording
+from bench.calibration.diagnose import diagnose_recording
 from benchmarks.diagnose_dynamic_cases import (
     DYNAMIC_CASES,
     LEVER_FOR_PROOF_MASS_M,

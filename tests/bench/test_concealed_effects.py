@@ -13,7 +13,7 @@ import math
 
 import pytest
 
-from bench.diagnose_recording import diagnose_recording
+from bench.calibration.diagnose import diagnose_recording
 from benchmarks.diagnose_cases import CASES, run_case, static_recording
 
 TEN_X = ["nonlinearity_quadratic", "scale_asymmetry", "cross_coupling", "temperature_bias", "bias_drift",

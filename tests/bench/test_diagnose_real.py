@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from api.cli import main
-from bench.diagnose_recording import diagnose_recording, recording_evidence
+from bench.calibration.diagnose import diagnose_recording, recording_evidence
 from bench.diagnosis.effects import first_order_design
 from bench.diagnosis.wander_cap import half_difference_factor
 from bench.recording import read_recording

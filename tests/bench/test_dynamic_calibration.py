@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bench.calibration import calibrate_recording
-from bench.calibration_dynamic import DynamicCalibrationResult, calibrate_dynamic, is_dynamic
+from bench.calibration.dynamic import DynamicCalibrationResult, calibrate_dynamic, is_dynamic
 from bench.recording import read_recording
 from tests.bench.dynamic_sim import DELAY_TRUE_S, EFFECTS, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
 

@@ -5,12 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.estimation.observability import (
-    check_information,
-    information_report,
-    plan_observability,
-    procedure_angles,
-)
+from bench.estimation.observability import check_information, information_report
+from bench.procedures.observability import plan_observability, procedure_angles
 from bench.procedures.oscillation import oscillation_2axis
 from bench.procedures.rate import rate_1axis
 from bench.procedures.steps import Dwell, MoveTo, Procedure, Rotate

@@ -32,8 +32,8 @@ from bench.records import (
     WindowRecord,
 )
 from bench.run_recorder import RunRecorder
-from bench.sequencer import Sequencer
-from bench.sequencer_control import RunControl, SequencerConfig
+from bench.sequencer.control import RunControl, SequencerConfig
+from bench.sequencer.loop import Sequencer
 from drivers.base import AxisMode, AxisStatus, SampleBlock, TableStatus
 from drivers.errors import DataGap, DeviceTimeout, InterlockOpen, LinkLost
 

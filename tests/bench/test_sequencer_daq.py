@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.sequencer_daq import DaqPump, Gap, Restarted
+from bench.sequencer.daq import DaqPump, Gap, Restarted
 from drivers.base import SampleBlock
 from drivers.errors import DataGap
 

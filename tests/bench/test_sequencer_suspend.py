@@ -6,7 +6,7 @@ import threading
 from pathlib import Path
 
 from bench.records import Outcome, RunState, WindowRecord
-from bench.sequencer_control import SequencerConfig
+from bench.sequencer.control import SequencerConfig
 from tests.bench.test_sequencer import FAST, FakeTable, make, quick_static
 
 

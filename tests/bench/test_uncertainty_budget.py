@@ -12,14 +12,14 @@ from scipy.stats import t as student_t
 
 from bench.estimation.static_fit import PARAMETER_NAMES, fit_static
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
-from bench.uncertainty_budget import (
+from bench.uncertainty.budget import (
     TypeBInput,
     coverage_factor,
     sensitivities,
     uncertainty_budget,
     welch_satterthwaite,
 )
-from bench.uncertainty_inputs import daq_inputs, gravity_input, table_inputs, temperature_inputs
+from bench.uncertainty.inputs import daq_inputs, gravity_input, table_inputs, temperature_inputs
 from tests.bench.static_sim import G_LOCAL, TUMBLE_12_DEG, simulate_run, tumble_specific_force
 
 AXES = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # middle (x) then inner (z): R = Rx(a) Rz(b)

@@ -9,10 +9,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bench.calibration_dynamic import DynamicCalibrationResult, calibrate_dynamic
+from bench.calibration.dynamic import DynamicCalibrationResult, calibrate_dynamic
 from bench.kinematics import attitude, rot
 from bench.recording import Recording
-from bench.uncertainty_dynamic import TILT_ABSORBED, DynamicInput, dynamic_budget, dynamic_inputs
+from bench.uncertainty.dynamic import TILT_ABSORBED, DynamicInput, dynamic_budget, dynamic_inputs
 from tests.bench.dynamic_sim import oscillation
 
 DEFAULTS: dict[str, Any] = {

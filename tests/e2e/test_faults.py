@@ -17,7 +17,7 @@ import pytest
 from api.bench_session import sim_url, start_run
 from bench.recording.reader import read_recording
 from bench.records import NullObserver, Outcome, RunRecord, RunState, StateChange, WindowRecord
-from bench.sequencer_control import SequencerConfig
+from bench.sequencer.control import SequencerConfig
 from drivers.base import AxisMode
 from drivers.factory import BenchDevices, open_bench
 from tests.e2e.helpers import SIM_SPEED, settings_for

@@ -11,7 +11,7 @@ import pytest
 from api.bench_session import sim_url, start_run
 from bench.recording.reader import read_recording
 from bench.records import NullObserver, Outcome, RunState, StateChange, WindowRecord
-from bench.sequencer_control import RunControl, SequencerConfig
+from bench.sequencer.control import RunControl, SequencerConfig
 from drivers.factory import BenchDevices, open_bench
 from drivers.sim.physics import SensorTruth
 from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores

@@ -11,7 +11,8 @@ import pytest
 from api.bench_session import start_run
 from bench.limits import load_limits
 from bench.records import Outcome
-from db.engine import make_session_factory, open_database
+from db.engine import make_session_factory
+from db.migrate import open_database
 from db.models import Run
 from db.repo.results import list_fits
 from drivers.sim.physics import SensorTruth

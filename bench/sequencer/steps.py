@@ -11,21 +11,19 @@ from __future__ import annotations
 import contextlib
 import math
 import time
-from typing import TYPE_CHECKING
 
 from bench.dwell_policy import dwell_from_noise_window
 from bench.procedures.preview import move_time_s
 from bench.procedures.steps import Dwell, MoveTo, NoiseWindow, Oscillate, Rotate, Step
 from bench.records import RunState
-from bench.sequencer_control import Interruption, WindowSpoiled
-from bench.sequencer_window import WindowCollector
+from bench.sequencer.context import RunContext
+from bench.sequencer.control import Interruption, WindowSpoiled
+from bench.sequencer.safety import optional_table_method
+from bench.sequencer.window import WindowCollector
 from drivers.errors import DeviceError, DeviceTimeout, InterlockOpen
 
-if TYPE_CHECKING:
-    from bench.sequencer import Sequencer
 
-
-def execute_steps(seq: Sequencer) -> None:
+def execute_steps(seq: RunContext) -> None:
     """Run every remaining step of ``seq.procedure`` (see the module docstring)."""
     proc = seq.procedure
     i, pending_move = proc.resume_plan(seq.start_window)
@@ -52,7 +50,7 @@ def execute_steps(seq: Sequencer) -> None:
     seq.progress(force=True)
 
 
-def restart_point(seq: Sequencer, i: int) -> tuple[int, int | None]:
+def restart_point(seq: RunContext, i: int) -> tuple[int, int | None]:
     """Step to re-execute after step ``i`` was interrupted, and the move to do first."""
     steps = seq.procedure.steps
     if isinstance(steps[i], MoveTo):
@@ -61,10 +59,9 @@ def restart_point(seq: Sequencer, i: int) -> tuple[int, int | None]:
     return i, move
 
 
-def hold(seq: Sequencer, intr: Interruption) -> None:
+def hold(seq: RunContext, intr: Interruption) -> None:
     """Hold the table until the interruption clears (or abort, or the suspension deadline)."""
-    seq._holding = True
-    try:
+    with seq.holding():
         seq.control.take_resume_request()  # only a request made during this hold counts
         seq.set_state(intr.state, intr.reason)
         # An open interlock has already stopped the table; a failed stop is not news then.
@@ -79,15 +76,13 @@ def hold(seq: Sequencer, intr: Interruption) -> None:
                 _operator_resume(seq, intr)
             seq.pump_once(0.05)
         seq.set_state(RunState.RUNNING, f"resumed after: {intr.reason}")
-    finally:
-        seq._holding = False
 
 
-def _operator_resume(seq: Sequencer, intr: Interruption) -> None:
+def _operator_resume(seq: RunContext, intr: Interruption) -> None:
     """Prepare the table again (reset faults, close the interlocks); a refusal keeps the run
     suspended and says why."""
-    prepare = getattr(seq.table, "prepare", None)
-    if not callable(prepare):
+    prepare = optional_table_method(seq.table, "prepare")
+    if prepare is None:
         return
     timeout = seq.config.move_timeout_margin_s
     try:
@@ -95,22 +90,21 @@ def _operator_resume(seq: Sequencer, intr: Interruption) -> None:
     except (DeviceError, DeviceTimeout, InterlockOpen, OSError) as exc:
         seq.set_state(RunState.SUSPENDED, f"{intr.reason}; resume refused: {type(exc).__name__}: {exc}")
         return
-    seq._last_status_wall = 0.0  # check the interlock now
+    seq.poll_status_soon()  # check the interlock now
 
 
-def _cleared(seq: Sequencer, intr: Interruption) -> bool:
+def _cleared(seq: RunContext, intr: Interruption) -> bool:
     if intr.state is RunState.PAUSED:
         return not seq.control.pause_requested
-    if time.monotonic() - seq._last_status_wall < seq.config.status_poll_s:
+    if not seq.status_due():
         return False
-    seq._last_status_wall = time.monotonic()
     st = seq.table.status()
     band = seq.config.temp_band_c
     temp_ok = band is None or not math.isfinite(seq.last_temp_c) or band[0] <= seq.last_temp_c <= band[1]
     return st.interlock_ok and not st.estop and temp_ok and not seq.control.pause_requested
 
 
-def run_step(seq: Sequencer, i: int) -> None:
+def run_step(seq: RunContext, i: int) -> None:
     """Execute step ``i``."""
     step: Step = seq.procedure.steps[i]
     seq.step_index = i
@@ -150,7 +144,7 @@ def run_step(seq: Sequencer, i: int) -> None:
         _stop_and_settle(seq)
 
 
-def _move(seq: Sequencer, step: MoveTo) -> None:
+def _move(seq: RunContext, step: MoveTo) -> None:
     lim = seq.config.limits
     here = seq.positions_deg
     est = max((move_time_s(abs(((b - a + 180.0) % 360.0) - 180.0) if lim.continuous[k] else abs(b - a),
@@ -164,7 +158,7 @@ def _move(seq: Sequencer, step: MoveTo) -> None:
     seq.wait_data(step.settle_s)
 
 
-def _wait_until_at(seq: Sequencer, target_deg: tuple[float, ...], timeout_s: float) -> None:
+def _wait_until_at(seq: RunContext, target_deg: tuple[float, ...], timeout_s: float) -> None:
     """Drain samples until the encoder angles they carry are at ``target_deg``.
 
     Blocks queued while the move ran show the table still moving; the settling time counts
@@ -183,7 +177,7 @@ def _wait_until_at(seq: Sequencer, target_deg: tuple[float, ...], timeout_s: flo
         seq.pump_once()
 
 
-def _stop_and_settle(seq: Sequencer) -> None:
+def _stop_and_settle(seq: RunContext) -> None:
     """Stop the motion and wait (recording) until every axis is at rest."""
     seq.call(seq.table.stop, seq.config.stop_timeout_s, "stop")
     lim = seq.config.limits

@@ -1,8 +1,8 @@
 """The Type B inputs of a static calibration bench, as moves of the fit's design.
 
-Each builder returns :class:`~bench.uncertainty_budget.TypeBInput` objects: the change of every
+Each builder returns :class:`~bench.uncertainty.budget.TypeBInput` objects: the change of every
 window's specific force f_w (m/s²) or mean output y_w (channel units) per unit change of the
-input, for the linearised budget of ``bench.uncertainty_budget``. Pure numpy; the table's
+input, for the linearised budget of ``bench.uncertainty.budget``. Pure numpy; the table's
 kinematics are those of ``bench.kinematics`` (R = Rot(u1, θ1)…Rot(uk, θk)·M, f = Rᵀ [0, 0, g]).
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from bench.kinematics import attitude, rot, static_specific_force
-from bench.uncertainty_budget import TypeBInput
+from bench.uncertainty.budget import TypeBInput
 
 FloatArray = npt.NDArray[np.float64]
 

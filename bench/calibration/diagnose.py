@@ -1,10 +1,10 @@
 """Diagnose a recording: windows -> window noise -> evidence -> ``bench.diagnosis.diagnose``.
 
-A moving-table recording (``calibration_dynamic.is_dynamic``, with a table) goes to
+A moving-table recording (``dynamic.is_dynamic``, with a table) goes to
 ``bench.diagnosis.dynamic.diagnose_dynamic`` instead. For the others, which specific force
-each window is compared with (as in ``bench.calibration``):
+each window is compared with (``windows.known_specific_force``, as in the calibration):
 
-* a table in the sidecar: f_w = Rᵀ [0, 0, g] at the window's circular-mean encoder angles;
+* a table in the sidecar: f_w = Rᵀ [0, 0, g] at the window's mean encoder angles;
 * no table, every window labelled ``nominal_up`` (hand-held six-position): ±g along the
   named axis; the diagnosis then asks whether the unit really was there (``pose_error``);
 * neither: orientation-free, f_w = g · L⁻¹(ȳ_w − b)/|L⁻¹(ȳ_w − b)| from the scalar fit,
@@ -15,21 +15,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.calibration import select_windows, window_means
-from bench.calibration_dynamic import is_dynamic
+from bench.calibration.dynamic import is_dynamic
+from bench.calibration.windows import (
+    known_specific_force,
+    moving_samples,
+    select_windows,
+    table_window_angles,
+    where,
+    window_means,
+)
 from bench.diagnosis import Diagnosis, StaticEvidence, diagnose
 from bench.diagnosis.dynamic import diagnose_dynamic
-from bench.estimation.dynamic_model import prepare_motion
 from bench.estimation.scalar_fit import fit_scalar
-from bench.estimation.windows import StaticWindow
-from bench.kinematics import attitude, static_specific_force
 from bench.recording import Recording
-
-_AXES = {"+x": (0, 1.0), "-x": (0, -1.0), "+y": (1, 1.0), "-y": (1, -1.0), "+z": (2, 1.0), "-z": (2, -1.0)}
-
-
-def _where(rec: Recording) -> str:
-    return rec.source or "recording"
 
 
 def recording_evidence(rec: Recording) -> StaticEvidence:
@@ -41,7 +39,7 @@ def recording_evidence(rec: Recording) -> StaticEvidence:
     try:
         y, V = window_means(rec, wins)
     except ValueError as exc:
-        raise ValueError(f"{_where(rec)}: {exc}") from exc
+        raise ValueError(f"{where(rec)}: {exc}") from exc
     g = rec.sidecar.g_local_m_s2
     t = rec.t_s
     mid = np.array([(t[w.start] + t[w.stop - 1]) / 2 for w in wins])
@@ -55,21 +53,16 @@ def recording_evidence(rec: Recording) -> StaticEvidence:
         )
     table = rec.sidecar.table
     q_rad = axes = mount = None
-    known = True
     peak = 0.0
+    known_f = known_specific_force(rec, wins)
     if table is not None and rec.table_deg is not None:
-        q = np.deg2rad(rec.table_deg)
-        q_rad = np.array([np.arctan2(np.sin(q[w.slice]).mean(0), np.cos(q[w.slice]).mean(0)) for w in wins])
+        q_rad = table_window_angles(rec, wins)
         axes, mount = table.axis_vectors, table.mount_matrix
-        f = static_specific_force(attitude(axes, q_rad, mount), g)
         qu = rec.table_rad_unwrapped()
         assert qu is not None
         peak = float(np.max(np.abs(np.diff(qu, axis=0)) / np.diff(t)[:, None])) if t.size > 1 else 0.0
-    elif all(w.nominal_up in _AXES for w in wins):
-        f = _labelled_force(wins, g)
-    else:
-        f = _scalar_force(rec, y, V, g)
-        known = False
+    known = known_f is not None
+    f = known_f if known_f is not None else _scalar_force(rec, y, V, g)
     return StaticEvidence(
         y=y,
         V=V,
@@ -88,33 +81,19 @@ def recording_evidence(rec: Recording) -> StaticEvidence:
     )
 
 
-def _labelled_force(wins: list[StaticWindow], g: float) -> np.ndarray:
-    f = np.zeros((len(wins), 3))
-    for k, w in enumerate(wins):
-        axis, sign = _AXES[str(w.nominal_up)]
-        f[k, axis] = sign * g
-    return f
-
-
 def _scalar_force(rec: Recording, y: np.ndarray, V: np.ndarray, g: float) -> np.ndarray:
     try:
         sf = fit_scalar(y, V, g)
     except ValueError as exc:
-        raise ValueError(f"{_where(rec)}: orientations unknown and the scalar fit failed: {exc}") from exc
+        raise ValueError(f"{where(rec)}: orientations unknown and the scalar fit failed: {exc}") from exc
     u = np.linalg.solve(sf.L, (y - sf.bias).T).T
     return g * u / np.linalg.norm(u, axis=1, keepdims=True)
 
 
 def _diagnose_moving(rec: Recording) -> Diagnosis:
     geo = rec.sidecar.table
-    q = rec.table_rad_unwrapped()
-    assert geo is not None and q is not None
-    y = np.asarray(rec.accel_raw, dtype=float)
-    bad = np.argwhere(~np.isfinite(y))
-    if bad.size:
-        row, col = bad[0]
-        raise ValueError(f"sample {row} (t = {rec.t_s[row]:.6g} s): {'xyz'[col]} channel is not finite")
-    m = prepare_motion(rec.t_s, q, geo.axis_vectors, geo.mount_matrix)
+    assert geo is not None
+    m, y = moving_samples(rec)
     return diagnose_dynamic(
         m,
         y,
@@ -130,7 +109,7 @@ def _diagnose_moving(rec: Recording) -> Diagnosis:
 def diagnose_recording(rec: Recording) -> Diagnosis:
     """Diagnose one recording; every error message starts with the recording's path.
 
-    A moving-table recording (``calibration_dynamic.is_dynamic``) goes to
+    A moving-table recording (``dynamic.is_dynamic``) goes to
     ``bench.diagnosis.dynamic.diagnose_dynamic``; every other one to the static diagnosis.
     """
     try:
@@ -142,5 +121,5 @@ def diagnose_recording(rec: Recording) -> Diagnosis:
         )
     except ValueError as exc:
         msg = str(exc)
-        where = _where(rec)
-        raise ValueError(msg if msg.startswith(where) else f"{where}: {msg}") from exc
+        where_ = where(rec)
+        raise ValueError(msg if msg.startswith(where_) else f"{where_}: {msg}") from exc

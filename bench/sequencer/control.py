@@ -93,7 +93,7 @@ class SequencerConfig:
     :param block_max_samples: samples per DAQ read.
     :param read_timeout_s: timeout of one DAQ read.
     :param daq_idle_wait_s: the DAQ reader's pause after a read that emptied the buffer
-        (:class:`bench.sequencer_daq.DaqPump`); 20 ms is 1/400 of a 8192-sample ring at 1 kHz.
+        (:class:`bench.sequencer.daq.DaqPump`); 20 ms is 1/400 of a 8192-sample ring at 1 kHz.
     :param status_poll_s: interval of table status polls (interlock) between calls.
     :param progress_interval_s: interval of progress events.
     :param temp_band_c: allowed sensor temperature (°C), ``None``: not watched.

@@ -1,6 +1,6 @@
 """The sequencer: executes a procedure's steps on a RotaryTable and a Daq.
 
-One thread (the caller's) executes the steps; a :class:`bench.sequencer_daq.DaqPump` thread
+One thread (the caller's) executes the steps; a :class:`bench.sequencer.daq.DaqPump` thread
 drains the DAQ. Every wait is a loop over sample blocks: each block goes to the recording
 (:class:`bench.run_recorder.RunRecorder`), into the open window if any, and the loop checks
 the control (abort, pause), the temperature band and, every ``status_poll_s``, the
@@ -14,14 +14,16 @@ acquisition stopped and the recording closed with everything recorded so far. Pa
 open interlock or a temperature outside its band *suspend* the run: the window in progress
 is dropped, the table held, and the window recorded again once the condition clears.
 
-Step execution is in :mod:`bench.sequencer_steps`; this module has the loop and life cycle.
+Step execution is in :mod:`bench.sequencer.steps` and the safe state in
+:mod:`bench.sequencer.safety`, both over the :class:`~bench.sequencer.context.RunContext` this
+class offers; this module has the loop and life cycle.
 """
 
 from __future__ import annotations
 
-import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -39,9 +41,12 @@ from bench.records import (
     WindowRecord,
 )
 from bench.run_recorder import RunRecorder
-from bench.sequencer_control import AbortRequested, Interruption, RunControl, SequencerConfig, WindowSpoiled
-from bench.sequencer_daq import DaqPump, Failed, Gap, Restarted
-from bench.sequencer_window import WindowCollector
+from bench.sequencer.control import AbortRequested, Interruption, RunControl, SequencerConfig, WindowSpoiled
+from bench.sequencer.daq import DaqPump, Failed, Gap, Restarted
+from bench.sequencer.deadline import call_with_deadline
+from bench.sequencer.safety import make_safe, prepare_table
+from bench.sequencer.steps import execute_steps
+from bench.sequencer.window import WindowCollector
 from drivers.base import Daq, RotaryTable, SampleBlock
 from drivers.errors import DeviceError, DeviceTimeout, DriverError
 
@@ -217,28 +222,55 @@ class Sequencer:
 
         :raises DeviceTimeout: it did not return within ``deadline_s`` (wall clock).
         """
-        box: dict[str, object] = {}
-
-        def target() -> None:
-            try:
-                box["value"] = fn()
-            except BaseException as exc:
-                box["error"] = exc
-
-        worker = threading.Thread(target=target, name=f"table-{what}", daemon=True)
         self._in_call = True
         try:
-            worker.start()
-            end = time.monotonic() + deadline_s
-            while worker.is_alive():
-                if time.monotonic() > end:
-                    raise DeviceTimeout(f"table {what} did not return within {deadline_s:.3g} s")
-                self.pump_once(0.01)
+            return call_with_deadline(fn, deadline_s, what, wait=lambda: self.pump_once(0.01))
         finally:
             self._in_call = False
-        if "error" in box:
-            raise box["error"]  # type: ignore[misc]
-        return box.get("value")  # type: ignore[return-value]
+
+    @contextmanager
+    def holding(self) -> Iterator[None]:
+        """While held (the table stopped for an interruption, or the run ending), the loop
+        raises no pause, interlock or temperature interruption."""
+        before = self._holding
+        self._holding = True
+        try:
+            yield
+        finally:
+            self._holding = before
+
+    def status_due(self) -> bool:
+        """Whether ``status_poll_s`` has passed since the last table poll; marks it polled if so."""
+        if time.monotonic() - self._last_status_wall < self.config.status_poll_s:
+            return False
+        self._last_status_wall = time.monotonic()
+        return True
+
+    def poll_status_soon(self) -> None:
+        """Make the next :meth:`status_due` (and the loop's own poll) happen now."""
+        self._last_status_wall = 0.0
+
+    def finish_acquisition(self) -> list[str]:
+        """Stop the DAQ pump and put the samples still queued into the recording.
+
+        :returns: what failed (the pump did not stop in time, a block could not be saved).
+        """
+        problems: list[str] = []
+        pump_problem = self._pump.stop(self.config.stop_timeout_s)
+        if pump_problem:
+            problems.append(pump_problem)
+        self.window = None
+        with self.holding():
+            for item in self._pump.drain():
+                if isinstance(item, Restarted):
+                    self.recorder.rebase()
+                elif isinstance(item, SampleBlock):
+                    try:
+                        self._handle_block(item)
+                    except Exception as exc:
+                        problems.append(f"saving the last samples failed: {exc}")
+                        break
+        return problems
 
     def record_window(self, collector: WindowCollector) -> WindowRecord:
         """Record a window to its end, close it in the recording, tell the observers."""
@@ -260,9 +292,6 @@ class Sequencer:
 
     def run(self) -> Acquisition:
         """Execute the procedure; never raises for device faults (they become ERROR)."""
-        from bench.sequencer_safety import make_safe, prepare_table
-        from bench.sequencer_steps import execute_steps  # the step logic, split for size
-
         outcome: Outcome | None = None
         error: str | None = None
         try:

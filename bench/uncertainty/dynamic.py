@@ -23,7 +23,7 @@ tolerance, not the slope; the steps are small enough for the model to stay linea
 When the fit estimates the base tilt itself (term ``table_tilt``) the levelling inputs are not
 evaluated: the tilt is a fitted parameter, and its uncertainty is already in the Type A
 covariance of b and K. The budget is then combined exactly as the static one
-(``uncertainty_budget.combine``).
+(``bench.uncertainty.budget.combine``).
 """
 
 from __future__ import annotations
@@ -36,11 +36,11 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from bench.calibration_dynamic import calibrate_dynamic
+from bench.calibration.dynamic import calibrate_dynamic
 from bench.kinematics import rot
 from bench.recording import Recording
 from bench.recording.model import TableAxis
-from bench.uncertainty_budget import Budget, TypeBInput, combine
+from bench.uncertainty.budget import Budget, TypeBInput, combine
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from bench.calibration import MAX_TABLE_MOTION_RAD, CalibrationResult, WindowResult, select_windows
+from bench.calibration.result import CalibrationResult, WindowResult
+from bench.calibration.windows import MAX_TABLE_MOTION_RAD, moving_samples, select_windows
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_kalman import run_dynamic_kalman
 from bench.estimation.dynamic_model import (
@@ -36,7 +37,6 @@ from bench.estimation.dynamic_model import (
     initial_theta,
     positions,
     predict,
-    prepare_motion,
 )
 from bench.estimation.g_check import GCheck
 from bench.estimation.observability import USEFUL_SIGMA, fisher_information, information_report
@@ -260,17 +260,11 @@ def calibrate_dynamic(
     :raises ValueError: no table, too few samples, or a motion that cannot determine bias and K.
     """
     geo = rec.sidecar.table
-    q = rec.table_rad_unwrapped()
-    if geo is None or q is None:
+    if geo is None or rec.table_deg is None:
         raise ValueError("a dynamic calibration needs the table (sidecar 'table' and table_i columns)")
     g = rec.sidecar.g_local_m_s2
     lever = np.asarray(geo.lever_arm_m, dtype=float)
-    y = np.asarray(rec.accel_raw, dtype=float)
-    bad = np.argwhere(~np.isfinite(y))
-    if bad.size:
-        row, col = bad[0]
-        raise ValueError(f"sample {row} (t = {rec.t_s[row]:.6g} s): {'xyz'[col]} channel is not finite")
-    m = prepare_motion(rec.t_s, q, geo.axis_vectors, geo.mount_matrix)
+    m, y = moving_samples(rec)
     if terms is None:
         spec, dropped = choose_spec(m, y, g, lever)
     else:

@@ -1,0 +1,57 @@
+"""Calibrate a recording: the one place where a :class:`~bench.recording.Recording` becomes a
+calibration; the CLI (``calbench calibrate``), the service and ``diagnose`` all call
+:func:`calibrate_recording`.
+
+A moving-table recording (``dynamic.is_dynamic``: a ``rate-1axis`` or ``oscillation-2axis``
+procedure, or no procedure and a segment in which the table turns) gets the sample-by-sample
+dynamic fit (``dynamic.calibrate_dynamic``, method ``"dynamic"``); every other one the static
+or orientation-free fit of its windows (``static.calibrate_static``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from bench.calibration.dynamic import calibrate_dynamic, is_dynamic
+from bench.calibration.result import CalibrationResult
+from bench.calibration.static import NATURAL_ZERO_UNITS, calibrate_static
+from bench.calibration.windows import where
+from bench.recording import Recording
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def calibrate_recording(
+    rec: Recording,
+    *,
+    nominal_scale: float | None = None,
+    nominal_bias: FloatArray | None = None,
+) -> CalibrationResult:
+    """Fit bias and scale/misalignment to a recording (see the module docstring).
+
+    :param rec: the recording.
+    :param nominal_scale: nominal sensitivity (channel unit per m/s²) for the "before"
+        g check of a channel unit without a natural scale (V, count).
+    :param nominal_bias: (3,) nominal zero-g output (channel units) with ``nominal_scale``;
+        required with it unless the channel unit is in :data:`NATURAL_ZERO_UNITS`.
+    :returns: :class:`CalibrationResult`.
+    :raises ValueError: a nominal scale without a zero-g output for a V or count channel, no
+        usable windows, a degenerate orientation set (the message names the undeterminable
+        parameters), too few windows for the scalar fit, or non-finite data; every message
+        starts with the recording's path.
+    """
+    try:
+        unit = rec.sidecar.channel_unit
+        if nominal_scale is not None and nominal_bias is None and unit not in NATURAL_ZERO_UNITS:
+            raise ValueError(
+                f"a nominal scale for a {unit} channel needs the nominal zero-g output (nominal_bias): "
+                f"a {unit} output is not 0 at zero g"
+            )
+        if is_dynamic(rec):
+            return calibrate_dynamic(rec, nominal_scale=nominal_scale, nominal_bias=nominal_bias)
+        return calibrate_static(rec, nominal_scale, nominal_bias)
+    except ValueError as exc:
+        msg = str(exc)
+        where_ = where(rec)
+        raise ValueError(msg if msg.startswith(where_) else f"{where_}: {msg}") from exc

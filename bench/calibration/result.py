@@ -1,0 +1,119 @@
+"""Typed results of a calibration: one window (:class:`WindowResult`) and one fit
+(:class:`CalibrationResult`), turned into the ``calbench calibrate --json`` object of
+``shared/cli-contract.md`` only by :meth:`CalibrationResult.to_contract`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from bench.estimation.g_check import GCheck
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class WindowResult:
+    """One static window of a calibration.
+
+    :param label: segment label or detected-window name.
+    :param start_s: first sample time (s).
+    :param end_s: last sample time (s).
+    :param n_samples: samples averaged.
+    :param mean_raw: (3,) window mean (channel units).
+    :param mean_sigma: (3,) standard deviation of that mean (channel units).
+    :param f_m_s2: (3,) specific force the fit assumed (m/s²), ``None`` for the scalar fit.
+    :param residual: (3,) mean − model (channel units) for the known-orientation fit;
+        for the scalar fit the |g| residual mapped to channel units along f̂.
+    :param normalized_residual: (3,) residual over its standard deviation (known-orientation
+        fit), or (|f̂| − g) / σ repeated (scalar fit).
+    :param g_error_after_m_s2: |K⁻¹(mean − b)| − g.
+    :param g_error_before_m_s2: the same with the nominal scale, or ``None``.
+    """
+
+    label: str
+    start_s: float
+    end_s: float
+    n_samples: int
+    mean_raw: FloatArray
+    mean_sigma: FloatArray
+    f_m_s2: FloatArray | None
+    residual: FloatArray
+    normalized_residual: FloatArray
+    g_error_after_m_s2: float
+    g_error_before_m_s2: float | None
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """A fitted first-order model of one recording, with its evidence.
+
+    :param method: ``"static"`` (known orientations), ``"scalar"`` (|f| = g only) or
+        ``"dynamic"`` (moving table; the instance is then a
+        :class:`bench.calibration.dynamic.DynamicCalibrationResult`).
+    :param bias: (3,) channel units.
+    :param K: (3, 3) channel unit per m/s² (lower-triangular L for ``"scalar"``).
+    :param cov: (12, 12) for ``"static"`` in ``static_fit.PARAMETER_NAMES`` order,
+        (9, 9) for ``"scalar"`` in ``scalar_fit.PARAMETER_NAMES`` order, or (p, p) for
+        ``"dynamic"`` in ``fit.names`` order (bias and K first, then the extra terms).
+    :param bias_sigma: (3,); :param K_sigma: (3, 3) one-sigma (Type A) uncertainties.
+    :param residual_rms: RMS of the window residuals (channel units); for ``"dynamic"`` the
+        RMS of the per-sample residuals.
+    :param chi2: residual χ² against the within-window noise; :param dof: its degrees of
+        freedom. For ``"dynamic"``, whose residuals are scaled by their own fitted sigma,
+        ``chi2`` is 3·n_samples by construction and carries no goodness-of-fit information.
+    """
+
+    unit_serial: str
+    channel_unit: str
+    procedure: str
+    method: str
+    g_local_m_s2: float
+    bias: FloatArray
+    K: FloatArray
+    cov: FloatArray
+    bias_sigma: FloatArray
+    K_sigma: FloatArray
+    residual_rms: float
+    chi2: float
+    dof: int
+    noise_model: str
+    g_after: GCheck
+    g_before: GCheck | None
+    windows: tuple[WindowResult, ...]
+    source: str = ""
+
+    @property
+    def terms(self) -> list[str]:
+        """Model terms fitted, as listed in the contract."""
+        if self.method == "scalar":
+            return ["bias", "scale_matrix_lower_triangular"]
+        return ["bias", "scale_matrix"]
+
+    def to_contract(self) -> dict[str, Any]:
+        """The ``calbench calibrate --json`` object (shared/cli-contract.md)."""
+        g_check_out: dict[str, Any] = {}
+        if self.g_before is not None:
+            g_check_out["before"] = _g_dict(self.g_before)
+        g_check_out["after"] = _g_dict(self.g_after)
+        return {
+            "unit": self.unit_serial,
+            "channel_unit": self.channel_unit,
+            "procedure": self.procedure,
+            "bias": self.bias.tolist(),
+            "bias_sigma": self.bias_sigma.tolist(),
+            "scale_matrix": self.K.tolist(),
+            "scale_matrix_sigma": self.K_sigma.tolist(),
+            "terms": self.terms,
+            "extra": {},
+            "residual_rms": self.residual_rms,
+            "g_check": g_check_out,
+        }
+
+
+def _g_dict(g: GCheck) -> dict[str, float]:
+    return {"mean_error_m_s2": g.mean_error_m_s2, "std_m_s2": g.std_m_s2}

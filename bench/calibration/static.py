@@ -1,0 +1,122 @@
+"""Calibrate the static windows of a recording: the known-orientation fit or the
+orientation-free one.
+
+* a table in the sidecar: the known-orientation 12-parameter fit (``static_fit``), with
+  f_w = Rᵀ [0, 0, g] at each window's mean encoder angles (``windows.known_specific_force``);
+* no table, every window labelled with ``nominal_up`` (a hand-placed six-position
+  calibration): the same fit with f_w = ±g along the named axis;
+* otherwise the orientation-free fit of |f| = g (``scalar_fit``), K reported as the
+  lower-triangular L with L Lᵀ = K Kᵀ (K up to a rotation of the sensor frame).
+
+Windows come from ``windows.select_windows``; the "before" |g| check uses the nominal
+scale (:func:`nominal_force`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from bench.calibration.result import CalibrationResult, WindowResult
+from bench.calibration.windows import known_specific_force, select_windows, window_means
+from bench.estimation.g_check import correct, g_check
+from bench.estimation.scalar_fit import fit_scalar
+from bench.estimation.static_fit import fit_static
+from bench.recording import G0_M_S2, Recording
+
+FloatArray = npt.NDArray[np.float64]
+
+NATURAL_ZERO_UNITS = ("m/s2", "g")
+"""Channel units whose nominal zero-g output is 0 (a nominal scale may come without a bias)."""
+
+
+def nominal_force(
+    rec: Recording, y: FloatArray, scale: float | None, bias: FloatArray | None
+) -> FloatArray | None:
+    """Specific force with the nominal scale only (the 'before' of the g check), or ``None``."""
+    if scale is not None:
+        if not (np.isfinite(scale) and scale != 0):
+            raise ValueError(f"nominal scale must be finite and non-zero, got {scale}")
+        b0 = np.zeros(3) if bias is None else np.asarray(bias, dtype=float)
+        return (y - b0) / scale
+    unit = rec.sidecar.channel_unit
+    if unit == "m/s2":
+        return y
+    if unit == "g":
+        return y * G0_M_S2
+    return None
+
+
+def calibrate_static(
+    rec: Recording, nominal_scale: float | None, nominal_bias: FloatArray | None
+) -> CalibrationResult:
+    """The static or orientation-free calibration of ``rec`` (module docstring).
+
+    :param nominal_scale: nominal sensitivity (channel unit per m/s²) for the "before" check.
+    :param nominal_bias: (3,) nominal zero-g output (channel units) with ``nominal_scale``.
+    :raises ValueError: no usable windows, a degenerate orientation set, too few windows for
+        the scalar fit, or non-finite data.
+    """
+    wins = select_windows(rec)
+    y, V = window_means(rec, wins)
+    g = rec.sidecar.g_local_m_s2
+    f = known_specific_force(rec, wins)
+    if f is not None:
+        fit = fit_static(f, y, V)
+        bias, K, cov = fit.bias, fit.K, fit.cov
+        bias_sigma, K_sigma = fit.bias_sigma, fit.K_sigma
+        resid, norm_resid = fit.residuals, fit.normalized_residuals
+        chi2, dof, model, method = fit.chi2, fit.dof, fit.noise_model, "static"
+    else:
+        sf = fit_scalar(y, V, g)
+        bias, K, cov = sf.bias, sf.L, sf.cov
+        bias_sigma, K_sigma = sf.sigma[:3], sf.L_sigma
+        fh = correct(y, bias, K)
+        dirs = fh / np.linalg.norm(fh, axis=1, keepdims=True)
+        resid = (sf.residuals_m_s2[:, None] * dirs) @ K.T
+        norm_resid = np.repeat((sf.residuals_m_s2 / sf.residual_sigma_m_s2)[:, None], 3, axis=1)
+        chi2, dof, method = sf.chi2, sf.dof, "scalar"
+        model = (
+            "window means: batch-means covariance from each window's samples; "
+            f"between windows: additive |g| scatter sigma = {np.sqrt(sf.excess_var_m_s2):.3g} m/s²"
+        )
+    after = g_check(correct(y, bias, K), g)
+    f_nominal = nominal_force(rec, y, nominal_scale, nominal_bias)
+    before = None if f_nominal is None else g_check(f_nominal, g)
+    sigma_mean = np.sqrt(np.diagonal(V, axis1=1, axis2=2))
+    windows = tuple(
+        WindowResult(
+            label=w.label,
+            start_s=w.start_s,
+            end_s=w.end_s,
+            n_samples=w.stop - w.start,
+            mean_raw=y[k],
+            mean_sigma=sigma_mean[k],
+            f_m_s2=None if f is None else f[k],
+            residual=resid[k],
+            normalized_residual=norm_resid[k],
+            g_error_after_m_s2=float(after.error_m_s2[k]),
+            g_error_before_m_s2=None if before is None else float(before.error_m_s2[k]),
+        )
+        for k, w in enumerate(wins)
+    )
+    return CalibrationResult(
+        unit_serial=rec.sidecar.unit_serial,
+        channel_unit=rec.sidecar.channel_unit,
+        procedure=rec.sidecar.procedure or ("static" if method == "static" else "hand-held"),
+        method=method,
+        g_local_m_s2=g,
+        bias=bias,
+        K=K,
+        cov=cov,
+        bias_sigma=bias_sigma,
+        K_sigma=K_sigma,
+        residual_rms=float(np.sqrt(np.mean(resid**2))),
+        chi2=chi2,
+        dof=dof,
+        noise_model=model,
+        g_after=after,
+        g_before=before,
+        windows=windows,
+        source=rec.source,
+    )

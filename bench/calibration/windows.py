@@ -1,0 +1,159 @@
+"""The windows of a recording and what the bench believed about them: the one place where
+static windows are chosen, averaged, and given the specific force they saw.
+
+Used by the static and orientation-free calibration (``bench.calibration.static``), the
+dynamic calibration's reference windows (``bench.calibration.dynamic``) and the diagnosis
+glue (``bench.calibration.diagnose``), so all three read a recording the same way:
+
+* windows: the sidecar's segments in which the table did not move (without a table, those
+  labelled ``nominal_up`` when any segment is), or detected ones when there are no segments;
+* window angles: the mean encoder angle of each window, taken relative to the window's
+  first sample and wrapped to (−180°, 180°] before averaging (robust to the ±180° wrap);
+* specific force per window: f_w = Rᵀ [0, 0, g] at those angles (``recording-format.md``,
+  "Kinematics"), or ±g along the ``nominal_up`` axis of a hand-placed window.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from bench.estimation.dynamic_model import MotionData, prepare_motion
+from bench.estimation.window_noise import WindowNoise, pooled_mean_covariances, window_noise
+from bench.estimation.windows import StaticWindow, detect_static_windows, windows_from_segments
+from bench.kinematics import attitude, static_specific_force
+from bench.recording import Recording
+
+FloatArray = npt.NDArray[np.float64]
+
+MAX_TABLE_MOTION_RAD = 1e-3
+"""A segment whose encoder angles span more than this is a motion, not a static window."""
+MIN_WINDOW_SAMPLES = 8
+"""Fewest samples a static window needs to be averaged with an honest noise estimate."""
+NOMINAL_AXES: dict[str, tuple[int, float]] = {
+    "+x": (0, 1.0),
+    "-x": (0, -1.0),
+    "+y": (1, 1.0),
+    "-y": (1, -1.0),
+    "+z": (2, 1.0),
+    "-z": (2, -1.0),
+}
+"""``nominal_up`` label -> (sensor axis index, sign) of the axis meant to point up."""
+
+
+def where(rec: Recording) -> str:
+    """How error messages name the recording: its path, or ``"recording"``."""
+    return rec.source or "recording"
+
+
+def window_angles(table_deg: FloatArray, w: StaticWindow) -> tuple[FloatArray, FloatArray]:
+    """Mean encoder angles (rad) of a window and their span (rad), robust to wrapping.
+
+    :param table_deg: (n, k) encoder angles of the recording (deg, possibly wrapped).
+    :param w: the window.
+    :returns: (k,) mean angles (rad) and (k,) max − min span (rad). Angles are taken
+        relative to the window's first sample and wrapped to (−180°, 180°] before averaging,
+        so a window at the ±180° wrap averages correctly.
+    """
+    q = np.ascontiguousarray(table_deg[w.start : w.stop].T)  # (k, n): fast reductions along time
+    d = (q - q[:, :1] + 180.0) % 360.0 - 180.0
+    return np.deg2rad(q[:, 0] + d.mean(axis=1)), np.deg2rad(d.max(axis=1) - d.min(axis=1))
+
+
+def select_windows(rec: Recording) -> list[StaticWindow]:
+    """Static windows of a recording: its still segments, or detected ones without segments.
+
+    :raises ValueError: no usable static window.
+    """
+    if rec.sidecar.segments:
+        wins = windows_from_segments(rec.t_s, rec.sidecar.segments)
+        if rec.table_deg is not None:
+            wins = [w for w in wins if np.all(window_angles(rec.table_deg, w)[1] <= MAX_TABLE_MOTION_RAD)]
+        elif any(w.nominal_up is not None for w in wins):
+            # a hand-held session names the pose of each static window; the others are motions
+            wins = [w for w in wins if w.nominal_up is not None]
+    else:
+        wins = detect_static_windows(rec.t_s, rec.accel_raw, rec.table_rad_unwrapped())
+    wins = [w for w in wins if w.stop - w.start >= MIN_WINDOW_SAMPLES]
+    if not wins:
+        raise ValueError(f"{where(rec)}: no static window with at least {MIN_WINDOW_SAMPLES} samples")
+    return wins
+
+
+def window_means(rec: Recording, wins: list[StaticWindow]) -> tuple[FloatArray, FloatArray]:
+    """(m, 3) window means of the raw outputs and (m, 3, 3) honest covariances of those means
+    (batch means per window, correlation factor pooled over the run: ``window_noise``).
+
+    :raises ValueError: a window whose noise cannot be estimated (named with its times).
+    """
+    noises: list[WindowNoise] = []
+    for w in wins:
+        try:
+            noises.append(window_noise(rec.accel_raw[w.start : w.stop]))
+        except ValueError as exc:
+            raise ValueError(f"window {w.label!r} ({w.start_s:.3f}-{w.end_s:.3f} s): {exc}") from exc
+    return np.array([q.mean for q in noises]), pooled_mean_covariances(noises)
+
+
+def table_window_angles(rec: Recording, wins: list[StaticWindow]) -> FloatArray:
+    """(m, k) mean encoder angles (rad) of each window (:func:`window_angles`).
+
+    :raises ValueError: the recording has no table columns.
+    """
+    if rec.table_deg is None:
+        raise ValueError(f"{where(rec)}: no table columns")
+    return np.array([window_angles(rec.table_deg, w)[0] for w in wins])
+
+
+def labelled_force(wins: list[StaticWindow], g_m_s2: float) -> FloatArray:
+    """(m, 3) specific force (m/s²) of hand-placed windows: ±g along each ``nominal_up`` axis.
+
+    :raises ValueError: a window without a ``nominal_up`` in :data:`NOMINAL_AXES`.
+    """
+    f = np.zeros((len(wins), 3))
+    for k, w in enumerate(wins):
+        if w.nominal_up not in NOMINAL_AXES:
+            raise ValueError(f"segment {w.label!r} has no nominal_up in {sorted(NOMINAL_AXES)}")
+        axis, sign = NOMINAL_AXES[str(w.nominal_up)]
+        f[k, axis] = sign * g_m_s2
+    return f
+
+
+def known_specific_force(rec: Recording, wins: list[StaticWindow]) -> FloatArray | None:
+    """(m, 3) specific force (m/s²) per window from the table or ``nominal_up``; ``None`` if unknown.
+
+    With a table: f_w = Rᵀ [0, 0, g] at :func:`table_window_angles`. Without one, every
+    window labelled: :func:`labelled_force`.
+
+    :raises ValueError: a segment whose ``nominal_up`` is not one of :data:`NOMINAL_AXES`.
+    """
+    g = rec.sidecar.g_local_m_s2
+    table = rec.sidecar.table
+    if table is not None and rec.table_deg is not None:
+        qm = table_window_angles(rec, wins)
+        return static_specific_force(attitude(table.axis_vectors, qm, table.mount_matrix), g)
+    if all(w.nominal_up in NOMINAL_AXES for w in wins):
+        return labelled_force(wins, g)
+    bad = [w.label for w in wins if w.nominal_up is not None and w.nominal_up not in NOMINAL_AXES]
+    if bad:
+        raise ValueError(f"{where(rec)}: segment(s) {bad} have a nominal_up outside {sorted(NOMINAL_AXES)}")
+    return None
+
+
+def moving_samples(rec: Recording) -> tuple[MotionData, FloatArray]:
+    """The motion regressors and raw samples of a moving-table recording.
+
+    :returns: ``dynamic_model.prepare_motion`` of the unwrapped encoder angles and the
+        sidecar geometry, and the (n, 3) raw outputs (channel units).
+    :raises ValueError: no table, or a raw sample that is not finite (named by row and time).
+    """
+    geo = rec.sidecar.table
+    q = rec.table_rad_unwrapped()
+    if geo is None or q is None:
+        raise ValueError("a moving-table recording needs the table (sidecar 'table' and table_i columns)")
+    y = np.asarray(rec.accel_raw, dtype=float)
+    bad = np.argwhere(~np.isfinite(y))
+    if bad.size:
+        row, col = bad[0]
+        raise ValueError(f"sample {row} (t = {rec.t_s[row]:.6g} s): {'xyz'[col]} channel is not finite")
+    return prepare_motion(rec.t_s, q, geo.axis_vectors, geo.mount_matrix), y

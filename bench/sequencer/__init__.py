@@ -1,0 +1,12 @@
+"""Execution of a procedure on the bench: the run loop and its parts.
+
+* ``loop``: :class:`Sequencer`, the run's loop: DAQ pumping, observers, blocking table calls
+  under a deadline, the life cycle and its outcome;
+* ``steps``: what each procedure step does on the table;
+* ``window``: a static or motion window being recorded;
+* ``daq``: the DAQ reader thread and what it hands over (blocks, gaps, restarts);
+* ``control``: operator requests (abort, pause, resume) and the run's configuration;
+* ``safety``: the table made ready before a run and safe after it.
+
+Device access goes only through the ``drivers.base`` protocols.
+"""

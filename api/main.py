@@ -41,7 +41,8 @@ from api.runner import BenchRunner, LiveRun
 from api.service_resume import recover_shutdown_aborts
 from api.settings import Settings
 from bench.records import RunRecord, utc_now
-from db.engine import make_session_factory, open_database
+from db.engine import make_session_factory
+from db.migrate import open_database
 from db.repo.recovery import mark_interrupted_runs
 from db.repo.runs import merge_params
 from db.repo.units import get_unit_by_serial

@@ -131,15 +131,6 @@ def make_session_factory(engine: Engine, *, read_only: bool = False) -> sessionm
     return factory
 
 
-def open_database(url: str | sa.URL | None = None) -> Engine:
-    """The engine for ``url``, with the schema created or upgraded to the newest revision."""
-    from db.migrate import upgrade
-
-    engine = make_engine(url)
-    upgrade(engine)
-    return engine
-
-
 def describe_connection_error(url: str | sa.URL | None, exc: BaseException) -> str:
     """One line naming the database (password hidden) and the driver's first error line."""
     sa_url = make_url(url if url is not None else default_database_url())

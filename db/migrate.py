@@ -17,6 +17,8 @@ from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
 from sqlalchemy.engine import Engine
 
+from db.engine import make_engine
+
 MIGRATIONS_DIR = Path(__file__).resolve().parent / "migrations"
 _PG_MIGRATION_LOCK_KEY = 0x63616C62  # "calb"
 
@@ -34,8 +36,6 @@ def alembic_config(connection: sa.Connection | None = None) -> Config:
 def _as_engine(engine_or_url: Engine | str | sa.URL) -> tuple[Engine, bool]:
     if isinstance(engine_or_url, Engine):
         return engine_or_url, False
-    from db.engine import make_engine
-
     return make_engine(engine_or_url), True
 
 
@@ -80,3 +80,10 @@ def current_revision(engine: Engine) -> str | None:
 def head_revision() -> str | None:
     """The newest revision of the chain."""
     return ScriptDirectory.from_config(alembic_config()).get_current_head()
+
+
+def open_database(url: str | sa.URL | None = None) -> Engine:
+    """The engine for ``url``, with the schema created or upgraded to the newest revision."""
+    engine = make_engine(url)
+    upgrade(engine)
+    return engine

@@ -30,18 +30,28 @@ class BadInput(Exception):
     """Input the command cannot use; the message is printed as one line, exit code 2."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The top-level parser with every subcommand whose module is installed."""
+def _command_in(argv: Sequence[str]) -> str | None:
+    """The subcommand named in ``argv`` (its first word that is not an option), if any."""
+    for word in argv:
+        if not word.startswith("-"):
+            return word if word in SUBCOMMANDS else None
+    return None
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The top-level parser; only ``command``'s module is imported (its arguments added).
+
+    Every subcommand is listed with its help line; importing a subcommand's module (numpy,
+    scipy, the service) is paid only by the command that runs, so ``calbench --help`` and
+    each command start without the others' imports. ``command=None`` imports none.
+    """
     parser = argparse.ArgumentParser(prog="calbench", description="accelerometer calibration bench")
     sub = parser.add_subparsers(dest="command", required=True)
     for name, (module_name, help_text) in SUBCOMMANDS.items():
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:
-            if exc.name == module_name:
-                continue
-            raise
         p = sub.add_parser(name, help=help_text, description=help_text)
+        if name != command:
+            continue
+        module = importlib.import_module(module_name)
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
@@ -49,8 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``calbench`` script."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(_command_in(words))
+    args = parser.parse_args(words)
     try:
         return int(args._run(args))
     except BadInput as exc:

@@ -10,13 +10,12 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from api.cli import BadInput
-from bench.calibration import NATURAL_ZERO_UNITS, CalibrationResult, calibrate_recording
-from bench.recording import read_recording
+
+if TYPE_CHECKING:
+    from bench.calibration import CalibrationResult
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,6 +41,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Calibrate one recording and print the result."""
+    import numpy as np  # the numerical stack is imported by the command that needs it
+
+    from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording
+    from bench.recording import read_recording
+
     path: Path = args.recording
     if not path.is_file():
         raise BadInput(f"{path}: no such recording file")
@@ -75,6 +79,8 @@ def _pm(value: float, sigma: float) -> str:
 
 def format_human(r: CalibrationResult) -> str:
     """Readable report: coefficients, per-window table, |g| check."""
+    import numpy as np
+
     u = r.channel_unit
     lines = [
         f"unit {r.unit_serial}   procedure {r.procedure}   fit: "

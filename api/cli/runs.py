@@ -17,7 +17,8 @@ from typing import Any
 from sqlalchemy.exc import OperationalError
 
 from api.cli import BadInput
-from db.engine import describe_connection_error, make_session_factory, open_database
+from db.engine import describe_connection_error, make_session_factory
+from db.migrate import open_database
 from db.models import Run, RunState
 from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs
 from db.repo.runs import list_runs

@@ -187,7 +187,7 @@ def preview(proc: Procedure, limits: TableLimits = DEFAULT_TABLE_LIMITS,
             windows.append(PreviewWindow(len(windows), step.label, step.kind, t, step.duration_s, tuple(pos)))
             t += step.duration_s
     if not problems and n == 3 and any(isinstance(s, Rotate | Oscillate) for s in proc.steps):
-        from bench.estimation.observability import plan_blockers  # moving-table fit needs (docs/dynamic.md)
+        from bench.procedures.observability import plan_blockers  # moving-table fit needs (docs/dynamic.md)
 
         problems += plan_blockers(proc, provisional_dwell_s)
     return Preview(t, tuple(poses), tuple(windows), tuple(problems), tuple(assumptions))

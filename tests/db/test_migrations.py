@@ -9,8 +9,8 @@ from alembic.runtime.migration import MigrationContext
 from sqlalchemy.exc import IntegrityError
 
 import db.models
-from db.engine import default_database_url, make_engine, open_database
-from db.migrate import current_revision, downgrade, head_revision, upgrade
+from db.engine import default_database_url, make_engine
+from db.migrate import current_revision, downgrade, head_revision, open_database, upgrade
 from tests.pg import pg_database, pg_unreachable_reason
 
 

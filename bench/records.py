@@ -350,26 +350,6 @@ class RunObserver(Protocol):
         ...
 
 
-class NullObserver:
-    """A :class:`RunObserver` that ignores everything; subclass it and override what you need."""
-
-    def on_start(self, start: RunStart) -> None:
-        """Ignored."""
-
-    def on_state(self, run_id: str, change: StateChange) -> None:
-        """Ignored."""
-
-    def on_progress(self, run_id: str, progress: Progress) -> None:
-        """Ignored."""
-
-    def on_chunk(self, run_id: str, chunk: ChunkRecord) -> None:
-        """Ignored."""
-
-    def on_window(self, run_id: str, window: WindowRecord) -> None:
-        """Ignored."""
-
-    def on_dwell(self, run_id: str, dwell: DwellChoice) -> None:
-        """Ignored."""
-
-    def on_finish(self, record: RunRecord) -> None:
-        """Ignored."""
+class NullObserver(RunObserver):
+    """A :class:`RunObserver` that ignores everything (each method is the protocol's own, which
+    does nothing); subclass it and override what you need."""

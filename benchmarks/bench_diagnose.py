@@ -13,8 +13,8 @@ import time
 
 from bench.calibration import calibrate_recording
 from bench.calibration.diagnose import diagnose_recording
-from benchmarks.diagnose_cases import static_recording
-from benchmarks.diagnose_dynamic_cases import moving_recording
+from tests.support.diagnose_cases import static_recording
+from tests.support.diagnose_dynamic_cases import moving_recording
 
 
 def _best_of(fn, repeats: int = 3) -> float:  # type: ignore[no-untyped-def]

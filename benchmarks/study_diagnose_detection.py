@@ -1,7 +1,7 @@
 """Detection table of ``calbench diagnose`` on simulated static-12 recordings (docs/diagnose.md).
 
 ``python -m benchmarks.study_diagnose_detection [N] [effect ...]``: for each effect of
-``benchmarks.diagnose_cases.CASES``, N recordings (seeds 100…) with the effect at 3x and at
+``tests.support.diagnose_cases.CASES``, N recordings (seeds 100…) with the effect at 3x and at
 10x its limit; prints, as a markdown table, the share found, the parameter error in
 sigmas (median |z| and max |z| over the recordings where it was found), the median
 sigma of the estimate and the limit it implies, sqrt(gate)·sigma, with the gate of the
@@ -19,7 +19,7 @@ import numpy as np
 from scipy.stats import f as f_dist
 
 from bench.calibration.diagnose import diagnose_recording
-from benchmarks.diagnose_cases import CASES, Case, score, static_recording
+from tests.support.diagnose_cases import CASES, Case, score, static_recording
 
 N_CANDIDATES = 21
 """Candidates tried in the first step on static-12 (3 channels x 5 sensor effects, tilt,

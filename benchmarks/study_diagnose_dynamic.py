@@ -1,7 +1,7 @@
 """Detection table of ``calbench diagnose`` on simulated moving-table recordings (docs/diagnose.md).
 
 ``python -m benchmarks.study_diagnose_dynamic [N] [effect ...]``: for each case of
-``benchmarks.diagnose_dynamic_cases.DYNAMIC_CASES``, N recordings (seeds 100…) with the
+``tests.support.diagnose_dynamic_cases.DYNAMIC_CASES``, N recordings (seeds 100…) with the
 effect at 3x and at 10x its limit; prints, as a markdown table, the share found, the
 largest parameter error in sigmas (median / max over the recordings where it was found),
 the median sigma of the checked element and the other findings; then N clean recordings
@@ -17,7 +17,7 @@ from collections import Counter
 import numpy as np
 
 from bench.calibration.diagnose import diagnose_recording
-from benchmarks.diagnose_dynamic_cases import DYNAMIC_CASES, DynamicCase, dynamic_z, moving_recording
+from tests.support.diagnose_dynamic_cases import DYNAMIC_CASES, DynamicCase, dynamic_z, moving_recording
 
 
 def _sigma(case: DynamicCase, d: object, size: float) -> float:

@@ -1,7 +1,7 @@
 """False alarms of ``calbench diagnose`` on clean simulated static-12 recordings (docs/diagnose.md).
 
 ``python -m benchmarks.study_settling_null [N] [--full]``: N clean recordings (seeds 1000…,
-``benchmarks.diagnose_cases.static_recording``). For each, the settling test's p value
+``tests.support.diagnose_cases.static_recording``). For each, the settling test's p value
 (``settling_test``: T_j/(2n) judged as F(2n, 3 d_ref)) and, from the same periodograms, the
 p value the test had when the reference spectrum was treated as exact (T_j ~ χ²_2n); prints
 the share of recordings below several nominal levels for both. ``--full`` also runs the
@@ -23,7 +23,7 @@ from scipy.stats import f as f_dist
 
 from bench.calibration.diagnose import diagnose_recording, recording_evidence
 from bench.diagnosis.effects.settling import frequency_p_values, settling_test
-from benchmarks.diagnose_cases import static_recording
+from tests.support.diagnose_cases import static_recording
 
 LEVELS = (0.001, 0.01, 0.05, 0.1)
 

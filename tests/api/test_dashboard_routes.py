@@ -31,7 +31,7 @@ from bench.recording import Recording, Sidecar, read_recording
 from db.models import RunState
 from db.repo.runs import create_run, finish_run
 from db.repo.units import get_or_create_unit
-from tests.api.service_helpers import VIEW, service_settings
+from tests.support.service_helpers import VIEW, service_settings
 
 SERIAL = "SN-DASH-1"
 

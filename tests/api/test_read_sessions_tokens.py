@@ -17,7 +17,7 @@ from api.main import create_app
 from db.engine import ReadOnlySessionError
 from db.models import Unit
 from db.repo.units import get_or_create_unit
-from tests.api.service_helpers import OP, VIEW, service_settings
+from tests.support.service_helpers import OP, VIEW, service_settings
 
 pytestmark = pytest.mark.timeout(60)
 ADMIN_SECRET = "admin-secret-0001"

@@ -11,7 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from api.main import create_app
-from tests.api.service_helpers import OP, VIEW, service_settings
+from tests.support.service_helpers import OP, VIEW, service_settings
 
 pytestmark = pytest.mark.timeout(300)
 

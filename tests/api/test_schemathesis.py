@@ -16,7 +16,7 @@ from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 
 from api.main import create_app
-from tests.api.service_helpers import OP, service_settings
+from tests.support.service_helpers import OP, service_settings
 
 pytestmark = pytest.mark.timeout(600)
 

@@ -13,7 +13,7 @@ from fastapi.testclient import TestClient
 
 from api.main import create_app
 from db.repo.certificates import canonical_sha256
-from tests.api.service_helpers import OP, OPERATOR, VIEW, service_settings, wait_final
+from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings, wait_final
 
 pytestmark = pytest.mark.timeout(400)
 

@@ -18,7 +18,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from api.main import create_app
-from tests.api.service_helpers import OP, OPERATOR, VIEW, service_settings, wait_final
+from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings, wait_final
 
 pytestmark = pytest.mark.timeout(400)
 

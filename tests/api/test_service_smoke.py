@@ -10,7 +10,7 @@ from fastapi.testclient import TestClient
 
 from api.certificates.issue import findings_of
 from api.main import create_app
-from tests.api.service_helpers import OP, VIEW, service_settings, wait_final
+from tests.support.service_helpers import OP, VIEW, service_settings, wait_final
 
 pytestmark = pytest.mark.timeout(300)
 NOMINAL_SCALE = 0.174 / 9.80665  # V/(m/s2): the simulated unit's 174 mV/g

@@ -18,9 +18,9 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.api.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
 from tests.browser.conftest import CHROMIUM
 from tests.browser.live_server import live_service
+from tests.support.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
 
 SHOTS = Path(__file__).resolve().parents[2] / "test-artifacts" / "screenshots"
 DESK = {"width": 1440, "height": 900}

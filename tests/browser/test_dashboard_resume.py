@@ -16,10 +16,10 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.api.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
 from tests.browser.conftest import CHROMIUM
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch, shot
+from tests.support.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
 
 pytestmark = [
     pytest.mark.browser,

@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from bench.estimation.scalar_fit import fit_scalar
 from bench.estimation.static_fit import fit_static
-from tests.bench.static_sim import G_LOCAL, random_truth
+from tests.support.static_sim import G_LOCAL, random_truth
 
 
 def _poses(n: int, seed: int) -> np.ndarray:

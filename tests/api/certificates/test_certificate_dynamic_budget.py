@@ -19,7 +19,7 @@ from api.certificates.rounding import round_expanded
 from api.settings import Settings
 from bench.calibration.dynamic import calibrate_dynamic
 from bench.recording import Recording
-from tests.bench.dynamic_sim import oscillation
+from tests.support.dynamic_sim import oscillation
 
 ZERO = TypeBSettings(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 

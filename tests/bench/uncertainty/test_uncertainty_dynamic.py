@@ -13,7 +13,7 @@ from bench.calibration.dynamic import DynamicCalibrationResult, calibrate_dynami
 from bench.kinematics import attitude, rot
 from bench.recording import Recording
 from bench.uncertainty.dynamic import TILT_ABSORBED, DynamicInput, dynamic_budget, dynamic_inputs
-from tests.bench.dynamic_sim import oscillation
+from tests.support.dynamic_sim import oscillation
 
 DEFAULTS: dict[str, Any] = {
     "angle_u_rad": math.radians(0.001),

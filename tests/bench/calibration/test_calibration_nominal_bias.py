@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from bench.calibration import calibrate_recording
-from tests.bench.static_sim import G_LOCAL, random_truth
-from tests.bench.test_calibration import _hand_recording
+from tests.bench.calibration.test_calibration import _hand_recording
+from tests.support.static_sim import G_LOCAL, random_truth
 
 UPS = ["+x", "-x", "+y", "-y", "+z", "-z"]
 F = G_LOCAL * np.vstack([np.eye(3)[i // 2] * (1 if i % 2 == 0 else -1) for i in range(6)])

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from bench.calibration.diagnose import diagnose_recording
-from benchmarks.diagnose_dynamic_cases import (
+from tests.support.diagnose_dynamic_cases import (
     DYNAMIC_CASES,
     LEVER_FOR_PROOF_MASS_M,
     dynamic_z,

@@ -7,7 +7,7 @@ import pytest
 
 from bench.estimation.static_fit import PARAMETER_NAMES, fit_static
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
-from tests.bench.static_sim import G_LOCAL, random_truth, simulate_run, tumble_specific_force
+from tests.support.static_sim import G_LOCAL, random_truth, simulate_run, tumble_specific_force
 
 
 def _fit_run(run, *, f=None):

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from bench.recording import write_recording
-from benchmarks.diagnose_cases import static_recording
+from tests.support.diagnose_cases import static_recording
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:

@@ -12,7 +12,7 @@ import pytest
 from bench.calibration import calibrate_recording
 from bench.calibration.dynamic import DynamicCalibrationResult, calibrate_dynamic, is_dynamic
 from bench.recording import read_recording
-from tests.bench.dynamic_sim import DELAY_TRUE_S, EFFECTS, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
+from tests.support.dynamic_sim import DELAY_TRUE_S, EFFECTS, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
 
 RHO = np.array([[0.0, 0.004, -0.002], [0.003, 0.0, 0.001], [-0.002, 0.002, 0.0]])
 Z_MAX = 3.0

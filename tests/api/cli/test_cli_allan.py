@@ -11,7 +11,7 @@ import pytest
 
 import api.cli
 from bench.recording import Recording, Segment, Sidecar, write_recording
-from tests.bench.test_noise_terms import rate_random_walk, white
+from tests.support.noise import rate_random_walk, white
 
 FS_HZ = 50.0
 N_TRUE, K_TRUE = 2e-3, 2e-4  # m/s²·√s, m/s²/√s  →  τ* = √3·N/K = 17.3 s

@@ -7,7 +7,7 @@ import numpy as np
 from bench.estimation.dynamic_batch import linear_start, white_sigma
 from bench.estimation.dynamic_kalman import Prior, run_dynamic_kalman
 from bench.estimation.dynamic_model import ModelSpec, initial_theta, prepare_motion
-from tests.bench.dynamic_sim import EFFECTS, oscillation, truth
+from tests.support.dynamic_sim import EFFECTS, oscillation, truth
 
 DRIFT_M_S2_PER_S = np.array([2e-4, -1.5e-4, 1e-4])
 

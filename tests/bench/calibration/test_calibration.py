@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from bench.calibration import calibrate_recording
 from bench.recording import Recording, Segment, Sidecar, read_recording
-from tests.bench.static_sim import G_LOCAL, random_truth
+from tests.support.static_sim import G_LOCAL, random_truth
 
 CONTRACT_KEYS = {
     "unit", "channel_unit", "procedure", "bias", "bias_sigma", "scale_matrix", "scale_matrix_sigma",

@@ -8,7 +8,7 @@ from scipy.signal import lfilter
 
 from bench.estimation.static_fit import fit_static
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
-from tests.bench.static_sim import G_LOCAL, random_truth
+from tests.support.static_sim import G_LOCAL, random_truth
 
 
 def _balanced_12() -> np.ndarray:

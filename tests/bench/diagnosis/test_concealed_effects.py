@@ -14,7 +14,7 @@ import math
 import pytest
 
 from bench.calibration.diagnose import diagnose_recording
-from benchmarks.diagnose_cases import CASES, run_case, static_recording
+from tests.support.diagnose_cases import CASES, run_case, static_recording
 
 TEN_X = ["nonlinearity_quadratic", "scale_asymmetry", "cross_coupling", "temperature_bias", "bias_drift",
          "table_tilt", "pose_error", "encoder_offset", "settling"]  # fmt: skip

@@ -1,7 +1,6 @@
 """Noise terms from Allan curves: exact model curves, simulated noise, real imu_utils curves.
 
-The simulators here (white, flicker, rate random walk of known IEEE 952 coefficients) are
-also used by test_dwell.py.
+The noise of known IEEE 952 coefficients comes from ``tests.support.noise``.
 """
 
 from __future__ import annotations
@@ -25,29 +24,7 @@ from bench.estimation.noise_terms import (
     fit_noise_model_curve,
     slope_method,
 )
-
-
-def white(rng: np.random.Generator, n: int, fs_hz: float, N: float, c: int) -> np.ndarray:
-    """(n, c) white noise of density N (u·√s): per-sample σ = N·√fs, so σ_A(τ) = N/√τ."""
-    return N * math.sqrt(fs_hz) * rng.normal(size=(n, c))
-
-
-def rate_random_walk(rng: np.random.Generator, n: int, fs_hz: float, K: float, c: int) -> np.ndarray:
-    """(n, c) random walk y_k = Σ K/√fs·w_i: σ_A(τ) = K·√(τ/3) for τ ≫ 1/fs."""
-    return np.cumsum(K / math.sqrt(fs_hz) * rng.normal(size=(n, c)), axis=0)
-
-
-def flicker(rng: np.random.Generator, n: int, fs_hz: float, B: float, c: int) -> np.ndarray:
-    """(n, c) flicker noise, one-sided PSD h/f with h = B²/π, by spectral shaping.
-
-    SP1065 Table 2: σ²_A = 2 ln2 · h = (2 ln2/π)·B² = (0.664·B)², the IEEE 952 floor, for
-    τ between a few samples and about a tenth of the record.
-    """
-    f = np.fft.rfftfreq(n, 1.0 / fs_hz)
-    amp = np.zeros_like(f)
-    amp[1:] = np.sqrt(B**2 / math.pi / f[1:] * fs_hz * n / 2.0)
-    spectrum = (rng.normal(size=(f.size, c)) + 1j * rng.normal(size=(f.size, c))) / math.sqrt(2.0)
-    return np.fft.irfft(spectrum * amp[:, None], n, axis=0)
+from tests.support.noise import flicker, rate_random_walk, white
 
 
 def test_bias_instability_factor() -> None:

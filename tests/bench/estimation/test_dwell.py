@@ -10,7 +10,7 @@ import pytest
 from bench.estimation.allan import AllanResult, overlapping_allan
 from bench.estimation.dwell import FLAT_FACTOR, recommend_dwell_s
 from bench.estimation.noise_terms import BI_FACTOR, basis, fit_noise_model
-from tests.bench.test_noise_terms import rate_random_walk, white
+from tests.support.noise import rate_random_walk, white
 
 
 def exact_curve(coeffs: list[tuple[float, float, float, float, float]], fs_hz: float = 100.0) -> AllanResult:

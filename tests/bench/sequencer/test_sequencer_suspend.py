@@ -7,7 +7,7 @@ from pathlib import Path
 
 from bench.records import Outcome, RunState, WindowRecord
 from bench.sequencer.control import SequencerConfig
-from tests.bench.test_sequencer import FAST, FakeTable, make, quick_static
+from tests.bench.sequencer.test_sequencer import FAST, FakeTable, make, quick_static
 
 
 class LatchingTable(FakeTable):

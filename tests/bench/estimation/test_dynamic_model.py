@@ -13,7 +13,7 @@ from bench.estimation.dynamic_model import (
     prepare_motion,
     window_samples,
 )
-from tests.bench.dynamic_sim import DELAY_TRUE_S, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
+from tests.support.dynamic_sim import DELAY_TRUE_S, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
 
 RHO = np.array([[0.0, 0.004, -0.002], [0.003, 0.0, 0.001], [-0.002, 0.002, 0.0]])
 K2 = np.array([1.5e-3, -1e-3, 5e-4])

@@ -20,7 +20,7 @@ from bench.uncertainty.budget import (
     welch_satterthwaite,
 )
 from bench.uncertainty.inputs import daq_inputs, gravity_input, table_inputs, temperature_inputs
-from tests.bench.static_sim import G_LOCAL, TUMBLE_12_DEG, simulate_run, tumble_specific_force
+from tests.support.static_sim import G_LOCAL, TUMBLE_12_DEG, simulate_run, tumble_specific_force
 
 AXES = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # middle (x) then inner (z): R = Rx(a) Rz(b)
 Q_RAD = np.deg2rad(TUMBLE_12_DEG)

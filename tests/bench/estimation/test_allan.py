@@ -13,7 +13,7 @@ from allantools import ci as at_ci
 
 from bench.estimation.allan import averaging_factors, edf_simple, overlapping_allan
 
-NBS14 = json.loads((Path(__file__).resolve().parents[1] / "data" / "nbs14_oadev.json").read_text())
+NBS14 = json.loads((Path(__file__).resolve().parents[2] / "data" / "nbs14_oadev.json").read_text())
 
 
 def nbs14_1000() -> np.ndarray:

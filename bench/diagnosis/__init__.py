@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.diagnosis.effects import CATALOGUE, Candidate, pose_response
+from bench.diagnosis.effects import CATALOGUE, NEEDS_TABLE, Candidate, pose_response
 from bench.diagnosis.effects.base import FloatArray, first_order_design
 from bench.diagnosis.effects.settling import settling_duration, settling_test
 from bench.diagnosis.evidence import StaticEvidence
@@ -32,6 +32,11 @@ __all__ = ["Diagnosis", "StaticEvidence", "diagnose"]
 CONFOUND_COSINE = 0.8
 """Two effects whose signatures (beyond the first-order model) have |cos| above this are
 reported as indistinguishable on the recording."""
+
+
+NO_TABLE_REASON = (
+    "needs a table (its motion, encoders, base or ringing after a move); this recording has no table"
+)
 
 
 def _noise_text(noise: NoiseParams) -> str:
@@ -126,6 +131,8 @@ def diagnose(
     pose_ok = settle_ok = False
     for eff in CATALOGUE:
         ok, reason = eff.observable(ev)
+        if ok and eff.id in NEEDS_TABLE and not ev.has_table:
+            ok, reason = False, NO_TABLE_REASON
         if not ok:
             unobservable[eff.id] = reason
         elif eff.kind == "columns":

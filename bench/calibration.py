@@ -17,7 +17,11 @@ The one place where a :class:`~bench.recording.Recording` becomes a calibration;
 
 For the static and scalar fits, windows come from the sidecar's segments (those in which
 the table did not move; without a table, those with ``nominal_up`` when any segment has
-one), or are detected when the sidecar has none.
+one), or are detected when the sidecar has none. Nothing is dropped without a word: a
+declared segment (or detected window) that is not used is named with the reason in
+``unused_windows``, and a fit with as many parameters as observations (no redundancy: the
+residuals are zero by construction, χ² and the |g| scatter test nothing, the sigmas rest on
+the within-window noise alone) says so in ``warnings`` and ``zero_redundancy``.
 """
 
 from __future__ import annotations
@@ -77,6 +81,41 @@ class WindowResult:
 
 
 @dataclass(frozen=True)
+class UnusedWindow:
+    """A declared segment (or detected window) that the fit did not use, and why.
+
+    :param label: segment label or detected-window name.
+    :param start_s: first sample time (s); :param end_s: last sample time (s).
+    :param n_samples: samples it holds.
+    :param reason: why it was left out, one phrase.
+    """
+
+    label: str
+    start_s: float
+    end_s: float
+    n_samples: int
+    reason: str
+
+    def to_contract(self) -> dict[str, Any]:
+        """``{label, start_s, end_s, n_samples, reason}``."""
+        return {
+            "label": self.label,
+            "start_s": self.start_s,
+            "end_s": self.end_s,
+            "n_samples": self.n_samples,
+            "reason": self.reason,
+        }
+
+
+@dataclass(frozen=True)
+class WindowSelection:
+    """The windows a static or scalar fit uses, and the declared ones it does not."""
+
+    used: tuple[StaticWindow, ...]
+    unused: tuple[UnusedWindow, ...]
+
+
+@dataclass(frozen=True)
 class CalibrationResult:
     """A fitted first-order model of one recording, with its evidence.
 
@@ -94,6 +133,9 @@ class CalibrationResult:
     :param chi2: residual χ² against the within-window noise; :param dof: its degrees of
         freedom. For ``"dynamic"``, whose residuals are scaled by their own fitted sigma,
         ``chi2`` is 3·n_samples by construction and carries no goodness-of-fit information.
+    :param unused_windows: declared segments / detected windows the fit left out, with why.
+    :param warnings: what the reader must know before trusting the numbers (zero
+        redundancy, unused windows), one sentence each.
     """
 
     unit_serial: str
@@ -114,6 +156,13 @@ class CalibrationResult:
     g_before: GCheck | None
     windows: tuple[WindowResult, ...]
     source: str = ""
+    unused_windows: tuple[UnusedWindow, ...] = ()
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def zero_redundancy(self) -> bool:
+        """As many fitted parameters as observations: nothing checks the model (``dof`` 0)."""
+        return self.method != "dynamic" and self.dof <= 0
 
     @property
     def terms(self) -> list[str]:
@@ -140,6 +189,10 @@ class CalibrationResult:
             "extra": {},
             "residual_rms": self.residual_rms,
             "g_check": g_check_out,
+            "dof": int(self.dof),
+            "zero_redundancy": self.zero_redundancy,
+            "unused_windows": [u.to_contract() for u in self.unused_windows],
+            "warnings": list(self.warnings),
         }
 
 
@@ -162,24 +215,86 @@ def _window_angles(table_deg: FloatArray, w: StaticWindow) -> tuple[FloatArray, 
     return np.deg2rad(q[:, 0] + d.mean(axis=1)), np.deg2rad(d.max(axis=1) - d.min(axis=1))
 
 
-def select_windows(rec: Recording) -> list[StaticWindow]:
-    """Static windows of a recording: its still segments, or detected ones without segments.
+def choose_windows(rec: Recording) -> WindowSelection:
+    """Static windows of a recording and the declared ones left out, each with its reason.
 
-    :raises ValueError: no usable static window.
+    Used: the sidecar's segments in which the table did not move (without a table and with
+    any ``nominal_up``, those with one: the others are the motions between poses), or the
+    detected windows when the sidecar has none; each with at least
+    :data:`MIN_WINDOW_SAMPLES` samples (a window mean's noise needs them).
+
+    :raises ValueError: no usable static window (the message names the ones left out).
     """
+    unused: list[UnusedWindow] = []
+
+    def leave(w: StaticWindow, reason: str) -> None:
+        unused.append(UnusedWindow(w.label, w.start_s, w.end_s, w.stop - w.start, reason))
+
     if rec.sidecar.segments:
         wins = windows_from_segments(rec.t_s, rec.sidecar.segments)
         if rec.table_deg is not None:
-            wins = [w for w in wins if np.all(_window_angles(rec.table_deg, w)[1] <= MAX_TABLE_MOTION_RAD)]
+            kept = []
+            for w in wins:
+                span = float(np.max(_window_angles(rec.table_deg, w)[1]))
+                if span <= MAX_TABLE_MOTION_RAD:
+                    kept.append(w)
+                else:
+                    leave(
+                        w,
+                        f"the table moved {np.rad2deg(span):.3g}° during it (a static window "
+                        f"allows {np.rad2deg(MAX_TABLE_MOTION_RAD):.2g}°): a motion, not a still window",
+                    )
+            wins = kept
         elif any(w.nominal_up is not None for w in wins):
             # a hand-held session names the pose of each static window; the others are motions
+            for w in wins:
+                if w.nominal_up is None:
+                    leave(w, "no nominal_up while other segments have one: taken as a motion between poses")
             wins = [w for w in wins if w.nominal_up is not None]
     else:
         wins = detect_static_windows(rec.t_s, rec.accel_raw, rec.table_rad_unwrapped())
+    for w in wins:
+        if w.stop - w.start < MIN_WINDOW_SAMPLES:
+            leave(
+                w,
+                f"{w.stop - w.start} samples, fewer than the {MIN_WINDOW_SAMPLES} a window mean's "
+                "noise estimate needs",
+            )
     wins = [w for w in wins if w.stop - w.start >= MIN_WINDOW_SAMPLES]
+    unused.sort(key=lambda u: u.start_s)
     if not wins:
-        raise ValueError(f"{_where(rec)}: no static window with at least {MIN_WINDOW_SAMPLES} samples")
-    return wins
+        named = "; ".join(f"{u.label!r}: {u.reason}" for u in unused)
+        raise ValueError(
+            f"{_where(rec)}: no static window with at least {MIN_WINDOW_SAMPLES} samples"
+            + (f" (left out: {named})" if named else "")
+        )
+    return WindowSelection(tuple(wins), tuple(unused))
+
+
+def select_windows(rec: Recording) -> list[StaticWindow]:
+    """The static windows :func:`choose_windows` uses.
+
+    :raises ValueError: no usable static window.
+    """
+    return list(choose_windows(rec).used)
+
+
+def unused_warning(unused: tuple[UnusedWindow, ...]) -> str | None:
+    """One sentence naming the unused declared windows, or ``None`` if there are none."""
+    if not unused:
+        return None
+    return f"{len(unused)} declared window(s) not used: " + "; ".join(
+        f"{u.label!r} ({u.start_s:.3f}-{u.end_s:.3f} s): {u.reason}" for u in unused
+    )
+
+
+def zero_redundancy_warning(n_obs: int, n_params: int, what: str) -> str:
+    """The sentence of a fit with no redundancy (``n_obs`` == ``n_params``)."""
+    return (
+        f"zero redundancy: {n_obs} {what} for {n_params} parameters, so the fit passes through "
+        "every window exactly; residuals, chi2 and the |g| scatter are zero by construction and "
+        "test nothing, and the sigmas rest on the within-window noise alone. Record more windows."
+    )
 
 
 def _specific_force(rec: Recording, wins: list[StaticWindow]) -> FloatArray | None:
@@ -278,7 +393,8 @@ def window_means(rec: Recording, wins: list[StaticWindow]) -> tuple[FloatArray, 
 def _calibrate(
     rec: Recording, nominal_scale: float | None, nominal_bias: FloatArray | None
 ) -> CalibrationResult:
-    wins = select_windows(rec)
+    chosen = choose_windows(rec)
+    wins = list(chosen.used)
     y, V = window_means(rec, wins)
     g = rec.sidecar.g_local_m_s2
     f = _specific_force(rec, wins)
@@ -288,6 +404,7 @@ def _calibrate(
         bias_sigma, K_sigma = fit.bias_sigma, fit.K_sigma
         resid, norm_resid = fit.residuals, fit.normalized_residuals
         chi2, dof, model, method = fit.chi2, fit.dof, fit.noise_model, "static"
+        n_obs, n_params, what = 3 * len(wins), 12, "window-mean components (3 per window)"
     else:
         sf = fit_scalar(y, V, g)
         bias, K, cov = sf.bias, sf.L, sf.cov
@@ -297,6 +414,7 @@ def _calibrate(
         resid = (sf.residuals_m_s2[:, None] * dirs) @ K.T
         norm_resid = np.repeat((sf.residuals_m_s2 / sf.residual_sigma_m_s2)[:, None], 3, axis=1)
         chi2, dof, method = sf.chi2, sf.dof, "scalar"
+        n_obs, n_params, what = len(wins), 9, "window magnitudes (|f| = g, one per window)"
         model = (
             "window means: batch-means covariance from each window's samples; "
             f"between windows: additive |g| scatter sigma = {np.sqrt(sf.excess_var_m_s2):.3g} m/s²"
@@ -321,6 +439,10 @@ def _calibrate(
         )
         for k, w in enumerate(wins)
     )
+    warnings = [zero_redundancy_warning(n_obs, n_params, what)] if dof <= 0 else []
+    unused_text = unused_warning(chosen.unused)
+    if unused_text is not None:
+        warnings.append(unused_text)
     return CalibrationResult(
         unit_serial=rec.sidecar.unit_serial,
         channel_unit=rec.sidecar.channel_unit,
@@ -340,4 +462,6 @@ def _calibrate(
         g_before=before,
         windows=windows,
         source=rec.source,
+        unused_windows=chosen.unused,
+        warnings=tuple(warnings),
     )

@@ -13,9 +13,11 @@ each window is compared with (as in ``bench.calibration``):
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from bench.calibration import select_windows, window_means
+from bench.calibration import choose_windows, unused_warning, window_means
 from bench.calibration_dynamic import is_dynamic
 from bench.diagnosis import Diagnosis, StaticEvidence, diagnose
 from bench.diagnosis.dynamic import diagnose_dynamic
@@ -37,7 +39,10 @@ def recording_evidence(rec: Recording) -> StaticEvidence:
 
     :raises ValueError: no usable windows, a window whose noise cannot be estimated.
     """
-    wins = select_windows(rec)
+    return _evidence(rec, list(choose_windows(rec).used))
+
+
+def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
     try:
         y, V = window_means(rec, wins)
     except ValueError as exc:
@@ -136,10 +141,13 @@ def diagnose_recording(rec: Recording) -> Diagnosis:
     try:
         if rec.sidecar.table is not None and rec.table_deg is not None and is_dynamic(rec):
             return _diagnose_moving(rec)
-        ev = recording_evidence(rec)
-        return diagnose(
+        chosen = choose_windows(rec)
+        ev = _evidence(rec, list(chosen.used))
+        d = diagnose(
             ev, unit=rec.sidecar.unit_serial, channel_unit=rec.sidecar.channel_unit, source=rec.source
         )
+        unused = unused_warning(chosen.unused)
+        return d if unused is None else replace(d, notes=(unused, *d.notes))
     except ValueError as exc:
         msg = str(exc)
         where = _where(rec)

@@ -105,7 +105,8 @@ def format_human(r: CalibrationResult) -> str:
         f"noise model: {r.noise_model}",
         # a dynamic fit scales its residuals by their own fitted sigma: its chi2 is no test of fit
         f"residual rms {r.residual_rms:.3g} {u}"
-        + ("" if r.method == "dynamic" else f"   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}"),
+        + ("" if r.method == "dynamic" else f"   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}")
+        + ("   ZERO REDUNDANCY" if r.zero_redundancy else ""),
         "",
         f"{'window':<10}{'t (s)':>17}{'n':>7}  {'residual x,y,z (' + u + ')':<36}{'z-scores':<20}"
         f"{'|g| err after':>14}{'before':>11}",
@@ -122,4 +123,12 @@ def format_human(r: CalibrationResult) -> str:
     if r.g_before is not None:
         lines.append(f"  before  {r.g_before.mean_error_m_s2: .3e}  {r.g_before.std_m_s2:.3e} m/s²")
     lines.append(f"  after   {r.g_after.mean_error_m_s2: .3e}  {r.g_after.std_m_s2:.3e} m/s²")
+    if r.unused_windows:
+        lines += ["", "declared windows not used:"]
+        lines += [
+            f"  {w.label:<10}{w.start_s:>8.2f}-{w.end_s:<8.2f}{w.n_samples:>7}  {w.reason}"
+            for w in r.unused_windows
+        ]
+    if r.warnings:
+        lines += [""] + [f"WARNING: {text}" for text in r.warnings]
     return "\n".join(line for line in lines if line is not None)

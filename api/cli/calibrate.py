@@ -16,6 +16,7 @@ import numpy as np
 
 from api.cli import BadInput
 from bench.calibration import NATURAL_ZERO_UNITS, CalibrationResult, calibrate_recording
+from bench.calibration_dynamic import CANDIDATE_TERMS, calibrate_dynamic, is_dynamic
 from bench.recording import read_recording
 
 
@@ -38,6 +39,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="nominal zero-g output (channel unit) used with --nominal-scale; required with it for V or "
         "count channels (0 is implied for g and m/s2)",
     )
+    parser.add_argument(
+        "--terms",
+        default=None,
+        metavar="TERM,...",
+        help="moving-table recordings: fit these terms beyond bias and K (e.g. the unit model's: "
+        f"{', '.join(CANDIDATE_TERMS)}; 'none' for the first-order model) instead of the terms "
+        "the recording's evidence supports (the default)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -58,12 +67,37 @@ def run(args: argparse.Namespace) -> int:
             f"(the nominal zero-g output; a {unit} output is not 0 at zero g)"
         )
     bias0 = None if args.nominal_bias is None else np.array(args.nominal_bias, dtype=float)
-    result = calibrate_recording(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0)
+    if args.terms is not None:
+        terms = _terms(path, args.terms)
+        if not is_dynamic(rec):
+            raise BadInput(f"{path}: --terms applies to moving-table recordings; this one is static")
+        try:
+            result: CalibrationResult = calibrate_dynamic(
+                rec, terms=terms, nominal_scale=args.nominal_scale, nominal_bias=bias0
+            )
+        except ValueError as exc:
+            raise BadInput(f"{path}: {exc}") from exc
+    else:
+        result = calibrate_recording(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0)
     if args.json:
         print(json.dumps(result.to_contract()))
     else:
         print(format_human(result))
     return 0
+
+
+def _terms(path: Path, text: str) -> tuple[str, ...]:
+    """``--terms`` as a tuple of dynamic-model terms ('none': the first-order model)."""
+    if text.strip().lower() == "none":
+        return ()
+    terms = tuple(t.strip() for t in text.split(",") if t.strip())
+    bad = [t for t in terms if t not in CANDIDATE_TERMS]
+    if bad or not terms:
+        raise BadInput(
+            f"{path}: --terms {text!r}: expected 'none' or a comma-separated list of "
+            + ", ".join(CANDIDATE_TERMS)
+        )
+    return terms
 
 
 _FMT: Any = {"float_kind": lambda x: f"{x:.5g}"}
@@ -99,6 +133,11 @@ def format_human(r: CalibrationResult) -> str:
             sigma = extra_sigma.get(effect, {}).get(name, np.nan)
             v, sg = (np.array2string(np.asarray(x), formatter=_FMT, separator=", ") for x in (value, sigma))
             lines.append(f"{effect}.{name} = {v} ± {sg}".replace("\n", ""))
+    selection = getattr(r, "model_selection", {})
+    if selection:
+        lines.append(f"model: {' + '.join(r.terms)}, chosen by {selection['rule']}: {selection['text']}")
+    for term, why in getattr(r, "not_fitted", {}).items():
+        lines.append(f"  not fitted {term}: {why}")
     lines += [
         "",
         "correction: f = K⁻¹ (raw − bias)   (m/s²)",

@@ -117,11 +117,17 @@ def diagnose(
         data), the standard deviation given to each window's orientation about the two axes
         perpendicular to gravity, so that only the magnitude of each reading is evidence.
     :returns: :class:`~bench.diagnosis.result.Diagnosis`.
-    :raises ValueError: fewer than 5 windows, or a pose set that cannot identify bias and K.
+    :raises ValueError: fewer than 5 windows (10 orientation-free), or a pose set that cannot
+        identify bias and K.
     """
     if ev.m < 5:
         raise ValueError(
             f"a diagnosis needs at least 5 static windows (first-order model + 1 dof), got {ev.m}"
+        )
+    if not ev.orientation_known and ev.m < 10:
+        raise ValueError(
+            "an orientation-free diagnosis needs at least 10 static windows (9 parameters from |f| = g "
+            f"+ 1 dof: with fewer the fit passes through every window and nothing can be tested), got {ev.m}"
         )
     X0 = first_order_design(ev.f_m_s2)
     if np.linalg.matrix_rank(X0) < 12:

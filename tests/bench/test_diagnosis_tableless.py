@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from bench.diagnosis import NO_TABLE_REASON, StaticEvidence, diagnose
 from bench.diagnosis.effects import NEEDS_TABLE, first_order_design, pose_response
@@ -113,3 +114,11 @@ def test_no_table_effect_is_claimed_without_a_table() -> None:
         assert effect in d.unobservable
     assert d.unobservable["settling"] == NO_TABLE_REASON
     assert "table" not in " ".join(x.summary for x in d.findings)
+
+
+def test_orientation_free_diagnosis_without_redundancy_is_refused() -> None:
+    ev = _orientation_free(np.random.default_rng(5), 9, 1e-5)
+    with pytest.raises(
+        ValueError, match=r"orientation-free diagnosis needs at least 10 static windows.*got 9"
+    ):
+        diagnose(ev)

@@ -140,6 +140,18 @@ class TermSelection:
         return tuple(t for t, _, _ in self.steps)
 
 
+def _warm_start(fit: DynamicFit, spec: ModelSpec, lever: FloatArray) -> FloatArray:
+    """Start of an extended model at the current fit: its parameters kept, the new term at
+    the believed geometry (the proof masses at the fitted lever arm)."""
+    th = fit.theta
+    r = th[fit.spec.index("lever_arm")] if "lever_arm" in fit.spec.terms else lever
+    out = initial_theta(spec, th[:3], th[3:12].reshape(3, 3), r)
+    for t in fit.spec.terms:
+        if t in spec.terms:
+            out[spec.index(t)] = th[fit.spec.index(t)]
+    return out
+
+
 def select_terms(
     m: MotionData, y: FloatArray, g_m_s2: float, lever: FloatArray, *, false_alarm: float = FALSE_ALARM
 ) -> TermSelection:
@@ -174,8 +186,9 @@ def select_terms(
         best: tuple[float, str, float, DynamicFit] | None = None
         rejected = {}
         for t in tried:
+            spec1 = ModelSpec((*chosen, t))
             try:
-                f1 = fit_dynamic_batch(m, y, g_m_s2, lever, ModelSpec((*chosen, t)))
+                f1 = fit_dynamic_batch(m, y, g_m_s2, lever, spec1, theta0=_warm_start(fits[-1], spec1, lever))
             except ValueError as exc:
                 rejected[t] = f"the fit with it failed: {exc}"
                 continue

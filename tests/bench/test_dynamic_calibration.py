@@ -257,3 +257,20 @@ def test_clean_recording_is_calibrated_with_the_first_order_model() -> None:
     everything = calibrate_dynamic(rec, terms=spec.terms, cross_check=False)
     assert len(spec.terms) >= 3
     assert everything.bias_sigma[2] > 2.0 * res.bias_sigma[2]
+
+
+@pytest.mark.slow
+def test_evidence_selected_model_is_honest_on_clean_runs() -> None:
+    """Clean oscillations (no effect beyond the believed geometry): the evidence rule adds a
+    term in at most one run of eight (false alarm 0.01 per step), and bias and K z-scores
+    against the concealed truth behave like N(0, 1)."""
+    zs, extra_terms = [], 0
+    for seed in range(8):
+        run, rec = oscillation(seed=40 + seed, duration_s=45.0, truth=truth(seed=seed, effects={}))
+        res = calibrate_dynamic(rec, cross_check=False)
+        extra_terms += len(res.extra) > 0
+        zs.append(_z(np.r_[res.bias, res.K.ravel()], np.r_[res.bias_sigma, res.K_sigma.ravel()],
+                     np.r_[run.bias_seen(), run.truth.K.ravel()]))  # fmt: skip
+    z = np.abs(np.concatenate(zs))
+    assert extra_terms <= 1
+    assert z.max() < 4.5 and np.sqrt(np.mean(z**2)) < 1.3 and np.mean(z < 2.0) > 0.88

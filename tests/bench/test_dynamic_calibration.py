@@ -266,7 +266,7 @@ def test_evidence_selected_model_is_honest_on_clean_runs() -> None:
     against the concealed truth behave like N(0, 1)."""
     zs, extra_terms = [], 0
     for seed in range(8):
-        run, rec = oscillation(seed=40 + seed, duration_s=45.0, truth=truth(seed=seed, effects={}))
+        run, rec = oscillation(seed=40 + seed, duration_s=60.0, truth=truth(seed=seed, effects={}))
         res = calibrate_dynamic(rec, cross_check=False)
         extra_terms += len(res.extra) > 0
         zs.append(_z(np.r_[res.bias, res.K.ravel()], np.r_[res.bias_sigma, res.K_sigma.ravel()],

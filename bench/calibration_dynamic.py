@@ -35,6 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 from bench.calibration import MAX_TABLE_MOTION_RAD, CalibrationResult, WindowResult, select_windows
+from bench.diagnosis.dynamic import select_terms
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_kalman import run_dynamic_kalman
 from bench.estimation.dynamic_model import (
@@ -286,8 +287,6 @@ def calibrate_dynamic(
         raise ValueError(f"sample {row} (t = {rec.t_s[row]:.6g} s): {'xyz'[col]} channel is not finite")
     m = prepare_motion(rec.t_s, q, geo.axis_vectors, geo.mount_matrix)
     if terms is None:
-        from bench.diagnosis.dynamic import select_terms
-
         sel = select_terms(m, y, g, lever)
         spec, fit = ModelSpec(sel.chosen), sel.fits[-1]
         dropped = {**sel.unobservable, **sel.rejected}

@@ -137,7 +137,7 @@ def diagnose(
     pose_ok = settle_ok = False
     for eff in CATALOGUE:
         ok, reason = eff.observable(ev)
-        if ok and eff.id in NEEDS_TABLE and not ev.has_table:
+        if eff.id in NEEDS_TABLE and not ev.has_table:
             ok, reason = False, NO_TABLE_REASON
         if not ok:
             unobservable[eff.id] = reason

@@ -38,7 +38,7 @@ class Settings(BaseSettings):
         per coefficient (u_ref: the certificate's standard uncertainty without the contributions
         common to both runs on the same bench, u_rep: the bias repeatability below, bias terms
         only; see
-        api/drift.py); with 12 coefficients k = 3 flags an unchanged unit with probability
+        api/drift/); with 12 coefficients k = 3 flags an unchanged unit with probability
         about 3 % (k = 2: about 43 %).
     :param drift_bias_repeatability_m_s2: standard deviation of a unit's bias change between two
         runs when nothing changed (its bias instability: the run's mean of the slow wander), m/s²;

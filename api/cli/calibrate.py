@@ -37,13 +37,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="nominal zero-g output (channel unit) used with --nominal-scale; required with it for V or "
         "count channels (0 is implied for g and m/s2)",
     )
+    parser.add_argument(
+        "--terms",
+        default=None,
+        metavar="TERM,...",
+        help="moving-table recordings: fit these terms beyond bias and K (e.g. the unit model's: "
+        "lever_arm, table_tilt, ...; an unknown term is refused with the list; 'none' for the "
+        "first-order model) instead of the terms the recording's evidence supports (the default)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Calibrate one recording and print the result."""
     import numpy as np  # the numerical stack is imported by the command that needs it
 
-    from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording
+    from bench.calibration import NATURAL_ZERO_UNITS, calibrate_dynamic, calibrate_recording, is_dynamic
     from bench.recording import read_recording
 
     path: Path = args.recording
@@ -62,12 +70,39 @@ def run(args: argparse.Namespace) -> int:
             f"(the nominal zero-g output; a {unit} output is not 0 at zero g)"
         )
     bias0 = None if args.nominal_bias is None else np.array(args.nominal_bias, dtype=float)
-    result = calibrate_recording(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0)
+    if args.terms is not None:
+        terms = _terms(path, args.terms)
+        if not is_dynamic(rec):
+            raise BadInput(f"{path}: --terms applies to moving-table recordings; this one is static")
+        try:
+            result: CalibrationResult = calibrate_dynamic(
+                rec, terms=terms, nominal_scale=args.nominal_scale, nominal_bias=bias0
+            )
+        except ValueError as exc:
+            raise BadInput(f"{path}: {exc}") from exc
+    else:
+        result = calibrate_recording(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0)
     if args.json:
         print(json.dumps(result.to_contract()))
     else:
         print(format_human(result))
     return 0
+
+
+def _terms(path: Path, text: str) -> tuple[str, ...]:
+    """``--terms`` as a tuple of dynamic-model terms ('none': the first-order model)."""
+    from bench.calibration.dynamic import CANDIDATE_TERMS
+
+    if text.strip().lower() == "none":
+        return ()
+    terms = tuple(t.strip() for t in text.split(",") if t.strip())
+    bad = [t for t in terms if t not in CANDIDATE_TERMS]
+    if bad or not terms:
+        raise BadInput(
+            f"{path}: --terms {text!r}: expected 'none' or a comma-separated list of "
+            + ", ".join(CANDIDATE_TERMS)
+        )
+    return terms
 
 
 _FMT: Any = {"float_kind": lambda x: f"{x:.5g}"}
@@ -105,13 +140,19 @@ def format_human(r: CalibrationResult) -> str:
             sigma = extra_sigma.get(effect, {}).get(name, np.nan)
             v, sg = (np.array2string(np.asarray(x), formatter=_FMT, separator=", ") for x in (value, sigma))
             lines.append(f"{effect}.{name} = {v} ± {sg}".replace("\n", ""))
+    selection = getattr(r, "model_selection", {})
+    if selection:
+        lines.append(f"model: {' + '.join(r.terms)}, chosen by {selection['rule']}: {selection['text']}")
+    for term, why in getattr(r, "not_fitted", {}).items():
+        lines.append(f"  not fitted {term}: {why}")
     lines += [
         "",
         "correction: f = K⁻¹ (raw − bias)   (m/s²)",
         f"noise model: {r.noise_model}",
         # a dynamic fit scales its residuals by their own fitted sigma: its chi2 is no test of fit
         f"residual rms {r.residual_rms:.3g} {u}"
-        + ("" if r.method == "dynamic" else f"   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}"),
+        + ("" if r.method == "dynamic" else f"   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}")
+        + ("   ZERO REDUNDANCY" if r.zero_redundancy else ""),
         "",
         f"{'window':<10}{'t (s)':>17}{'n':>7}  {'residual x,y,z (' + u + ')':<36}{'z-scores':<20}"
         f"{'|g| err after':>14}{'before':>11}",
@@ -128,4 +169,12 @@ def format_human(r: CalibrationResult) -> str:
     if r.g_before is not None:
         lines.append(f"  before  {r.g_before.mean_error_m_s2: .3e}  {r.g_before.std_m_s2:.3e} m/s²")
     lines.append(f"  after   {r.g_after.mean_error_m_s2: .3e}  {r.g_after.std_m_s2:.3e} m/s²")
+    if r.unused_windows:
+        lines += ["", "declared windows not used:"]
+        lines += [
+            f"  {w.label:<10}{w.start_s:>8.2f}-{w.end_s:<8.2f}{w.n_samples:>7}  {w.reason}"
+            for w in r.unused_windows
+        ]
+    if r.warnings:
+        lines += [""] + [f"WARNING: {text}" for text in r.warnings]
     return "\n".join(line for line in lines if line is not None)

@@ -13,20 +13,24 @@ each window is compared with (``windows.known_specific_force``, as in the calibr
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from bench.calibration.dynamic import is_dynamic
 from bench.calibration.windows import (
+    choose_windows,
     known_specific_force,
     moving_samples,
-    select_windows,
     table_window_angles,
+    unused_warning,
     where,
     window_means,
 )
 from bench.diagnosis import Diagnosis, StaticEvidence, diagnose
 from bench.diagnosis.dynamic import diagnose_dynamic
 from bench.estimation.scalar_fit import fit_scalar
+from bench.estimation.windows import StaticWindow
 from bench.recording import Recording
 
 
@@ -35,7 +39,10 @@ def recording_evidence(rec: Recording) -> StaticEvidence:
 
     :raises ValueError: no usable windows, a window whose noise cannot be estimated.
     """
-    wins = select_windows(rec)
+    return _evidence(rec, list(choose_windows(rec).used))
+
+
+def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
     try:
         y, V = window_means(rec, wins)
     except ValueError as exc:
@@ -115,10 +122,13 @@ def diagnose_recording(rec: Recording) -> Diagnosis:
     try:
         if rec.sidecar.table is not None and rec.table_deg is not None and is_dynamic(rec):
             return _diagnose_moving(rec)
-        ev = recording_evidence(rec)
-        return diagnose(
+        chosen = choose_windows(rec)
+        ev = _evidence(rec, list(chosen.used))
+        d = diagnose(
             ev, unit=rec.sidecar.unit_serial, channel_unit=rec.sidecar.channel_unit, source=rec.source
         )
+        unused = unused_warning(chosen.unused)
+        return d if unused is None else replace(d, notes=(unused, *d.notes))
     except ValueError as exc:
         msg = str(exc)
         where_ = where(rec)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from bench.calibration.windows import UnusedWindow
 from bench.estimation.g_check import GCheck
 
 FloatArray = npt.NDArray[np.float64]
@@ -66,6 +67,9 @@ class CalibrationResult:
     :param chi2: residual χ² against the within-window noise; :param dof: its degrees of
         freedom. For ``"dynamic"``, whose residuals are scaled by their own fitted sigma,
         ``chi2`` is 3·n_samples by construction and carries no goodness-of-fit information.
+    :param unused_windows: declared segments / detected windows the fit left out, with why.
+    :param warnings: what the reader must know before trusting the numbers (zero
+        redundancy, unused windows), one sentence each.
     """
 
     unit_serial: str
@@ -86,6 +90,13 @@ class CalibrationResult:
     g_before: GCheck | None
     windows: tuple[WindowResult, ...]
     source: str = ""
+    unused_windows: tuple[UnusedWindow, ...] = ()
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def zero_redundancy(self) -> bool:
+        """As many fitted parameters as observations: nothing checks the model (``dof`` 0)."""
+        return self.method != "dynamic" and self.dof <= 0
 
     @property
     def terms(self) -> list[str]:
@@ -112,8 +123,21 @@ class CalibrationResult:
             "extra": {},
             "residual_rms": self.residual_rms,
             "g_check": g_check_out,
+            "dof": int(self.dof),
+            "zero_redundancy": self.zero_redundancy,
+            "unused_windows": [u.to_contract() for u in self.unused_windows],
+            "warnings": list(self.warnings),
         }
 
 
 def _g_dict(g: GCheck) -> dict[str, float]:
     return {"mean_error_m_s2": g.mean_error_m_s2, "std_m_s2": g.std_m_s2}
+
+
+def zero_redundancy_warning(n_obs: int, n_params: int, what: str) -> str:
+    """The sentence of a fit with no redundancy (``n_obs`` == ``n_params``)."""
+    return (
+        f"zero redundancy: {n_obs} {what} for {n_params} parameters, so the fit passes through "
+        "every window exactly; residuals, chi2 and the |g| scatter are zero by construction and "
+        "test nothing, and the sigmas rest on the within-window noise alone. Record more windows."
+    )

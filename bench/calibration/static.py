@@ -8,8 +8,12 @@ orientation-free one.
 * otherwise the orientation-free fit of |f| = g (``scalar_fit``), K reported as the
   lower-triangular L with L Lᵀ = K Kᵀ (K up to a rotation of the sensor frame).
 
-Windows come from ``windows.select_windows``; the "before" |g| check uses the nominal
-scale (:func:`nominal_force`).
+Windows come from ``windows.choose_windows``; the "before" |g| check uses the nominal
+scale (:func:`nominal_force`). Nothing is dropped without a word: a declared segment (or
+detected window) that is not used is named with the reason in ``unused_windows``, and a fit
+with as many parameters as observations (no redundancy: the residuals are zero by
+construction, χ² and the |g| scatter test nothing, the sigmas rest on the within-window
+noise alone) says so in ``warnings`` and ``zero_redundancy``.
 """
 
 from __future__ import annotations
@@ -17,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from bench.calibration.result import CalibrationResult, WindowResult
-from bench.calibration.windows import known_specific_force, select_windows, window_means
+from bench.calibration.result import CalibrationResult, WindowResult, zero_redundancy_warning
+from bench.calibration.windows import choose_windows, known_specific_force, unused_warning, window_means
 from bench.estimation.g_check import correct, g_check
 from bench.estimation.scalar_fit import fit_scalar
 from bench.estimation.static_fit import fit_static
@@ -57,7 +61,8 @@ def calibrate_static(
     :raises ValueError: no usable windows, a degenerate orientation set, too few windows for
         the scalar fit, or non-finite data.
     """
-    wins = select_windows(rec)
+    chosen = choose_windows(rec)
+    wins = list(chosen.used)
     y, V = window_means(rec, wins)
     g = rec.sidecar.g_local_m_s2
     f = known_specific_force(rec, wins)
@@ -67,6 +72,7 @@ def calibrate_static(
         bias_sigma, K_sigma = fit.bias_sigma, fit.K_sigma
         resid, norm_resid = fit.residuals, fit.normalized_residuals
         chi2, dof, model, method = fit.chi2, fit.dof, fit.noise_model, "static"
+        n_obs, n_params, what = 3 * len(wins), 12, "window-mean components (3 per window)"
     else:
         sf = fit_scalar(y, V, g)
         bias, K, cov = sf.bias, sf.L, sf.cov
@@ -76,6 +82,7 @@ def calibrate_static(
         resid = (sf.residuals_m_s2[:, None] * dirs) @ K.T
         norm_resid = np.repeat((sf.residuals_m_s2 / sf.residual_sigma_m_s2)[:, None], 3, axis=1)
         chi2, dof, method = sf.chi2, sf.dof, "scalar"
+        n_obs, n_params, what = len(wins), 9, "window magnitudes (|f| = g, one per window)"
         model = (
             "window means: batch-means covariance from each window's samples; "
             f"between windows: additive |g| scatter sigma = {np.sqrt(sf.excess_var_m_s2):.3g} m/s²"
@@ -100,6 +107,10 @@ def calibrate_static(
         )
         for k, w in enumerate(wins)
     )
+    warnings = [zero_redundancy_warning(n_obs, n_params, what)] if dof <= 0 else []
+    unused_text = unused_warning(chosen.unused)
+    if unused_text is not None:
+        warnings.append(unused_text)
     return CalibrationResult(
         unit_serial=rec.sidecar.unit_serial,
         channel_unit=rec.sidecar.channel_unit,
@@ -119,4 +130,6 @@ def calibrate_static(
         g_before=before,
         windows=windows,
         source=rec.source,
+        unused_windows=chosen.unused,
+        warnings=tuple(warnings),
     )

@@ -15,6 +15,9 @@ glue (``bench.calibration.diagnose``), so all three read a recording the same wa
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 
@@ -60,24 +63,112 @@ def window_angles(table_deg: FloatArray, w: StaticWindow) -> tuple[FloatArray, F
     return np.deg2rad(q[:, 0] + d.mean(axis=1)), np.deg2rad(d.max(axis=1) - d.min(axis=1))
 
 
-def select_windows(rec: Recording) -> list[StaticWindow]:
-    """Static windows of a recording: its still segments, or detected ones without segments.
+@dataclass(frozen=True)
+class UnusedWindow:
+    """A declared segment (or detected window) that the fit did not use, and why.
 
-    :raises ValueError: no usable static window.
+    :param label: segment label or detected-window name.
+    :param start_s: first sample time (s); :param end_s: last sample time (s).
+    :param n_samples: samples it holds.
+    :param reason: why it was left out, one phrase.
     """
+
+    label: str
+    start_s: float
+    end_s: float
+    n_samples: int
+    reason: str
+
+    def to_contract(self) -> dict[str, Any]:
+        """``{label, start_s, end_s, n_samples, reason}``."""
+        return {
+            "label": self.label,
+            "start_s": self.start_s,
+            "end_s": self.end_s,
+            "n_samples": self.n_samples,
+            "reason": self.reason,
+        }
+
+
+@dataclass(frozen=True)
+class WindowSelection:
+    """The windows a static or scalar fit uses, and the declared ones it does not."""
+
+    used: tuple[StaticWindow, ...]
+    unused: tuple[UnusedWindow, ...]
+
+
+def choose_windows(rec: Recording) -> WindowSelection:
+    """Static windows of a recording and the declared ones left out, each with its reason.
+
+    Used: the sidecar's segments in which the table did not move (without a table and with
+    any ``nominal_up``, those with one: the others are the motions between poses), or the
+    detected windows when the sidecar has none; each with at least
+    :data:`MIN_WINDOW_SAMPLES` samples (a window mean's noise needs them).
+
+    :raises ValueError: no usable static window (the message names the ones left out).
+    """
+    unused: list[UnusedWindow] = []
+
+    def leave(w: StaticWindow, reason: str) -> None:
+        unused.append(UnusedWindow(w.label, w.start_s, w.end_s, w.stop - w.start, reason))
+
     if rec.sidecar.segments:
         wins = windows_from_segments(rec.t_s, rec.sidecar.segments)
         if rec.table_deg is not None:
-            wins = [w for w in wins if np.all(window_angles(rec.table_deg, w)[1] <= MAX_TABLE_MOTION_RAD)]
+            kept = []
+            for w in wins:
+                span = float(np.max(window_angles(rec.table_deg, w)[1]))
+                if span <= MAX_TABLE_MOTION_RAD:
+                    kept.append(w)
+                else:
+                    leave(
+                        w,
+                        f"the table moved {np.rad2deg(span):.3g}° during it (a static window "
+                        f"allows {np.rad2deg(MAX_TABLE_MOTION_RAD):.2g}°): a motion, not a still window",
+                    )
+            wins = kept
         elif any(w.nominal_up is not None for w in wins):
             # a hand-held session names the pose of each static window; the others are motions
+            for w in wins:
+                if w.nominal_up is None:
+                    leave(w, "no nominal_up while other segments have one: taken as a motion between poses")
             wins = [w for w in wins if w.nominal_up is not None]
     else:
         wins = detect_static_windows(rec.t_s, rec.accel_raw, rec.table_rad_unwrapped())
+    for w in wins:
+        if w.stop - w.start < MIN_WINDOW_SAMPLES:
+            leave(
+                w,
+                f"{w.stop - w.start} samples, fewer than the {MIN_WINDOW_SAMPLES} a window mean's "
+                "noise estimate needs",
+            )
     wins = [w for w in wins if w.stop - w.start >= MIN_WINDOW_SAMPLES]
+    unused.sort(key=lambda u: u.start_s)
     if not wins:
-        raise ValueError(f"{where(rec)}: no static window with at least {MIN_WINDOW_SAMPLES} samples")
-    return wins
+        named = "; ".join(f"{u.label!r}: {u.reason}" for u in unused)
+        raise ValueError(
+            f"{where(rec)}: no static window with at least {MIN_WINDOW_SAMPLES} samples"
+            + (f" (left out: {named})" if named else "")
+        )
+    return WindowSelection(tuple(wins), tuple(unused))
+
+
+def select_windows(rec: Recording) -> list[StaticWindow]:
+    """The static windows :func:`choose_windows` uses.
+
+    :raises ValueError: no usable static window.
+    """
+    return list(choose_windows(rec).used)
+
+
+def unused_warning(unused: tuple[UnusedWindow, ...]) -> str | None:
+    """One sentence naming the unused declared windows, or ``None`` if there are none."""
+    if not unused:
+        return None
+    return f"{len(unused)} declared window(s) not used: " + "; ".join(
+        f"{u.label!r} ({u.start_s:.3f}-{u.end_s:.3f} s): {u.reason}" for u in unused
+    )
 
 
 def window_means(rec: Recording, wins: list[StaticWindow]) -> tuple[FloatArray, FloatArray]:

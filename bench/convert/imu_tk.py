@@ -1,16 +1,24 @@
-"""IMU-TK's Xsens MTi test recording -> calbench-recording/1.
+"""IMU-TK data files -> calbench-recording/1.
 
-Source (``shared/data/real/imu_tk-xsens/README.md``): IMU-TK (Tedaldi, Pretto, Menegatti,
-ICRA 2014) ships ``xsens_acc.mat`` and ``xsens_gyro.mat``, which despite the name are
-whitespace-separated ASCII, ``t[s] x y z`` per line, in raw 16-bit ADC counts; or the same
-data joined on time as ``xsens_mti_raw_counts.csv`` (``t_s, acc_{x,y,z}_counts,
-gyr_{x,y,z}_counts``).
+Source format: IMU-TK (Tedaldi, Pretto, Menegatti, ICRA 2014) reads whitespace-separated
+ASCII ``t[s] x y z`` per line, one file for the accelerometer and one for the gyro (its own
+test data names them ``xsens_acc.mat`` and ``xsens_gyro.mat``); or the two joined on time
+as a CSV with the header ``t_s, acc_{x,y,z}_counts, gyr_{x,y,z}_counts`` (the Xsens data
+set's ``xsens_mti_raw_counts.csv``, ``shared/data/real/imu_tk-xsens/README.md``).
 
-The unit was turned by hand between still poses on no table, so the recording has no
-``table`` and no segments (static windows are found in the data). Counts stay counts:
-``channel_unit`` is ``count``. The gyro channels are counts too, which the format's
-``gyro_unit`` (rad/s or deg/s) cannot state, so they are kept as the extra columns
-``gyr_x_counts`` … with their unit recorded in the sidecar. Every sample is kept.
+What the files say, and so what is written: the time stamps (the sample rate is their
+median spacing) and three numbers per sensor and sample, every sample kept. What they do
+not say, and so must be given (the CLI asks for it, exit 2 naming the option): the unit of
+the accelerometer channels (``channel_unit``), the unit of the gyro channels, local
+gravity. What is written only when given: the unit's model and serial, and which data set
+the files come from (no data set is credited by default). IMU-TK's method takes still
+poses of a unit turned by hand, with no table: the recording has no ``table`` and no
+segments (static windows are found in the data). Gyro channels in rad/s or deg/s become
+the format's ``gx gy gz`` with ``gyro_unit``; in any other unit (counts, V) the extra
+columns ``gyr_x_<unit>`` … with their unit in ``extra_column_units``.
+
+The Xsens MTi data set shipped with IMU-TK is raw 16-bit counts for both sensors, local
+gravity 9.81744 m/s² as used by its authors (``apps/test_imu_calib.cpp``).
 """
 
 from __future__ import annotations
@@ -22,12 +30,25 @@ import numpy as np
 
 from bench.recording.model import Recording, Sidecar
 
-SAMPLE_RATE_HZ = 100.0
-"""Nominal rate (the README: dt mean 9.999 ms)."""
-G_LOCAL_M_S2 = 9.81744
-"""Local gravity used by the IMU-TK authors (``apps/test_imu_calib.cpp``)."""
-GYRO_EXTRA = ("gyr_x_counts", "gyr_y_counts", "gyr_z_counts")
-_CSV_HEADER = ["t_s", "acc_x_counts", "acc_y_counts", "acc_z_counts", *GYRO_EXTRA]
+XSENS_G_LOCAL_M_S2 = 9.81744
+"""Local gravity of IMU-TK's own Xsens data set (``apps/test_imu_calib.cpp``)."""
+CHANNEL_UNITS = ("count", "V", "m/s2", "g")
+"""Accelerometer units calbench-recording/1 accepts."""
+GYRO_UNITS = ("rad/s", "deg/s", "count", "V")
+"""Gyro units: the format's ``gyro_unit`` (rad/s, deg/s), or raw units kept as extra columns."""
+_EXTRA_SUFFIX = {"count": "counts", "V": "V"}
+_CSV_HEADER = [
+    "t_s",
+    "acc_x_counts",
+    "acc_y_counts",
+    "acc_z_counts",
+    "gyr_x_counts",
+    "gyr_y_counts",
+    "gyr_z_counts",
+]
+MAGNITUDE_TOLERANCE = 0.5
+"""A recording declared in m/s2 or g whose median |a| is off 1 g by more than this fraction is
+refused: the declared unit cannot be the data's."""
 
 
 def _load_ascii(path: Path) -> np.ndarray:
@@ -69,22 +90,65 @@ def _count_text(values: np.ndarray) -> list[str]:
     return [repr(v) for v in values.tolist()]
 
 
-def read_imu_tk(acc_path: str | Path, gyro_path: str | Path | None = None) -> Recording:
-    """Read IMU-TK's Xsens recording.
+def gyro_extra_names(gyro_unit: str) -> tuple[str, str, str]:
+    """Names of the extra columns that keep gyro channels in a raw unit (``count``, ``V``)."""
+    suffix = _EXTRA_SUFFIX[gyro_unit]
+    return (f"gyr_x_{suffix}", f"gyr_y_{suffix}", f"gyr_z_{suffix}")
 
-    :param acc_path: ``xsens_acc.mat`` (ASCII ``t ax ay az``), or the joined
-        ``xsens_mti_raw_counts.csv`` (then ``gyro_path`` must be ``None``).
-    :param gyro_path: ``xsens_gyro.mat`` (ASCII ``t gx gy gz``), optional; its time column
-        must equal the accelerometer's sample for sample.
-    :returns: a hand-held :class:`Recording` in counts, gyro counts as extra columns.
-    :raises ValueError: unreadable file, non-finite values, time not increasing, or
-        accelerometer and gyro files that do not share their time stamps.
+
+def _check_magnitude(path: Path, acc: np.ndarray, channel_unit: str, g: float) -> None:
+    if channel_unit not in ("m/s2", "g"):
+        return
+    expect = g if channel_unit == "m/s2" else g / 9.80665
+    med = float(np.median(np.linalg.norm(acc[:, 1:4], axis=1)))
+    if abs(med / expect - 1.0) > MAGNITUDE_TOLERANCE:
+        raise ValueError(
+            f"{path}: median |a| is {med:.4g}, not near 1 g = {expect:.4g} {channel_unit}: "
+            f"the data are not in {channel_unit}; give the unit they are in (--channel-unit)"
+        )
+
+
+def read_imu_tk(
+    acc_path: str | Path,
+    gyro_path: str | Path | None = None,
+    *,
+    channel_unit: str | None,
+    g_local_m_s2: float,
+    gyro_unit: str | None = None,
+    unit_model: str | None = None,
+    unit_serial: str = "unknown",
+    dataset: str | None = None,
+) -> Recording:
+    """Read IMU-TK data files (module docstring).
+
+    :param acc_path: accelerometer file (ASCII ``t ax ay az``), or the joined CSV (then
+        ``gyro_path`` must be ``None``).
+    :param gyro_path: gyro file (ASCII ``t gx gy gz``), optional; its time column must equal
+        the accelerometer's sample for sample.
+    :param channel_unit: unit of the accelerometer numbers, one of :data:`CHANNEL_UNITS`;
+        ``None`` only for the joined CSV, whose header names counts.
+    :param g_local_m_s2: local gravity where the data were taken (m/s²).
+    :param gyro_unit: unit of the gyro numbers (:data:`GYRO_UNITS`), required with a gyro
+        file (the joined CSV's header names counts).
+    :param unit_model: the unit's model, written only when given.
+    :param unit_serial: the unit's serial number (``unknown`` when not given).
+    :param dataset: which data set the files come from (credit), written only when given.
+    :returns: a hand-held :class:`Recording` (no table, no segments).
+    :raises ValueError: unreadable file, non-finite values, time not increasing, files that
+        do not share their time stamps, a unit outside the accepted ones, or a declared
+        m/s2 or g unit that the data's magnitude contradicts.
     """
+    if not (np.isfinite(g_local_m_s2) and 9.7 < g_local_m_s2 < 9.9):
+        raise ValueError(f"local gravity {g_local_m_s2} m/s²: expected a value between 9.7 and 9.9")
     acc_p = Path(acc_path)
     gyro: np.ndarray | None
     if acc_p.suffix.lower() == ".csv":
         if gyro_path is not None:
             raise ValueError(f"{acc_p}: the joined CSV already holds the gyro; give no second file")
+        for what, given in (("accelerometer", channel_unit), ("gyro", gyro_unit)):
+            if given not in (None, "count"):
+                raise ValueError(f"{acc_p} (line 1): the header names the {what} in counts, not {given}")
+        channel_unit, gyro_unit = "count", "count"
         acc, gyro = _load_joined_csv(acc_p)
         sources = [acc_p.name]
         gyro_p = acc_p
@@ -93,7 +157,20 @@ def read_imu_tk(acc_path: str | Path, gyro_path: str | Path | None = None) -> Re
         gyro_p = Path(gyro_path) if gyro_path is not None else acc_p
         gyro = _load_ascii(gyro_p) if gyro_path is not None else None
         sources = [acc_p.name] + ([gyro_p.name] if gyro_path is not None else [])
+    if channel_unit not in CHANNEL_UNITS:
+        raise ValueError(
+            f"{acc_p}: accelerometer unit {channel_unit!r}: the files do not say it; "
+            f"expected one of {', '.join(CHANNEL_UNITS)}"
+        )
+    if gyro is not None and gyro_unit not in GYRO_UNITS:
+        raise ValueError(
+            f"{gyro_p}: gyro unit {gyro_unit!r}: the files do not say it; "
+            f"expected one of {', '.join(GYRO_UNITS)}"
+        )
     _check(acc_p, acc)
+    if acc.shape[0] < 2:
+        raise ValueError(f"{acc_p}: {acc.shape[0]} sample(s); expected at least 2")
+    _check_magnitude(acc_p, acc, channel_unit, g_local_m_s2)
     if gyro is not None:
         _check(gyro_p, gyro)
         if gyro.shape[0] != acc.shape[0] or not np.array_equal(gyro[:, 0], acc[:, 0]):
@@ -107,34 +184,36 @@ def read_imu_tk(acc_path: str | Path, gyro_path: str | Path | None = None) -> Re
             raise ValueError(
                 f"{gyro_p}: time stamps differ from {acc_p.name} ({where}); expected the same samples"
             )
-    extra: dict[str, object] = {
-        "source": {
-            "dataset": "IMU-TK test data (Tedaldi, Pretto, Menegatti, ICRA 2014), Xsens MTi",
-            "files": sources,
-            "repository": "Kyle-ak/imu_tk@7780270fb9a227c79323199303f23989e689a89d bin/test_data",
-            "licence": "BSD-2-Clause",
-            "protocol": "hand-held: ~50 s initial rest, then hand-placed still poses of 3-11 s; "
-            "orientations unknown and not axis-aligned",
-            "g_local_note": "9.81744 m/s² as used by the IMU-TK authors",
-        },
-    }
+    source: dict[str, object] = {"format": "IMU-TK ASCII, t[s] x y z per line", "files": sources}
+    if dataset is not None:
+        source["dataset"] = dataset
+    extra: dict[str, object] = {"source": source}
     extra_cols: dict[str, list[str]] = {}
+    gyro_raw = None
+    sidecar_gyro_unit = None
     if gyro is not None:
-        extra["extra_column_units"] = dict.fromkeys(GYRO_EXTRA, "count")
-        extra_cols = {name: _count_text(gyro[:, i + 1]) for i, name in enumerate(GYRO_EXTRA)}
+        assert gyro_unit is not None
+        if gyro_unit in ("rad/s", "deg/s"):
+            gyro_raw, sidecar_gyro_unit = np.ascontiguousarray(gyro[:, 1:4]), gyro_unit
+        else:
+            names = gyro_extra_names(gyro_unit)
+            extra["extra_column_units"] = dict.fromkeys(names, gyro_unit)
+            extra_cols = {name: _count_text(gyro[:, i + 1]) for i, name in enumerate(names)}
+    dt = float(np.median(np.diff(acc[:, 0])))
     sidecar = Sidecar(
-        unit_serial="unknown",
-        unit_model="Xsens MTi",
-        channel_unit="count",
-        sample_rate_hz=SAMPLE_RATE_HZ,
-        g_local_m_s2=G_LOCAL_M_S2,
-        procedure="hand-multi-position",
+        unit_serial=unit_serial,
+        unit_model=unit_model,
+        channel_unit=channel_unit,
+        gyro_unit=sidecar_gyro_unit,
+        sample_rate_hz=float(f"{1.0 / dt:.6g}"),
+        g_local_m_s2=float(g_local_m_s2),
         extra=extra,
     )
     return Recording(
         sidecar=sidecar,
         t_s=np.ascontiguousarray(acc[:, 0]),
         accel_raw=np.ascontiguousarray(acc[:, 1:4]),
+        gyro_raw=gyro_raw,
         extra_columns=extra_cols,
         source=str(acc_p),
     )

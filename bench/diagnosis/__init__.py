@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.diagnosis.effects import CATALOGUE, Candidate, pose_response
+from bench.diagnosis.effects import CATALOGUE, NEEDS_TABLE, Candidate, pose_response
 from bench.diagnosis.effects.base import FloatArray, first_order_design
 from bench.diagnosis.effects.settling import settling_duration, settling_test
 from bench.diagnosis.evidence import StaticEvidence
@@ -32,6 +32,11 @@ __all__ = ["Diagnosis", "StaticEvidence", "diagnose"]
 CONFOUND_COSINE = 0.8
 """Two effects whose signatures (beyond the first-order model) have |cos| above this are
 reported as indistinguishable on the recording."""
+
+
+NO_TABLE_REASON = (
+    "needs a table (its motion, encoders, base or ringing after a move); this recording has no table"
+)
 
 
 def _noise_text(noise: NoiseParams) -> str:
@@ -112,11 +117,17 @@ def diagnose(
         data), the standard deviation given to each window's orientation about the two axes
         perpendicular to gravity, so that only the magnitude of each reading is evidence.
     :returns: :class:`~bench.diagnosis.result.Diagnosis`.
-    :raises ValueError: fewer than 5 windows, or a pose set that cannot identify bias and K.
+    :raises ValueError: fewer than 5 windows (10 orientation-free), or a pose set that cannot
+        identify bias and K.
     """
     if ev.m < 5:
         raise ValueError(
             f"a diagnosis needs at least 5 static windows (first-order model + 1 dof), got {ev.m}"
+        )
+    if not ev.orientation_known and ev.m < 10:
+        raise ValueError(
+            "an orientation-free diagnosis needs at least 10 static windows (9 parameters from |f| = g "
+            f"+ 1 dof: with fewer the fit passes through every window and nothing can be tested), got {ev.m}"
         )
     X0 = first_order_design(ev.f_m_s2)
     if np.linalg.matrix_rank(X0) < 12:
@@ -126,6 +137,8 @@ def diagnose(
     pose_ok = settle_ok = False
     for eff in CATALOGUE:
         ok, reason = eff.observable(ev)
+        if eff.id in NEEDS_TABLE and not ev.has_table:
+            ok, reason = False, NO_TABLE_REASON
         if not ok:
             unobservable[eff.id] = reason
         elif eff.kind == "columns":

@@ -27,6 +27,7 @@ and temperature, by ``regressors.block_correlations``.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
@@ -114,6 +115,112 @@ def _summary_text(term: str, p: dict[str, object], s: dict[str, object]) -> str:
     return f"{term}: {name} = {v.ravel()[k]:.3g} ± {e.ravel()[k]:.2g} {unit} (largest of {v.size} in sigmas)"
 
 
+@dataclass(frozen=True)
+class TermSelection:
+    """The greedy forward selection of the dynamic model's terms (module docstring).
+
+    :param candidates: terms the motion determines, tried in turn.
+    :param unobservable: term -> why the motion cannot determine it.
+    :param steps: (term, ΔBIC, Wald W) of each term admitted, in order.
+    :param fits: the baseline fit, then the fit after each step (``fits[-1]`` is the final model).
+    :param rejected: term -> why it did not enter (its statistics at the last step).
+    :param false_alarm: false-alarm probability of one step.
+    """
+
+    candidates: tuple[str, ...]
+    unobservable: dict[str, str]
+    steps: tuple[tuple[str, float, float], ...]
+    fits: tuple[DynamicFit, ...]
+    rejected: dict[str, str]
+    false_alarm: float
+
+    @property
+    def chosen(self) -> tuple[str, ...]:
+        """The admitted terms, in order."""
+        return tuple(t for t, _, _ in self.steps)
+
+
+def _warm_start(fit: DynamicFit, spec: ModelSpec, lever: FloatArray) -> FloatArray:
+    """Start of an extended model at the current fit: its parameters kept, the new term at
+    the believed geometry (the proof masses at the fitted lever arm)."""
+    th = fit.theta
+    r = th[fit.spec.index("lever_arm")] if "lever_arm" in fit.spec.terms else lever
+    out = initial_theta(spec, th[:3], th[3:12].reshape(3, 3), r)
+    for t in fit.spec.terms:
+        if t in spec.terms:
+            out[spec.index(t)] = th[fit.spec.index(t)]
+    return out
+
+
+def select_terms(
+    m: MotionData, y: FloatArray, g_m_s2: float, lever: FloatArray, *, false_alarm: float = FALSE_ALARM
+) -> TermSelection:
+    """Greedy forward selection of the terms the recording supports (module docstring).
+
+    :param m: the motion; :param y: (n, 3) raw samples; :param lever: (3,) believed lever arm (m).
+    :raises ValueError: a motion that cannot determine bias and K.
+    """
+    sig_w = np.maximum(white_sigma(y[m.valid]), 1e-12)
+    b0, K0 = linear_start(m, y, g_m_s2, lever)
+    unobservable: dict[str, str] = {}
+    pool = []
+    for t in TERM_ORDER:
+        spec = ModelSpec(("lever_arm", t)) if t == "proof_mass_offsets" else ModelSpec((t,))
+        rep = information_report(
+            fisher_information(m, initial_theta(spec, b0, K0, lever), spec, g_m_s2, lever, sig_w), spec.names
+        )
+        if rep.ok:
+            pool.append(t)
+        else:
+            unobservable[t] = "not determined by this motion: " + "; ".join(rep.unobservable)
+    n_obs = 3 * int(m.valid.sum())
+    fits = [fit_dynamic_batch(m, y, g_m_s2, lever, ModelSpec(()))]
+    chosen: list[str] = []
+    steps: list[tuple[str, float, float]] = []
+    rejected: dict[str, str] = {}
+    while True:
+        tried = [t for t in pool if t not in chosen and (t != "proof_mass_offsets" or "lever_arm" in chosen)]
+        if not tried:
+            break
+        alpha = false_alarm / len(tried)
+        best: tuple[float, str, float, DynamicFit] | None = None
+        rejected = {}
+        for t in tried:
+            spec1 = ModelSpec((*chosen, t))
+            try:
+                f1 = fit_dynamic_batch(m, y, g_m_s2, lever, spec1, theta0=_warm_start(fits[-1], spec1, lever))
+            except ValueError as exc:
+                rejected[t] = f"the fit with it failed: {exc}"
+                continue
+            d, C, q = _delta(f1, t, lever)
+            w = _wald(d, C, q)
+            crit = float(chi2_dist.ppf(1.0 - alpha, q))
+            dbic = _loglik_term(f1) - _loglik_term(fits[-1]) + q * math.log(n_obs)
+            if w > crit and dbic < 0 and (best is None or dbic < best[0]):
+                best = (dbic, t, w, f1)
+            rejected[t] = (
+                f"no evidence on this recording: Wald W = {w:.3g} against {crit:.3g} (chi2_{q} at "
+                f"{alpha:.2g}), delta BIC {dbic:+.3g}"
+            )
+        if best is None:
+            break
+        chosen.append(best[1])
+        steps.append((best[1], best[0], best[2]))
+        fits.append(best[3])
+        rejected.pop(best[1], None)
+    for t in pool:
+        if t not in chosen and t not in rejected:
+            rejected[t] = "tried only with lever_arm in the model (its offsets are relative to it)"
+    return TermSelection(
+        candidates=tuple(pool),
+        unobservable=unobservable,
+        steps=tuple(steps),
+        fits=tuple(fits),
+        rejected=rejected,
+        false_alarm=false_alarm,
+    )
+
+
 def diagnose_dynamic(
     m: MotionData,
     y: FloatArray,
@@ -135,43 +242,11 @@ def diagnose_dynamic(
     """
     lever = np.asarray(lever_arm_m, dtype=float).reshape(3)
     sig_w = np.maximum(white_sigma(y[m.valid]), 1e-12)
-    b0, K0 = linear_start(m, y, g_m_s2, lever)
-    unobservable = dict(STATIC_ONLY)
-    pool = []
-    for t in TERM_ORDER:
-        spec = ModelSpec(("lever_arm", t)) if t == "proof_mass_offsets" else ModelSpec((t,))
-        rep = information_report(
-            fisher_information(m, initial_theta(spec, b0, K0, lever), spec, g_m_s2, lever, sig_w), spec.names
-        )
-        if rep.ok:
-            pool.append(t)
-        else:
-            unobservable[t] = "not determined by this motion: " + "; ".join(rep.unobservable)
+    sel = select_terms(m, y, g_m_s2, lever, false_alarm=false_alarm)
+    unobservable = {**STATIC_ONLY, **sel.unobservable}
     n_obs = 3 * int(m.valid.sum())
-    fits = [fit_dynamic_batch(m, y, g_m_s2, lever, ModelSpec(()))]
-    chosen: list[str] = []
-    steps: list[tuple[str, float, float]] = []
-    while True:
-        tried = [t for t in pool if t not in chosen and (t != "proof_mass_offsets" or "lever_arm" in chosen)]
-        if not tried:
-            break
-        alpha = false_alarm / len(tried)
-        best: tuple[float, str, float, DynamicFit] | None = None
-        for t in tried:
-            try:
-                f1 = fit_dynamic_batch(m, y, g_m_s2, lever, ModelSpec((*chosen, t)))
-            except ValueError:
-                continue
-            d, C, q = _delta(f1, t, lever)
-            w = _wald(d, C, q)
-            dbic = _loglik_term(f1) - _loglik_term(fits[-1]) + q * math.log(n_obs)
-            if w > float(chi2_dist.ppf(1.0 - alpha, q)) and dbic < 0 and (best is None or dbic < best[0]):
-                best = (dbic, t, w, f1)
-        if best is None:
-            break
-        chosen.append(best[1])
-        steps.append((best[1], best[0], best[2]))
-        fits.append(best[3])
+    fits = list(sel.fits)
+    steps = list(sel.steps)
     final = fits[-1]
     findings = []
     for k, (t, dbic, w) in enumerate(steps):

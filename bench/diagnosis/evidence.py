@@ -84,6 +84,11 @@ class StaticEvidence:
         return 3 * self.m
 
     @property
+    def has_table(self) -> bool:
+        """The windows were recorded on a table with encoders (``table_rad`` known)."""
+        return self.table_rad is not None
+
+    @property
     def has_temperature(self) -> bool:
         """A usable temperature per window (finite everywhere)."""
         return self.temp_c is not None and bool(np.all(np.isfinite(self.temp_c)))

@@ -8,6 +8,13 @@ error subtract each window's predicted pose offset J_w p̂_w, with (Harville 197
 
     p̂_w = σ_p² J_wᵀ (P z)_w,   Cov(p_w | z) = σ_p² I − σ_p⁴ J_wᵀ P_ww J_w,
     P = C⁻¹ − C⁻¹ X (Xᵀ C⁻¹ X)⁻¹ Xᵀ C⁻¹.
+
+Degrees of freedom of χ²/dof (:func:`residual_dof`): n − p for known orientations (n = 3m
+stacked window means, p = 12 + the effects' coefficients). Without known orientations each
+window's direction is taken from its own reading (two angles per window, given a wide
+prior), so only its magnitude is evidence: m magnitudes against the scalar fit's 9
+parameters (bias 3, lower-triangular L 6; K's 3 rotation angles are not seen) plus the
+effects' coefficients, dof = m − 9 − (p − 12) = n − p − 2m + 3 (as ``scalar_fit``).
 """
 
 from __future__ import annotations
@@ -39,6 +46,13 @@ class ModelFit:
     bic: float
     pose_angles: FloatArray | None  # (m, 2)
     pose_sigma: FloatArray | None  # (m, 2)
+
+
+def residual_dof(ev: StaticEvidence, p: int) -> int:
+    """Degrees of freedom of a model with ``p`` coefficients (module docstring), at least 1."""
+    n = ev.n_obs
+    dof = n - p if ev.orientation_known else n - p - 2 * ev.m + 3
+    return max(dof, 1)
 
 
 def evaluate(
@@ -84,7 +98,7 @@ def evaluate(
         fit=fit,
         resid=resid.reshape(-1, 3),
         sigma=sigma,
-        chi2_dof=fit.chi2 / max(n - p, 1),
+        chi2_dof=fit.chi2 / residual_dof(ev, p),
         bic=bic,
         pose_angles=angles,
         pose_sigma=angle_sigma,

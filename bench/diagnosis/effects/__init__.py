@@ -27,9 +27,24 @@ CATALOGUE: tuple[Effect, ...] = (
 
 BY_ID = {e.id: e for e in CATALOGUE}
 
+NEEDS_TABLE = frozenset(
+    {
+        "lever_arm",
+        "proof_mass_offsets",
+        "time_skew",
+        "table_tilt",
+        "encoder_offset",
+        "sensor_lowpass",
+        "settling",
+    }
+)
+"""Effects whose physics is the table's (its motion, its encoders, its base, its ringing after a
+move): never a candidate on a recording without a table, whatever the data look like."""
+
 __all__ = [
     "BY_ID",
     "CATALOGUE",
+    "NEEDS_TABLE",
     "Candidate",
     "Effect",
     "ParamSpec",

@@ -12,6 +12,8 @@ from api.cli import main
 CONTRACT_KEYS = {
     "unit", "channel_unit", "procedure", "bias", "bias_sigma", "scale_matrix", "scale_matrix_sigma",
     "terms", "extra", "residual_rms", "g_check",
+    # added (fields may be added): redundancy and what was not used
+    "dof", "zero_redundancy", "unused_windows", "warnings",
 }  # fmt: skip
 
 

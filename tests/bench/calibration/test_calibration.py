@@ -15,6 +15,8 @@ from tests.support.static_sim import G_LOCAL, random_truth
 CONTRACT_KEYS = {
     "unit", "channel_unit", "procedure", "bias", "bias_sigma", "scale_matrix", "scale_matrix_sigma",
     "terms", "extra", "residual_rms", "g_check",
+    # added (fields may be added): redundancy and what was not used
+    "dof", "zero_redundancy", "unused_windows", "warnings",
 }  # fmt: skip
 
 

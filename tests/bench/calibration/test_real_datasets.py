@@ -75,7 +75,11 @@ def test_imucal_session_in_m_s2_has_before_and_after(imucal_dir) -> None:
 
 
 def test_xsens_scalar_calibration(shared_dir) -> None:
-    rec = read_imu_tk(shared_dir / "data" / "real" / "imu_tk-xsens" / "xsens_mti_raw_counts.csv")
+    rec = read_imu_tk(
+        shared_dir / "data" / "real" / "imu_tk-xsens" / "xsens_mti_raw_counts.csv",
+        channel_unit=None,
+        g_local_m_s2=9.81744,
+    )
     res = calibrate_recording(rec)
     assert res.method == "scalar" and len(res.windows) == 38
     # reference fit in the data set's README: RMS 0.98 mm/s², bias ≈ [33124, 33275, 32364] counts

@@ -10,8 +10,12 @@ import pytest
 
 from api.cli import main
 from bench.convert import read_imu_tk, read_imucal, read_imucal_annotated
+from bench.convert.imu_tk import XSENS_G_LOCAL_M_S2
 from bench.estimation.windows import detect_static_windows, window_stats, windows_from_segments
 from bench.recording import read_recording
+
+XSENS = {"channel_unit": "count", "gyro_unit": "count", "g_local_m_s2": XSENS_G_LOCAL_M_S2}
+XSENS_CLI = ["--channel-unit", "count", "--gyro-unit", "count", "--g-local-m-s2", str(XSENS_G_LOCAL_M_S2)]
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +33,17 @@ def test_imu_tk_ascii_pair_to_recording_and_back(
     src = real / "imu_tk-xsens"
     out = tmp_path / "xsens.csv"
     assert (
-        main(["convert", "imu_tk", str(src / "xsens_acc.mat"), str(src / "xsens_gyro.mat"), "-o", str(out)])
+        main(
+            [
+                "convert",
+                "imu_tk",
+                str(src / "xsens_acc.mat"),
+                str(src / "xsens_gyro.mat"),
+                "-o",
+                str(out),
+                *XSENS_CLI,
+            ]
+        )
         == 0
     )
     assert "51175 samples" in capsys.readouterr().out
@@ -50,8 +64,8 @@ def test_imu_tk_ascii_pair_to_recording_and_back(
 
 
 def test_imu_tk_joined_csv_gives_the_same_recording(real: Path) -> None:
-    a = read_imu_tk(real / "imu_tk-xsens/xsens_acc.mat", real / "imu_tk-xsens/xsens_gyro.mat")
-    b = read_imu_tk(real / "imu_tk-xsens/xsens_mti_raw_counts.csv")
+    a = read_imu_tk(real / "imu_tk-xsens/xsens_acc.mat", real / "imu_tk-xsens/xsens_gyro.mat", **XSENS)
+    b = read_imu_tk(real / "imu_tk-xsens/xsens_mti_raw_counts.csv", channel_unit=None, g_local_m_s2=9.81744)
     np.testing.assert_array_equal(a.t_s, b.t_s)
     np.testing.assert_array_equal(a.accel_raw, b.accel_raw)
     assert a.extra_columns == b.extra_columns
@@ -59,7 +73,7 @@ def test_imu_tk_joined_csv_gives_the_same_recording(real: Path) -> None:
 
 def test_xsens_static_windows_agree_with_imu_tk_detector(real: Path) -> None:
     """The README reproduces IMU-TK's detector: 38 intervals, the first the 0.5–51.9 s initial rest."""
-    rec = read_imu_tk(real / "imu_tk-xsens/xsens_mti_raw_counts.csv")
+    rec = read_imu_tk(real / "imu_tk-xsens/xsens_mti_raw_counts.csv", channel_unit=None, g_local_m_s2=9.81744)
     found = detect_static_windows(rec.t_s, rec.accel_raw)
     assert 34 <= len(found) <= 42
     assert found[0].start_s < 1.0 and abs(found[0].end_s - 51.9) < 1.0
@@ -75,11 +89,11 @@ def test_imu_tk_refuses_mismatched_time(real: Path, tmp_path: Path) -> None:
     with pytest.raises(
         ValueError, match=r"g\.mat: time stamps differ from a\.mat \(first differing row 501\)"
     ):
-        read_imu_tk(tmp_path / "a.mat", tmp_path / "g.mat")
+        read_imu_tk(tmp_path / "a.mat", tmp_path / "g.mat", **XSENS)
     acc[10, 2] = np.nan
     np.savetxt(tmp_path / "a.mat", acc)
     with pytest.raises(ValueError, match=r"a\.mat \(data row 11\): non-finite"):
-        read_imu_tk(tmp_path / "a.mat")
+        read_imu_tk(tmp_path / "a.mat", channel_unit="count", g_local_m_s2=XSENS_G_LOCAL_M_S2)
 
 
 def test_imucal_session_with_sections(real: Path, tmp_path: Path) -> None:
@@ -171,6 +185,74 @@ def test_cli_bad_input_exits_2_with_one_line(
     )
     assert "exists" in capsys.readouterr().err
     assert (tmp_path / "a.csv").read_text() == "keep me"
-    assert main(["convert", "imu_tk", str(src), "-o", str(tmp_path / "b.csv")]) == 2
+    assert main(["convert", "imu_tk", str(src), "-o", str(tmp_path / "b.csv"), "--g-local-m-s2", "9.81"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "annotated_session.csv" in err
+
+
+def _other_imu(tmp_path: Path) -> tuple[Path, Path, np.ndarray, np.ndarray]:
+    """IMU-TK files of another IMU: 200 Hz, accelerometer in m/s², gyro in rad/s."""
+    rng = np.random.default_rng(8)
+    n = 2000
+    t = 0.005 * np.arange(n)
+    acc = np.column_stack([t, np.tile([0.1, -0.2, 9.79], (n, 1)) + rng.normal(0, 0.01, (n, 3))])
+    gyro = np.column_stack([t, rng.normal(0, 0.002, (n, 3))])
+    np.savetxt(tmp_path / "acc.txt", acc)
+    np.savetxt(tmp_path / "gyr.txt", gyro)
+    return tmp_path / "acc.txt", tmp_path / "gyr.txt", acc, gyro
+
+
+def test_imu_tk_writes_only_what_it_knows(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    a, g, acc, gyro = _other_imu(tmp_path)
+    out = tmp_path / "other.csv"
+    args = ["convert", "imu_tk", str(a), str(g), "-o", str(out)]
+    assert main([*args, "--channel-unit", "m/s2", "--gyro-unit", "rad/s", "--g-local-m-s2", "9.80"]) == 0
+    assert "channel_unit m/s2" in capsys.readouterr().out
+    rec = read_recording(out)
+    sc = rec.sidecar
+    assert (sc.channel_unit, sc.gyro_unit, sc.g_local_m_s2) == ("m/s2", "rad/s", 9.80)
+    assert sc.sample_rate_hz == pytest.approx(200.0, rel=1e-9)  # from the time stamps, not 100 Hz
+    assert sc.unit_model is None and sc.unit_serial == "unknown"
+    assert sc.procedure is None
+    assert "dataset" not in sc.extra["source"]  # type: ignore[operator]
+    side = json.loads(out.with_suffix(".json").read_text())
+    assert "Xsens" not in json.dumps(side) and "Tedaldi" not in json.dumps(side)
+    assert rec.gyro_raw is not None
+    np.testing.assert_allclose(rec.gyro_raw, gyro[:, 1:], rtol=1e-12)
+    np.testing.assert_allclose(rec.accel_raw, acc[:, 1:], rtol=1e-12)
+    assert not rec.extra_columns
+
+
+def test_imu_tk_asks_for_what_the_files_do_not_say(
+    real: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a, g, _, _ = _other_imu(tmp_path)
+    base = ["convert", "imu_tk", str(a), str(g), "-o", str(tmp_path / "o.csv")]
+    cases = [
+        ([], "--channel-unit is required"),
+        (["--channel-unit", "m/s2"], "--gyro-unit is required"),
+        (["--channel-unit", "m/s2", "--gyro-unit", "rad/s"], "--g-local-m-s2 is required"),
+        # the data's magnitude contradicts a declared unit
+        (["--channel-unit", "g", "--gyro-unit", "rad/s", "--g-local-m-s2", "9.8"], "not in g"),
+    ]
+    for extra, msg in cases:
+        assert main([*base, *extra]) == 2, extra
+        err = capsys.readouterr().err.strip()
+        assert msg in err and err.count("\n") == 0, err
+    assert not (tmp_path / "o.csv").exists()
+    # the joined CSV's header names counts: a different unit contradicts it
+    with pytest.raises(ValueError, match=r"header names the accelerometer in counts, not m/s2"):
+        read_imu_tk(real / "imu_tk-xsens/xsens_mti_raw_counts.csv", channel_unit="m/s2", g_local_m_s2=9.81)
+
+
+def test_imu_tk_credits_a_data_set_only_when_told(real: Path) -> None:
+    rec = read_imu_tk(
+        real / "imu_tk-xsens/xsens_acc.mat",
+        real / "imu_tk-xsens/xsens_gyro.mat",
+        **XSENS,
+        unit_model="Xsens MTi",
+        dataset="IMU-TK test data (Tedaldi, Pretto, Menegatti, ICRA 2014), Xsens MTi",
+    )
+    assert rec.sidecar.unit_model == "Xsens MTi"
+    assert rec.sidecar.extra["source"]["dataset"].startswith("IMU-TK test data")  # type: ignore[index]
+    assert rec.sidecar.sample_rate_hz == pytest.approx(100.0, rel=1e-3)

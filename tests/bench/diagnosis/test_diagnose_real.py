@@ -85,7 +85,8 @@ def test_ferraris_session_in_m_s2_has_no_supported_finding(real: Path, tmp_path:
 
 def test_xsens_orientation_free_session(real: Path, tmp_path: Path) -> None:
     s = real / "imu_tk-xsens"
-    path = _convert(tmp_path, ["imu_tk", str(s / "xsens_acc.mat"), str(s / "xsens_gyro.mat")])
+    units = ["--channel-unit", "count", "--gyro-unit", "count", "--g-local-m-s2", "9.81744"]
+    path = _convert(tmp_path, ["imu_tk", str(s / "xsens_acc.mat"), str(s / "xsens_gyro.mat"), *units])
     d = diagnose_recording(read_recording(path))
     assert d.method == "orientation-free" and "pose_error" in d.unobservable
     assert d.findings == () and d.final.chi2_dof < 2

@@ -27,17 +27,23 @@ browser:
 run: install
 	$(BIN)/calbench serve --sim --host 127.0.0.1 --port 8000
 
-test: install browser
+SRC := bench drivers db api tests benchmarks
+
+# The whole suite after the static checks (what CI runs).
+test: install browser lint
 	$(BIN)/python -m pytest -n 2 --dist loadgroup
 
+# Everything but Monte-Carlo studies, whole simulated runs and the browser: the edit-test loop.
 test-fast: install
-	$(BIN)/python -m pytest -x -q -m "not slow and not browser"
+	$(BIN)/python -m pytest -n 2 --dist loadgroup -q -m "not slow and not browser"
 
 bench: install
 	$(BIN)/python -m benchmarks
 
+# ruff (rules and format), mypy (strict on the pure packages: pyproject.toml), layer contracts.
 lint: install
-	$(BIN)/ruff check bench drivers db api tests benchmarks
+	$(BIN)/ruff check $(SRC)
+	$(BIN)/ruff format --check $(SRC)
 	$(BIN)/mypy
 	$(BIN)/lint-imports
 

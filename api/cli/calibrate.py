@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from api.cli import BadInput
+from api.cli import BadInput, decimal_arg
 from bench.calibration import NATURAL_ZERO_UNITS, CalibrationResult, calibrate_recording
 from bench.recording import read_recording
 
@@ -25,13 +25,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the machine-readable result")
     parser.add_argument(
         "--nominal-scale",
-        type=float,
+        type=decimal_arg,
         default=None,
         help="nominal sensitivity (channel unit per m/s²) for the 'before' |g| check of V or count channels",
     )
     parser.add_argument(
         "--nominal-bias",
-        type=float,
+        type=decimal_arg,
         nargs=3,
         default=None,
         metavar=("BX", "BY", "BZ"),

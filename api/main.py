@@ -35,6 +35,7 @@ from api.auth import Authenticator, Role, parse_tokens
 from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
 from api.deps import Services
 from api.drift import DriftScheduler, record_drift_check
+from api.guard import RequestGuard, install_error_handlers
 from api.progress_hub import ProgressHub
 from api.routes import api_router
 from api.runner import BenchRunner, LiveRun
@@ -53,7 +54,9 @@ DESCRIPTION = """Accelerometer calibration bench service.
 Roles: a **viewer** token reads, an **operator** token also starts and aborts runs, issues
 certificates, uploads recordings and starts drift checks. Send `Authorization: Bearer TOKEN`.
 Missing or unknown token: 401; a role too low: 403. One run at a time per bench: a second
-start gets 409.
+start gets 409. A request with a body is authenticated, and its size checked (1 MB of JSON,
+1 GB of upload: 413), before the body is read. A browser opens a PDF or an event stream with
+a short-lived signed link (`POST /api/links`), never with a token in the URL.
 """
 
 
@@ -168,6 +171,8 @@ def create_app(
             services.engine.dispose()
 
     app = FastAPI(title="calbench", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
+    app.add_middleware(RequestGuard)  # type: ignore[arg-type]
+    install_error_handlers(app)
     app.include_router(api_router)
     if importlib.util.find_spec("api.routes.dashboard") is not None:
         app.include_router(importlib.import_module("api.routes.dashboard").router)

@@ -1,0 +1,215 @@
+"""What every request passes before a route sees it, and how every error leaves.
+
+:class:`RequestGuard` (pure ASGI, outermost) refuses, before one byte of a body is read:
+
+- a URL with a NUL byte (400) or longer than :data:`MAX_URL_CHARS` (414);
+- a body larger than its limit (413): :data:`MAX_JSON_BODY_BYTES` for JSON requests,
+  :data:`MAX_UPLOAD_BODY_BYTES` for the recording upload; by ``Content-Length`` when it is
+  sent, else by counting as the body streams in;
+- a request that carries a body (``POST``, ``PUT``, ``PATCH``, ``DELETE``) to ``/api/``
+  without a token of the role every such endpoint needs (401/403): operator, or viewer for
+  ``POST /api/links``. So an unauthenticated client can make the service neither read
+  nor store anything. The route still checks its own role.
+
+and adds the security headers to every response (:data:`SECURITY_HEADERS`): a
+Content-Security-Policy that allows scripts and connections only from the service itself and
+no framing, ``X-Frame-Options: DENY``, ``nosniff`` and no referrer.
+
+:func:`install_error_handlers` makes every error a JSON 4xx: a validation error whose input
+was ``NaN``/``Infinity`` (which JSON cannot carry) is serialised with those as text, and a
+database data error (a value the database cannot store, e.g. a NUL byte on PostgreSQL, an
+integer out of range) is a 422 instead of a 500.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from collections.abc import Awaitable, Callable, MutableMapping
+from typing import Any
+
+import anyio.to_thread
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from sqlalchemy.exc import DataError
+
+from api.auth import AuthError, Role
+
+log = logging.getLogger(__name__)
+
+Scope = MutableMapping[str, Any]
+Message = MutableMapping[str, Any]
+Receive = Callable[[], Awaitable[Message]]
+Send = Callable[[Message], Awaitable[None]]
+ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
+
+MAX_URL_CHARS = 4096
+MAX_JSON_BODY_BYTES = 1024 * 1024
+"""Largest JSON request body (bytes); the largest real one (a unit registration) is under 2 kB."""
+UPLOAD_PATHS = frozenset({"/api/recordings"})
+MAX_UPLOAD_BODY_BYTES = 2 * 512 * 1024 * 1024 + 1024 * 1024
+"""Largest multipart upload (bytes): two files of 512 MB each (CSV and sidecar) and the form's own bytes."""
+BODY_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+VIEWER_BODY_PATHS = frozenset({"/api/links"})
+"""Body-carrying endpoints a viewer may call; every other one needs an operator."""
+
+_CSP_APP = (
+    "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; "
+    "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'self'; frame-ancestors 'none'"
+)
+_CSP_DOCS = (
+    "default-src 'self'; script-src 'self' 'unsafe-inline' https://cdn.jsdelivr.net; "
+    "style-src 'self' 'unsafe-inline' https://cdn.jsdelivr.net; img-src 'self' data: https:; "
+    "connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'"
+)
+DOCS_PATHS = frozenset({"/docs", "/redoc", "/docs/oauth2-redirect"})
+SECURITY_HEADERS: dict[str, str] = {
+    "content-security-policy": _CSP_APP,
+    "x-frame-options": "DENY",
+    "x-content-type-options": "nosniff",
+    "referrer-policy": "no-referrer",
+}
+
+
+class _TooLarge(Exception):
+    pass
+
+
+def _headers(scope: Scope) -> dict[str, str]:
+    return {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope.get("headers", [])}
+
+
+def _bearer(headers: dict[str, str]) -> str | None:
+    scheme, _, secret = headers.get("authorization", "").partition(" ")
+    return secret.strip() or None if scheme.lower() == "bearer" else None
+
+
+class RequestGuard:
+    """ASGI middleware: URL and body-size limits, authentication before any body is read,
+    security headers on every response (see the module docstring)."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        path: str = scope.get("path", "")
+        headers_to_add = dict(SECURITY_HEADERS)
+        if path in DOCS_PATHS:
+            headers_to_add["content-security-policy"] = _CSP_DOCS
+        started = False
+
+        async def send_with_headers(message: Message) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+                present = {k.decode("latin-1").lower() for k, _ in message.get("headers", [])}
+                extra = [(k.encode(), v.encode()) for k, v in headers_to_add.items() if k not in present]
+                message["headers"] = [*message.get("headers", []), *extra]
+            await send(message)
+
+        refusal = await self._refusal(scope, path)
+        if refusal is not None:
+            status, detail, extra_headers = refusal
+            await self._reply(send_with_headers, status, detail, extra_headers)
+            return
+        limit = MAX_UPLOAD_BODY_BYTES if path in UPLOAD_PATHS else MAX_JSON_BODY_BYTES
+        received = 0
+
+        async def counting_receive() -> Message:
+            nonlocal received
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > limit:
+                    raise _TooLarge
+            return message
+
+        try:
+            await self.app(scope, counting_receive, send_with_headers)
+        except _TooLarge:
+            if started:
+                raise
+            await self._reply(send_with_headers, 413, f"request body larger than {limit} bytes", {})
+
+    async def _refusal(self, scope: Scope, path: str) -> tuple[int, str, dict[str, str]] | None:
+        raw_path = scope.get("raw_path") or path.encode("utf-8", "surrogateescape")
+        query: bytes = scope.get("query_string", b"")
+        if len(raw_path) + len(query) > MAX_URL_CHARS:
+            return 414, f"URL longer than {MAX_URL_CHARS} characters", {}
+        if "\x00" in path or b"%00" in query.lower() or b"%00" in raw_path.lower() or b"\x00" in query:
+            return 400, "NUL byte in the URL", {}
+        method = scope.get("method", "GET")
+        if method not in BODY_METHODS:
+            return None
+        headers = _headers(scope)
+        limit = MAX_UPLOAD_BODY_BYTES if path in UPLOAD_PATHS else MAX_JSON_BODY_BYTES
+        length = headers.get("content-length")
+        if length is not None:
+            if not length.isascii() or not length.isdigit():
+                return 400, "Content-Length is not a number", {}
+            if len(length) > 15 or int(length) > limit:
+                return 413, f"request body of {length} bytes; at most {limit} bytes here", {}
+        if not path.startswith("/api/"):
+            return None
+        services = getattr(scope["app"].state, "services", None) if "app" in scope else None
+        if services is None:
+            return 503, "the service is starting or stopping", {}
+        minimum = Role.VIEWER if path in VIEWER_BODY_PATHS else Role.OPERATOR
+        secret = _bearer(headers)
+        try:
+            await anyio.to_thread.run_sync(services.auth.require_principal, secret, minimum)
+        except AuthError as exc:
+            extra = {"www-authenticate": "Bearer"} if exc.status_code == 401 else {}
+            return exc.status_code, str(exc), extra
+        return None
+
+    @staticmethod
+    async def _reply(send: Send, status: int, detail: str, headers: dict[str, str]) -> None:
+        body = json.dumps({"detail": detail}).encode("utf-8")
+        raw = [
+            (b"content-type", b"application/json"),
+            (b"content-length", str(len(body)).encode()),
+            (b"connection", b"close"),
+            *((k.encode(), v.encode()) for k, v in headers.items()),
+        ]
+        await send({"type": "http.response.start", "status": status, "headers": raw})
+        await send({"type": "http.response.body", "body": body})
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float replaced by its text (``"nan"``, ``"inf"``) and bytes
+    decoded, recursively, so that strict JSON can carry it."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    if value is None or isinstance(value, str | int | float | bool):
+        return value
+    return str(value)
+
+
+async def _validation_error(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    return JSONResponse(status_code=422, content={"detail": json_safe(list(exc.errors()))})
+
+
+async def _data_error(request: Request, exc: Exception) -> JSONResponse:
+    orig = getattr(exc, "orig", None)
+    reason = str(orig if orig is not None else exc).splitlines()[0][:200]
+    log.info("database refused a value on %s %s: %s", request.method, request.url.path, reason)
+    return JSONResponse(status_code=422, content={"detail": f"a value the database cannot store: {reason}"})
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Validation errors serialised without non-finite numbers; database data errors as 422."""
+    app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(DataError, _data_error)

@@ -101,10 +101,12 @@ class RequestGuard:
         headers_to_add = dict(SECURITY_HEADERS)
         if path in DOCS_PATHS:
             headers_to_add["content-security-policy"] = _CSP_DOCS
-        started = False
+        started = refused = False
 
         async def send_with_headers(message: Message) -> None:
             nonlocal started
+            if refused:  # the 413 is out: what the app answers after it is dropped
+                return
             if message["type"] == "http.response.start":
                 started = True
                 present = {k.decode("latin-1").lower() for k, _ in message.get("headers", [])}
@@ -121,20 +123,25 @@ class RequestGuard:
         received = 0
 
         async def counting_receive() -> Message:
-            nonlocal received
+            nonlocal received, refused
             message = await receive()
             if message["type"] == "http.request":
                 received += len(message.get("body", b""))
                 if received > limit:
+                    # answered here: the app (FastAPI) turns any error while reading into a 400
+                    if not started:
+                        await self._reply(
+                            send_with_headers, 413, f"request body larger than {limit} bytes", {}
+                        )
+                        refused = True
                     raise _TooLarge
             return message
 
         try:
             await self.app(scope, counting_receive, send_with_headers)
         except _TooLarge:
-            if started:
+            if not refused:
                 raise
-            await self._reply(send_with_headers, 413, f"request body larger than {limit} bytes", {})
 
     async def _refusal(self, scope: Scope, path: str) -> tuple[int, str, dict[str, str]] | None:
         raw_path = scope.get("raw_path") or path.encode("utf-8", "surrogateescape")

@@ -41,6 +41,7 @@ from api.routes import api_router
 from api.runner import BenchRunner, LiveRun
 from api.service_resume import recover_shutdown_aborts
 from api.settings import Settings
+from api.startup_check import check_configuration
 from bench.records import RunRecord, utc_now
 from db.engine import make_session_factory, open_database
 from db.repo.recovery import mark_interrupted_runs
@@ -89,8 +90,10 @@ def make_finisher(
 def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_now) -> Services:
     """Open the database (migrating it) and build runner, scheduler and authenticator.
 
-    :raises ValueError: a malformed ``CALBENCH_TOKENS`` entry or ``CALBENCH_DRIFT_TIME``.
+    :raises ValueError: a malformed ``CALBENCH_TOKENS`` entry or ``CALBENCH_DRIFT_TIME``, or a
+        configuration :func:`api.startup_check.check_configuration` refuses (device URL, database file).
     """
+    check_configuration(settings)
     env_tokens = parse_tokens(settings.tokens)
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)

@@ -86,6 +86,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         except BadInput as exc:
             print(f"calbench {args.command}: {_one_line(str(exc))}", file=sys.stderr)
             return 2
+        except BrokenPipeError:  # the reader went away (``| head``): not bad input
+            raise
         except (ValueError, OSError) as exc:
             # Validation errors from bench/ are ValueErrors whose message names file, key and
             # expectation; an OSError names the file that could not be read or written.

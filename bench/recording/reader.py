@@ -153,7 +153,7 @@ def _rows(p: Path) -> Iterator[tuple[int, list[str]]]:
                             f"field of {len(x)} characters; expected at most {MAX_FIELD_CHARS}",
                             line=reader.line_num,
                         )
-                yield reader.line_num, [x.strip() for x in fields]
+                yield reader.line_num, [x.strip(" \t") for x in fields]
         except csv.Error as exc:  # a field past the csv module's limit, a NUL, a stray quote
             problem = (
                 f"field longer than {csv.field_size_limit()} characters; expected at most {MAX_FIELD_CHARS}"

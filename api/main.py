@@ -35,7 +35,7 @@ from api.auth import Authenticator, Role, parse_tokens
 from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
 from api.deps import Services
 from api.drift import DriftScheduler, record_drift_check
-from api.guard import RequestGuard, install_error_handlers
+from api.guard import RequestGuard, install_error_handlers, install_log_redaction
 from api.progress_hub import ProgressHub
 from api.routes import api_router
 from api.runner import BenchRunner, LiveRun
@@ -154,6 +154,7 @@ def create_app(
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        install_log_redaction()  # after the server configured its logging
         services = build_services(settings, clock)
         for secret, role in (extra_tokens or {}).items():
             services.auth.add(secret, Role[role.upper()])

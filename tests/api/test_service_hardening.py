@@ -7,6 +7,7 @@ counts the chunks it hands out, so "refused before reading" is measured, not ass
 from __future__ import annotations
 
 import json
+import logging
 import sqlite3
 import time
 from collections.abc import Iterator
@@ -17,7 +18,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from api.auth import LinkSigner, Principal, Role
-from api.guard import MAX_JSON_BODY_BYTES
+from api.guard import MAX_JSON_BODY_BYTES, RedactSecrets
 from api.main import create_app
 from api.startup_check import ConfigError, check_configuration
 from tests.api.service_helpers import OP, OPERATOR, VIEW, service_settings, signed_link
@@ -310,3 +311,12 @@ def test_startup_refuses_a_bad_device_url_and_an_empty_database(tmp_path: Path) 
 def test_startup_refuses_bidi_in_certificate_texts(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="CALBENCH_LAB_ADDRESS"):
         check_configuration(service_settings(tmp_path, lab_address="Main St \u202e 1"))
+
+
+def test_access_log_never_shows_a_credential_in_a_url() -> None:
+    args = ("127.0.0.1:5", "GET", "/api/runs/R-1/events?access_token=SECRET1&x=1&link=abc.def", "1.1", 200)
+    record = logging.LogRecord("uvicorn.access", logging.INFO, "", 0, '%s - "%s %s HTTP/%s" %d', args, None)
+    assert RedactSecrets().filter(record)
+    line = record.getMessage()
+    assert "SECRET1" not in line and "abc.def" not in line
+    assert "access_token=REDACTED&x=1&link=REDACTED" in line

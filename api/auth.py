@@ -246,14 +246,14 @@ class LinkSigner:
         self._clock = clock
 
     def _mac(self, payload: str) -> str:
-        return _b64(hmac.new(self._key, payload.encode("ascii"), hashlib.sha256).digest()[:20])
+        return _b64(hmac.new(self._key, payload.encode("utf-8", "replace"), hashlib.sha256).digest()[:20])
 
     def sign(self, path: str, who: Principal, ttl_s: float = LINK_TTL_S) -> tuple[str, float]:
         """The ``link`` query value for ``path`` and its expiry (Unix s)."""
-        expires = self._clock() + ttl_s
-        body = {"p": path, "e": round(expires), "r": int(who.role), "t": who.token_id}
+        expires = round(self._clock() + ttl_s)
+        body = {"p": path, "e": expires, "r": int(who.role), "t": who.token_id}
         payload = _b64(json.dumps(body, separators=(",", ":")).encode("utf-8"))
-        return f"{payload}.{self._mac(payload)}", float(body["e"])
+        return f"{payload}.{self._mac(payload)}", float(expires)
 
     def verify(self, link: str, path: str) -> Principal:
         """The principal a link was made for, if it is genuine, for ``path`` and not expired.
@@ -261,7 +261,11 @@ class LinkSigner:
         :raises AuthError: 401 naming what is wrong with the link.
         """
         payload, _, mac = link.partition(".")
-        if not mac or len(link) > 2000 or not hmac.compare_digest(self._mac(payload), mac):
+        if (
+            not mac
+            or len(link) > 2000
+            or not hmac.compare_digest(self._mac(payload).encode(), mac.encode("utf-8", "replace"))
+        ):
             raise AuthError(401, "link not signed by this service (ask for a new one: POST /api/links)")
         try:
             body = json.loads(_unb64(payload))

@@ -221,6 +221,7 @@ def test_signed_link_is_for_one_path_and_expires(client: TestClient) -> None:
     assert client.get(url).status_code == 404  # accepted: the run does not exist
     assert client.get(f"/api/runs/R-2/certificate.pdf?link={link}").status_code == 401
     assert client.get(f"/api/runs/R-1/certificate.pdf?link={link[:-2]}xx").status_code == 401
+    assert client.get("/api/runs/R-1/certificate.pdf", params={"link": "é.é"}).status_code == 401
     signer = LinkSigner(key=b"k" * 32, clock=lambda: 1000.0)
     old, _ = signer.sign("/p", Principal(Role.VIEWER), ttl_s=60)
     assert signer.verify(old, "/p").role is Role.VIEWER

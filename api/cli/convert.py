@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from api.cli import BadInput
+from api.cli import BadInput, decimal_arg
 from bench.convert import read_imu_tk, read_imucal
 from bench.recording import Recording, read_recording, write_recording
 
@@ -30,11 +30,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--sample-rate-hz",
-        type=float,
+        type=decimal_arg,
         help="imucal only, required: the session's sample rate (the files do not carry it)",
     )
     parser.add_argument(
-        "--g-local-m-s2", type=float, help="local gravity to record (default: the source's own value)"
+        "--g-local-m-s2", type=decimal_arg, help="local gravity to record (default: the source's own value)"
     )
     parser.add_argument("--force", action="store_true", help="overwrite OUT.csv / OUT.json if they exist")
 

@@ -16,7 +16,7 @@ from typing import Any
 
 from sqlalchemy.exc import OperationalError
 
-from api.cli import BadInput
+from api.cli import BadInput, decimal_arg
 from db.engine import describe_connection_error, make_session_factory, open_database
 from db.models import Run, RunState
 from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs
@@ -40,7 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--stale-after-s",
-        type=float,
+        type=decimal_arg,
         default=DEFAULT_STALE_AFTER_S,
         help="a live run without heartbeat for this long is interrupted (s)",
     )

@@ -321,3 +321,26 @@ def test_access_log_never_shows_a_credential_in_a_url() -> None:
     line = record.getMessage()
     assert "SECRET1" not in line and "abc.def" not in line
     assert "access_token=REDACTED&x=1&link=REDACTED" in line
+
+
+def test_serve_refuses_a_bad_device_url_on_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from api.cli import main
+
+    monkeypatch.setenv("CALBENCH_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("CALBENCH_TABLE_URL", "gopher://bench")
+    monkeypatch.setenv("CALBENCH_DAQ_URL", "modbus-tcp://127.0.0.1:5020")
+    monkeypatch.setenv("CALBENCH_TOKENS", f"operator:{OPERATOR}")
+    assert main(["serve"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "CALBENCH_TABLE_URL 'gopher://bench': unknown scheme 'gopher'" in err
+
+
+@pytest.mark.parametrize("arg", ["1_0", "١٢", "nan"])
+def test_cli_numbers_are_ascii_decimal(arg: str, capsys: pytest.CaptureFixture[str]) -> None:
+    from api.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["calibrate", "x.csv", "--nominal-scale", arg])
+    assert info.value.code == 2 and "--nominal-scale" in capsys.readouterr().err

@@ -48,7 +48,10 @@ MAX_TEXT_CHARS = 1000
 """Longest free-text value in a sidecar (characters)."""
 
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-_BIDI = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069\u200e\u200f\u061c")
+BIDI_CONTROLS = "\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069\u200e\u200f\u061c"
+"""Unicode bidirectional controls: embeddings, overrides, isolates, marks."""
+_BIDI = frozenset(BIDI_CONTROLS)
+_UNPRINTABLE = re.compile(f"[{BIDI_CONTROLS}\\x00-\\x08\\x0b-\\x1f\\x7f-\\x9f]")
 _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
 _JSON_NESTING = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', re.DOTALL)
 
@@ -101,6 +104,12 @@ def check_text(value: str, *, max_chars: int = MAX_TEXT_CHARS, multiline: bool =
         if (ch in "\t\n" or _CONTROL.match(ch)) and not allowed:
             raise InputError(f"control character U+{ord(ch):04X} at character {i + 1}; expected plain text")
     return value
+
+
+def visible_text(value: str) -> str:
+    """``value`` with every bidi control and C0/C1 control character (tab and newline kept) shown
+    as ``?``: for output (a PDF) of text stored before these rules, nothing hidden, nothing reordered."""
+    return _UNPRINTABLE.sub("?", value)
 
 
 def check_identifier_text(value: str, *, max_chars: int = 64) -> str:

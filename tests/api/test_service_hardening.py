@@ -344,3 +344,13 @@ def test_cli_numbers_are_ascii_decimal(arg: str, capsys: pytest.CaptureFixture[s
     with pytest.raises(SystemExit) as info:
         main(["calibrate", "x.csv", "--nominal-scale", arg])
     assert info.value.code == 2 and "--nominal-scale" in capsys.readouterr().err
+
+
+def test_pdf_never_prints_a_bidi_control_stored_before_the_rules() -> None:
+    from api.certificates.pdf_layout import Flow
+
+    flow = Flow(top=0.95, bottom=0.05, left=0.1, right=0.9)
+    flow.paragraph("Customer: ACME, 1 Main St \u202eTown")
+    texts = [t for page in flow.pages for t in page.texts()]
+    assert any("1 Main St ?Town" in t for t in texts), texts
+    assert not any("\u202e" in t for t in texts)

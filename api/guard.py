@@ -11,9 +11,11 @@
   ``POST /api/links``. So an unauthenticated client can make the service neither read
   nor store anything. The route still checks its own role.
 
-and adds the security headers to every response (:data:`SECURITY_HEADERS`): a
-Content-Security-Policy that allows scripts and connections only from the service itself and
-no framing, ``X-Frame-Options: DENY``, ``nosniff`` and no referrer.
+parses a JSON body once under the size rules of :mod:`bench.inputs` (nesting, integer digits,
+duplicate keys: **422** naming the rule) and hands it on, and adds the security headers to
+every response (:data:`SECURITY_HEADERS`): a Content-Security-Policy that allows scripts and
+connections only from the service itself and no framing, ``X-Frame-Options: DENY``,
+``nosniff`` and no referrer.
 
 :func:`install_error_handlers` makes every error a JSON 4xx: a validation error whose input
 was ``NaN``/``Infinity`` (which JSON cannot carry) is serialised with those as text, and a
@@ -37,6 +39,7 @@ from fastapi.responses import JSONResponse
 from sqlalchemy.exc import DataError
 
 from api.auth import AuthError, Role
+from bench.inputs import InputError, loads_json
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +79,38 @@ SECURITY_HEADERS: dict[str, str] = {
 
 class _TooLarge(Exception):
     pass
+
+
+def _is_json(scope: Scope) -> bool:
+    media = _headers(scope).get("content-type", "").split(";")[0].strip().lower()
+    return media == "application/json" or media.endswith("+json")
+
+
+def _json_problem(body: bytes) -> str | None:
+    """Why a JSON body breaks the size rules of :mod:`bench.inputs` (nesting, integer digits,
+    duplicate keys), or ``None``. Text that is not JSON at all is left to the app's own 422;
+    non-finite numbers to the models, which name the field."""
+    try:
+        loads_json(body.decode("utf-8"), finite=False)
+    except InputError as exc:
+        return str(exc)
+    except ValueError:  # not UTF-8 or not JSON: FastAPI answers it
+        return None
+    return None
+
+
+def _replay(body: bytes, receive: Receive) -> Receive:
+    """A ``receive`` that hands the already-read body to the app, then the client's messages."""
+    sent = False
+
+    async def replay() -> Message:
+        nonlocal sent
+        if not sent:
+            sent = True
+            return {"type": "http.request", "body": body, "more_body": False}
+        return await receive()
+
+    return replay
 
 
 def _headers(scope: Scope) -> dict[str, str]:
@@ -121,6 +156,17 @@ class RequestGuard:
             await self._reply(send_with_headers, status, detail, extra_headers)
             return
         limit = MAX_UPLOAD_BODY_BYTES if path in UPLOAD_PATHS else MAX_JSON_BODY_BYTES
+        if scope.get("method") in BODY_METHODS and _is_json(scope):
+            body = await self._read_json_body(receive, limit)
+            problem = "too large" if body is None else _json_problem(body)
+            if problem is not None:
+                if body is None:
+                    await self._reply(send_with_headers, 413, f"request body larger than {limit} bytes", {})
+                else:
+                    invalid = [{"type": "json_invalid", "loc": ["body"], "msg": problem, "input": None}]
+                    await self._reply(send_with_headers, 422, invalid, {})
+                return
+            receive = _replay(body, receive)  # type: ignore[arg-type]
         received = 0
 
         async def counting_receive() -> Message:
@@ -177,7 +223,25 @@ class RequestGuard:
         return None
 
     @staticmethod
-    async def _reply(send: Send, status: int, detail: str, headers: dict[str, str]) -> None:
+    async def _read_json_body(receive: Receive, limit: int) -> bytes | None:
+        """The whole JSON body (at most ``limit`` bytes; ``None`` past it)."""
+        chunks: list[bytes] = []
+        size = 0
+        while True:
+            message = await receive()
+            if message["type"] != "http.request":
+                break
+            chunk = message.get("body", b"")
+            size += len(chunk)
+            if size > limit:
+                return None
+            chunks.append(chunk)
+            if not message.get("more_body", False):
+                break
+        return b"".join(chunks)
+
+    @staticmethod
+    async def _reply(send: Send, status: int, detail: Any, headers: dict[str, str]) -> None:
         body = json.dumps({"detail": detail}).encode("utf-8")
         raw = [
             (b"content-type", b"application/json"),

@@ -177,9 +177,12 @@ def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def loads_json(text: str, *, max_bytes: int = MAX_JSON_BYTES) -> Any:
+def loads_json(text: str, *, max_bytes: int = MAX_JSON_BYTES, finite: bool = True) -> Any:
     """Decode JSON text under the size rules: length, nesting, integer digits, finite numbers,
     no duplicate keys, no ``NaN``/``Infinity``.
+
+    :param finite: refuse ``NaN``, ``Infinity`` and overflowing literals here; ``False`` leaves
+        them to a later validator that names the field (the service's request models).
 
     :raises InputError: a size rule broken (the message names it).
     :raises json.JSONDecodeError: not JSON at all.
@@ -187,6 +190,8 @@ def loads_json(text: str, *, max_bytes: int = MAX_JSON_BYTES) -> Any:
     if len(text) > max_bytes:
         raise InputError(f"document of {len(text)} characters; expected at most {max_bytes}")
     check_json_nesting(text)
+    if not finite:
+        return json.loads(text, parse_int=_parse_int, object_pairs_hook=_no_duplicates)
     return json.loads(
         text,
         parse_int=_parse_int,

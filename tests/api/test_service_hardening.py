@@ -354,3 +354,22 @@ def test_pdf_never_prints_a_bidi_control_stored_before_the_rules() -> None:
     texts = [t for page in flow.pages for t in page.texts()]
     assert any("1 Main St ?Town" in t for t in texts), texts
     assert not any("\u202e" in t for t in texts)
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        '{"unit_serial": "SN-1", "procedure": "static-12", "dwell_s": ' + "9" * 5000 + "}",
+        '{"unit_serial": "SN-1", "procedure": "static-12", "x": ' + "[" * 200_000 + "]" * 200_000 + "}",
+        '{"unit_serial": "SN-1", "procedure": "static-12", "dwell_s": 10, "dwell_s": 20}',
+        '{"unit_serial": "SN-1", "procedure": "static-12" "dwell_s": 10}',
+        "\xff\xfe",
+    ],
+)
+def test_malformed_json_bodies_are_4xx(client: TestClient, body: str) -> None:
+    r = client.post(
+        "/api/runs",
+        content=body.encode("utf-8", "surrogateescape"),
+        headers={**OP, "content-type": "application/json"},
+    )
+    assert 400 <= r.status_code < 500, (r.status_code, r.text[:200])

@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export PYTHONDONTWRITEBYTECODE := 1
 
-.PHONY: install run test test-fast bench lint browser clean
+.PHONY: install run test test-fast bench fuzz lint browser clean
 
 install: $(STAMP)
 
@@ -39,6 +39,12 @@ test-fast: install
 
 bench: install
 	$(BIN)/python -m benchmarks
+
+# Long fuzzing: the property-based input tests with 2000 examples each, then the CLI mutation
+# fuzzer (800 mutants of a recording through calibrate and diagnose; exit 1 on any bug class).
+fuzz: install
+	CALBENCH_FUZZ_EXAMPLES=2000 $(BIN)/python -m pytest -q -p no:cacheprovider tests/bench/test_fuzz_inputs.py tests/api/test_fuzz_schemas.py
+	$(BIN)/python -m benchmarks.fuzz_cli 800
 
 # ruff (rules and format), mypy (strict on the pure packages: pyproject.toml), layer contracts.
 lint: install

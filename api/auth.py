@@ -2,32 +2,43 @@
 
 Tokens come from ``CALBENCH_TOKENS`` (``operator:SECRET,viewer:SECRET,...``) and from the
 ``api_token`` table (only their SHA-256 is stored). A request presents one as
-``Authorization: Bearer SECRET``; the two endpoints a browser opens directly (the event
-stream, the PDF) also accept ``?access_token=SECRET``. Missing or unknown token: 401;
-a known token whose role is too low: 403. With ``public_read`` reads need no token, but a
-token that is presented must still be valid.
+``Authorization: Bearer SECRET``. A secret never goes into a URL (it would land in access
+logs and browser history): the two endpoints a browser opens directly (the event stream,
+the PDF) also accept ``?link=``, a short-lived link signed by the service for one path
+(:class:`LinkSigner`, ``POST /api/links``), which dies with the token it was made for.
+Missing or unknown token: 401; a known token whose role is too low: 403. With
+``public_read`` reads need no token, but a token that is presented must still be valid.
 """
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import enum
 import hashlib
+import hmac
+import json
 import logging
 import secrets
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
 
+from db.models import ApiToken
 from db.repo.tokens import lookup_token, touch_token
 
 log = logging.getLogger(__name__)
 TOUCH_INTERVAL_S = 60.0
 """A database token's ``last_used_at`` is written at most this often (s)."""
+LINK_TTL_S = 300.0
+"""Lifetime of a signed link (s)."""
+MAX_SECRET_CHARS = 200
+"""Longest token secret looked up (a longer one is unknown without hashing it)."""
 
 
 class Role(enum.IntEnum):
@@ -53,6 +64,15 @@ class AuthError(Exception):
     def __init__(self, status_code: int, message: str) -> None:
         super().__init__(message)
         self.status_code = status_code
+
+
+@dataclass(frozen=True)
+class Principal:
+    """Who a request acts for: a role and, for a database token, its id (``None``: a configured
+    token, or anonymous reading)."""
+
+    role: Role
+    token_id: int | None = None
 
 
 def _digest(secret: str) -> str:
@@ -117,6 +137,7 @@ class Authenticator:
         self._touched: dict[int, float] = {}
         self._touch_lock = threading.Lock()
         self._toucher = ThreadPoolExecutor(max_workers=1, thread_name_prefix="token-last-used")
+        self.links = LinkSigner()
 
     def add(self, secret: str, role: Role) -> None:
         """Accept one more secret (e.g. the admin token generated at start)."""
@@ -128,16 +149,32 @@ class Authenticator:
 
     def role_of(self, secret: str) -> Role | None:
         """The role of ``secret``, or ``None`` when no live token matches."""
+        who = self.identify(secret)
+        return who.role if who is not None else None
+
+    def identify(self, secret: str) -> Principal | None:
+        """The principal of ``secret``, or ``None`` when no live token matches."""
+        if len(secret) > MAX_SECRET_CHARS or "\x00" in secret:
+            return None
         role = self._env.get(_digest(secret))
         if role is not None or self._read_sessions is None:
-            return role
+            return Principal(role) if role is not None else None
         with self._read_sessions.begin() as s:
             token = lookup_token(s, secret)
             if token is None:
                 return None
             token_id, role = token.id, Role[token.role.name]
         self._schedule_touch(token_id)
-        return role
+        return Principal(role, token_id)
+
+    def is_live(self, who: Principal) -> bool:
+        """``who`` may still act: a configured token or anonymous always, a database token
+        while it is not revoked."""
+        if who.token_id is None or self._read_sessions is None:
+            return True
+        with self._read_sessions.begin() as s:
+            token = s.get(ApiToken, who.token_id)
+            return token is not None and token.revoked_at is None
 
     def _schedule_touch(self, token_id: int) -> None:
         now = time.monotonic()
@@ -167,13 +204,76 @@ class Authenticator:
 
         :raises AuthError: 401 for a missing/unknown token, 403 for a role too low.
         """
+        return self.require_principal(secret, minimum).role
+
+    def require_principal(self, secret: str | None, minimum: Role) -> Principal:
+        """The principal of ``secret`` if its role is at least ``minimum``.
+
+        :raises AuthError: 401 for a missing/unknown token, 403 for a role too low.
+        """
         if not secret:
             if minimum <= Role.VIEWER and self.public_read:
-                return Role.ANONYMOUS
+                return Principal(Role.ANONYMOUS)
             raise AuthError(401, f"{minimum.label} token required (Authorization: Bearer TOKEN)")
-        role = self.role_of(secret)
-        if role is None:
+        who = self.identify(secret)
+        if who is None:
             raise AuthError(401, "unknown or revoked token")
-        if role < minimum:
-            raise AuthError(403, f"this needs the {minimum.label} role; the token is {role.label}")
-        return role
+        if who.role < minimum:
+            raise AuthError(403, f"this needs the {minimum.label} role; the token is {who.role.label}")
+        return who
+
+
+def _b64(data: bytes) -> str:
+    return base64.urlsafe_b64encode(data).rstrip(b"=").decode("ascii")
+
+
+def _unb64(text: str) -> bytes:
+    return base64.urlsafe_b64decode(text + "=" * (-len(text) % 4))
+
+
+class LinkSigner:
+    """Short-lived signed links: ``?link=PAYLOAD.MAC`` for one path, one principal, until a time.
+
+    PAYLOAD is base64url JSON ``{"p": path, "e": expiry (Unix s), "r": role, "t": token id}``;
+    MAC is its HMAC-SHA256 under a key drawn at start (links die with the process).
+
+    :param key: the HMAC key (default: 32 random bytes).
+    :param clock: Unix time (s), for tests.
+    """
+
+    def __init__(self, key: bytes | None = None, clock: Callable[[], float] = time.time) -> None:
+        self._key = key or secrets.token_bytes(32)
+        self._clock = clock
+
+    def _mac(self, payload: str) -> str:
+        return _b64(hmac.new(self._key, payload.encode("utf-8", "replace"), hashlib.sha256).digest()[:20])
+
+    def sign(self, path: str, who: Principal, ttl_s: float = LINK_TTL_S) -> tuple[str, float]:
+        """The ``link`` query value for ``path`` and its expiry (Unix s)."""
+        expires = round(self._clock() + ttl_s)
+        body = {"p": path, "e": expires, "r": int(who.role), "t": who.token_id}
+        payload = _b64(json.dumps(body, separators=(",", ":")).encode("utf-8"))
+        return f"{payload}.{self._mac(payload)}", float(expires)
+
+    def verify(self, link: str, path: str) -> Principal:
+        """The principal a link was made for, if it is genuine, for ``path`` and not expired.
+
+        :raises AuthError: 401 naming what is wrong with the link.
+        """
+        payload, _, mac = link.partition(".")
+        if (
+            not mac
+            or len(link) > 2000
+            or not hmac.compare_digest(self._mac(payload).encode(), mac.encode("utf-8", "replace"))
+        ):
+            raise AuthError(401, "link not signed by this service (ask for a new one: POST /api/links)")
+        try:
+            body = json.loads(_unb64(payload))
+            link_path, expires, role, token_id = body["p"], float(body["e"]), Role(body["r"]), body["t"]
+        except (ValueError, KeyError, TypeError):
+            raise AuthError(401, "malformed link") from None
+        if link_path != path:
+            raise AuthError(401, "the link is for another resource")
+        if self._clock() > expires:
+            raise AuthError(401, "the link has expired (ask for a new one: POST /api/links)")
+        return Principal(role, token_id if isinstance(token_id, int) else None)

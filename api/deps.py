@@ -17,7 +17,7 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
-from api.auth import Authenticator, AuthError, Role
+from api.auth import Authenticator, AuthError, Principal, Role
 from api.drift import DriftScheduler
 from api.progress_hub import ProgressHub
 from api.runner import BenchRunner
@@ -78,12 +78,26 @@ RunnerDep = Annotated[BenchRunner, Depends(get_runner)]
 _bearer = HTTPBearer(auto_error=False, description="a viewer, operator or admin token")
 
 
+def _http(exc: AuthError) -> HTTPException:
+    headers = {"WWW-Authenticate": "Bearer"} if exc.status_code == 401 else None
+    return HTTPException(exc.status_code, str(exc), headers=headers)
+
+
 def _check(services: Services, secret: str | None, minimum: Role) -> Role:
     try:
         return services.auth.require(secret, minimum)
     except AuthError as exc:
-        headers = {"WWW-Authenticate": "Bearer"} if exc.status_code == 401 else None
-        raise HTTPException(exc.status_code, str(exc), headers=headers) from None
+        raise _http(exc) from None
+
+
+def require_viewer_principal(
+    services: ServicesDep, creds: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
+) -> Principal:
+    """At least a viewer token, as the principal (token id) it belongs to."""
+    try:
+        return services.auth.require_principal(creds.credentials if creds else None, Role.VIEWER)
+    except AuthError as exc:
+        raise _http(exc) from None
 
 
 def require_viewer(
@@ -100,16 +114,31 @@ def require_operator(
     return _check(services, creds.credentials if creds else None, Role.OPERATOR)
 
 
-def require_viewer_or_query(
+def require_viewer_or_link(
+    request: Request,
     services: ServicesDep,
     creds: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
-    access_token: Annotated[
-        str | None, Query(max_length=200, description="token, for links a browser opens directly")
+    link: Annotated[
+        str | None,
+        Query(
+            max_length=2000, description="a signed link from POST /api/links (a browser opens it directly)"
+        ),
     ] = None,
-) -> Role:
-    """A viewer token in the header or in ``?access_token=`` (event stream, PDF)."""
-    secret = creds.credentials if creds else access_token
-    return _check(services, secret, Role.VIEWER)
+) -> Principal:
+    """A viewer token in the header, or a link signed for this path (event stream, PDF) whose
+    token is still live. The caller's token never travels in the URL."""
+    if creds is not None or link is None:
+        try:
+            return services.auth.require_principal(creds.credentials if creds else None, Role.VIEWER)
+        except AuthError as exc:
+            raise _http(exc) from None
+    try:
+        who = services.auth.links.verify(link, request.url.path)
+    except AuthError as exc:
+        raise _http(exc) from None
+    if not services.auth.is_live(who):
+        raise _http(AuthError(401, "the token this link was made for has been revoked"))
+    return who
 
 
 def require_admin(
@@ -122,4 +151,5 @@ def require_admin(
 ViewerDep = Annotated[Role, Depends(require_viewer)]
 AdminDep = Annotated[Role, Depends(require_admin)]
 OperatorDep = Annotated[Role, Depends(require_operator)]
-ViewerLinkDep = Annotated[Role, Depends(require_viewer_or_query)]
+ViewerLinkDep = Annotated[Principal, Depends(require_viewer_or_link)]
+ViewerPrincipalDep = Annotated[Principal, Depends(require_viewer_principal)]

@@ -35,11 +35,13 @@ from api.auth import Authenticator, Role, parse_tokens
 from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
 from api.deps import Services
 from api.drift import DriftScheduler, record_drift_check
+from api.guard import RequestGuard, install_error_handlers, install_log_redaction
 from api.progress_hub import ProgressHub
 from api.routes import api_router
 from api.runner import BenchRunner, LiveRun
 from api.service_resume import recover_shutdown_aborts
 from api.settings import Settings
+from api.startup_check import check_configuration
 from bench.records import RunRecord, utc_now
 from db.engine import make_session_factory
 from db.migrate import open_database
@@ -54,7 +56,9 @@ DESCRIPTION = """Accelerometer calibration bench service.
 Roles: a **viewer** token reads, an **operator** token also starts and aborts runs, issues
 certificates, uploads recordings and starts drift checks. Send `Authorization: Bearer TOKEN`.
 Missing or unknown token: 401; a role too low: 403. One run at a time per bench: a second
-start gets 409.
+start gets 409. A request with a body is authenticated, and its size checked (1 MB of JSON,
+1 GB of upload: 413), before the body is read. A browser opens a PDF or an event stream with
+a short-lived signed link (`POST /api/links`), never with a token in the URL.
 """
 
 
@@ -87,8 +91,10 @@ def make_finisher(
 def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_now) -> Services:
     """Open the database (migrating it) and build runner, scheduler and authenticator.
 
-    :raises ValueError: a malformed ``CALBENCH_TOKENS`` entry or ``CALBENCH_DRIFT_TIME``.
+    :raises ValueError: a malformed ``CALBENCH_TOKENS`` entry or ``CALBENCH_DRIFT_TIME``, or a
+        configuration :func:`api.startup_check.check_configuration` refuses (device URL, database file).
     """
+    check_configuration(settings)
     env_tokens = parse_tokens(settings.tokens)
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)
@@ -149,6 +155,7 @@ def create_app(
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        install_log_redaction()  # after the server configured its logging
         services = build_services(settings, clock)
         for secret, role in (extra_tokens or {}).items():
             services.auth.add(secret, Role[role.upper()])
@@ -169,6 +176,8 @@ def create_app(
             services.engine.dispose()
 
     app = FastAPI(title="calbench", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
+    app.add_middleware(RequestGuard)  # type: ignore[arg-type]
+    install_error_handlers(app)
     app.include_router(api_router)
     if importlib.util.find_spec("api.routes.dashboard") is not None:
         app.include_router(importlib.import_module("api.routes.dashboard").router)

@@ -1,7 +1,9 @@
 """Wire models of the REST API (pydantic), never ORM classes.
 
 Request bodies forbid unknown fields, so a misspelt key is a 422 naming it rather than a
-silently ignored option. Times are ISO 8601 UTC; numbers are SI unless the field name
+silently ignored option. Text a request stores passes the text rules of :mod:`bench.inputs`
+(no NUL, control or bidi-control characters, bounded length); numbers are finite.
+Times are ISO 8601 UTC; numbers are SI unless the field name
 says otherwise (``*_deg``, ``channel_unit``).
 """
 
@@ -13,12 +15,25 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from bench.inputs import InputError, check_text
 from bench.procedures import PROCEDURES
 
 RunStateName = Literal[
     "queued", "running", "paused", "suspended", "completed", "failed", "error", "aborted", "interrupted"
 ]
 SERIAL_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"
+MIN_DWELL_S = 0.5
+"""Shortest static dwell a run may ask for (s): shorter windows hold too few samples to fit."""
+LINK_PATH_PATTERN = r"^/api/runs/[A-Za-z0-9._~%-]{1,200}/(events|certificate\.pdf)$"
+
+
+def _stored_text(value: str | None, *, multiline: bool = False) -> str | None:
+    if value is None:
+        return None
+    try:
+        return check_text(value, multiline=multiline)
+    except InputError as exc:
+        raise ValueError(str(exc)) from None
 
 
 class RunCreate(BaseModel):
@@ -34,9 +49,9 @@ class RunCreate(BaseModel):
     procedure: str = Field(description="registered procedure name", examples=["static-12"])
     dwell_s: float | None = Field(
         default=None,
-        gt=0.0,
+        ge=MIN_DWELL_S,
         le=3600.0,
-        description="static dwell per pose (s); default: the service's setting or a noise window",
+        description="static dwell per pose (s), 0.5..3600; default: the service's setting or a noise window",
     )
 
     @field_validator("procedure")
@@ -124,9 +139,7 @@ class UnitRegistration(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     model: str | None = Field(default=None, max_length=200, examples=["ADXL335"])
-    description: str | None = Field(
-        default=None, max_length=200, examples=["triaxial MEMS accelerometer"]
-    )
+    description: str | None = Field(default=None, max_length=200, examples=["triaxial MEMS accelerometer"])
     channel_unit: Literal["V", "count", "m/s2", "g"] | None = None
     customer_name: str | None = Field(default=None, max_length=200)
     customer_address: str | None = Field(default=None, max_length=500)
@@ -136,6 +149,16 @@ class UnitRegistration(BaseModel):
     )
     nominal_bias: float | None = Field(default=None, description="nominal zero-g output, channel unit")
     condition: str | None = Field(default=None, max_length=500, examples=["as received, no damage"])
+
+    @field_validator("model", "description", "customer_name", "condition")
+    @classmethod
+    def _plain_text(cls, value: str | None) -> str | None:
+        return _stored_text(value)
+
+    @field_validator("customer_address")
+    @classmethod
+    def _address_text(cls, value: str | None) -> str | None:
+        return _stored_text(value, multiline=True)
 
     @field_validator("nominal_scale", "nominal_bias")
     @classmethod
@@ -236,13 +259,14 @@ class RecordingResult(BaseModel):
 
 
 class Health(BaseModel):
-    """Liveness and what the service is connected to."""
+    """Liveness and what the service is connected to (the database only by its kind: the
+    endpoint needs no token, so it shows no path or host)."""
 
     status: Literal["ok", "degraded"]
     version: str
     bench: str
     simulated: bool
-    database: str
+    database: str = Field(description="the database's kind: sqlite or postgresql")
     database_ok: bool
     busy_run: str | None
     public_read: bool
@@ -265,6 +289,11 @@ class TokenCreate(BaseModel):
     role: TokenRoleName
     label: str = Field(default="", max_length=200, description="who or what uses it, e.g. 'wall screen'")
 
+    @field_validator("label")
+    @classmethod
+    def _plain_text(cls, value: str) -> str:
+        return _stored_text(value) or ""
+
 
 class TokenOut(BaseModel):
     """A stored API token (never its secret)."""
@@ -281,3 +310,24 @@ class TokenCreated(TokenOut):
     """A token just created, with its secret: shown this once, only its SHA-256 is stored."""
 
     secret: str
+
+
+class LinkRequest(BaseModel):
+    """Ask for a signed link to a resource a browser opens directly."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    path: str = Field(
+        pattern=LINK_PATH_PATTERN,
+        max_length=300,
+        description="/api/runs/{id}/certificate.pdf or /api/runs/{id}/events",
+        examples=["/api/runs/R-20250101-0001/certificate.pdf"],
+    )
+
+
+class LinkOut(BaseModel):
+    """A link that works without a token until ``expires_at`` (and while the token it was made
+    for is live)."""
+
+    url: str
+    expires_at: dt.datetime

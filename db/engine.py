@@ -57,8 +57,15 @@ def default_database_url(env: Mapping[str, str] | None = None) -> str:
     return f"sqlite:///{default_data_dir(env) / 'calbench.db'}"
 
 
+def _decode_text(raw: bytes) -> str:
+    """SQLite TEXT as str; bytes that are not UTF-8 (a row written by another tool) become U+FFFD
+    in that one value instead of failing every query that reads the row."""
+    return raw.decode("utf-8", "replace")
+
+
 def _sqlite_on_connect(dbapi_connection: Any, _record: Any) -> None:
     dbapi_connection.isolation_level = None  # SQLAlchemy emits BEGIN itself (see _sqlite_on_begin)
+    dbapi_connection.text_factory = _decode_text
     cur = dbapi_connection.cursor()
     try:
         cur.execute(f"PRAGMA busy_timeout = {SQLITE_BUSY_TIMEOUT_MS}")

@@ -17,6 +17,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 
+from bench.inputs import visible_text
+
 PAGE_W_PT = 8.27 * 72
 PAGE_H_PT = 11.69 * 72
 EM_WIDTH = 0.55
@@ -82,7 +84,8 @@ class Flow:
             self.y = self.top
 
     def _text(self, x: float, y: float, s: str, **kw: Any) -> None:
-        self.pages[-1].ops.append(("text", x, y, s, kw))
+        # bidi and control characters (stored before the input rules) print as '?', never reorder
+        self.pages[-1].ops.append(("text", x, y, visible_text(s), kw))
 
     def heading(self, text: str) -> None:
         """A numbered section heading, kept with at least a few lines of what follows."""

@@ -10,7 +10,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
 from collections.abc import Sequence
+
+from bench.inputs import InputError, parse_decimal
 
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("api.cli.calibrate", "fit bias and scale/misalignment to a recording"),
@@ -25,9 +28,20 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "db": ("api.cli.db", "database maintenance (upgrade)"),
 }
 
+HOLD_WARNINGS = frozenset({"calibrate", "diagnose", "allan", "convert", "simulate"})
+"""Commands that compute one answer: their warnings are held and printed after it, one line each."""
+
 
 class BadInput(Exception):
     """Input the command cannot use; the message is printed as one line, exit code 2."""
+
+
+def decimal_arg(text: str) -> float:
+    """argparse ``type`` for a number: ASCII decimal and finite (see :mod:`bench.inputs`)."""
+    try:
+        return parse_decimal(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _command_in(argv: Sequence[str]) -> str | None:
@@ -57,20 +71,46 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line(text: str) -> str:
+    """A message as one line: line breaks become ' / '."""
+    return " / ".join(part.strip() for part in str(text).splitlines() if part.strip())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``calbench`` script."""
+    """Entry point of the ``calbench`` script.
+
+    Bad input (``BadInput``, a ``ValueError`` from bench/, a file that cannot be read) ends
+    with exit code 2 and exactly one line on stderr. Numerical warnings raised on the way
+    (numpy's ``RuntimeWarning``...) are held back: with bad input they are dropped (the one
+    line says what is wrong); after a result they follow it on stderr, one line each, so an
+    answer computed with a warning never goes out without it.
+    """
     words = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(_command_in(words))
     args = parser.parse_args(words)
-    try:
-        return int(args._run(args))
-    except BadInput as exc:
-        print(f"calbench {args.command}: {exc}", file=sys.stderr)
-        return 2
-    except ValueError as exc:
-        # Validation errors from bench/ are ValueErrors whose message names file, key and expectation.
-        print(f"calbench {args.command}: {exc}", file=sys.stderr)
-        return 2
+    hold = args.command in HOLD_WARNINGS
+    with warnings.catch_warnings(record=hold) as caught:
+        if hold:
+            warnings.simplefilter("always")
+        try:
+            code = int(args._run(args))
+        except BadInput as exc:
+            print(f"calbench {args.command}: {_one_line(str(exc))}", file=sys.stderr)
+            return 2
+        except BrokenPipeError:  # the reader went away (``| head``): not bad input
+            raise
+        except (ValueError, OSError) as exc:
+            # Validation errors from bench/ are ValueErrors whose message names file, key and
+            # expectation; an OSError names the file that could not be read or written.
+            print(f"calbench {args.command}: {_one_line(str(exc))}", file=sys.stderr)
+            return 2
+    seen: set[str] = set()
+    for w in caught or ():
+        text = f"{w.category.__name__}: {_one_line(str(w.message))}"
+        if text not in seen:
+            seen.add(text)
+            print(f"calbench {args.command}: warning: {text}", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

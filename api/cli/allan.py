@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from api.cli import BadInput
+from api.cli import BadInput, decimal_arg
 from bench.estimation.allan import AllanResult, overlapping_allan
 from bench.estimation.dwell import DwellRecommendation, recommend_dwell_s
 from bench.estimation.noise_terms import NoiseTerms, fit_noise_model, slope_method
@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", type=Path, default=None, metavar="OUT.png", help="write a log-log plot")
     parser.add_argument(
         "--window-s",
-        type=float,
+        type=decimal_arg,
         nargs=2,
         default=None,
         metavar=("START", "END"),

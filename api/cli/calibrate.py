@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from api.cli import BadInput
+from api.cli import BadInput, decimal_arg
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from bench.calibration import CalibrationResult
 
 
@@ -24,13 +27,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the machine-readable result")
     parser.add_argument(
         "--nominal-scale",
-        type=float,
+        type=decimal_arg,
         default=None,
         help="nominal sensitivity (channel unit per m/s²) for the 'before' |g| check of V or count channels",
     )
     parser.add_argument(
         "--nominal-bias",
-        type=float,
+        type=decimal_arg,
         nargs=3,
         default=None,
         metavar=("BX", "BY", "BZ"),
@@ -82,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
             raise BadInput(f"{path}: {exc}") from exc
     else:
         result = calibrate_recording(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0)
+    warn_implausible(result)
     if args.json:
         print(json.dumps(result.to_contract()))
     else:
@@ -103,6 +107,45 @@ def _terms(path: Path, text: str) -> tuple[str, ...]:
             + ", ".join(CANDIDATE_TERMS)
         )
     return terms
+
+
+MAX_MISALIGNMENT_DEG = 5.0
+"""Largest rotation between the fitted sensor axes and the nominal frame believed without a warning."""
+
+
+def misalignment_deg(K: np.ndarray) -> tuple[float, bool]:
+    """Rotation angle (deg) of the orthogonal factor of K (polar decomposition K = R·S, R = U·Vᵀ from
+    the SVD K = U·Σ·Vᵀ; angle = arccos((tr R − 1)/2)), and whether R is a reflection (det < 0)."""
+    import numpy as np
+
+    U, _, Vt = np.linalg.svd(np.asarray(K, dtype=float))
+    R = U @ Vt
+    if np.linalg.det(R) < 0:
+        return 180.0, True
+    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))), False
+
+
+def warn_implausible(r: CalibrationResult) -> None:
+    """Warn when the fitted axes turn far from the nominal frame: a wrong ``mount_rotation`` or an
+    encoder zero off by a quarter turn gives a perfect fit with every K element moved, which the
+    residual cannot show (it is the same physics in another frame)."""
+    if r.method not in ("static", "dynamic"):  # orientation-free fits give K only up to a rotation
+        return
+    angle, reflected = misalignment_deg(r.K)
+    if reflected:
+        warnings.warn(
+            "the fitted sensor axes are a mirror image of the nominal frame (det K < 0): an axis sign or "
+            "the sidecar's mount_rotation is wrong",
+            UserWarning,
+            stacklevel=2,
+        )
+    elif angle > MAX_MISALIGNMENT_DEG:
+        warnings.warn(
+            f"the fitted sensor axes are turned {angle:.1f}° from the nominal frame (more than "
+            f"{MAX_MISALIGNMENT_DEG:g}°): check the sidecar's mount_rotation and the encoder zeros",
+            UserWarning,
+            stacklevel=2,
+        )
 
 
 _FMT: Any = {"float_kind": lambda x: f"{x:.5g}"}

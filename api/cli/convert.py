@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from api.cli import BadInput
+from api.cli import BadInput, decimal_arg
 from bench.convert import read_imu_tk, read_imucal
 from bench.convert.imu_tk import CHANNEL_UNITS, GYRO_UNITS, XSENS_G_LOCAL_M_S2
 from bench.recording import Recording, read_recording, write_recording
@@ -38,12 +38,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--sample-rate-hz",
-        type=float,
+        type=decimal_arg,
         help="imucal only, required: the session's sample rate (the files do not carry it)",
     )
     parser.add_argument(
         "--g-local-m-s2",
-        type=float,
+        type=decimal_arg,
         help="local gravity to record; imu_tk: required (the files do not carry it; "
         f"{XSENS_G_LOCAL_M_S2} for IMU-TK's Xsens data set); imucal: default the source's own value",
     )

@@ -17,6 +17,7 @@ from types import FrameType
 from typing import Any, TextIO
 
 from api.bench_session import start_run
+from api.cli import decimal_arg
 from api.settings import Settings
 from bench.limits import describe
 from bench.procedures import PROCEDURES
@@ -32,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated unit and noise (--sim)")
     parser.add_argument(
         "--dwell-s",
-        type=float,
+        type=decimal_arg,
         default=None,
         help="static dwell per pose (s); default: from a noise window the run records first",
     )
@@ -43,7 +44,7 @@ def add_device_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim", action="store_true", help="simulated bench, real drivers")
     parser.add_argument(
         "--sim-speed",
-        type=float,
+        type=decimal_arg,
         default=None,
         metavar="N",
         help="simulated seconds per wall second (default CALBENCH_SIM_SPEED)",

@@ -16,7 +16,7 @@ from typing import Any
 
 from sqlalchemy.exc import OperationalError
 
-from api.cli import BadInput
+from api.cli import BadInput, decimal_arg
 from db.engine import describe_connection_error, make_session_factory
 from db.migrate import open_database
 from db.models import Run, RunState
@@ -41,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--stale-after-s",
-        type=float,
+        type=decimal_arg,
         default=DEFAULT_STALE_AFTER_S,
         help="a live run without heartbeat for this long is interrupted (s)",
     )

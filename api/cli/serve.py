@@ -17,6 +17,7 @@ from api.auth import new_secret, parse_tokens
 from api.cli import BadInput
 from api.drift import parse_time_of_day
 from api.settings import Settings
+from api.startup_check import check_configuration
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,7 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
     """Settings from the environment and the flags, and any generated token ``{secret: role}``.
 
-    :raises BadInput: bad tokens, drift time, port or speed.
+    :raises BadInput: bad tokens, drift time, port or speed, or a configuration
+        :func:`~api.startup_check.check_configuration` refuses (device URL, database file).
     """
     try:
         settings = Settings()
@@ -56,7 +58,12 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         if settings.sim or args.sim:
             explicit = os.environ.get("CALBENCH_PUBLIC_READ") is not None
             update["public_read"] = settings.public_read if explicit else True
-    return settings.model_copy(update=update), generated
+    final = settings.model_copy(update=update)
+    try:
+        check_configuration(final)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+    return final, generated
 
 
 def run(args: argparse.Namespace) -> int:

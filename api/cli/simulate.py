@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from api.cli import BadInput
+from api.cli import BadInput, decimal_arg
 from api.simulated_recording import nominal_geometry, write_simulated
 from drivers.sim.noise import NoiseSpec
 from drivers.sim.offline import (
@@ -56,10 +56,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"({', '.join(f.name for f in dataclasses.fields(NoiseSpec))})",
     )
     parser.add_argument("--channel-unit", choices=("V", "count", "m/s2", "g"), default="V")
-    parser.add_argument("--sample-rate-hz", type=float, default=100.0)
-    parser.add_argument("--dwell-s", type=float, default=30.0, help="static-12: dwell per position (s)")
-    parser.add_argument("--g-local-m-s2", type=float, default=9.81535)
-    parser.add_argument("--age-days", type=float, default=0.0, help="age the unit by this many days first")
+    parser.add_argument("--sample-rate-hz", type=decimal_arg, default=100.0)
+    parser.add_argument("--dwell-s", type=decimal_arg, default=30.0, help="static-12: dwell per position (s)")
+    parser.add_argument("--g-local-m-s2", type=decimal_arg, default=9.81535)
+    parser.add_argument(
+        "--age-days", type=decimal_arg, default=0.0, help="age the unit by this many days first"
+    )
     parser.add_argument("--serial", default="SN-SIM-0001")
     parser.add_argument(
         "--sidecar-lever-arm-m",

@@ -27,7 +27,7 @@ def health(services: ServicesDep) -> Health:
         version=VERSION,
         bench=services.settings.bench_name,
         simulated=services.settings.sim,
-        database=services.engine.url.render_as_string(hide_password=True),
+        database=services.engine.url.get_backend_name(),
         database_ok=ok,
         busy_run=cur.id if cur is not None else None,
         public_read=services.auth.public_read,

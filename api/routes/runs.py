@@ -7,6 +7,7 @@ import json
 from collections.abc import AsyncIterator, Mapping
 from typing import Annotated, Any
 
+import anyio.to_thread
 import sqlalchemy as sa
 from fastapi import APIRouter, HTTPException, Query, Request, status
 from fastapi.responses import StreamingResponse
@@ -21,6 +22,8 @@ from db.repo.runs import get_run, list_runs
 
 router = APIRouter(prefix="/api/runs", tags=["runs"])
 KEEPALIVE_S = 15.0
+REAUTH_S = 2.0
+"""An open event stream checks this often (s) that its token has not been revoked."""
 
 
 @router.post(
@@ -167,11 +170,15 @@ def _sse(event: str, data: Mapping[str, object]) -> str:
     response_class=StreamingResponse,
     responses={200: {"content": {"text/event-stream": {}}, "description": "server-sent events"}},
 )
-async def events(run_id: str, request: Request, services: ServicesDep, _: ViewerLinkDep) -> StreamingResponse:
+async def events(
+    run_id: str, request: Request, services: ServicesDep, who: ViewerLinkDep
+) -> StreamingResponse:
     """Live progress as server-sent events: ``state``, ``progress``, ``window``, and a final
     ``finished`` (state, outcome, error, certificate_number) after which the stream ends; a
-    ``shutdown`` event ends it when the service stops (the run is then ``interrupted``).
-    A run that is not live gets one ``finished`` event with its stored state."""
+    ``shutdown`` event ends it when the service stops (the run is then ``interrupted``) or when
+    the token it was opened with is revoked (checked every few seconds).
+    A run that is not live gets one ``finished`` event with its stored state. A browser opens
+    it with a signed link (``POST /api/links``) or with fetch and the Authorization header."""
     runner, hub = services.runner, services.hub
     live = runner.live(run_id)
     if live is None:
@@ -195,13 +202,25 @@ async def events(run_id: str, request: Request, services: ServicesDep, _: Viewer
             if live.done.is_set() and hub.last(run_id) is None:
                 yield _sse(TERMINAL_EVENT, {"state": live.state, "error": live.error})
                 return
+            loop = asyncio.get_running_loop()
+            last_beat = last_check = loop.time()
             while True:
                 try:
-                    event, data = await asyncio.wait_for(sub.queue.get(), KEEPALIVE_S)
+                    event, data = await asyncio.wait_for(sub.queue.get(), REAUTH_S)
                 except TimeoutError:
+                    event = ""
+                now = loop.time()
+                if now - last_check >= REAUTH_S:
+                    last_check = now
+                    if not await anyio.to_thread.run_sync(services.auth.is_live, who):
+                        yield _sse(CLOSED_EVENT, {"reason": "the token of this stream has been revoked"})
+                        return
+                if not event:
                     if await request.is_disconnected():
                         return
-                    yield ": keepalive\n\n"
+                    if now - last_beat >= KEEPALIVE_S:
+                        last_beat = now
+                        yield ": keepalive\n\n"
                     continue
                 yield _sse(event, data)
                 if event in (TERMINAL_EVENT, CLOSED_EVENT):

@@ -5,11 +5,14 @@ Tokens from ``CALBENCH_TOKENS`` are configuration and are not listed or revocabl
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import sqlalchemy as sa
-from fastapi import APIRouter, HTTPException, status
+from fastapi import APIRouter, HTTPException, Path, status
 
 from api.deps import AdminDep, SessionDep
 from api.schemas import TokenCreate, TokenCreated, TokenOut
+from bench.inputs import MAX_INT
 from db.models import ApiToken, TokenRole
 from db.repo.tokens import create_token, list_tokens, revoke_token
 
@@ -48,7 +51,11 @@ def tokens(session: SessionDep, _: AdminDep) -> list[TokenOut]:
     response_model=TokenOut,
     responses={404: {"description": "no such token"}, 409: {"description": "already revoked"}},
 )
-def revoke(token_id: int, session: SessionDep, _: AdminDep) -> TokenOut:
+def revoke(
+    token_id: Annotated[int, Path(ge=1, le=MAX_INT, description="the token's id")],
+    session: SessionDep,
+    _: AdminDep,
+) -> TokenOut:
     """Revoke a token: from now on it gets 401. The row is kept (who had access, until when)."""
     with session.begin():
         if not revoke_token(session, token_id):

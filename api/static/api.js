@@ -50,10 +50,35 @@ export async function postJson(path, body) {
   return resp.json();
 }
 
-/** A link the browser opens itself (PDF): the token travels as ?access_token=. */
-export function linkWithToken(path) {
-  const t = getToken();
-  return t ? `${path}${path.includes("?") ? "&" : "?"}access_token=${encodeURIComponent(t)}` : path;
+/**
+ * A short-lived link the browser opens itself (a certificate PDF), signed by the service
+ * (POST /api/links): the pasted token never goes into a URL, a log or the history.
+ * Without a token (public reads) the plain path.
+ */
+export async function signedLink(path) {
+  if (!getToken()) return path;
+  const { url } = await postJson("/api/links", { path });
+  return url;
+}
+
+const LINK_REFRESH_MS = 120_000; // links live 300 s: re-sign well before
+
+/** An anchor to `path` whose href is a signed link, signed again on a click once it is old. */
+export function linkAnchor(h, attrs, text, path) {
+  const a = h("a", { ...attrs, href: path }, text);
+  let signedAt = 0;
+  const sign = async () => { a.href = await signedLink(path); signedAt = Date.now(); };
+  sign().catch(() => { /* shown on click */ });
+  a.addEventListener("click", async (ev) => {
+    if (Date.now() - signedAt < LINK_REFRESH_MS) return;
+    ev.preventDefault();
+    const win = window.open("", "_blank");
+    try {
+      await sign();
+      if (win) { win.opener = null; win.location.href = a.href; } else window.location.href = a.href;
+    } catch (err) { if (win) win.close(); a.title = `link failed: ${err.message}`; }
+  });
+  return a;
 }
 
 /** Download a JSON resource as a file (the token goes in the header, not the URL). */

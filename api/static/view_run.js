@@ -1,7 +1,7 @@
 // One run: live progress (event stream, polling as fallback), then its fit, the |g| check
 // before/after, residuals, Allan curve, diagnosis and certificate.
 
-import { downloadJson, followEvents, getJson, linkWithToken, postJson } from "./api.js";
+import { downloadJson, followEvents, getJson, linkAnchor, postJson } from "./api.js";
 import { badge, card, h, message, progressBar, setProgress, table, when } from "./dom.js";
 import { CHANNEL_COLOURS, bars, chart, fmt, legend } from "./svgplot.js";
 
@@ -176,7 +176,7 @@ function certificateCard(run) {
         try { const data = await downloadJson(`/api/runs/${enc(run.id)}/certificate`, `${run.certificate_number}.json`); status.textContent = `downloaded, sha256 ${data.sha256.slice(0, 12)}…`; }
         catch (err) { status.textContent = `download failed: ${err.message}`; }
       } }, "Download JSON"), " ",
-      h("a", { id: "pdf-link", href: linkWithToken(`/api/runs/${enc(run.id)}/certificate.pdf`), target: "_blank", rel: "noopener" }, "Open PDF"), " ", status));
+      linkAnchor(h, { id: "pdf-link", target: "_blank", rel: "noopener" }, "Open PDF", `/api/runs/${enc(run.id)}/certificate.pdf`), " ", status));
   return c;
 }
 

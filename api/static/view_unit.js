@@ -1,6 +1,6 @@
 // One unit: coefficient trends with ±U bands, its runs, certificates and drift checks.
 
-import { downloadJson, getJson, linkWithToken } from "./api.js";
+import { downloadJson, getJson, linkAnchor } from "./api.js";
 import { badge, card, h, message, table, when } from "./dom.js";
 import { fmt, sparkline } from "./svgplot.js";
 
@@ -31,7 +31,7 @@ function certificates(certs, serial) {
     h("span", {},
       h("a", { href: "#", onclick: (ev) => { ev.preventDefault(); downloadJson(`/api/runs/${encodeURIComponent(c.run_id)}/certificate`, `${c.number}.json`); } }, "JSON"),
       " · ",
-      h("a", { href: linkWithToken(`/api/runs/${encodeURIComponent(c.run_id)}/certificate.pdf`), target: "_blank", rel: "noopener" }, "PDF")),
+      linkAnchor(h, { target: "_blank", rel: "noopener" }, "PDF", `/api/runs/${encodeURIComponent(c.run_id)}/certificate.pdf`)),
   ]));
 }
 

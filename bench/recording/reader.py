@@ -13,12 +13,20 @@ from __future__ import annotations
 
 import csv
 import json
-import math
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
+from bench.inputs import (
+    MAX_FIELD_CHARS,
+    MAX_HEADER_CHARS,
+    MAX_JSON_BYTES,
+    InputError,
+    check_text,
+    loads_json,
+    parse_decimal,
+)
 from bench.recording.errors import RecordingError
 from bench.recording.model import FloatArray, Recording, Sidecar
 from bench.recording.sidecar import parse_sidecar
@@ -27,6 +35,11 @@ ACCEL_COLUMNS = ("ax", "ay", "az")
 GYRO_COLUMNS = ("gx", "gy", "gz")
 TEMP_COLUMN = "temp"
 TIME_COLUMN = "t"
+MAX_TABLE_ANGLE_DEG = 1e6
+"""Largest encoder reading believed (deg, about 2800 turns): no table's encoder counts further, and
+beyond it a double's resolution alone passes 1e-10°. Bench encoders wrap to ±180° or 0–360°."""
+RATE_TOLERANCE = 0.2
+"""``sample_rate_hz`` must agree with the median step of the time column within this fraction."""
 
 
 def table_columns(n_axes: int) -> list[str]:
@@ -46,12 +59,18 @@ def read_sidecar(json_path: str | Path) -> Sidecar:
     :raises FileNotFoundError: no such file.
     """
     p = Path(json_path)
+    with p.open("rb") as f:
+        raw = f.read(MAX_JSON_BYTES + 1)
+    if len(raw) > MAX_JSON_BYTES:
+        raise RecordingError(p, f"larger than {MAX_JSON_BYTES} bytes; a sidecar is a few kilobytes")
     try:
-        obj = json.loads(p.read_text(encoding="utf-8"))
+        obj = loads_json(raw.decode("utf-8"))
     except json.JSONDecodeError as exc:
         raise RecordingError(p, f"not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from exc
     except UnicodeDecodeError as exc:
         raise RecordingError(p, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from exc
+    except InputError as exc:
+        raise RecordingError(p, str(exc)) from exc
     return parse_sidecar(obj, p)
 
 
@@ -59,15 +78,24 @@ def read_header(csv_path: str | Path) -> list[str]:
     """Column names of a recording's CSV (line 1), validated: non-empty, no duplicates."""
     p = Path(csv_path)
     with p.open(encoding="utf-8-sig", newline="") as f:
-        first = f.readline()
+        first = f.readline(MAX_HEADER_CHARS + 1)
+    if len(first) > MAX_HEADER_CHARS:
+        raise RecordingError(p, f"header line longer than {MAX_HEADER_CHARS} characters", line=1)
     if not first.strip():
         raise RecordingError(
             p, "empty file or empty header; expected a header row with t, ax, ay, az", line=1
         )
-    names = [n.strip() for n in next(csv.reader([first]))]
+    try:
+        names = [n.strip() for n in next(csv.reader([first]))]
+    except csv.Error as exc:
+        raise RecordingError(p, f"not CSV: {exc}", line=1) from None
     for i, n in enumerate(names):
         if not n:
             raise RecordingError(p, f"column {i + 1} has an empty name", line=1)
+        try:
+            check_text(n, max_chars=200)
+        except InputError as exc:
+            raise RecordingError(p, f"column {i + 1} name: {exc}", line=1) from None
         if names.index(n) != i:
             raise RecordingError(p, "duplicate column name", line=1, column=n)
     return names
@@ -115,9 +143,24 @@ def _rows(p: Path) -> Iterator[tuple[int, list[str]]]:
     """(line number, fields) of every line after the header, blank lines included as []."""
     with p.open(encoding="utf-8-sig", newline="") as f:
         reader = csv.reader(f)
-        next(reader, None)
-        for fields in reader:
-            yield reader.line_num, [x.strip() for x in fields]
+        try:
+            next(reader, None)
+            for fields in reader:
+                for x in fields:
+                    if len(x) > MAX_FIELD_CHARS:
+                        raise RecordingError(
+                            p,
+                            f"field of {len(x)} characters; expected at most {MAX_FIELD_CHARS}",
+                            line=reader.line_num,
+                        )
+                yield reader.line_num, [x.strip(" \t") for x in fields]
+        except csv.Error as exc:  # a field past the csv module's limit, a NUL, a stray quote
+            problem = (
+                f"field longer than {csv.field_size_limit()} characters; expected at most {MAX_FIELD_CHARS}"
+                if "field limit" in str(exc)
+                else f"not CSV: {exc}"
+            )
+            raise RecordingError(p, problem, line=reader.line_num) from None
 
 
 def _parse_slow(
@@ -147,7 +190,7 @@ def _parse_slow(
             s = fields[j]
             if s == "":
                 if c in optional:
-                    values[k].append(math.nan)
+                    values[k].append(np.nan)
                     continue
                 raise RecordingError(
                     p,
@@ -157,13 +200,9 @@ def _parse_slow(
                     column=c,
                 )
             try:
-                x = float(s)
-            except ValueError:
-                raise RecordingError(p, f"not a number: {s!r}", row=row, line=line, column=c) from None
-            if not math.isfinite(x):
-                raise RecordingError(
-                    p, f"non-finite value {s!r}; expected a finite number", row=row, line=line, column=c
-                )
+                x = parse_decimal(s)
+            except InputError as exc:
+                raise RecordingError(p, str(exc), row=row, line=line, column=c) from None
             values[k].append(x)
         for k, j in enumerate(extra_idx):
             extra_values[k].append(fields[j])
@@ -217,6 +256,39 @@ def _parse_columns(
     return _parse_slow(p, names, numeric, optional, extras)
 
 
+def _check_sample_rate(t: FloatArray, rate_hz: float, csv_p: Path, json_p: Path) -> None:
+    """The sidecar's rate against the time column: the median step must be 1/rate within
+    :data:`RATE_TOLERANCE` (the median ignores gaps and jitter; a rate off by a unit or a typo
+    does not pass)."""
+    if t.size < 2:
+        return
+    dt = float(np.median(np.diff(t)))
+    ratio = dt * rate_hz
+    if not (1.0 - RATE_TOLERANCE <= ratio <= 1.0 + RATE_TOLERANCE):
+        raise RecordingError(
+            json_p,
+            f"sample_rate_hz = {rate_hz:g} Hz disagrees with the time column of {csv_p.name} "
+            f"(median step {dt:.6g} s, i.e. {1.0 / dt:.6g} Hz); expected agreement within "
+            f"{RATE_TOLERANCE:.0%}",
+            key="sample_rate_hz",
+        )
+
+
+def _check_table_angles(table_deg: FloatArray, csv_p: Path) -> None:
+    """Encoder readings beyond ±:data:`MAX_TABLE_ANGLE_DEG` are no table's: refuse the first one."""
+    bad = np.argwhere(np.abs(table_deg) > MAX_TABLE_ANGLE_DEG)
+    if bad.size:
+        r, k = (int(v) for v in bad[0])
+        raise RecordingError(
+            csv_p,
+            f"encoder angle {float(table_deg[r, k])!r} deg is beyond ±{MAX_TABLE_ANGLE_DEG:g} deg; "
+            "expected the table's reading (wrapped to ±180° or 0–360°, or a few turns)",
+            row=r + 1,
+            line=r + 2,
+            column=f"table_{k + 1}",
+        )
+
+
 def read_recording(csv_path: str | Path) -> Recording:
     """Read a recording: ``run.csv`` and its sidecar ``run.json``.
 
@@ -265,6 +337,9 @@ def read_recording(csv_path: str | Path) -> Recording:
             line=r + 1,
             column=TIME_COLUMN,
         )
+    _check_sample_rate(t, sc.sample_rate_hz, csv_p, json_p)
+    if n_axes:
+        _check_table_angles(np.column_stack([cols[c] for c in table_columns(n_axes)]), csv_p)
     if sc.segments:
         for i, s in enumerate(sc.segments):
             if s.start_s < t[0] or s.end_s > t[-1]:

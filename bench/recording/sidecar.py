@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.inputs import InputError, check_identifier_text, check_text
 from bench.recording.errors import RecordingError
 from bench.recording.model import (
     CHANNEL_UNITS,
@@ -30,6 +31,8 @@ from bench.recording.model import (
 )
 
 NOMINAL_UP = ("+x", "-x", "+y", "-y", "+z", "-z")
+MAX_TABLE_AXES = 6
+"""Most table axes a sidecar may list (calibration tables have one to three)."""
 UNIT_TOL = 1e-6
 """Tolerance on axis-vector length and on the orthonormality/determinant of ``mount_rotation``."""
 
@@ -49,42 +52,61 @@ _TABLE_KEYS = {"axes", "mount_rotation", "lever_arm_m"}
 _SEGMENT_KEYS = {"start_s", "end_s", "label", "nominal_up"}
 
 
+def _short(value: Any, n: int = 60) -> str:
+    """``repr`` of a value, cut to ``n`` characters (a message stays one readable line)."""
+    r = repr(value)
+    return r if len(r) <= n else r[:n] + "…"
+
+
 def _number(value: Any, path: Path, key: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise RecordingError(path, f"expected a number, got {value!r}", key=key)
-    x = float(value)
+        raise RecordingError(path, f"expected a number, got {_short(value)}", key=key)
+    try:
+        x = float(value)
+    except OverflowError:
+        raise RecordingError(path, f"integer {_short(value)} overflows a double", key=key) from None
     if not math.isfinite(x):
-        raise RecordingError(path, f"expected a finite number, got {value!r}", key=key)
+        raise RecordingError(path, f"expected a finite number, got {_short(value)}", key=key)
     return x
 
 
 def _vector(value: Any, path: Path, key: str, n: int = 3) -> tuple[float, ...]:
     if not isinstance(value, list) or len(value) != n:
-        raise RecordingError(path, f"expected a list of {n} numbers, got {value!r}", key=key)
+        raise RecordingError(path, f"expected a list of {n} numbers, got {_short(value)}", key=key)
     return tuple(_number(v, path, f"{key}[{i}]") for i, v in enumerate(value))
 
 
-def _text(value: Any, path: Path, key: str) -> str:
+def _text(value: Any, path: Path, key: str, *, identifier: bool = False) -> str:
+    """A string under the text rules of :mod:`bench.inputs` (an identifier: also non-empty, trimmed)."""
     if not isinstance(value, str):
-        raise RecordingError(path, f"expected a string, got {value!r}", key=key)
-    return value
+        raise RecordingError(path, f"expected a string, got {_short(value)}", key=key)
+    try:
+        return check_identifier_text(value, max_chars=200) if identifier else check_text(value)
+    except InputError as exc:
+        raise RecordingError(path, str(exc), key=key) from None
 
 
 def _parse_table(obj: Any, path: Path, extra: dict[str, object]) -> TableGeometry:
     if not isinstance(obj, dict):
-        raise RecordingError(path, f"expected an object with 'axes', got {obj!r}", key="table")
+        raise RecordingError(path, f"expected an object with 'axes', got {_short(obj)}", key="table")
     if "axes" not in obj:
         raise RecordingError(
             path, "missing required key (one entry per table axis, outermost first)", key="table.axes"
         )
     axes_obj = obj["axes"]
     if not isinstance(axes_obj, list) or not axes_obj:
-        raise RecordingError(path, f"expected a non-empty list of axes, got {axes_obj!r}", key="table.axes")
+        raise RecordingError(
+            path, f"expected a non-empty list of axes, got {_short(axes_obj)}", key="table.axes"
+        )
+    if len(axes_obj) > MAX_TABLE_AXES:
+        raise RecordingError(
+            path, f"{len(axes_obj)} table axes; expected at most {MAX_TABLE_AXES}", key="table.axes"
+        )
     axes: list[TableAxis] = []
     for i, a in enumerate(axes_obj):
         key = f"table.axes[{i}]"
         if not isinstance(a, dict) or "axis" not in a:
-            raise RecordingError(path, f"expected an object with 'name' and 'axis', got {a!r}", key=key)
+            raise RecordingError(path, f"expected an object with 'name' and 'axis', got {_short(a)}", key=key)
         name = _text(a.get("name", f"axis{i + 1}"), path, f"{key}.name")
         u = _vector(a["axis"], path, f"{key}.axis")
         norm = math.sqrt(sum(c * c for c in u))
@@ -101,7 +123,9 @@ def _parse_table(obj: Any, path: Path, extra: dict[str, object]) -> TableGeometr
         rows = obj["mount_rotation"]
         if not isinstance(rows, list) or len(rows) != 3:
             raise RecordingError(
-                path, f"expected a 3x3 matrix (list of 3 rows), got {rows!r}", key="table.mount_rotation"
+                path,
+                f"expected a 3x3 matrix (list of 3 rows), got {_short(rows)}",
+                key="table.mount_rotation",
             )
         m = [_vector(r, path, f"table.mount_rotation[{i}]") for i, r in enumerate(rows)]
         M = np.array(m)
@@ -127,13 +151,13 @@ def _parse_table(obj: Any, path: Path, extra: dict[str, object]) -> TableGeometr
 
 def _parse_segments(obj: Any, path: Path, extra: dict[str, object]) -> tuple[Segment, ...]:
     if not isinstance(obj, list):
-        raise RecordingError(path, f"expected a list of segments, got {obj!r}", key="segments")
+        raise RecordingError(path, f"expected a list of segments, got {_short(obj)}", key="segments")
     segs: list[Segment] = []
     unknown_per_segment: list[dict[str, Any]] = []
     for i, s in enumerate(obj):
         key = f"segments[{i}]"
         if not isinstance(s, dict):
-            raise RecordingError(path, f"expected an object with start_s, end_s, got {s!r}", key=key)
+            raise RecordingError(path, f"expected an object with start_s, end_s, got {_short(s)}", key=key)
         for k in ("start_s", "end_s"):
             if k not in s:
                 raise RecordingError(path, "missing required key", key=f"{key}.{k}")
@@ -145,7 +169,9 @@ def _parse_segments(obj: Any, path: Path, extra: dict[str, object]) -> tuple[Seg
         up = s.get("nominal_up")
         if up is not None and up not in NOMINAL_UP:
             raise RecordingError(
-                path, f"nominal_up {up!r} is not one of {', '.join(NOMINAL_UP)}", key=f"{key}.nominal_up"
+                path,
+                f"nominal_up {_short(up)} is not one of {', '.join(NOMINAL_UP)}",
+                key=f"{key}.nominal_up",
             )
         segs.append(Segment(start_s=start, end_s=end, label=label, nominal_up=up))
         unknown_per_segment.append({k: v for k, v in s.items() if k not in _SEGMENT_KEYS})
@@ -182,18 +208,20 @@ def parse_sidecar(obj: Any, path: str | Path) -> Sidecar:
     if "format" not in obj:
         raise RecordingError(p, f'missing required key; expected "{FORMAT_ID}"', key="format")
     if obj["format"] != FORMAT_ID:
-        raise RecordingError(p, f'unknown format {obj["format"]!r}; expected "{FORMAT_ID}"', key="format")
+        raise RecordingError(
+            p, f'unknown format {_short(obj["format"])}; expected "{FORMAT_ID}"', key="format"
+        )
     for k in ("unit", "channel_unit", "sample_rate_hz", "g_local_m_s2"):
         if k not in obj:
             raise RecordingError(p, "missing required key", key=k)
     unit = obj["unit"]
     if not isinstance(unit, dict):
-        raise RecordingError(p, f"expected an object with 'serial', got {unit!r}", key="unit")
+        raise RecordingError(p, f"expected an object with 'serial', got {_short(unit)}", key="unit")
     if "serial" not in unit:
         raise RecordingError(
             p, "missing required key (serial number of the unit under test)", key="unit.serial"
         )
-    serial = _text(unit["serial"], p, "unit.serial")
+    serial = _text(unit["serial"], p, "unit.serial", identifier=True)
     model = unit.get("model")
     if model is not None:
         model = _text(model, p, "unit.model")
@@ -204,12 +232,14 @@ def parse_sidecar(obj: Any, path: str | Path) -> Sidecar:
     channel_unit = obj["channel_unit"]
     if channel_unit not in CHANNEL_UNITS:
         raise RecordingError(
-            p, f"channel_unit {channel_unit!r} is not one of {', '.join(CHANNEL_UNITS)}", key="channel_unit"
+            p,
+            f"channel_unit {_short(channel_unit)} is not one of {', '.join(CHANNEL_UNITS)}",
+            key="channel_unit",
         )
     gyro_unit = obj.get("gyro_unit")
     if gyro_unit is not None and gyro_unit not in GYRO_UNITS:
         raise RecordingError(
-            p, f"gyro_unit {gyro_unit!r} is not one of {', '.join(GYRO_UNITS)}", key="gyro_unit"
+            p, f"gyro_unit {_short(gyro_unit)} is not one of {', '.join(GYRO_UNITS)}", key="gyro_unit"
         )
     rate = _number(obj["sample_rate_hz"], p, "sample_rate_hz")
     if rate <= 0:

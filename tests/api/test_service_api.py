@@ -13,7 +13,7 @@ from fastapi.testclient import TestClient
 
 from api.main import create_app
 from db.repo.certificates import canonical_sha256
-from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings, wait_final
+from tests.support.service_helpers import OP, VIEW, service_settings, signed_link, wait_final
 
 pytestmark = pytest.mark.timeout(400)
 
@@ -115,7 +115,7 @@ def test_event_stream_follows_a_run_to_its_end(client: TestClient) -> None:
     r = client.post("/api/runs", json={"unit_serial": "SN-SSE", "procedure": "static-12"}, headers=OP)
     run_id = r.json()["id"]
     events: list[tuple[str, dict[str, object]]] = []
-    with client.stream("GET", f"/api/runs/{run_id}/events?access_token={OPERATOR}") as s:
+    with client.stream("GET", signed_link(client, f"/api/runs/{run_id}/events")) as s:
         assert s.headers["content-type"].startswith("text/event-stream")
         event = ""
         for line in s.iter_lines():
@@ -153,7 +153,7 @@ def test_certificate_json_hash_and_pdf(client: TestClient, completed_run: dict[s
         assert key in content
     assert "SIMULATED" in content["traceability"]
     assert content["conditions"]["g_local_m_s2"] > 9.7
-    pdf = client.get(f"/api/runs/{run_id}/certificate.pdf?access_token={OPERATOR}")
+    pdf = client.get(signed_link(client, f"/api/runs/{run_id}/certificate.pdf"))
     assert pdf.status_code == 200 and pdf.content.startswith(b"%PDF")
     again = client.post(f"/api/runs/{run_id}/certificate", headers=OP)
     assert again.status_code == 409

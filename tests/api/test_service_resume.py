@@ -18,7 +18,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from api.main import create_app
-from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings, wait_final
+from tests.support.service_helpers import OP, VIEW, service_settings, signed_link, wait_final
 
 pytestmark = pytest.mark.timeout(400)
 
@@ -30,8 +30,9 @@ def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
         yield c
 
 
-def wait_run(client: TestClient, run_id: str, cond: Any, what: str, timeout_s: float = 240.0
-             ) -> dict[str, Any]:
+def wait_run(
+    client: TestClient, run_id: str, cond: Any, what: str, timeout_s: float = 240.0
+) -> dict[str, Any]:
     """Poll ``GET /api/runs/{id}`` until ``cond(run)``; a generous deadline, not a measurement."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -45,7 +46,7 @@ def wait_run(client: TestClient, run_id: str, cond: Any, what: str, timeout_s: f
 def stream(client: TestClient, run_id: str) -> list[tuple[str, dict[str, Any]]]:
     """Every event of the run's stream until it ends."""
     events: list[tuple[str, dict[str, Any]]] = []
-    with client.stream("GET", f"/api/runs/{run_id}/events?access_token={OPERATOR}") as s:
+    with client.stream("GET", signed_link(client, f"/api/runs/{run_id}/events")) as s:
         event = ""
         for line in s.iter_lines():
             if line.startswith("event: "):
@@ -65,12 +66,20 @@ def test_pause_holds_the_run_and_resume_continues_it(client: TestClient) -> None
     run_id = started(client, "SN-PAUSE")
     wait_run(client, run_id, lambda r: (r.get("last_complete_window") or -1) >= 1, "two windows")
     r = client.post(f"/api/runs/{run_id}/pause", headers=OP)
-    assert r.status_code == 200 and r.json() == {"id": run_id, "action": "pause", "state": "paused",
-                                                  "resumed_from_window": None}
+    assert r.status_code == 200 and r.json() == {
+        "id": run_id,
+        "action": "pause",
+        "state": "paused",
+        "resumed_from_window": None,
+    }
     held = wait_run(client, run_id, lambda r: r["state"] == "paused", "the pause")
     # While it holds, the run cannot be resumed as if it had died, and a second start is refused.
-    assert client.post("/api/runs", json={"unit_serial": "SN-X", "procedure": "static-12"},
-                       headers=OP).status_code == 409
+    assert (
+        client.post(
+            "/api/runs", json={"unit_serial": "SN-X", "procedure": "static-12"}, headers=OP
+        ).status_code
+        == 409
+    )
     r = client.post(f"/api/runs/{run_id}/resume", headers=OP)
     assert r.status_code == 202 and r.json()["action"] == "continue"
     body = wait_final(client, run_id)
@@ -97,8 +106,9 @@ def test_shutdown_leaves_the_run_interrupted_and_resume_finishes_it(tmp_path: Pa
     settings = service_settings(tmp_path)
     with TestClient(create_app(settings, start_scheduler=False)) as first:
         run_id = started(first, "SN-RESTART")
-        before = wait_run(first, run_id, lambda r: (r.get("last_complete_window") or -1) >= 2,
-                          "three windows")
+        before = wait_run(
+            first, run_id, lambda r: (r.get("last_complete_window") or -1) >= 2, "three windows"
+        )
     # The app has shut down with the run live: it is stored interrupted, not aborted.
     with TestClient(create_app(settings, start_scheduler=False)) as second:
         run = second.get(f"/api/runs/{run_id}", headers=VIEW).json()
@@ -108,8 +118,12 @@ def test_shutdown_leaves_the_run_interrupted_and_resume_finishes_it(tmp_path: Pa
         assert done >= before["last_complete_window"]
         r = second.post(f"/api/runs/{run_id}/resume", headers=OP)
         assert r.status_code == 202, r.text
-        assert r.json() == {"id": run_id, "action": "resume", "state": "queued",
-                            "resumed_from_window": done + 1}
+        assert r.json() == {
+            "id": run_id,
+            "action": "resume",
+            "state": "queued",
+            "resumed_from_window": done + 1,
+        }
         events = stream(second, run_id)
         windows = [d["index"] for e, d in events if e == "window"]
         assert windows and windows[0] >= done + 1 and windows[-1] == 11

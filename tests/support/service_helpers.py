@@ -61,3 +61,12 @@ def wait_final(client: TestClient, run_id: str, timeout_s: float = 240.0) -> dic
             return client.get(f"/api/runs/{run_id}", headers=VIEW).json()
         time.sleep(0.2)
     raise AssertionError(f"run {run_id} did not finish within {timeout_s} s: {body}")
+
+
+def signed_link(client: TestClient, path: str, headers: dict[str, str] | None = None) -> str:
+    """A signed link to ``path`` (``POST /api/links``), made with the operator token by default."""
+    r = client.post("/api/links", json={"path": path}, headers=headers or OP)
+    assert r.status_code == 201, r.text
+    url: str = r.json()["url"]
+    assert OPERATOR not in url and VIEWER not in url
+    return url

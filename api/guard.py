@@ -1,0 +1,315 @@
+"""What every request passes before a route sees it, and how every error leaves.
+
+:class:`RequestGuard` (pure ASGI, outermost) refuses, before one byte of a body is read:
+
+- a URL with a NUL byte (400) or longer than :data:`MAX_URL_CHARS` (414);
+- a body larger than its limit (413): :data:`MAX_JSON_BODY_BYTES` for JSON requests,
+  :data:`MAX_UPLOAD_BODY_BYTES` for the recording upload; by ``Content-Length`` when it is
+  sent, else by counting as the body streams in;
+- a request that carries a body (``POST``, ``PUT``, ``PATCH``, ``DELETE``) to ``/api/``
+  without a token of the role every such endpoint needs (401/403): operator, or viewer for
+  ``POST /api/links``. So an unauthenticated client can make the service neither read
+  nor store anything. The route still checks its own role.
+
+parses a JSON body once under the size rules of :mod:`bench.inputs` (nesting, integer digits,
+duplicate keys: **422** naming the rule) and hands it on, and adds the security headers to
+every response (:data:`SECURITY_HEADERS`): a Content-Security-Policy that allows scripts and
+connections only from the service itself and no framing, ``X-Frame-Options: DENY``,
+``nosniff`` and no referrer.
+
+:func:`install_error_handlers` makes every error a JSON 4xx: a validation error whose input
+was ``NaN``/``Infinity`` (which JSON cannot carry) is serialised with those as text, and a
+database data error (a value the database cannot store, e.g. a NUL byte on PostgreSQL, an
+integer out of range) is a 422 instead of a 500.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import re
+from collections.abc import Awaitable, Callable, MutableMapping
+from typing import Any
+
+import anyio.to_thread
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from sqlalchemy.exc import DataError
+
+from api.auth import AuthError, Role
+from bench.inputs import InputError, loads_json
+
+log = logging.getLogger(__name__)
+
+Scope = MutableMapping[str, Any]
+Message = MutableMapping[str, Any]
+Receive = Callable[[], Awaitable[Message]]
+Send = Callable[[Message], Awaitable[None]]
+ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
+
+MAX_URL_CHARS = 4096
+MAX_JSON_BODY_BYTES = 1024 * 1024
+"""Largest JSON request body (bytes); the largest real one (a unit registration) is under 2 kB."""
+UPLOAD_PATHS = frozenset({"/api/recordings"})
+MAX_UPLOAD_BODY_BYTES = 2 * 512 * 1024 * 1024 + 1024 * 1024
+"""Largest multipart upload (bytes): two files of 512 MB each (CSV and sidecar) and the form's own bytes."""
+BODY_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+VIEWER_BODY_PATHS = frozenset({"/api/links"})
+"""Body-carrying endpoints a viewer may call; every other one needs an operator."""
+
+_CSP_APP = (
+    "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; "
+    "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'self'; frame-ancestors 'none'"
+)
+_CSP_DOCS = (
+    "default-src 'self'; script-src 'self' 'unsafe-inline' https://cdn.jsdelivr.net; "
+    "style-src 'self' 'unsafe-inline' https://cdn.jsdelivr.net; img-src 'self' data: https:; "
+    "connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'"
+)
+DOCS_PATHS = frozenset({"/docs", "/redoc", "/docs/oauth2-redirect"})
+SECURITY_HEADERS: dict[str, str] = {
+    "content-security-policy": _CSP_APP,
+    "x-frame-options": "DENY",
+    "x-content-type-options": "nosniff",
+    "referrer-policy": "no-referrer",
+}
+
+
+class _TooLarge(Exception):
+    pass
+
+
+def _is_json(scope: Scope) -> bool:
+    media = _headers(scope).get("content-type", "").split(";")[0].strip().lower()
+    return media == "application/json" or media.endswith("+json")
+
+
+def _json_problem(body: bytes) -> str | None:
+    """Why a JSON body breaks the size rules of :mod:`bench.inputs` (nesting, integer digits,
+    duplicate keys), or ``None``. Text that is not JSON at all is left to the app's own 422;
+    non-finite numbers to the models, which name the field."""
+    try:
+        loads_json(body.decode("utf-8"), finite=False)
+    except InputError as exc:
+        return str(exc)
+    except ValueError:  # not UTF-8 or not JSON: FastAPI answers it
+        return None
+    return None
+
+
+def _replay(body: bytes, receive: Receive) -> Receive:
+    """A ``receive`` that hands the already-read body to the app, then the client's messages."""
+    sent = False
+
+    async def replay() -> Message:
+        nonlocal sent
+        if not sent:
+            sent = True
+            return {"type": "http.request", "body": body, "more_body": False}
+        return await receive()
+
+    return replay
+
+
+def _headers(scope: Scope) -> dict[str, str]:
+    return {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope.get("headers", [])}
+
+
+def _bearer(headers: dict[str, str]) -> str | None:
+    scheme, _, secret = headers.get("authorization", "").partition(" ")
+    return secret.strip() or None if scheme.lower() == "bearer" else None
+
+
+class RequestGuard:
+    """ASGI middleware: URL and body-size limits, authentication before any body is read,
+    security headers on every response (see the module docstring)."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        path: str = scope.get("path", "")
+        headers_to_add = dict(SECURITY_HEADERS)
+        if path in DOCS_PATHS:
+            headers_to_add["content-security-policy"] = _CSP_DOCS
+        started = refused = False
+
+        async def send_with_headers(message: Message) -> None:
+            nonlocal started
+            if refused:  # the 413 is out: what the app answers after it is dropped
+                return
+            if message["type"] == "http.response.start":
+                started = True
+                present = {k.decode("latin-1").lower() for k, _ in message.get("headers", [])}
+                extra = [(k.encode(), v.encode()) for k, v in headers_to_add.items() if k not in present]
+                message["headers"] = [*message.get("headers", []), *extra]
+            await send(message)
+
+        refusal = await self._refusal(scope, path)
+        if refusal is not None:
+            status, detail, extra_headers = refusal
+            await self._reply(send_with_headers, status, detail, extra_headers)
+            return
+        limit = MAX_UPLOAD_BODY_BYTES if path in UPLOAD_PATHS else MAX_JSON_BODY_BYTES
+        if scope.get("method") in BODY_METHODS and _is_json(scope):
+            body = await self._read_json_body(receive, limit)
+            problem = "too large" if body is None else _json_problem(body)
+            if problem is not None:
+                if body is None:
+                    await self._reply(send_with_headers, 413, f"request body larger than {limit} bytes", {})
+                else:
+                    invalid = [{"type": "json_invalid", "loc": ["body"], "msg": problem, "input": None}]
+                    await self._reply(send_with_headers, 422, invalid, {})
+                return
+            receive = _replay(body, receive)  # type: ignore[arg-type]
+        received = 0
+
+        async def counting_receive() -> Message:
+            nonlocal received, refused
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > limit:
+                    # answered here: the app (FastAPI) turns any error while reading into a 400
+                    if not started:
+                        await self._reply(
+                            send_with_headers, 413, f"request body larger than {limit} bytes", {}
+                        )
+                        refused = True
+                    raise _TooLarge
+            return message
+
+        try:
+            await self.app(scope, counting_receive, send_with_headers)
+        except _TooLarge:
+            if not refused:
+                raise
+
+    async def _refusal(self, scope: Scope, path: str) -> tuple[int, str, dict[str, str]] | None:
+        raw_path = scope.get("raw_path") or path.encode("utf-8", "surrogateescape")
+        query: bytes = scope.get("query_string", b"")
+        if len(raw_path) + len(query) > MAX_URL_CHARS:
+            return 414, f"URL longer than {MAX_URL_CHARS} characters", {}
+        if "\x00" in path or b"%00" in query.lower() or b"%00" in raw_path.lower() or b"\x00" in query:
+            return 400, "NUL byte in the URL", {}
+        method = scope.get("method", "GET")
+        if method not in BODY_METHODS:
+            return None
+        headers = _headers(scope)
+        limit = MAX_UPLOAD_BODY_BYTES if path in UPLOAD_PATHS else MAX_JSON_BODY_BYTES
+        length = headers.get("content-length")
+        if length is not None:
+            if not length.isascii() or not length.isdigit():
+                return 400, "Content-Length is not a number", {}
+            if len(length) > 15 or int(length) > limit:
+                return 413, f"request body of {length} bytes; at most {limit} bytes here", {}
+        if not path.startswith("/api/"):
+            return None
+        services = getattr(scope["app"].state, "services", None) if "app" in scope else None
+        if services is None:
+            return 503, "the service is starting or stopping", {}
+        minimum = Role.VIEWER if path in VIEWER_BODY_PATHS else Role.OPERATOR
+        secret = _bearer(headers)
+        try:
+            await anyio.to_thread.run_sync(services.auth.require_principal, secret, minimum)
+        except AuthError as exc:
+            extra = {"www-authenticate": "Bearer"} if exc.status_code == 401 else {}
+            return exc.status_code, str(exc), extra
+        return None
+
+    @staticmethod
+    async def _read_json_body(receive: Receive, limit: int) -> bytes | None:
+        """The whole JSON body (at most ``limit`` bytes; ``None`` past it)."""
+        chunks: list[bytes] = []
+        size = 0
+        while True:
+            message = await receive()
+            if message["type"] != "http.request":
+                break
+            chunk = message.get("body", b"")
+            size += len(chunk)
+            if size > limit:
+                return None
+            chunks.append(chunk)
+            if not message.get("more_body", False):
+                break
+        return b"".join(chunks)
+
+    @staticmethod
+    async def _reply(send: Send, status: int, detail: Any, headers: dict[str, str]) -> None:
+        body = json.dumps({"detail": detail}).encode("utf-8")
+        raw = [
+            (b"content-type", b"application/json"),
+            (b"content-length", str(len(body)).encode()),
+            (b"connection", b"close"),
+            *((k.encode(), v.encode()) for k, v in headers.items()),
+        ]
+        await send({"type": "http.response.start", "status": status, "headers": raw})
+        await send({"type": "http.response.body", "body": body})
+
+
+_SECRET_QUERY = re.compile(r"((?:^|[?&])(?:access_token|link|token)=)[^&#\s]*", re.IGNORECASE)
+
+
+def redact_url(url: str) -> str:
+    """``url`` with the values of ``access_token``, ``link`` and ``token`` query parameters replaced
+    by ``REDACTED``."""
+    return _SECRET_QUERY.sub(r"\1REDACTED", url)
+
+
+class RedactSecrets(logging.Filter):
+    """Access-log filter: a credential in a URL's query (a signed link, or a token a client put
+    there although it is not accepted) never reaches the log. Install it on ``uvicorn.access``."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if isinstance(record.args, tuple):
+            record.args = tuple(redact_url(a) if isinstance(a, str) else a for a in record.args)
+        elif isinstance(record.msg, str):
+            record.msg = redact_url(record.msg)
+        return True
+
+
+def install_log_redaction(logger_name: str = "uvicorn.access") -> None:
+    """Add :class:`RedactSecrets` to the access logger (once)."""
+    logger = logging.getLogger(logger_name)
+    if not any(isinstance(f, RedactSecrets) for f in logger.filters):
+        logger.addFilter(RedactSecrets())
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float replaced by its text (``"nan"``, ``"inf"``) and bytes
+    decoded, recursively, so that strict JSON can carry it."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    if value is None or isinstance(value, str | int | float | bool):
+        return value
+    return str(value)
+
+
+async def _validation_error(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    return JSONResponse(status_code=422, content={"detail": json_safe(list(exc.errors()))})
+
+
+async def _data_error(request: Request, exc: Exception) -> JSONResponse:
+    orig = getattr(exc, "orig", None)
+    reason = str(orig if orig is not None else exc).splitlines()[0][:200]
+    log.info("database refused a value on %s %s: %s", request.method, request.url.path, reason)
+    return JSONResponse(status_code=422, content={"detail": f"a value the database cannot store: {reason}"})
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Validation errors serialised without non-finite numbers; database data errors as 422."""
+    app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(DataError, _data_error)

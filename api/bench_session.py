@@ -142,6 +142,7 @@ def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_
         dwell=seq.dwell,
         fit_covariance=cov,
         fit_param_names=names,
+        gaps=tuple(seq.recorder.gaps),
     )
 
 

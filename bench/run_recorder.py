@@ -13,6 +13,12 @@ continues one sample period after the last row kept.
 Window metadata the format has no column for (kind, pose, means) is kept in the sidecar's
 ``calbench_windows`` list beside ``segments``, so a resumed run can rebuild its record from
 the files alone.
+
+Sample gaps: ``t_daq`` is the DAQ's sample counter over its rate, so a gap leaves its hole
+in the time axis by itself; :meth:`RunRecorder.record_gap` also writes where it is (rows
+before it, time stamps on either side, the lost sequence numbers) into the sidecar's
+``calbench_gaps`` list as it happens. A gap before the first row pins the clock's origin
+to the first lost sample, so even that hole stays in the time axis.
 """
 
 from __future__ import annotations
@@ -27,10 +33,36 @@ import numpy as np
 
 from bench.recording.model import Segment, Sidecar
 from bench.recording.writer import RecordingWriter
-from bench.records import ChunkRecord, DwellChoice, WindowKind, WindowRecord
+from bench.records import ChunkRecord, DwellChoice, GapRecord, WindowKind, WindowRecord
 
 WINDOWS_KEY = "calbench_windows"
 RUN_KEY = "calbench_run"
+GAPS_KEY = "calbench_gaps"
+
+
+def gap_to_json(g: GapRecord) -> dict[str, object]:
+    """A :class:`GapRecord` as the JSON object of the sidecar's ``calbench_gaps`` list."""
+    return dataclasses.asdict(g)
+
+
+def gap_from_json(d: dict[str, Any]) -> GapRecord:
+    """Inverse of :func:`gap_to_json` (unknown keys ignored).
+
+    :raises KeyError, TypeError, ValueError: a required key is missing or not a number.
+    """
+    def opt_int(v: object) -> int | None:
+        return None if v is None else int(v)  # type: ignore[call-overload]
+
+    def opt_float(v: object) -> float | None:
+        return None if v is None else float(v)  # type: ignore[arg-type]
+
+    return GapRecord(
+        first_lost_seq=opt_int(d.get("first_lost_seq")), n_lost=opt_int(d.get("n_lost")),
+        cause=str(d["cause"]), after_row=int(d["after_row"]), t_last_s=opt_float(d.get("t_last_s")),
+        t_resume_s=float(d["t_resume_s"]), window_index=opt_int(d.get("window_index")),
+        window_label=str(d.get("window_label", "")), action=str(d.get("action", "")),
+        daq_epoch=int(d.get("daq_epoch", 0)),
+    )
 
 
 def _window_to_json(w: WindowRecord) -> dict[str, object]:
@@ -70,9 +102,15 @@ class RunRecorder:
         self.min_chunk_wall_s = min_chunk_wall_s
         self._t_offset = 0.0 if last_t_s is None else last_t_s + 1.0 / writer.sidecar.sample_rate_hz
         self._t_daq0: float | None = None
+        self._expect_t_s: float | None = None  # set by a gap: where the next row is due
         self._chunk_first = n_rows
         self._chunk_t0: float | None = None
         self._last_flush_wall = time.monotonic()
+        raw_gaps = writer.sidecar.extra.get(GAPS_KEY, [])
+        kept = [gap_from_json(g) for g in raw_gaps] if isinstance(raw_gaps, list) else []
+        self.gaps: list[GapRecord] = [g for g in kept if g.after_row <= n_rows]
+        if len(self.gaps) != len(kept):  # gaps after the rows a resume kept are gone with them
+            self._write_gaps()
 
     # -- construction --------------------------------------------------------------------
 
@@ -81,7 +119,7 @@ class RunRecorder:
                **kw: float) -> RunRecorder:
         """Start a new recording (refuses to overwrite one)."""
         n_axes = len(sidecar.table.axes) if sidecar.table is not None else 0
-        extra = {**sidecar.extra, RUN_KEY: run_meta, WINDOWS_KEY: []}
+        extra = {**sidecar.extra, RUN_KEY: run_meta, WINDOWS_KEY: [], GAPS_KEY: []}
         Path(csv_path).parent.mkdir(parents=True, exist_ok=True)
         first = dataclasses.replace(sidecar, segments=(), extra=extra)
         writer = RecordingWriter(csv_path, first, n_axes, has_temp)
@@ -143,11 +181,52 @@ class RunRecorder:
             self._t_daq0 = float(t_daq_s[0])
         return t_daq_s - self._t_daq0 + self._t_offset
 
-    def rebase(self) -> None:
-        """The DAQ clock restarted: the next block continues one sample period after the last row."""
-        if self.last_t_s is not None:
-            self._t_offset = self.last_t_s + 1.0 / self.writer.sidecar.sample_rate_hz
+    def rebase(self, n_lost: int = 0) -> None:
+        """The DAQ clock restarted: the next block is stamped where the next sample was
+        expected, plus ``n_lost`` sample periods (samples known lost across the restart)."""
+        self._t_offset = self._next_t_s() + n_lost / self.writer.sidecar.sample_rate_hz
         self._t_daq0 = None
+
+    def _next_t_s(self) -> float:
+        """Recording time of the next sample the DAQ is expected to deliver."""
+        if self._expect_t_s is not None:
+            return self._expect_t_s
+        if self.last_t_s is not None:
+            return self.last_t_s + 1.0 / self.writer.sidecar.sample_rate_hz
+        return self._t_offset
+
+    def record_gap(self, *, first_lost_seq: int | None, n_lost: int | None, cause: str,
+                   window_index: int | None, window_label: str, action: str, daq_epoch: int,
+                   restart: bool = False) -> GapRecord:
+        """Record a gap where it happens (sidecar rewritten atomically) and return it.
+
+        Call it when the gap is met in the stream, before the first block after it. The
+        gap's time stamps are on the recording clock: the next sample is stamped
+        ``t_resume_s = t_expected_s + n_lost / fs``, where ``t_expected_s`` is where the
+        first lost sample would have been (consecutive gaps add up). ``restart``: the DAQ's
+        clock restarted, the clock is re-based at ``t_resume_s`` (:meth:`rebase`).
+        """
+        fs = self.writer.sidecar.sample_rate_hz
+        lost = n_lost or 0
+        if self.last_t_s is None and self._expect_t_s is None and self._t_daq0 is None \
+                and not restart and first_lost_seq is not None:
+            self._t_daq0 = first_lost_seq / fs  # the first row keeps its distance from the start
+        t_expected = self._next_t_s()
+        t_resume = t_expected + lost / fs
+        gap = GapRecord(first_lost_seq=first_lost_seq, n_lost=n_lost, cause=cause, after_row=self.n_rows,
+                        t_last_s=self.last_t_s, t_resume_s=t_resume, window_index=window_index,
+                        window_label=window_label, action=action, daq_epoch=daq_epoch)
+        self.gaps.append(gap)
+        if restart:
+            self.rebase(lost)
+        self._expect_t_s = t_resume
+        self._write_gaps()
+        return gap
+
+    def _write_gaps(self) -> None:
+        extra = {**self.writer.sidecar.extra, GAPS_KEY: [gap_to_json(g) for g in self.gaps]}
+        self.writer.sidecar = dataclasses.replace(self.writer.sidecar, extra=extra)
+        self.writer.set_segments(self.writer.sidecar.segments or ())
 
     def append(self, t_s: np.ndarray, accel: np.ndarray, table_deg: np.ndarray | None,
                temp_c: np.ndarray | None, window_index: int | None) -> ChunkRecord | None:
@@ -157,6 +236,7 @@ class RunRecorder:
         self.writer.append(t_s, accel, table_deg, temp_c)
         self.n_rows += int(t_s.size)
         self.last_t_s = float(t_s[-1])
+        self._expect_t_s = None
         if self._chunk_t0 is None:
             self._chunk_t0 = float(t_s[0])
         enough_data = self.last_t_s - self._chunk_t0 >= self.chunk_s

@@ -13,7 +13,7 @@ import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from bench.sequencer_daq import Restarted
+from bench.sequencer_daq import Gap, Restarted
 from drivers.base import SampleBlock
 from drivers.errors import DeviceTimeout
 
@@ -61,18 +61,20 @@ def make_safe(seq: Sequencer) -> list[str]:
     pump_problem = seq._pump.stop(seq.config.stop_timeout_s)
     if pump_problem:
         problems.append(pump_problem)
-    # Samples still queued belong to the recording too.
+    # Samples still queued belong to the recording too, and so do the gaps between them.
+    seq.window = None
+    seq._holding = True
     for item in seq._pump.drain():
-        if isinstance(item, Restarted):
-            seq.recorder.rebase()
-        elif isinstance(item, SampleBlock):
-            try:
-                seq.window = None
-                seq._holding = True
+        try:
+            if isinstance(item, Restarted):
+                seq._record_restart(item)
+            elif isinstance(item, Gap):
+                seq._record_gap(item.error)
+            elif isinstance(item, SampleBlock):
                 seq._handle_block(item)
-            except Exception as exc:
-                problems.append(f"saving the last samples failed: {exc}")
-                break
+        except Exception as exc:
+            problems.append(f"saving the last samples failed: {exc}")
+            break
     try:
         chunk = seq.recorder.close()
         if chunk is not None:

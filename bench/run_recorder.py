@@ -17,8 +17,9 @@ the files alone.
 Sample gaps: ``t_daq`` is the DAQ's sample counter over its rate, so a gap leaves its hole
 in the time axis by itself; :meth:`RunRecorder.record_gap` also writes where it is (rows
 before it, time stamps on either side, the lost sequence numbers) into the sidecar's
-``calbench_gaps`` list as it happens. A gap before the first row pins the clock's origin
-to the first lost sample, so even that hole stays in the time axis.
+``calbench_gaps`` list as it happens. A gap before the first block of a DAQ epoch pins the
+clock's origin to the first lost sample, and a DAQ restart re-bases the clock where the next
+sample was due plus the samples lost across it, so every hole stays in the time axis.
 """
 
 from __future__ import annotations
@@ -208,10 +209,12 @@ class RunRecorder:
         """
         fs = self.writer.sidecar.sample_rate_hz
         lost = n_lost or 0
-        if self.last_t_s is None and self._expect_t_s is None and self._t_daq0 is None \
-                and not restart and first_lost_seq is not None:
-            self._t_daq0 = first_lost_seq / fs  # the first row keeps its distance from the start
         t_expected = self._next_t_s()
+        if self._t_daq0 is None and not restart and first_lost_seq is not None:
+            # No block of this DAQ epoch yet: pin the clock's origin to the first lost sample,
+            # so the first row keeps its distance from where the samples should have started.
+            self._t_daq0 = first_lost_seq / fs
+            self._t_offset = t_expected
         t_resume = t_expected + lost / fs
         gap = GapRecord(first_lost_seq=first_lost_seq, n_lost=n_lost, cause=cause, after_row=self.n_rows,
                         t_last_s=self.last_t_s, t_resume_s=t_resume, window_index=window_index,

@@ -133,7 +133,11 @@ class DaqPump:
                 self._stop.wait(max(self.idle_wait_s, 0.002 if not block.n else 0.0))
 
     def _restart(self, gaps: int) -> Restarted:
-        """Stop and start acquisition; count what the old epoch produced and nobody read."""
+        """Stop acquisition, count what the old epoch produced and nobody read, start again.
+
+        The count is read after the stop, so it is exact: ``counter − next expected``.
+        """
+        self.daq.stop()
         next_seq = unread = None
         try:
             st = self.daq.status()
@@ -142,7 +146,6 @@ class DaqPump:
             unread = fill if isinstance(fill, int) else None
         except Exception:  # the count is a courtesy; the restart is what matters
             pass
-        self.daq.stop()
         self.daq.start()
         return Restarted(gaps, next_seq, unread)
 

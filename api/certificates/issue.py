@@ -236,7 +236,7 @@ def issue_for_run(
     inputs = CertificateInputs(
         run={"id": run.id, "procedure": run.procedure, "started_at": run.started_at,
              "finished_at": run.finished_at, "parameters": run.params.get("parameters", {}),
-             "bench": run.params.get("bench")},
+             "bench": run.params.get("bench"), "sample_gaps": run.params.get("sample_gaps", [])},
         unit=unit_inputs(unit),
         calibration=calibration,
         g_local_m_s2=g_local,

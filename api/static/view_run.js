@@ -15,6 +15,16 @@ function seconds(s) {
   return m ? `${m} min ${Math.round(s % 60)} s` : `${s.toFixed(1)} s`;
 }
 
+// Samples the DAQ produced that the recording lacks: each gap where it is and what was done.
+function gapLine(run) {
+  const gaps = run.gaps || [];
+  if (!gaps.length) return run.n_samples_lost === 0 ? [h("dt", {}, "Samples lost"), h("dd", { id: "run-gaps" }, "none")] : [];
+  const where = gaps.map((g) => `${g.n_lost ?? "?"} at ${g.t_last_s == null ? "the start" : `${g.t_last_s.toFixed(3)} s`}`
+    + ` (${g.cause}; ${g.window_label ? `window ${g.window_label} re-measured` : g.action})`);
+  return [h("dt", {}, "Samples lost"), h("dd", { id: "run-gaps", title: where.join("\n") },
+    `${run.n_samples_lost} in ${gaps.length} gap${gaps.length > 1 ? "s" : ""}: ${where.slice(0, 3).join("; ")}${gaps.length > 3 ? "; …" : ""}`)];
+}
+
 function liveCard(run, session, act) {
   const bar = progressBar(run.progress, true, "run progress");
   const pct = h("strong", { id: "progress-text", class: "num" }, `${Math.round(run.progress * 100)} %`);
@@ -50,7 +60,7 @@ function liveCard(run, session, act) {
     h("header", {}, h("h2", {}, "Progress"), state),
     h("div", { class: "progress-line" }, bar, pct),
     h("dl", { class: "kv" }, h("dt", {}, "Step"), step, h("dt", {}, "Window"), windows,
-      h("dt", {}, "Time"), time, poseLabel, pose),
+      h("dt", {}, "Time"), time, poseLabel, pose, ...gapLine(run)),
     h("p", { class: "actions" }, pause, " ", cont, " ", resume, " ", abort),
     run.state === "interrupted" ? h("p", { class: "note", id: "interrupted-note" },
       "The run stopped before finishing. Every complete window is kept: Resume continues it on this bench "

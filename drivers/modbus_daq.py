@@ -129,6 +129,11 @@ class ModbusDaq:
         return self._stream.channel_unit.text
 
     @property
+    def full_scale(self) -> float:
+        """The stream's channels clip at ± this value, in the channel unit (HR 412-413)."""
+        return self._stream.full_scale
+
+    @property
     def n_axes(self) -> int:
         """Table encoder axes latched with each sample (HR 409)."""
         return self._stream.n_axes

@@ -98,7 +98,8 @@ class CertificateInputs:
     """What a certificate is built from.
 
     :param run: ``{"id", "procedure", "started_at", "finished_at", "parameters", "bench"}`` and
-        ``"sample_gaps"`` (the run's gap records, absent or empty: none).
+        ``"sample_gaps"`` (the run's gap records, absent or empty: none) and ``"bench_config"``
+        (the bench file's identity, ``bench.bench_config.BenchConfig.identity``).
     :param unit: ``{"serial", "model", "channel_unit"}`` and the registration
         (``description``, ``condition``, ``customer_name``, ``customer_address``,
         ``received_on`` ISO date, ``nominal_scale``, ``nominal_bias``), ``None`` where not given.
@@ -265,6 +266,20 @@ def sample_integrity(gaps: Any) -> str:
     )
 
 
+def bench_configuration(identity: Any) -> str:
+    """One line naming the bench file a run was made with (``run["bench_config"]``)."""
+    if not isinstance(identity, dict) or not identity.get("name"):
+        return "not stated"
+    sha = str(identity.get("sha256", ""))[:12]
+    g = identity.get("g_local_m_s2")
+    u = identity.get("g_local_u_m_s2")
+    gravity = ""
+    if isinstance(g, float) and isinstance(u, float):
+        source = identity.get("g_local_source", "source not stated")
+        gravity = f"; local g {g} m/s² (u = {u:.1g} m/s², {source})"
+    return f"bench file {identity['name']!r} version {identity.get('version')} (SHA-256 {sha}…){gravity}"
+
+
 def certificate_content(
     inp: CertificateInputs, lab: Laboratory, *, number: str, issued_at: dt.datetime
 ) -> dict[str, Any]:
@@ -312,6 +327,7 @@ def certificate_content(
             "g_local_m_s2": _stated(inp.g_local_m_s2),
             "table": _stated(inp.table),
             "sample_integrity": sample_integrity(run.get("sample_gaps")),
+            "bench_configuration": bench_configuration(run.get("bench_config")),
         },
         "results": _results(inp.calibration, inp.budget),
         "g_check": _g_check(inp.calibration),

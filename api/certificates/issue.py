@@ -236,7 +236,8 @@ def issue_for_run(
     inputs = CertificateInputs(
         run={"id": run.id, "procedure": run.procedure, "started_at": run.started_at,
              "finished_at": run.finished_at, "parameters": run.params.get("parameters", {}),
-             "bench": run.params.get("bench"), "sample_gaps": run.params.get("sample_gaps", [])},
+             "bench": run.params.get("bench"), "sample_gaps": run.params.get("sample_gaps", []),
+             "bench_config": run.params.get("bench_config")},
         unit=unit_inputs(unit),
         calibration=calibration,
         g_local_m_s2=g_local,

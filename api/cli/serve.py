@@ -12,9 +12,12 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 
 from api.auth import new_secret, parse_tokens
+from api.bench_session import bench_config_for
 from api.cli import BadInput
+from api.cli.run import add_bench_file_argument
 from api.drift import parse_time_of_day
 from api.settings import Settings
 
@@ -28,6 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=8000, help="port (default 8000)")
     parser.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
+    add_bench_file_argument(parser)
 
 
 def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
@@ -50,6 +54,12 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         if not args.sim_speed > 0:
             raise BadInput(f"--sim-speed {args.sim_speed}: expected a positive number")
         update["sim_speed"] = args.sim_speed
+    if getattr(args, "bench_file", None) is not None:
+        update["bench_file"] = Path(args.bench_file)
+    try:  # a bad or missing bench file stops the start, naming the file and the key
+        bench_config_for(settings.model_copy(update=update), bool(args.sim or settings.sim))
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
     generated: dict[str, str] = {}
     if not settings.tokens:
         generated[new_secret()] = "admin"

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import socket
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -204,12 +205,43 @@ def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_
     )
 
 
+class RunNotStored(RuntimeError):
+    """A run ended but an observer (the database) could not store its end; names both."""
+
+
+def finish_observers(observers: Sequence[RunObserver], record: RunRecord, retry_s: float = 30.0,
+                     wait_s: float = 0.5) -> None:
+    """Tell every observer the run ended; a failing one (a database write refused: disk full,
+    connection lost) is retried with growing waits for ``retry_s``, so a transient failure
+    still stores the outcome instead of leaving the run ``running``.
+
+    :raises RunNotStored: an observer still failed at the end (each one named).
+    """
+    problems = []
+    for obs in observers:
+        deadline = time.monotonic() + retry_s
+        pause = wait_s
+        while True:
+            try:
+                obs.on_finish(record)
+                break
+            except Exception as exc:  # any observer failure: retried, then reported
+                if time.monotonic() + pause > deadline:
+                    problems.append(f"{type(obs).__name__}: {type(exc).__name__}: {exc}")
+                    break
+                time.sleep(pause)
+                pause = min(2 * pause, 5.0)
+    if problems:
+        outcome = record.outcome.value if record.outcome else record.state.value
+        raise RunNotStored(f"run {record.run_id} ended {outcome} but its end could not be stored "
+                           f"(retried {retry_s:g} s): " + "; ".join(problems))
+
+
 def _execute(seq: Sequencer, csv_path: Path, observers: Sequence[RunObserver],
              limits: UnitLimits | None) -> RunRecord:
     acq = seq.run()
     record = _finish(seq, acq.outcome, acq.error, csv_path, limits)
-    for obs in observers:
-        obs.on_finish(record)
+    finish_observers(observers, record)
     return record
 
 

@@ -10,6 +10,10 @@ always on disk.
 Recording clock: ``t = t_daq − t_daq0 + t_offset``; a fresh run starts at 0, a resumed run
 continues one sample period after the last row kept.
 
+A write that fails (disk full, an I/O error) cuts the CSV back to the last durable chunk, so
+no torn row stays, and raises an ``OSError`` naming the file, what failed and where it was
+cut; nothing more is written (the run ends ERROR with the table made safe).
+
 Window metadata the format has no column for (kind, pose, means) is kept in the sidecar's
 ``calbench_windows`` list beside ``segments``, so a resumed run can rebuild its record from
 the files alone.
@@ -24,9 +28,11 @@ sample was due plus the samples lost across it, so every hole stays in the time 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -107,6 +113,10 @@ class RunRecorder:
         self._chunk_first = n_rows
         self._chunk_t0: float | None = None
         self._last_flush_wall = time.monotonic()
+        self.failed: OSError | None = None
+        self.durable_end_byte = self.csv_path.stat().st_size  # everything so far is flushed
+        self.durable_rows = n_rows
+        self._durable_t_s = last_t_s
         raw_gaps = writer.sidecar.extra.get(GAPS_KEY, [])
         kept = [gap_from_json(g) for g in raw_gaps] if isinstance(raw_gaps, list) else []
         self.gaps: list[GapRecord] = [g for g in kept if g.after_row <= n_rows]
@@ -168,7 +178,7 @@ class RunRecorder:
         meta = {**self.run_meta, **values}
         self.writer.sidecar = dataclasses.replace(self.writer.sidecar,
                                                   extra={**self.writer.sidecar.extra, RUN_KEY: meta})
-        self.writer.set_segments(self.writer.sidecar.segments or ())
+        self._io("writing the sidecar", self.writer.set_segments, self.writer.sidecar.segments or ())
 
     def record_dwell(self, dwell: DwellChoice) -> None:
         """Store the dwell choice with the recording."""
@@ -229,14 +239,14 @@ class RunRecorder:
     def _write_gaps(self) -> None:
         extra = {**self.writer.sidecar.extra, GAPS_KEY: [gap_to_json(g) for g in self.gaps]}
         self.writer.sidecar = dataclasses.replace(self.writer.sidecar, extra=extra)
-        self.writer.set_segments(self.writer.sidecar.segments or ())
+        self._io("writing the sidecar", self.writer.set_segments, self.writer.sidecar.segments or ())
 
     def append(self, t_s: np.ndarray, accel: np.ndarray, table_deg: np.ndarray | None,
                temp_c: np.ndarray | None, window_index: int | None) -> ChunkRecord | None:
         """Append samples (``t_s`` already on the recording clock); return a chunk if one became durable."""
         if t_s.size == 0:
             return None
-        self.writer.append(t_s, accel, table_deg, temp_c)
+        self._io("appending samples", self.writer.append, t_s, accel, table_deg, temp_c)
         self.n_rows += int(t_s.size)
         self.last_t_s = float(t_s[-1])
         self._expect_t_s = None
@@ -251,8 +261,9 @@ class RunRecorder:
         """Make everything appended so far durable; ``None`` if nothing was pending."""
         if self.n_rows == self._chunk_first or self.last_t_s is None:
             return None
-        self.writer.flush()
+        self._io("flushing a chunk", self.writer.flush)
         end_byte = Path(self.writer.csv_path).stat().st_size
+        self.durable_end_byte, self.durable_rows, self._durable_t_s = end_byte, self.n_rows, self.last_t_s
         chunk = ChunkRecord(seq=self.chunk_seq, first_sample=self._chunk_first,
                             n_samples=self.n_rows - self._chunk_first, last_t_s=self.last_t_s,
                             end_byte=end_byte, window_index=window_index)
@@ -267,7 +278,7 @@ class RunRecorder:
     def _set_sidecar_windows(self, segs: list[Segment], windows: list[WindowRecord]) -> None:
         extra = {**self.writer.sidecar.extra, WINDOWS_KEY: [_window_to_json(w) for w in windows]}
         self.writer.sidecar = dataclasses.replace(self.writer.sidecar, extra=extra)
-        self.writer.set_segments(segs)
+        self._io("writing the sidecar", self.writer.set_segments, segs)
 
     def close_window(self, window: WindowRecord) -> ChunkRecord | None:
         """Flush the samples, then add the window's segment to the sidecar (atomic rewrite).
@@ -281,7 +292,43 @@ class RunRecorder:
         return chunk
 
     def close(self) -> ChunkRecord | None:
-        """Flush what is pending and close the files."""
+        """Flush what is pending and close the files (after a write failure: nothing more is
+        written, the recording stays cut at its last durable chunk)."""
+        if self.failed is not None:
+            return None
         chunk = self.flush_chunk(None)
-        self.writer.close()
+        self._io("closing the recording", self.writer.close)
         return chunk
+
+    # -- write failures ------------------------------------------------------------------
+
+    def _io(self, what: str, fn: Callable[..., object], *args: object) -> None:
+        """Run a write; an ``OSError`` (disk full, I/O error) cuts the recording at its last
+        durable chunk and is raised again, naming the file, what failed and where it was cut."""
+        if self.failed is not None:
+            why = self.failed.strerror or self.failed
+            raise OSError(self.failed.errno, f"{self.csv_path}: the recording failed earlier ({why}); "
+                                             "nothing more is written")
+        try:
+            fn(*args)
+        except OSError as exc:
+            self.failed = exc
+            self._cut_to_durable()
+            raise OSError(exc.errno, f"{self.csv_path}: {what} failed ({exc.strerror or exc}); the recording "
+                                     f"is cut at its last durable chunk ({self.durable_rows} rows, "
+                                     f"{self.durable_end_byte} bytes)") from exc
+
+    def _cut_to_durable(self) -> None:
+        """Close the CSV and truncate it to the last durable chunk (a torn row never stays)."""
+        f = self.writer._file
+        with contextlib.suppress(OSError, ValueError):
+            f.close()  # may fail flushing its buffer: the cut below removes whatever got out
+        self.writer._closed = True
+        with contextlib.suppress(OSError), self.csv_path.open("r+b") as out:
+            out.truncate(self.durable_end_byte)
+            out.flush()
+            os.fsync(out.fileno())
+        with contextlib.suppress(OSError):  # a half-written temporary sidecar
+            (self.csv_path.parent / f".{self.writer.sidecar_path.name}.tmp").unlink(missing_ok=True)
+        self.n_rows, self.last_t_s = self.durable_rows, self._durable_t_s
+        self._chunk_first = self.n_rows

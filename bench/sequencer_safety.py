@@ -64,7 +64,7 @@ def make_safe(seq: Sequencer) -> list[str]:
     # Samples still queued belong to the recording too, and so do the gaps between them.
     seq.window = None
     seq._holding = True
-    for item in seq._pump.drain():
+    for item in seq._pump.drain() if seq.recorder.failed is None else ():
         try:
             if isinstance(item, Restarted):
                 seq._record_restart(item)

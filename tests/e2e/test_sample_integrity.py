@@ -122,7 +122,7 @@ def check_integrity(t_s: np.ndarray, tag: np.ndarray, gaps: list[GapRecord], log
         return sum(g.n_lost or 0 for g in at_row.get(row, []))
 
     # Before the first row: the samples of the first epoch before it are named by gaps.
-    assert lost_at(0) == seq[0] and epoch[0] == 0
+    assert epoch[0] == 0 and lost_at(0) == seq[0], f"first row: epoch {epoch[0]}, sequence {seq[0]}"
     for i in range(1, len(seq)):
         periods = round(float(t_s[i] - t_s[i - 1]) * RATE_HZ)
         if epoch[i] == epoch[i - 1]:
@@ -130,17 +130,25 @@ def check_integrity(t_s: np.ndarray, tag: np.ndarray, gaps: list[GapRecord], log
             assert step >= 1, f"row {i}: sequence {seq[i]} after {seq[i - 1]}"
             assert lost_at(i) == step - 1, f"row {i}: {step - 1} samples missing, gaps say {lost_at(i)}"
             if step > 1:
-                assert at_row[i][0].first_lost_seq == seq[i - 1] + 1
-        else:  # a DAQ restart: the old epoch's samples after the last row, then the new epoch's first
-            assert epoch[i] == epoch[i - 1] + 1 and any(g.cause == "restart" for g in at_row[i])
-            old_left = log.counter_at_stop[int(epoch[i - 1])] - 1 - int(seq[i - 1])
-            assert lost_at(i) == old_left + int(seq[i]), f"row {i}: restart loses {old_left} + {seq[i]}"
-            step = old_left + int(seq[i]) + 1
+                first = at_row[i][0].first_lost_seq
+                assert first == seq[i - 1] + 1, f"row {i}: gap starts at {first}, not {seq[i - 1] + 1}"
+        else:  # DAQ restarts: the old epoch's samples after the last row, any epoch with no row
+            # at all (a restart right after a restart), then the new epoch's first samples
+            e0, e1 = int(epoch[i - 1]), int(epoch[i])
+            restarts = sum(g.cause == "restart" for g in at_row.get(i, []))
+            assert e1 > e0 and restarts == e1 - e0, (
+                f"row {i}: epoch {e0} -> {e1}, {restarts} restarts recorded"
+            )
+            old_left = log.counter_at_stop[e0] - 1 - int(seq[i - 1])
+            skipped = sum(log.counter_at_stop[e] for e in range(e0 + 1, e1))
+            expected = old_left + skipped + int(seq[i])
+            assert lost_at(i) == expected, f"row {i}: restart loses {expected}, gaps say {lost_at(i)}"
+            step = expected + 1
         assert periods == step, f"row {i}: t advances {periods} periods for {step} samples"
         assert abs(t_s[i] - t_s[i - 1] - step / RATE_HZ) < 1e-9
     tail = at_row.get(len(seq), [])  # met after the last row was written (the run was ending)
     assert set(at_row) <= set(range(len(seq) + 1))
-    assert not tail or tail[0].first_lost_seq == seq[-1] + 1
+    assert not tail or tail[0].first_lost_seq == seq[-1] + 1, f"a gap after the last row: {tail[0]}"
     return sum(g.n_lost or 0 for g in gaps)
 
 

@@ -276,7 +276,7 @@ def bench_configuration(identity: Any) -> str:
     gravity = ""
     if isinstance(g, float) and isinstance(u, float):
         source = identity.get("g_local_source", "source not stated")
-        gravity = f"; local g {g} m/s² (u = {u:.1g} m/s², {source})"
+        gravity = f"; local g {g} m/s² (u = {u:.2g} m/s², {source})"
     return f"bench file {identity['name']!r} version {identity.get('version')} (SHA-256 {sha}…){gravity}"
 
 

@@ -321,6 +321,8 @@ def start_run(
         devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
     try:
         sidecar = bench_sidecar(devices, unit_serial, procedure_name, bench_config, g_local_m_s2)
+        # devices opened here are already checked and mapped (open_devices); the caller's are not
+        daq = devices.daq if owned else apply_to_daq(bench_config, devices.daq)
         with sessions.begin() as s:
             urls = {} if bench_config.simulated else {"table_url": bench_config.table_url,
                                                       "daq_url": bench_config.daq_url}
@@ -359,7 +361,7 @@ def start_run(
         obs = [DbRunObserver(sessions), *observers]
         seq = Sequencer(
             devices.table,
-            devices.daq,
+            daq,
             proc,
             recorder,
             start,

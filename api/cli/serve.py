@@ -15,9 +15,7 @@ import sys
 from pathlib import Path
 
 from api.auth import new_secret, parse_tokens
-from api.bench_session import bench_config_for
 from api.cli import BadInput
-from api.cli.run import add_bench_file_argument
 from api.drift import parse_time_of_day
 from api.settings import Settings
 
@@ -31,7 +29,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=8000, help="port (default 8000)")
     parser.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
-    add_bench_file_argument(parser)
+    parser.add_argument(
+        "--bench-file", default=None, metavar="PATH",
+        help="the bench's configuration file (calbench-bench/1; default CALBENCH_BENCH_FILE, "
+        "else the simulated bench's)",
+    )
 
 
 def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
@@ -54,6 +56,8 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         if not args.sim_speed > 0:
             raise BadInput(f"--sim-speed {args.sim_speed}: expected a positive number")
         update["sim_speed"] = args.sim_speed
+    from api.bench_session import bench_config_for
+
     if getattr(args, "bench_file", None) is not None:
         update["bench_file"] = Path(args.bench_file)
     try:  # a bad or missing bench file stops the start, naming the file and the key

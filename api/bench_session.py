@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import socket
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -18,13 +19,14 @@ from typing import Any
 import numpy as np
 
 from api.settings import Settings
+from bench.bench_config import SIM_BENCH_FILE, BenchConfig, apply_to_daq, load_bench_config
 from bench.calibration import CalibrationResult, calibrate_recording
 from bench.dwell_policy import fixed_dwell
 from bench.estimation.scalar_fit import PARAMETER_NAMES as SCALAR_NAMES
 from bench.estimation.static_fit import PARAMETER_NAMES as STATIC_NAMES
 from bench.limits import UnitLimits, describe, load_limits, verdict
 from bench.procedures import build_procedure, preview
-from bench.recording.model import Sidecar, TableAxis, TableGeometry
+from bench.recording.model import Sidecar
 from bench.recording.reader import read_recording
 from bench.records import (
     DwellChoice,
@@ -50,50 +52,107 @@ from db.repo.units import get_or_create_bench, get_or_create_unit
 from drivers.factory import BenchDevices, open_bench
 from drivers.sim.physics import SensorTruth
 
-AXIS_NAMES = ("outer", "middle", "inner")
 
-
-def sim_url(settings: Settings, speed: float | None, seed: int) -> str:
-    """The ``sim://`` URL of a simulated bench with this speed and seed."""
+def sim_url(settings: Settings, speed: float | None, seed: int, unit: str = "V") -> str:
+    """The ``sim://`` URL of a simulated bench with this speed, seed and channel unit."""
     speed = speed or settings.sim_speed
-    return f"sim://?speed={speed:g}&rate={settings.sim_sample_rate_hz:g}&seed={seed}&unit=V"
+    return f"sim://?speed={speed:g}&rate={settings.sim_sample_rate_hz:g}&seed={seed}&unit={unit}"
+
+
+def bench_config_for(settings: Settings, sim: bool) -> BenchConfig:
+    """The bench file of the settings (``CALBENCH_BENCH_FILE``); without one, the simulated
+    bench's (``--sim`` or a ``sim://`` table URL).
+
+    :raises BenchConfigError: the file is unreadable or invalid (file and key named).
+    :raises ValueError: a real bench without a bench file.
+    """
+    if settings.bench_file is not None:
+        return load_bench_config(settings.bench_file)
+    if sim or settings.table_url.lower().startswith("sim:"):
+        return load_bench_config(SIM_BENCH_FILE)
+    raise ValueError(
+        f"table {settings.table_url!r} is a real bench: its geometry, local g and DAQ channels come from a "
+        "bench file (CALBENCH_BENCH_FILE or --bench-file; format in docs/bench-config.md)"
+    )
+
+
+def _sim_geometry(config: BenchConfig) -> dict[str, Any]:
+    return {
+        "axes": [list(a.axis) for a in config.axes],
+        "mount": np.array(config.mount_rotation, dtype=float),
+        "lever_arm_m": config.lever_arm_m,
+        "g_local_m_s2": config.gravity.g_local_m_s2,
+    }
 
 
 def open_devices(
-    settings: Settings, sim: bool, sim_speed: float | None, seed: int, truth: SensorTruth | None = None
+    settings: Settings,
+    sim: bool,
+    sim_speed: float | None,
+    seed: int,
+    truth: SensorTruth | None = None,
+    config: BenchConfig | None = None,
 ) -> BenchDevices:
-    """Table and DAQ: a simulated bench (``sim``, unit ``truth`` or the seed's typical one)
-    or the URLs of the settings."""
-    if sim:
-        return open_bench(sim_url(settings, sim_speed, seed), truth=truth)
-    return open_bench(settings.table_url, settings.daq_url)
+    """Table and DAQ of the bench file ``config`` (default :func:`bench_config_for`): a
+    simulated bench built to its geometry (``sim``, a ``sim://`` file, unit ``truth`` or the
+    seed's typical one) or the file's URLs; the DAQ is checked against the file and its
+    channels mapped to the sensor's x, y, z.
+    """
+    config = config or bench_config_for(settings, sim)
+    n_axes = len(config.axes)
+    if sim or config.simulated:
+        url = sim_url(settings, sim_speed, seed, config.channel_unit)
+        if not sim and settings.bench_file is None and settings.table_url.lower().startswith("sim:"):
+            url = settings.table_url  # a sim:// table URL with its own parameters
+        devices = open_bench(url, truth=truth, n_axes=n_axes, sim_geometry=_sim_geometry(config))
+    else:
+        devices = open_bench(config.table_url, config.daq_url, n_axes=n_axes)
+    try:
+        devices.daq = apply_to_daq(config, devices.daq)
+    except BaseException:
+        devices.close()
+        raise
+    return devices
 
 
 def _vec3(v: Any) -> tuple[float, float, float]:
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
-def bench_sidecar(devices: BenchDevices, unit_serial: str, procedure: str, g_local_m_s2: float) -> Sidecar:
-    """The sidecar: units from the DAQ, geometry from the (simulated) bench's belief."""
-    n = devices.table.n_axes
+def check_devices(devices: BenchDevices, config: BenchConfig) -> None:
+    """The opened devices are the bench the file describes (axes; a simulation's geometry).
+
+    :raises ValueError: they differ (the file named).
+    """
+    if devices.table.n_axes != len(config.axes):
+        raise ValueError(f"{config.path}: table.axes lists {len(config.axes)} axes, the table has "
+                         f"{devices.table.n_axes}")
     if devices.sim is not None:
         geo = devices.sim.geometry
-        axes = tuple(
-            TableAxis(AXIS_NAMES[i] if n == 3 else f"axis{i + 1}", _vec3(geo.axes[i])) for i in range(n)
-        )
-        mount = (_vec3(geo.mount_rotation[0]), _vec3(geo.mount_rotation[1]), _vec3(geo.mount_rotation[2]))
-        table = TableGeometry(axes, mount, _vec3(geo.lever_arm_m))
-        g_local_m_s2 = devices.sim.g_local_m_s2
-    else:
-        default = ((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
-        table = TableGeometry(tuple(TableAxis(AXIS_NAMES[i], default[i]) for i in range(n)))
+        same = (np.allclose(geo.axes, [a.axis for a in config.axes], atol=1e-9)
+                and np.allclose(geo.mount_rotation, config.mount_rotation, atol=1e-9)
+                and np.allclose(geo.lever_arm_m, config.lever_arm_m, atol=1e-12)
+                and abs(devices.sim.g_local_m_s2 - config.gravity.g_local_m_s2) < 1e-9)
+        if not same:
+            raise ValueError(f"{config.path}: the simulated bench's axes, mount, lever arm or g differ "
+                             "from the bench file")
+
+
+def bench_sidecar(devices: BenchDevices, unit_serial: str, procedure: str, config: BenchConfig,
+                  g_local_m_s2: float | None = None) -> Sidecar:
+    """The sidecar: units and rate from the DAQ, table geometry and local g from the bench file
+    (``g_local_m_s2`` overrides the file's g).
+
+    :raises ValueError: the devices are not the bench the file describes.
+    """
+    check_devices(devices, config)
     return Sidecar(
         unit_serial=unit_serial,
         channel_unit=devices.daq.channel_unit,
         sample_rate_hz=devices.daq.sample_rate_hz,
-        g_local_m_s2=g_local_m_s2,
+        g_local_m_s2=config.gravity.g_local_m_s2 if g_local_m_s2 is None else g_local_m_s2,
         procedure=procedure,
-        table=table,
+        table=config.table_geometry(),
     )
 
 
@@ -143,15 +202,47 @@ def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_
         dwell=seq.dwell,
         fit_covariance=cov,
         fit_param_names=names,
+        gaps=tuple(seq.recorder.gaps),
     )
+
+
+class RunNotStored(RuntimeError):
+    """A run ended but an observer (the database) could not store its end; names both."""
+
+
+def finish_observers(observers: Sequence[RunObserver], record: RunRecord, retry_s: float = 30.0,
+                     wait_s: float = 0.5) -> None:
+    """Tell every observer the run ended; a failing one (a database write refused: disk full,
+    connection lost) is retried with growing waits for ``retry_s``, so a transient failure
+    still stores the outcome instead of leaving the run ``running``.
+
+    :raises RunNotStored: an observer still failed at the end (each one named).
+    """
+    problems = []
+    for obs in observers:
+        deadline = time.monotonic() + retry_s
+        pause = wait_s
+        while True:
+            try:
+                obs.on_finish(record)
+                break
+            except Exception as exc:  # any observer failure: retried, then reported
+                if time.monotonic() + pause > deadline:
+                    problems.append(f"{type(obs).__name__}: {type(exc).__name__}: {exc}")
+                    break
+                time.sleep(pause)
+                pause = min(2 * pause, 5.0)
+    if problems:
+        outcome = record.outcome.value if record.outcome else record.state.value
+        raise RunNotStored(f"run {record.run_id} ended {outcome} but its end could not be stored "
+                           f"(retried {retry_s:g} s): " + "; ".join(problems))
 
 
 def _execute(seq: Sequencer, csv_path: Path, observers: Sequence[RunObserver],
              limits: UnitLimits | None) -> RunRecord:
     acq = seq.run()
     record = _finish(seq, acq.outcome, acq.error, csv_path, limits)
-    for obs in observers:
-        obs.on_finish(record)
+    finish_observers(observers, record)
     return record
 
 
@@ -182,7 +273,7 @@ def start_run(
     dwell_s: float | None = None,
     observers: Sequence[RunObserver] = (),
     control: RunControl | None = None,
-    g_local_m_s2: float = 9.80665,
+    g_local_m_s2: float | None = None,
     run_id: str | None = None,
     truth: SensorTruth | None = None,
     devices: BenchDevices | None = None,
@@ -204,7 +295,9 @@ def start_run(
     :param run_id: the run's id when the caller allocated it (the service answers with it
         before the run starts); default :func:`new_run_id`.
     :param truth: the simulated unit (``sim`` only), e.g. an aged one; default the seed's.
-    :raises ValueError: unknown procedure, a limit violation in the preview, bad dwell.
+    :param g_local_m_s2: local gravity (m/s²) overriding the bench file's.
+    :raises ValueError: unknown procedure, a limit violation in the preview, bad dwell, a
+        bench file that is missing (real bench), invalid or not the opened devices' bench.
     """
     proc = build_procedure(procedure_name, dwell_s=dwell_s, **(procedure_kw or {}))
     pv = preview(proc, (config or _config(settings)).limits)
@@ -215,20 +308,26 @@ def start_run(
     sessions = make_session_factory(engine)
     run_id = run_id or new_run_id(unit_serial)
     csv_path = settings.recordings_dir / f"run-{run_id}.csv"
+    bench_config = bench_config_for(settings, sim or (devices is not None and devices.sim is not None))
     meta: dict[str, Any] = {
         "run_id": run_id,
         "procedure": procedure_name,
         "parameters": proc.parameters,
         "sim": {"seed": seed} if sim else None,
         "bench": settings.bench_name,
+        "bench_config": bench_config.identity(),
     }
     owned = devices is None
     if devices is None:
-        devices = open_devices(settings, sim, sim_speed, seed, truth)
+        devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
     try:
-        sidecar = bench_sidecar(devices, unit_serial, procedure_name, g_local_m_s2)
+        sidecar = bench_sidecar(devices, unit_serial, procedure_name, bench_config, g_local_m_s2)
+        # devices opened here are already checked and mapped (open_devices); the caller's are not
+        daq = devices.daq if owned else apply_to_daq(bench_config, devices.daq)
         with sessions.begin() as s:
-            bench = get_or_create_bench(s, settings.bench_name)
+            urls = {} if bench_config.simulated else {"table_url": bench_config.table_url,
+                                                      "daq_url": bench_config.daq_url}
+            bench = get_or_create_bench(s, settings.bench_name, **urls)
             unit = get_or_create_unit(s, unit_serial, channel_unit=sidecar.channel_unit, bench_id=bench.id)
             if limits == "settings":  # before the run exists: a bad limits file refuses the run
                 limits = limits_for(settings, getattr(unit, "model", None), sidecar.channel_unit)
@@ -263,7 +362,7 @@ def start_run(
         obs = [DbRunObserver(sessions), *observers]
         seq = Sequencer(
             devices.table,
-            devices.daq,
+            daq,
             proc,
             recorder,
             start,
@@ -352,7 +451,16 @@ def continue_run(
     sim_meta = stored.get("sim") or params.get("sim")
     seed = int(sim_meta.get("seed", 0)) if isinstance(sim_meta, dict) else 0
     config = _config(settings)
-    devices = open_devices(settings, sim, sim_speed, seed, truth)
+    bench_config = bench_config_for(settings, sim)
+    started_with = stored.get("bench_config")
+    if isinstance(started_with, dict) and started_with.get("sha256") != bench_config.sha256:
+        raise ValueError(
+            f"run {run_id} started with bench file {started_with.get('name')!r} version "
+            f"{started_with.get('version')} ({started_with.get('path')}); the bench file now is "
+            f"{bench_config.name!r} version {bench_config.version} ({bench_config.path}), with other "
+            "contents: a run continues only on the bench it started on"
+        )
+    devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
     try:
         start = RunStart(
             run_id,

@@ -17,7 +17,16 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from api.progress_hub import ProgressHub
 from api.service_resume import SIM_AGE_KEY
-from bench.records import NullObserver, Progress, RunRecord, RunStart, StateChange, WindowRecord, utc_now
+from bench.records import (
+    GapRecord,
+    NullObserver,
+    Progress,
+    RunRecord,
+    RunStart,
+    StateChange,
+    WindowRecord,
+    utc_now,
+)
 from bench.sequencer.control import RunControl
 from db.repo.runs import merge_params
 
@@ -79,6 +88,10 @@ class HubObserver(NullObserver):
                 "state": progress.state.value,
             },
         )
+
+    def on_gap(self, run_id: str, gap: GapRecord) -> None:
+        """A sample gap, as the run page shows it (``GET /api/runs/{id}`` ``gaps`` items)."""
+        self.hub.publish(run_id, "gap", dataclasses.asdict(gap))
 
     def on_window(self, run_id: str, window: WindowRecord) -> None:
         self.hub.publish(

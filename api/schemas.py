@@ -76,6 +76,21 @@ class RunCreated(BaseModel):
     state: RunStateName = "queued"
 
 
+class SampleGapOut(BaseModel):
+    """Samples the DAQ produced that the recording does not hold (``bench.records.GapRecord``)."""
+
+    first_lost_seq: int | None = Field(description="DAQ sequence number of the first lost sample")
+    n_lost: int | None = Field(description="samples lost; null: unknown")
+    cause: str = Field(description="dropped, overflow, restart or unknown")
+    after_row: int = Field(description="rows of the recording before the gap")
+    t_last_s: float | None = Field(description="time of the last row before the gap (recording clock, s)")
+    t_resume_s: float = Field(description="time of the next row (recording clock, s)")
+    window_index: int | None = Field(description="window being recorded, null between windows")
+    window_label: str = ""
+    action: str = Field(description="the rule applied: `window re-measured` or `between windows`")
+    daq_epoch: int = 0
+
+
 class RunOut(BaseModel):
     """One run as stored (or, before its first database write, as the bench's worker knows it)."""
 
@@ -107,6 +122,13 @@ class RunOut(BaseModel):
     )
     diagnosis_note: str | None = Field(
         default=None, description="why there is no diagnosis, when there is none"
+    )
+    n_samples_lost: int | None = Field(
+        default=None, description="samples the DAQ produced that the recording lacks (sum over `gaps`)"
+    )
+    gaps: list[SampleGapOut] | None = Field(
+        default=None,
+        description="every sample gap: where it is, what was done (in `GET /api/runs/{id}`; null in lists)",
     )
 
 

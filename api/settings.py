@@ -22,6 +22,10 @@ class Settings(BaseSettings):
     :param data_dir: recordings go to ``<data_dir>/recordings``.
     :param table_url: ``sim://?speed=..&rate=..&seed=..`` or a real table URL.
     :param daq_url: ``modbus-tcp://host:port`` (``None`` with a simulated table).
+    :param bench_file: the bench's configuration (``calbench-bench/1``, TOML or JSON: table
+        axes, mount, lever arm, local g with source and uncertainty, DAQ channels, URLs);
+        ``None``: the simulated bench's (``bench/data/benches/sim.toml``), and a real table
+        URL is refused.
     :param bench_name: this bench's name in the shared database.
     :param tokens: API tokens (the service's concern).
     :param sim_speed: simulated seconds per wall second for ``--sim``.
@@ -60,6 +64,7 @@ class Settings(BaseSettings):
     data_dir: Path = Path("data")
     table_url: str = "sim://"
     daq_url: str | None = None
+    bench_file: Path | None = None
     bench_name: str = Field(default_factory=socket.gethostname)
     tokens: Annotated[list[str], NoDecode] = Field(default_factory=list)
     sim_speed: float = 1.0

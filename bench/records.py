@@ -206,6 +206,45 @@ class WindowRecord:
 
 
 @dataclass(frozen=True)
+class GapRecord:
+    """Samples the DAQ produced that the recording does not hold, where they were lost.
+
+    The recording's time axis keeps the hole: the row after the gap is stamped
+    ``t_resume_s = t_last_s + (n_lost + 1) / sample_rate_hz`` (DAQ sample clock), never
+    moved up against the row before it.
+
+    :param first_lost_seq: DAQ sequence number of the first lost sample (in ``daq_epoch``);
+        ``None`` when the DAQ did not say (a restart).
+    :param n_lost: samples lost (``None``: unknown, the DAQ's counter restarted).
+    :param cause: ``"dropped"`` (the DAQ never kept them), ``"overflow"`` (its ring overwrote
+        them before the host read them), ``"restart"`` (acquisition restarted after
+        repeated gaps; ``n_lost`` counts the samples seen lost before the restart) or
+        ``"unknown"``.
+    :param after_row: rows in the recording before the gap (0-based index of the row after it).
+    :param t_last_s: time stamp of the last row before the gap (recording clock, s);
+        ``None`` at the very start.
+    :param t_resume_s: where the next row is stamped (recording clock, s).
+    :param window_index: window being recorded when the gap came, ``None`` between windows.
+    :param window_label: that window's label ("" between windows).
+    :param action: the rule applied: ``"window re-measured"`` (its samples are not used),
+        ``"between windows"`` (no window used the lost span).
+    :param daq_epoch: acquisition epoch (0, then +1 at each DAQ restart, when the
+        sequence numbers start again at 0).
+    """
+
+    first_lost_seq: int | None
+    n_lost: int | None
+    cause: str
+    after_row: int
+    t_last_s: float | None
+    t_resume_s: float
+    window_index: int | None
+    window_label: str
+    action: str
+    daq_epoch: int = 0
+
+
+@dataclass(frozen=True)
 class StateChange:
     """A run changed state.
 
@@ -289,6 +328,7 @@ class RunRecord:
     :param dwell: the dwell choice actually used.
     :param fit_covariance: (p, p) covariance of the fitted parameters, or ``None``.
     :param fit_param_names: the p parameter names in covariance order.
+    :param gaps: every sample gap of the run, in order (empty: no sample lost).
     """
 
     start: RunStart
@@ -303,6 +343,7 @@ class RunRecord:
     dwell: DwellChoice | None = None
     fit_covariance: tuple[tuple[float, ...], ...] | None = None
     fit_param_names: tuple[str, ...] = ()
+    gaps: tuple[GapRecord, ...] = ()
 
     @property
     def run_id(self) -> str:
@@ -349,7 +390,13 @@ class RunObserver(Protocol):
         """The run ended (any outcome)."""
         ...
 
+    # Optional: ``on_gap(run_id: str, gap: GapRecord) -> None`` is called, when an observer
+    # defines it, as soon as a sample gap is recorded (before the window is re-measured).
+
 
 class NullObserver(RunObserver):
     """A :class:`RunObserver` that ignores everything (each method is the protocol's own, which
     does nothing); subclass it and override what you need."""
+
+    def on_gap(self, run_id: str, gap: GapRecord) -> None:
+        """Ignored (the optional hook of the module's observers)."""

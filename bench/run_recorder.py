@@ -10,16 +10,29 @@ always on disk.
 Recording clock: ``t = t_daq − t_daq0 + t_offset``; a fresh run starts at 0, a resumed run
 continues one sample period after the last row kept.
 
+A write that fails (disk full, an I/O error) cuts the CSV back to the last durable chunk, so
+no torn row stays, and raises an ``OSError`` naming the file, what failed and where it was
+cut; nothing more is written (the run ends ERROR with the table made safe).
+
 Window metadata the format has no column for (kind, pose, means) is kept in the sidecar's
 ``calbench_windows`` list beside ``segments``, so a resumed run can rebuild its record from
 the files alone.
+
+Sample gaps: ``t_daq`` is the DAQ's sample counter over its rate, so a gap leaves its hole
+in the time axis by itself; :meth:`RunRecorder.record_gap` also writes where it is (rows
+before it, time stamps on either side, the lost sequence numbers) into the sidecar's
+``calbench_gaps`` list as it happens. A gap before the first block of a DAQ epoch pins the
+clock's origin to the first lost sample, and a DAQ restart re-bases the clock where the next
+sample was due plus the samples lost across it, so every hole stays in the time axis.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -27,10 +40,36 @@ import numpy as np
 
 from bench.recording.model import Segment, Sidecar
 from bench.recording.writer import RecordingWriter
-from bench.records import ChunkRecord, DwellChoice, WindowKind, WindowRecord
+from bench.records import ChunkRecord, DwellChoice, GapRecord, WindowKind, WindowRecord
 
 WINDOWS_KEY = "calbench_windows"
 RUN_KEY = "calbench_run"
+GAPS_KEY = "calbench_gaps"
+
+
+def gap_to_json(g: GapRecord) -> dict[str, object]:
+    """A :class:`GapRecord` as the JSON object of the sidecar's ``calbench_gaps`` list."""
+    return dataclasses.asdict(g)
+
+
+def gap_from_json(d: dict[str, Any]) -> GapRecord:
+    """Inverse of :func:`gap_to_json` (unknown keys ignored).
+
+    :raises KeyError, TypeError, ValueError: a required key is missing or not a number.
+    """
+    def opt_int(v: object) -> int | None:
+        return None if v is None else int(v)  # type: ignore[call-overload]
+
+    def opt_float(v: object) -> float | None:
+        return None if v is None else float(v)  # type: ignore[arg-type]
+
+    return GapRecord(
+        first_lost_seq=opt_int(d.get("first_lost_seq")), n_lost=opt_int(d.get("n_lost")),
+        cause=str(d["cause"]), after_row=int(d["after_row"]), t_last_s=opt_float(d.get("t_last_s")),
+        t_resume_s=float(d["t_resume_s"]), window_index=opt_int(d.get("window_index")),
+        window_label=str(d.get("window_label", "")), action=str(d.get("action", "")),
+        daq_epoch=int(d.get("daq_epoch", 0)),
+    )
 
 
 def _window_to_json(w: WindowRecord) -> dict[str, object]:
@@ -70,9 +109,19 @@ class RunRecorder:
         self.min_chunk_wall_s = min_chunk_wall_s
         self._t_offset = 0.0 if last_t_s is None else last_t_s + 1.0 / writer.sidecar.sample_rate_hz
         self._t_daq0: float | None = None
+        self._expect_t_s: float | None = None  # set by a gap: where the next row is due
         self._chunk_first = n_rows
         self._chunk_t0: float | None = None
         self._last_flush_wall = time.monotonic()
+        self.failed: OSError | None = None
+        self.durable_end_byte = self.csv_path.stat().st_size  # everything so far is flushed
+        self.durable_rows = n_rows
+        self._durable_t_s = last_t_s
+        raw_gaps = writer.sidecar.extra.get(GAPS_KEY, [])
+        kept = [gap_from_json(g) for g in raw_gaps] if isinstance(raw_gaps, list) else []
+        self.gaps: list[GapRecord] = [g for g in kept if g.after_row <= n_rows]
+        if len(self.gaps) != len(kept):  # gaps after the rows a resume kept are gone with them
+            self._write_gaps()
 
     # -- construction --------------------------------------------------------------------
 
@@ -81,7 +130,7 @@ class RunRecorder:
                **kw: float) -> RunRecorder:
         """Start a new recording (refuses to overwrite one)."""
         n_axes = len(sidecar.table.axes) if sidecar.table is not None else 0
-        extra = {**sidecar.extra, RUN_KEY: run_meta, WINDOWS_KEY: []}
+        extra = {**sidecar.extra, RUN_KEY: run_meta, WINDOWS_KEY: [], GAPS_KEY: []}
         Path(csv_path).parent.mkdir(parents=True, exist_ok=True)
         first = dataclasses.replace(sidecar, segments=(), extra=extra)
         writer = RecordingWriter(csv_path, first, n_axes, has_temp)
@@ -129,7 +178,7 @@ class RunRecorder:
         meta = {**self.run_meta, **values}
         self.writer.sidecar = dataclasses.replace(self.writer.sidecar,
                                                   extra={**self.writer.sidecar.extra, RUN_KEY: meta})
-        self.writer.set_segments(self.writer.sidecar.segments or ())
+        self._io("writing the sidecar", self.writer.set_segments, self.writer.sidecar.segments or ())
 
     def record_dwell(self, dwell: DwellChoice) -> None:
         """Store the dwell choice with the recording."""
@@ -143,20 +192,64 @@ class RunRecorder:
             self._t_daq0 = float(t_daq_s[0])
         return t_daq_s - self._t_daq0 + self._t_offset
 
-    def rebase(self) -> None:
-        """The DAQ clock restarted: the next block continues one sample period after the last row."""
-        if self.last_t_s is not None:
-            self._t_offset = self.last_t_s + 1.0 / self.writer.sidecar.sample_rate_hz
+    def rebase(self, n_lost: int = 0) -> None:
+        """The DAQ clock restarted: the next block is stamped where the next sample was
+        expected, plus ``n_lost`` sample periods (samples known lost across the restart)."""
+        self._t_offset = self._next_t_s() + n_lost / self.writer.sidecar.sample_rate_hz
         self._t_daq0 = None
+
+    def _next_t_s(self) -> float:
+        """Recording time of the next sample the DAQ is expected to deliver."""
+        if self._expect_t_s is not None:
+            return self._expect_t_s
+        if self.last_t_s is not None:
+            return self.last_t_s + 1.0 / self.writer.sidecar.sample_rate_hz
+        return self._t_offset
+
+    def record_gap(self, *, first_lost_seq: int | None, n_lost: int | None, cause: str,
+                   window_index: int | None, window_label: str, action: str, daq_epoch: int,
+                   restart: bool = False) -> GapRecord:
+        """Record a gap where it happens (sidecar rewritten atomically) and return it.
+
+        Call it when the gap is met in the stream, before the first block after it. The
+        gap's time stamps are on the recording clock: the next sample is stamped
+        ``t_resume_s = t_expected_s + n_lost / fs``, where ``t_expected_s`` is where the
+        first lost sample would have been (consecutive gaps add up). ``restart``: the DAQ's
+        clock restarted, the clock is re-based at ``t_resume_s`` (:meth:`rebase`).
+        """
+        fs = self.writer.sidecar.sample_rate_hz
+        lost = n_lost or 0
+        t_expected = self._next_t_s()
+        if self._t_daq0 is None and not restart and first_lost_seq is not None:
+            # No block of this DAQ epoch yet: pin the clock's origin to the first lost sample,
+            # so the first row keeps its distance from where the samples should have started.
+            self._t_daq0 = first_lost_seq / fs
+            self._t_offset = t_expected
+        t_resume = t_expected + lost / fs
+        gap = GapRecord(first_lost_seq=first_lost_seq, n_lost=n_lost, cause=cause, after_row=self.n_rows,
+                        t_last_s=self.last_t_s, t_resume_s=t_resume, window_index=window_index,
+                        window_label=window_label, action=action, daq_epoch=daq_epoch)
+        self.gaps.append(gap)
+        if restart:
+            self.rebase(lost)
+        self._expect_t_s = t_resume
+        self._write_gaps()
+        return gap
+
+    def _write_gaps(self) -> None:
+        extra = {**self.writer.sidecar.extra, GAPS_KEY: [gap_to_json(g) for g in self.gaps]}
+        self.writer.sidecar = dataclasses.replace(self.writer.sidecar, extra=extra)
+        self._io("writing the sidecar", self.writer.set_segments, self.writer.sidecar.segments or ())
 
     def append(self, t_s: np.ndarray, accel: np.ndarray, table_deg: np.ndarray | None,
                temp_c: np.ndarray | None, window_index: int | None) -> ChunkRecord | None:
         """Append samples (``t_s`` already on the recording clock); return a chunk if one became durable."""
         if t_s.size == 0:
             return None
-        self.writer.append(t_s, accel, table_deg, temp_c)
+        self._io("appending samples", self.writer.append, t_s, accel, table_deg, temp_c)
         self.n_rows += int(t_s.size)
         self.last_t_s = float(t_s[-1])
+        self._expect_t_s = None
         if self._chunk_t0 is None:
             self._chunk_t0 = float(t_s[0])
         enough_data = self.last_t_s - self._chunk_t0 >= self.chunk_s
@@ -168,8 +261,9 @@ class RunRecorder:
         """Make everything appended so far durable; ``None`` if nothing was pending."""
         if self.n_rows == self._chunk_first or self.last_t_s is None:
             return None
-        self.writer.flush()
+        self._io("flushing a chunk", self.writer.flush)
         end_byte = Path(self.writer.csv_path).stat().st_size
+        self.durable_end_byte, self.durable_rows, self._durable_t_s = end_byte, self.n_rows, self.last_t_s
         chunk = ChunkRecord(seq=self.chunk_seq, first_sample=self._chunk_first,
                             n_samples=self.n_rows - self._chunk_first, last_t_s=self.last_t_s,
                             end_byte=end_byte, window_index=window_index)
@@ -184,7 +278,7 @@ class RunRecorder:
     def _set_sidecar_windows(self, segs: list[Segment], windows: list[WindowRecord]) -> None:
         extra = {**self.writer.sidecar.extra, WINDOWS_KEY: [_window_to_json(w) for w in windows]}
         self.writer.sidecar = dataclasses.replace(self.writer.sidecar, extra=extra)
-        self.writer.set_segments(segs)
+        self._io("writing the sidecar", self.writer.set_segments, segs)
 
     def close_window(self, window: WindowRecord) -> ChunkRecord | None:
         """Flush the samples, then add the window's segment to the sidecar (atomic rewrite).
@@ -198,7 +292,43 @@ class RunRecorder:
         return chunk
 
     def close(self) -> ChunkRecord | None:
-        """Flush what is pending and close the files."""
+        """Flush what is pending and close the files (after a write failure: nothing more is
+        written, the recording stays cut at its last durable chunk)."""
+        if self.failed is not None:
+            return None
         chunk = self.flush_chunk(None)
-        self.writer.close()
+        self._io("closing the recording", self.writer.close)
         return chunk
+
+    # -- write failures ------------------------------------------------------------------
+
+    def _io(self, what: str, fn: Callable[..., object], *args: object) -> None:
+        """Run a write; an ``OSError`` (disk full, I/O error) cuts the recording at its last
+        durable chunk and is raised again, naming the file, what failed and where it was cut."""
+        if self.failed is not None:
+            why = self.failed.strerror or self.failed
+            raise OSError(self.failed.errno, f"{self.csv_path}: the recording failed earlier ({why}); "
+                                             "nothing more is written")
+        try:
+            fn(*args)
+        except OSError as exc:
+            self.failed = exc
+            self._cut_to_durable()
+            raise OSError(exc.errno, f"{self.csv_path}: {what} failed ({exc.strerror or exc}); the recording "
+                                     f"is cut at its last durable chunk ({self.durable_rows} rows, "
+                                     f"{self.durable_end_byte} bytes)") from exc
+
+    def _cut_to_durable(self) -> None:
+        """Close the CSV and truncate it to the last durable chunk (a torn row never stays)."""
+        f = self.writer._file
+        with contextlib.suppress(OSError, ValueError):
+            f.close()  # may fail flushing its buffer: the cut below removes whatever got out
+        self.writer._closed = True
+        with contextlib.suppress(OSError), self.csv_path.open("r+b") as out:
+            out.truncate(self.durable_end_byte)
+            out.flush()
+            os.fsync(out.fileno())
+        with contextlib.suppress(OSError):  # a half-written temporary sidecar
+            (self.csv_path.parent / f".{self.writer.sidecar_path.name}.tmp").unlink(missing_ok=True)
+        self.n_rows, self.last_t_s = self.durable_rows, self._durable_t_s
+        self._chunk_first = self.n_rows

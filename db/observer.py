@@ -61,7 +61,7 @@ def fit_kind_for(procedure: str, contract: dict[str, Any]) -> FitKind:
 
 
 class DbRunObserver(br.NullObserver):
-    """Writes runs, windows, chunks, progress, dwell and outcome to the database.
+    """Writes runs, windows, chunks, progress, dwell, sample gaps and outcome to the database.
 
     :param session_factory: ``db.engine.make_session_factory(engine)``.
     :param min_progress_interval_s: progress (and heartbeat) written at most this often (s).
@@ -216,6 +216,19 @@ class DbRunObserver(br.NullObserver):
         """Store the dwell choice and its reason with the run's parameters."""
         self._tx(lambda s: runs.merge_params(s, run_id, {"dwell": dataclasses.asdict(dwell)}))
 
+    def on_gap(self, run_id: str, gap: br.GapRecord) -> None:
+        """A sample gap, stored as it happens in ``params["sample_gaps"]`` (list of objects)."""
+
+        def write(s: Session) -> None:
+            run = s.get(Run, run_id, with_for_update=True)
+            if run is None:
+                raise LookupError(f"run {run_id} not found")
+            gaps = list(run.params.get("sample_gaps") or [])
+            run.params = {**run.params, "sample_gaps": [*gaps, dataclasses.asdict(gap)]}
+            s.flush()
+
+        self._tx(write)
+
     def on_finish(self, record: br.RunRecord) -> None:
         """Outcome, error, limit checks, any window not yet stored, and the fit (the contract
         object also in ``params["calibration"]``, with its covariance) — the only place a
@@ -232,6 +245,8 @@ class DbRunObserver(br.NullObserver):
                 raise LookupError(f"run {run_id} was never started in the database")
             run.n_samples = record.n_samples
             run.limit_checks = [dataclasses.asdict(c) for c in record.limit_checks]
+            # the recording's own list (a resume drops the gaps after the rows it cut)
+            run.params = {**run.params, "sample_gaps": [dataclasses.asdict(g) for g in record.gaps]}
             if record.dwell is not None:
                 run.params = {**run.params, "dwell": dataclasses.asdict(record.dwell)}
             s.flush()

@@ -55,14 +55,26 @@ class LimitError(DriverError, ValueError):
 class DataGap(DriverError):
     """Samples were lost between two blocks: the sample counter jumped.
 
+    The samples ``expected_seq … got_seq − 1`` were produced by the DAQ and will never be
+    delivered; ``got_seq`` is the next sample the reader delivers.
+
     :param expected_seq: sequence number that should have come next.
     :param got_seq: sequence number that came.
+    :param cause: why, one word: ``"dropped"`` (the module never kept them),
+        ``"overflow"`` (the ring overwrote them before the host read them) or ``""``.
     """
 
-    def __init__(self, expected_seq: int, got_seq: int) -> None:
+    def __init__(self, expected_seq: int, got_seq: int, cause: str = "") -> None:
         self.expected_seq = expected_seq
         self.got_seq = got_seq
+        self.cause = cause
+        why = f", {cause}" if cause else ""
         super().__init__(
             f"DAQ sample gap: expected sequence {expected_seq}, got {got_seq} "
-            f"({got_seq - expected_seq} samples lost)"
+            f"({got_seq - expected_seq} samples lost{why})"
         )
+
+    @property
+    def n_lost(self) -> int:
+        """Samples lost (``got_seq − expected_seq``)."""
+        return self.got_seq - self.expected_seq

@@ -18,6 +18,7 @@ from __future__ import annotations
 import urllib.parse
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from drivers.base import Daq, RotaryTable
 from drivers.errors import DriverError
@@ -148,11 +149,14 @@ def open_bench(
     timeout_s: float = 1.0,
     n_axes: int = 3,
     truth: SensorTruth | None = None,
+    sim_geometry: dict[str, Any] | None = None,
 ) -> BenchDevices:
     """Open the table and the DAQ; ``table_url`` ``sim://...`` starts a :class:`SimBench` first.
 
     With ``sim://`` the DAQ URL must be absent or ``sim://`` too (one simulation feeds
-    both); ``truth`` chooses the simulated unit.
+    both); ``truth`` chooses the simulated unit, ``sim_geometry`` the simulated bench's
+    ``axes``, ``mount``, ``lever_arm_m`` and ``g_local_m_s2`` (:class:`SimBench` keywords;
+    default: its own, with ``n_axes`` of :data:`DEFAULT_AXES`).
 
     :raises ValueError: a bad URL or combination.
     """
@@ -168,7 +172,7 @@ def open_bench(
             speed=float(p.get("speed", 1.0)),
             sample_rate_hz=float(p.get("rate", 100.0)),
             seed=seed,
-            axes=DEFAULT_AXES[:n_axes],
+            **(sim_geometry or {"axes": DEFAULT_AXES[:n_axes]}),
         )
         try:
             table = open_table(sim.table_url, timeout_s=timeout_s, n_axes=n_axes)

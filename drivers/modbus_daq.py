@@ -105,6 +105,7 @@ class ModbusDaq:
             raise LinkLost(f"{self._where}: connection refused or unreachable")
         self._next_seq = 0
         self._started = False
+        self._pending_gap: DataGap | None = None
         try:
             module_id = self._read(reg.HR_MODULE_ID, 1, self._deadline())[0]
             if module_id != reg.MODULE_ID:
@@ -128,6 +129,11 @@ class ModbusDaq:
         return self._stream.channel_unit.text
 
     @property
+    def full_scale(self) -> float:
+        """The stream's channels clip at ± this value, in the channel unit (HR 412-413)."""
+        return self._stream.full_scale
+
+    @property
     def n_axes(self) -> int:
         """Table encoder axes latched with each sample (HR 409)."""
         return self._stream.n_axes
@@ -138,6 +144,7 @@ class ModbusDaq:
         self._write(reg.HR_ACQ_CONTROL, [1], deadline)
         self._stream = self._read_stream_status(deadline)
         self._next_seq = 0
+        self._pending_gap = None
         self._started = True
 
     def stop(self) -> None:
@@ -150,6 +157,12 @@ class ModbusDaq:
         A call never runs much past ``timeout_s``: with a backlog larger than it can read in
         that time (≈17 round trips per 120 samples) it returns the samples read so far.
 
+        Every returned block is gap-free (``first_seq`` … ``first_seq + n − 1``). A gap met
+        after some samples were read ends the block there; the *next* call raises it before
+        reading anything, so the caller sees the samples, then the gap, then what follows.
+        A call that fails otherwise (timeout, link, protocol) consumes nothing: the next
+        call starts again at the same sequence number.
+
         :raises DataGap: the next expected sample is gone (dropped, or overwritten in the
             ring); the following call continues after the gap.
         :raises DeviceTimeout: no new sample, or no reply, before ``timeout_s``.
@@ -158,34 +171,44 @@ class ModbusDaq:
             raise ValueError(f"max_samples must be >= 1, got {max_samples}")
         if not self._started:
             raise DriverError(f"{self._where}: read_block before start()")
+        if self._pending_gap is not None:
+            gap, self._pending_gap = self._pending_gap, None
+            raise gap
         deadline = time.monotonic() + timeout_s
         parts: list[blk.DecodedRecords] = []
         first_seq = self._next_seq
         got = 0
-        while got < max_samples:
-            try:
-                n_valid, records = self._read_window(max_samples - got, deadline)
-            except DataGap:
-                if got:
-                    break  # return what came before the gap; the next call reports it
-                raise
-            if n_valid == 0:
-                if got:
-                    break
+        try:
+            while got < max_samples:
+                try:
+                    n_valid, records = self._read_window(max_samples - got, deadline)
+                except DataGap as gap:
+                    if got:
+                        self._pending_gap = gap  # raised by the next call, after these samples
+                        break
+                    raise
+                if n_valid == 0:
+                    if got:
+                        break
+                    if time.monotonic() >= deadline:
+                        raise DeviceTimeout(
+                            f"{self._where}: no new sample within {timeout_s} s "
+                            f"(waiting for sequence {self._next_seq})"
+                        )
+                    time.sleep(max(0.0, min(self.poll_interval_s, deadline - time.monotonic())))
+                    continue
+                parts.append(records)
+                got += records.accel.shape[0]
+                self._next_seq += records.accel.shape[0]
+                if n_valid < reg.WINDOW_CAPACITY:
+                    break  # the window held everything available
                 if time.monotonic() >= deadline:
-                    raise DeviceTimeout(
-                        f"{self._where}: no new sample within {timeout_s} s "
-                        f"(waiting for sequence {self._next_seq})"
-                    )
-                time.sleep(max(0.0, min(self.poll_interval_s, deadline - time.monotonic())))
-                continue
-            parts.append(records)
-            got += records.accel.shape[0]
-            self._next_seq += records.accel.shape[0]
-            if n_valid < reg.WINDOW_CAPACITY:
-                break  # the window held everything available
-            if time.monotonic() >= deadline:
-                break  # a backlog read slowly: hand over what came within the call's time
+                    break  # a backlog read slowly: hand over what came within the call's time
+        except DataGap:
+            raise
+        except BaseException:
+            self._next_seq = first_seq  # nothing delivered, nothing consumed
+            raise
         return self._block(first_seq, parts)
 
     def status(self) -> dict[str, object]:
@@ -244,9 +267,14 @@ class ModbusDaq:
         except ValueError as exc:
             raise ProtocolError(f"{self._where}: HR {reg.HR_WINDOW}: {exc}", str(regs[:4])) from None
         first = reg.unwrap_seq(header.first_seq32, expected)
+        if first < expected:
+            raise ProtocolError(
+                f"{self._where}: window starts at sequence {first}, before the requested {expected}"
+            )
         if first != expected:
-            self._next_seq = self._resync_point(first, deadline)
-            raise DataGap(expected, self._next_seq)
+            resync = self._resync_point(first, deadline)
+            self._next_seq = resync
+            raise DataGap(expected, resync, "dropped" if resync == first else "overflow")
         n = min(header.n_valid, want)
         words = regs[reg.WINDOW_HEADER_REGS :]
         need = n * reg.RECORD_WORDS

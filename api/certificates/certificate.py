@@ -97,7 +97,9 @@ METHOD = {
 class CertificateInputs:
     """What a certificate is built from.
 
-    :param run: ``{"id", "procedure", "started_at", "finished_at", "parameters", "bench"}``.
+    :param run: ``{"id", "procedure", "started_at", "finished_at", "parameters", "bench"}`` and
+        ``"sample_gaps"`` (the run's gap records, absent or empty: none) and ``"bench_config"``
+        (the bench file's identity, ``bench.bench_config.BenchConfig.identity``).
     :param unit: ``{"serial", "model", "channel_unit"}`` and the registration
         (``description``, ``condition``, ``customer_name``, ``customer_address``,
         ``received_on`` ISO date, ``nominal_scale``, ``nominal_bias``), ``None`` where not given.
@@ -250,6 +252,34 @@ def _findings(inp: CertificateInputs) -> dict[str, Any]:
     return {"performed": True, "note": note, "findings": findings}
 
 
+def sample_integrity(gaps: Any) -> str:
+    """One line on samples lost while recording (``run["sample_gaps"]``: GapRecord objects)."""
+    if not isinstance(gaps, list) or not gaps:
+        return "every sample the DAQ produced was recorded (no gap)"
+    known = [g.get("n_lost") for g in gaps if isinstance(g, dict)]
+    n = sum(int(v) for v in known if isinstance(v, int))
+    unknown = " (and an unknown number across a DAQ restart)" if any(v is None for v in known) else ""
+    spoiled = sum(1 for g in gaps if isinstance(g, dict) and g.get("window_index") is not None)
+    return (
+        f"{n} samples lost{unknown} in {len(gaps)} gaps, each recorded where it happened; "
+        f"{spoiled} fell inside a window, which was re-measured; no window with a gap was used"
+    )
+
+
+def bench_configuration(identity: Any) -> str:
+    """One line naming the bench file a run was made with (``run["bench_config"]``)."""
+    if not isinstance(identity, dict) or not identity.get("name"):
+        return "not stated"
+    sha = str(identity.get("sha256", ""))[:12]
+    g = identity.get("g_local_m_s2")
+    u = identity.get("g_local_u_m_s2")
+    gravity = ""
+    if isinstance(g, float) and isinstance(u, float):
+        source = identity.get("g_local_source", "source not stated")
+        gravity = f"; local g {g} m/s² (u = {u:.2g} m/s², {source})"
+    return f"bench file {identity['name']!r} version {identity.get('version')} (SHA-256 {sha}…){gravity}"
+
+
 def certificate_content(
     inp: CertificateInputs, lab: Laboratory, *, number: str, issued_at: dt.datetime
 ) -> dict[str, Any]:
@@ -296,6 +326,8 @@ def certificate_content(
             "sensor_temperature": temp,
             "g_local_m_s2": _stated(inp.g_local_m_s2),
             "table": _stated(inp.table),
+            "sample_integrity": sample_integrity(run.get("sample_gaps")),
+            "bench_configuration": bench_configuration(run.get("bench_config")),
         },
         "results": _results(inp.calibration, inp.budget),
         "g_check": _g_check(inp.calibration),

@@ -232,11 +232,16 @@ def issue_for_run(
     if diagnosis is None and isinstance(run.params.get("diagnosis"), dict):
         diagnosis = run.params["diagnosis"]
     g_local = rec.sidecar.g_local_m_s2 if rec is not None else None
+    bench_file = run.params.get("bench_config")
+    u_g = bench_file.get("g_local_u_m_s2") if isinstance(bench_file, dict) else None
+    if isinstance(u_g, float):  # the bench file's u(g) for the g it gave the recording
+        settings = settings.model_copy(update={"g_local_u_m_s2": u_g})
     budget, budget_note = run_budget(rec, calibration, settings)
     inputs = CertificateInputs(
         run={"id": run.id, "procedure": run.procedure, "started_at": run.started_at,
              "finished_at": run.finished_at, "parameters": run.params.get("parameters", {}),
-             "bench": run.params.get("bench")},
+             "bench": run.params.get("bench"), "sample_gaps": run.params.get("sample_gaps", []),
+             "bench_config": run.params.get("bench_config")},
         unit=unit_inputs(unit),
         calibration=calibration,
         g_local_m_s2=g_local,

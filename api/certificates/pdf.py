@@ -133,6 +133,8 @@ def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
             ("Sensor temperature", temp),
             ("Local gravity g_local", f"{g_local:.6f} m/s²" if isinstance(g_local, float) else str(g_local)),
             ("Rotary table", table_text),
+            ("Sample integrity", _text(cond.get("sample_integrity", "not stated"))),
+            ("Bench configuration", _text(cond.get("bench_configuration", "not stated"))),
         ],
         widths=(0.3, 0.7),
     )

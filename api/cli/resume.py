@@ -9,8 +9,7 @@ from __future__ import annotations
 import argparse
 
 from api.bench_session import resume_run
-from api.cli.run import ProgressBar, add_device_arguments, install_abort_handler, report
-from api.settings import Settings
+from api.cli.run import ProgressBar, add_device_arguments, install_abort_handler, report, settings_for
 from bench.sequencer.control import RunControl
 
 
@@ -25,7 +24,7 @@ def run(args: argparse.Namespace) -> int:
     control = RunControl()
     install_abort_handler(control)
     record = resume_run(
-        Settings(),
+        settings_for(args),
         args.run_id,
         sim=args.sim,
         sim_speed=args.sim_speed,

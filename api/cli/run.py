@@ -13,6 +13,7 @@ import dataclasses
 import json
 import signal
 import sys
+from pathlib import Path
 from types import FrameType
 from typing import Any, TextIO
 
@@ -50,6 +51,25 @@ def add_device_arguments(parser: argparse.ArgumentParser) -> None:
         help="simulated seconds per wall second (default CALBENCH_SIM_SPEED)",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object at the end")
+    add_bench_file_argument(parser)
+
+
+def add_bench_file_argument(parser: argparse.ArgumentParser) -> None:
+    """``--bench-file PATH`` (shared with ``calbench resume`` and ``calbench serve``)."""
+    parser.add_argument(
+        "--bench-file",
+        default=None,
+        metavar="PATH",
+        help="the bench's configuration file (calbench-bench/1, TOML or JSON; default CALBENCH_BENCH_FILE, "
+        "else the simulated bench's)",
+    )
+
+
+def settings_for(args: argparse.Namespace) -> Settings:
+    """Settings from the environment, with ``--bench-file`` when given."""
+    settings = Settings()
+    path = getattr(args, "bench_file", None)
+    return settings if path is None else settings.model_copy(update={"bench_file": Path(path)})
 
 
 class ProgressBar(NullObserver):
@@ -140,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
     control = RunControl()
     install_abort_handler(control)
     record = start_run(
-        Settings(),
+        settings_for(args),
         args.procedure,
         args.unit,
         sim=args.sim,

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 
 from api.auth import new_secret, parse_tokens
 from api.cli import BadInput
@@ -29,6 +30,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=8000, help="port (default 8000)")
     parser.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
+    parser.add_argument(
+        "--bench-file", default=None, metavar="PATH",
+        help="the bench's configuration file (calbench-bench/1; default CALBENCH_BENCH_FILE, "
+        "else the simulated bench's)",
+    )
 
 
 def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
@@ -52,6 +58,14 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         if not args.sim_speed > 0:
             raise BadInput(f"--sim-speed {args.sim_speed}: expected a positive number")
         update["sim_speed"] = args.sim_speed
+    from api.bench_session import bench_config_for
+
+    if getattr(args, "bench_file", None) is not None:
+        update["bench_file"] = Path(args.bench_file)
+    try:  # a bad or missing bench file stops the start, naming the file and the key
+        bench_config_for(settings.model_copy(update=update), bool(args.sim or settings.sim))
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
     generated: dict[str, str] = {}
     if not settings.tokens:
         generated[new_secret()] = "admin"

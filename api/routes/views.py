@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from api.runner import LiveRun
-from api.schemas import CertificateOut, DriftCheckOut, RunOut
+from api.schemas import CertificateOut, DriftCheckOut, RunOut, SampleGapOut
 from db.models import Certificate, DriftCheck, Run
 
 
@@ -32,6 +32,8 @@ def run_out(
     diag = run.params.get("diagnosis")
     diag = diag if isinstance(diag, dict) else None
     note = run.params.get("diagnosis_error")
+    raw_gaps = run.params.get("sample_gaps")
+    gaps = [SampleGapOut(**g) for g in raw_gaps if isinstance(g, dict)] if isinstance(raw_gaps, list) else []
     progress = run.progress
     if live is not None and run.state.value in ("queued", "running", "paused", "suspended"):
         progress = max(progress, live.progress)
@@ -55,6 +57,8 @@ def run_out(
         n_findings=len(diag.get("findings", [])) if diag is not None else None,
         diagnosis=diag if with_diagnosis else None,
         diagnosis_note=str(note) if diag is None and note else None,
+        n_samples_lost=sum(g.n_lost or 0 for g in gaps) if run.n_samples is not None or gaps else None,
+        gaps=gaps if with_diagnosis else None,
     )
 
 

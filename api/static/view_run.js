@@ -15,6 +15,25 @@ function seconds(s) {
   return m ? `${m} min ${Math.round(s % 60)} s` : `${s.toFixed(1)} s`;
 }
 
+// Samples the DAQ produced that the recording lacks: each gap where it is and what was done.
+function gapLine(run) {
+  const gaps = [...(run.gaps || [])];
+  const dt = h("dt", {}, "Samples lost");
+  const dd = h("dd", { id: "run-gaps" });
+  const draw = () => {
+    const known = run.n_samples_lost === 0 || gaps.length > 0;
+    dt.hidden = dd.hidden = !known;
+    if (!gaps.length) { dd.textContent = "none"; return; }
+    const lost = gaps.reduce((n, g) => n + (g.n_lost ?? 0), 0);
+    const where = gaps.map((g) => `${g.n_lost ?? "?"} at ${g.t_last_s == null ? "the start" : `${g.t_last_s.toFixed(3)} s`}`
+      + ` (${g.cause}; ${g.window_label ? `window ${g.window_label} re-measured` : g.action})`);
+    dd.title = where.join("\n");
+    dd.textContent = `${lost} in ${gaps.length} gap${gaps.length > 1 ? "s" : ""}: ${where.slice(0, 3).join("; ")}${gaps.length > 3 ? "; …" : ""}`;
+  };
+  draw();
+  return { nodes: [dt, dd], add: (g) => { gaps.push(g); draw(); } };
+}
+
 function liveCard(run, session, act) {
   const bar = progressBar(run.progress, true, "run progress");
   const pct = h("strong", { id: "progress-text", class: "num" }, `${Math.round(run.progress * 100)} %`);
@@ -46,11 +65,12 @@ function liveCard(run, session, act) {
     abort.disabled = !canAct || !LIVE.has(st);
   };
   controls(run.state);
+  const gaps = gapLine(run);
   const el = h("section", { class: "card span", "aria-label": "Progress" },
     h("header", {}, h("h2", {}, "Progress"), state),
     h("div", { class: "progress-line" }, bar, pct),
     h("dl", { class: "kv" }, h("dt", {}, "Step"), step, h("dt", {}, "Window"), windows,
-      h("dt", {}, "Time"), time, poseLabel, pose),
+      h("dt", {}, "Time"), time, poseLabel, pose, ...gaps.nodes),
     h("p", { class: "actions" }, pause, " ", cont, " ", resume, " ", abort),
     run.state === "interrupted" ? h("p", { class: "note", id: "interrupted-note" },
       "The run stopped before finishing. Every complete window is kept: Resume continues it on this bench "
@@ -71,7 +91,7 @@ function liveCard(run, session, act) {
     time.textContent = Number.isFinite(wall) ? `${seconds(wall)} (wall clock)` : "–";
     if (run.n_samples) { poseLabel.textContent = "Recording"; pose.textContent = `${run.n_samples} samples`; }
   }
-  return { el, update };
+  return { el, update, addGap: gaps.add };
 }
 
 function fitCard(cal) {
@@ -244,6 +264,7 @@ export async function runView(view, runId, session, signal) {
     await followEvents(runId, (name, data) => {
       if (name === "progress" || name === "state") live.update(data);
       if (name === "window") addWindow(data);
+      if (name === "gap") live.addGap(data);
       if (name === "finished") live.update({ state: data.state, progress: data.state === "completed" ? 1 : undefined });
       if (name === "shutdown") status.textContent = "The service is restarting: the run will be stored interrupted and can be resumed.";
     }, signal);

@@ -9,7 +9,12 @@ error is passed on and ends the thread.
 A reader that fell behind a fast DAQ can keep losing the race for the oldest samples in the
 ring (each read starts at a sample about to be overwritten). After ``restart_after_gaps``
 consecutive gaps the pump restarts acquisition (``stop()``, ``start()``: the DAQ's counter and
-clock restart at 0) and says so with :class:`Restarted`, so the recording clock is re-based.
+clock restart at 0) and says so with :class:`Restarted`, with the samples it knows were lost
+by it, so the recording clock is re-based and the restart recorded as a gap.
+
+A read that timed out (a lost reply) consumed nothing (``Daq.read_block``'s contract), so
+it is retried, up to ``max_read_failures`` times in a row; what the ring overwrote
+meanwhile comes back as a gap.
 
 The consumer takes items with :meth:`DaqPump.next_item`, which joins the sample blocks
 queued back to back into one (up to ``max_samples``): a fast stream then costs the
@@ -25,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drivers.base import Daq, SampleBlock
-from drivers.errors import DataGap
+from drivers.errors import DataGap, DeviceTimeout
 
 
 @dataclass(frozen=True)
@@ -44,9 +49,17 @@ class Failed:
 
 @dataclass(frozen=True)
 class Restarted:
-    """Acquisition was restarted after repeated gaps; DAQ time starts again at 0."""
+    """Acquisition was restarted after repeated gaps; DAQ time starts again at 0.
+
+    :param gaps: consecutive gaps that led to the restart.
+    :param next_seq: the sequence number the reader expected next in the old epoch
+        (``None`` if the DAQ's status does not say).
+    :param unread: samples the old epoch produced that were never read (``None``: unknown).
+    """
 
     gaps: int
+    next_seq: int | None = None
+    unread: int | None = None
 
 
 Item = SampleBlock | Gap | Failed | Restarted
@@ -59,6 +72,7 @@ class DaqPump:
     :param max_samples: samples per read.
     :param read_timeout_s: per-read timeout.
     :param restart_after_gaps: consecutive gaps after which acquisition is restarted.
+    :param max_read_failures: consecutive timed-out reads retried before the DAQ counts as failed.
     :param idle_wait_s: wait (wall s) after a read that found the DAQ's buffer nearly empty
         (fewer than ``max_samples / 8``): samples gather into one block per read instead of
         a request per fresh sample, which would cost most of a core in round trips whatever
@@ -66,12 +80,13 @@ class DaqPump:
     """
 
     def __init__(self, daq: Daq, max_samples: int, read_timeout_s: float,
-                 restart_after_gaps: int = 3, idle_wait_s: float = 0.0) -> None:
+                 restart_after_gaps: int = 3, idle_wait_s: float = 0.0, max_read_failures: int = 3) -> None:
         self.daq = daq
         self.max_samples = max_samples
         self.read_timeout_s = read_timeout_s
         self.idle_wait_s = idle_wait_s
         self.restart_after_gaps = restart_after_gaps
+        self.max_read_failures = max_read_failures
         self.items: queue.Queue[Item] = queue.Queue()
         self._pending: Item | None = None
         self._stop = threading.Event()
@@ -84,6 +99,7 @@ class DaqPump:
 
     def _loop(self) -> None:
         gaps = 0
+        failures = 0
         while not self._stop.is_set():
             try:
                 block = self.daq.read_block(self.max_samples, self.read_timeout_s)
@@ -92,24 +108,46 @@ class DaqPump:
                 gaps += 1
                 if gaps >= self.restart_after_gaps:
                     try:
-                        self.daq.stop()
-                        self.daq.start()
+                        restarted = self._restart(gaps)
                     except BaseException as restart_exc:
                         self.items.put(Failed(restart_exc))
                         return
-                    self.items.put(Restarted(gaps))
+                    self.items.put(restarted)
                     gaps = 0
+                continue
+            except DeviceTimeout as exc:
+                failures += 1
+                if failures > self.max_read_failures:
+                    self.items.put(Failed(exc))
+                    return
                 continue
             except BaseException as exc:
                 self.items.put(Failed(exc))
                 return
-            gaps = 0
+            gaps = failures = 0
             if block.n:
                 self.items.put(block)
             if block.n < self.max_samples // 8:
                 # Caught up: let samples gather instead of one request per fresh sample
                 # (a reader with a backlog reads on at once).
                 self._stop.wait(max(self.idle_wait_s, 0.002 if not block.n else 0.0))
+
+    def _restart(self, gaps: int) -> Restarted:
+        """Stop acquisition, count what the old epoch produced and nobody read, start again.
+
+        The count is read after the stop, so it is exact: ``counter − next expected``.
+        """
+        self.daq.stop()
+        next_seq = unread = None
+        try:
+            st = self.daq.status()
+            n, fill = st.get("next_seq"), st.get("buffer_fill")
+            next_seq = n if isinstance(n, int) else None
+            unread = fill if isinstance(fill, int) else None
+        except Exception:  # the count is a courtesy; the restart is what matters
+            pass
+        self.daq.start()
+        return Restarted(gaps, next_seq, unread)
 
     def next_item(self, wait_s: float, max_samples: int) -> Item | None:
         """The next item (``None`` if none came within ``wait_s``); consecutive queued blocks

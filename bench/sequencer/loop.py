@@ -32,6 +32,7 @@ import numpy as np
 from bench.procedures.steps import Procedure
 from bench.records import (
     DwellChoice,
+    GapRecord,
     Outcome,
     Progress,
     RunObserver,
@@ -48,7 +49,7 @@ from bench.sequencer.safety import make_safe, prepare_table
 from bench.sequencer.steps import execute_steps
 from bench.sequencer.window import WindowCollector
 from drivers.base import Daq, RotaryTable, SampleBlock
-from drivers.errors import DeviceError, DeviceTimeout, DriverError
+from drivers.errors import DataGap, DeviceError, DeviceTimeout, DriverError
 
 T = TypeVar("T")
 
@@ -66,6 +67,7 @@ class Acquisition:
     :param windows: every completed window (also those from before a resume).
     :param dwell: the dwell choice used.
     :param n_samples: rows in the recording.
+    :param gaps: every sample gap met, in order (also those from before a resume).
     """
 
     outcome: Outcome | None
@@ -73,6 +75,7 @@ class Acquisition:
     windows: tuple[WindowRecord, ...]
     dwell: DwellChoice | None
     n_samples: int
+    gaps: tuple[GapRecord, ...] = ()
 
 
 class Sequencer:
@@ -110,6 +113,7 @@ class Sequencer:
         self._holding = False
         self._daq_latches_table = False
         self._gaps = 0
+        self._daq_epoch = 0
 
     # -- observers -----------------------------------------------------------------------
 
@@ -158,17 +162,47 @@ class Sequencer:
         if isinstance(item, Failed):
             raise item.error
         if isinstance(item, Restarted):
-            self.recorder.rebase()
+            self._record_restart(item)
         elif isinstance(item, Gap):
             self._gaps += 1
-            if self.window is not None:
-                raise WindowSpoiled(str(item.error))
+            self._record_gap(item.error)
         elif item is not None:
             self._handle_block(item)
         if not (self._in_call or self._holding) and \
                 time.monotonic() - self._last_status_wall > self.config.status_poll_s:
             self.check_table()
         self.progress()
+
+    def _record_gap(self, err: DataGap) -> None:
+        """Record the gap where it happened; a window it falls in is spoiled (re-measured)."""
+        w = self.window
+        gap = self.recorder.record_gap(
+            first_lost_seq=err.expected_seq, n_lost=err.n_lost, cause=err.cause or "unknown",
+            window_index=w.index if w else None, window_label=w.label if w else "",
+            action="window re-measured" if w else "between windows", daq_epoch=self._daq_epoch)
+        self._notify_gap(gap)
+        if w is not None:
+            raise WindowSpoiled(str(err))
+
+    def _record_restart(self, item: Restarted) -> None:
+        """The DAQ was restarted: record the samples it left unread and re-base the clock."""
+        gap = self.recorder.record_gap(
+            first_lost_seq=item.next_seq, n_lost=item.unread,
+            cause="restart", window_index=None, window_label="", action="between windows",
+            daq_epoch=self._daq_epoch, restart=True)
+        self._daq_epoch += 1
+        self._notify_gap(gap)
+
+    def _notify_gap(self, gap: GapRecord) -> None:
+        for obs in self.observers:
+            hook = getattr(obs, "on_gap", None)
+            if hook is None:
+                continue
+            try:
+                hook(self.start.run_id, gap)
+            except Exception as exc:
+                raise ObserverError(f"observer {type(obs).__name__}.on_gap failed: "
+                                    f"{type(exc).__name__}: {exc}") from exc
 
     def _handle_block(self, block: SampleBlock) -> None:
         self._last_sample_wall = time.monotonic()
@@ -259,17 +293,21 @@ class Sequencer:
         pump_problem = self._pump.stop(self.config.stop_timeout_s)
         if pump_problem:
             problems.append(pump_problem)
+        # Samples still queued belong to the recording too, and so do the gaps between them;
+        # after a failed write the recording is cut at its last durable chunk and takes no more.
         self.window = None
         with self.holding():
-            for item in self._pump.drain():
-                if isinstance(item, Restarted):
-                    self.recorder.rebase()
-                elif isinstance(item, SampleBlock):
-                    try:
+            for item in self._pump.drain() if self.recorder.failed is None else ():
+                try:
+                    if isinstance(item, Restarted):
+                        self._record_restart(item)
+                    elif isinstance(item, Gap):
+                        self._record_gap(item.error)
+                    elif isinstance(item, SampleBlock):
                         self._handle_block(item)
-                    except Exception as exc:
-                        problems.append(f"saving the last samples failed: {exc}")
-                        break
+                except Exception as exc:
+                    problems.append(f"saving the last samples failed: {exc}")
+                    break
         return problems
 
     def record_window(self, collector: WindowCollector) -> WindowRecord:
@@ -311,4 +349,5 @@ class Sequencer:
         if problems:
             error = "; ".join([error or "completed", *problems])
             outcome = outcome or Outcome.ERROR
-        return Acquisition(outcome, error, tuple(self.recorder.windows), self.dwell, self.recorder.n_rows)
+        return Acquisition(outcome, error, tuple(self.recorder.windows), self.dwell, self.recorder.n_rows,
+                           tuple(self.recorder.gaps))

@@ -41,7 +41,9 @@ def execute_steps(seq: RunContext) -> None:
             if isinstance(exc, WindowSpoiled):
                 retries += 1
                 if retries > seq.config.max_window_retries:
-                    raise DeviceError(f"DAQ lost samples in the same window {retries} times: {exc}") from exc
+                    limit = seq.config.max_window_retries
+                    raise DeviceError(f"window rejected: DAQ lost samples in the same window {retries} times "
+                                      f"(re-measured at most {limit} times): {exc}") from exc
             else:
                 hold(seq, exc if isinstance(exc, Interruption)
                      else Interruption(RunState.SUSPENDED, f"interlock open: {exc}"))

@@ -12,6 +12,8 @@ Faults injected at run time (thread-safe):
 * :meth:`DaqServer.inject_exception` — answer the next requests with Modbus exception
   02 (illegal address), 04 (device failure), 06 (busy) or any other code;
 * :meth:`DaqServer.set_silent` — read requests but never answer (a hung device);
+* :meth:`DaqServer.drop_replies` — handle the next requests but lose their replies (a
+  flaky link: the request took effect, the answer never came);
 * :meth:`DaqServer.drop_samples` / :meth:`DaqServer.set_open_circuit` — see the engine;
 * :meth:`DaqServer.close` — stop listening: new connections are refused.
 """
@@ -75,6 +77,8 @@ class DaqServer:
         self._exc_code: int | None = None
         self._exc_left: int | None = None
         self._silent = False
+        self._drop_skip = 0
+        self._drop_left = 0
         self._type_codes = [0x0143 if engine.unit is reg.ChannelUnit.V else reg.TYPE_CODE_ENGINEERING] * 8
         self._requests = 0
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -112,11 +116,19 @@ class DaqServer:
         with self._lock:
             self._silent = silent
 
+    def drop_replies(self, n: int, after: int = 0) -> None:
+        """Send the next ``after`` replies, then lose ``n`` (their requests still take effect)."""
+        if n < 0 or after < 0:
+            raise ValueError(f"reply counts must be >= 0, got n={n}, after={after}")
+        with self._lock:
+            self._drop_skip, self._drop_left = after, n
+
     def clear_faults(self) -> None:
-        """Remove injected exceptions and silence (engine faults stay)."""
+        """Remove injected exceptions, silence and reply drops (engine faults stay)."""
         with self._lock:
             self._exc_code = self._exc_left = None
             self._silent = False
+            self._drop_skip = self._drop_left = 0
 
     def drop_samples(self, n: int) -> None:
         """The next ``n`` samples are lost inside the DAQ (see :meth:`DaqEngine.drop_next`)."""
@@ -190,8 +202,17 @@ class DaqServer:
             await server.shutdown()
 
     def _trace_packet(self, sending: bool, data: bytes) -> bytes:
-        if sending and self._silent:
+        if not sending:
+            return data
+        if self._silent:
             return b""
+        with self._lock:
+            if self._drop_left:
+                if self._drop_skip:
+                    self._drop_skip -= 1
+                else:
+                    self._drop_left -= 1
+                    return b""
         return data
 
     async def _action(

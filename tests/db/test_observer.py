@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 
 import pytest
@@ -250,3 +251,37 @@ def test_fit_kind_for():
     assert fit_kind_for("static-12", CONTRACT) is FitKind.STATIC
     assert fit_kind_for("hand-held", {"terms": ["bias", "scale_matrix_lower_triangular"]}) is FitKind.SCALAR
     assert fit_kind_for("oscillation-2axis", CONTRACT) is FitKind.DYNAMIC
+
+
+def _gap(after_row: int, n_lost: int, window: int | None) -> br.GapRecord:
+    return br.GapRecord(
+        first_lost_seq=after_row + 7,
+        n_lost=n_lost,
+        cause="overflow",
+        after_row=after_row,
+        t_last_s=after_row / 100.0,
+        t_resume_s=(after_row + n_lost + 1) / 100.0,
+        window_index=window,
+        window_label="" if window is None else f"pos{window:02d}",
+        action="between windows" if window is None else "window re-measured",
+    )
+
+
+def test_sample_gaps_are_stored_as_they_happen_and_the_finished_list_replaces_them(db_session_factory):
+    obs = DbRunObserver(db_session_factory)
+    start = _start(pid=1234)
+    obs.on_start(start)
+    obs.on_gap(start.run_id, _gap(500, 40, 1))
+    obs.on_gap(start.run_id, _gap(900, 3, None))
+    with db_session_factory() as s:
+        live = s.get(Run, start.run_id).params["sample_gaps"]
+    assert [(g["after_row"], g["n_lost"], g["action"]) for g in live] == [
+        (500, 40, "window re-measured"),
+        (900, 3, "between windows"),
+    ]
+    # A resume cut the rows after 800: the run's final list is the recording's, not the union.
+    kept = (_gap(500, 40, 1),)
+    obs.on_finish(br.RunRecord(start, br.RunState.FINISHED, br.Outcome.PASS, (), n_samples=40_000, gaps=kept))
+    with db_session_factory() as s:
+        final = s.get(Run, start.run_id).params["sample_gaps"]
+    assert final == [dataclasses.asdict(kept[0])]

@@ -324,6 +324,15 @@ def test_data_gap_in_a_window_re_records_it(tmp_path: Path) -> None:
     assert gaps.sum() == 1  # the gap is visible in t, and no window spans it
     t_gap = rec.t_s[:-1][gaps][0]
     assert not any(w.start_s <= t_gap < w.end_s for w in acq.windows)
+    # ...and recorded where it is: the rows on either side, the lost sequence numbers, the rule
+    (g,) = acq.gaps
+    row = int(np.flatnonzero(gaps)[0]) + 1
+    assert (g.after_row, g.n_lost) == (row, daq.block)
+    # read 30 usually falls inside a window (re-measured); on a loaded machine it may fall between
+    assert g.action == ("between windows" if g.window_index is None else "window re-measured")
+    assert g.t_last_s == rec.t_s[row - 1] and g.t_resume_s == pytest.approx(rec.t_s[row], abs=1e-9)
+    assert rec.t_s[row] - rec.t_s[row - 1] == pytest.approx((daq.block + 1) / FS)
+    assert rec.sidecar.extra["calbench_gaps"][0]["first_lost_seq"] == g.first_lost_seq
 
 
 def test_repeated_gaps_restart_acquisition_and_the_clock_continues(tmp_path: Path) -> None:
@@ -336,6 +345,14 @@ def test_repeated_gaps_restart_acquisition_and_the_clock_continues(tmp_path: Pat
     assert len(acq.windows) == 12
     rec = read_recording(tmp_path / "run.csv")
     assert np.all(np.diff(rec.t_s) > 0)  # the DAQ clock restarted at 0; the recording's did not
+    assert [g.cause for g in acq.gaps] == ["unknown"] * 3 + ["restart"]
+    assert [g.daq_epoch for g in acq.gaps] == [0, 0, 0, 0]
+    (row,) = np.flatnonzero(np.diff(rec.t_s) > 1.5 / FS) + 1  # one hole in t: the three gaps...
+    assert {g.after_row for g in acq.gaps} == {row}
+    lost = sum(g.n_lost or 0 for g in acq.gaps)
+    assert lost == 3 * daq.block  # ...whose samples the restart did not fold away
+    assert rec.t_s[row] - rec.t_s[row - 1] == pytest.approx((lost + 1) / FS)
+    assert acq.gaps[-1].t_resume_s == pytest.approx(rec.t_s[row], abs=1e-9)
 
 
 def test_resume_after_an_interrupted_run_completes_the_windows(tmp_path: Path) -> None:

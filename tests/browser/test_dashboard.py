@@ -22,6 +22,8 @@ from tests.browser.conftest import CHROMIUM
 from tests.browser.live_server import live_service
 from tests.support.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
 
+expect = pytest.importorskip("playwright.sync_api").expect
+
 SHOTS = Path(__file__).resolve().parents[2] / "test-artifacts" / "screenshots"
 DESK = {"width": 1440, "height": 900}
 PHONE = {"width": 390, "height": 844}
@@ -83,7 +85,8 @@ def test_operator_runs_a_calibration_from_the_dashboard(service: str, browser: A
     assert page.is_disabled("#start-run")
     page.fill("#token-input", OPERATOR)
     page.click("#token-form button[type=submit]")
-    page.wait_for_function("document.querySelector('#role').textContent === 'operator'")
+    # a locator wait, not wait_for_function: its polling evaluates a string, which the CSP forbids
+    expect(page.locator("#role")).to_have_text("operator")
     page.wait_for_selector("#start-run:not([disabled])")
     shot(page, "desk-overview-empty")
 
@@ -128,7 +131,10 @@ def test_operator_runs_a_calibration_from_the_dashboard(service: str, browser: A
     dl.value.save_as(str(path))
     cert = json.loads(path.read_text())
     assert cert["number"] == number and cert["run_id"] == run_id and len(cert["sha256"]) == 64
+    # the PDF link is signed by the service (POST /api/links) after the card is drawn
+    page.wait_for_selector("#pdf-link[href*='link=']")
     pdf_href = page.get_attribute("#pdf-link", "href")
+    assert pdf_href is not None and OPERATOR not in pdf_href
     assert pdf_href is not None
     pdf = page.request.get(f"{service}/{pdf_href.lstrip('/')}")
     assert pdf.status == 200 and pdf.headers["content-type"] == "application/pdf"
@@ -177,7 +183,7 @@ def test_operator_runs_a_calibration_from_the_dashboard(service: str, browser: A
     p2 = phone.new_page()
     console2 = ConsoleWatch(p2)
     p2.goto(f"{service}/")
-    p2.wait_for_function("document.querySelector('#role').textContent === 'viewer'")
+    expect(p2.locator("#role")).to_have_text("viewer")
     assert p2.is_disabled("#start-run")
     p2.wait_for_selector("table")
     shot(p2, "phone-overview")

@@ -69,7 +69,7 @@ def rot(u: npt.ArrayLike, theta_rad: npt.ArrayLike) -> FloatArray:
     th = np.atleast_1d(np.asarray(theta_rad, dtype=float))
     c, s = np.cos(th)[:, None, None], np.sin(th)[:, None, None]
     ux = np.array([[0.0, -uu[2], uu[1]], [uu[2], 0.0, -uu[0]], [-uu[1], uu[0], 0.0]])
-    return c * np.eye(3) + s * ux + (1.0 - c) * np.outer(uu, uu)
+    return np.asarray(c * np.eye(3) + s * ux + (1.0 - c) * np.outer(uu, uu), dtype=float)
 
 
 def _chain(u: FloatArray, q: FloatArray) -> list[FloatArray]:
@@ -100,7 +100,7 @@ def attitude(axis_vectors: npt.ArrayLike, angles_rad: npt.ArrayLike, mount: npt.
     :param mount: (3, 3) mount rotation M (sensor nominal frame -> innermost table frame).
     :returns: (n, 3, 3).
     """
-    return inner_attitude(axis_vectors, angles_rad) @ np.asarray(mount, dtype=float).reshape(3, 3)
+    return np.asarray(inner_attitude(axis_vectors, angles_rad) @ np.asarray(mount, dtype=float).reshape(3, 3))
 
 
 def static_specific_force(R: npt.ArrayLike, g_local_m_s2: float) -> FloatArray:
@@ -194,7 +194,7 @@ def specific_force(
     wd = angular_acceleration(axis_vectors, angles_rad, rates_rad_s, accels_rad_s2)
     f_base = np.cross(wd, p) + np.cross(w, np.cross(w, p))
     f_base[:, 2] += g_local_m_s2
-    return np.einsum("nji,nj->ni", R, f_base)
+    return np.asarray(np.einsum("nji,nj->ni", R, f_base), dtype=float)
 
 
 def derivatives(

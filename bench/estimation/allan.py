@@ -231,7 +231,7 @@ def edf_simple(n_phase: int, m: int, alpha: npt.ArrayLike) -> FloatArray:
     rw_fm = (N - 2) / (mf * (N - 3) ** 2) * ((N - 1) ** 2 - 3 * mf * (N - 1) + 4 * mf**2)
     table = {2: white_pm, 1: flicker_pm, 0: white_fm, -1: flicker_fm, -2: rw_fm}
     edf = np.vectorize(lambda al: table[int(al)], otypes=[float])(a)
-    return np.maximum(edf, 1.0)
+    return np.asarray(np.maximum(edf, 1.0), dtype=float)
 
 
 def chi2_interval(dev: FloatArray, edf: FloatArray, level: float) -> tuple[FloatArray, FloatArray]:

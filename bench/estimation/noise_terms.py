@@ -92,7 +92,9 @@ class NoiseTerms:
     @property
     def coefficients(self) -> FloatArray:
         """(5,) [Q, N, B, K, R], NaN read as 0."""
-        return np.nan_to_num(np.array([getattr(self, name) for name in _FIELDS]), nan=0.0)
+        return np.asarray(
+            np.nan_to_num(np.array([getattr(self, name) for name in _FIELDS]), nan=0.0), dtype=float
+        )
 
     def model_adev(self, taus_s: npt.ArrayLike) -> FloatArray:
         """Allan deviation of the model at τ (s), shape of taus_s."""
@@ -154,8 +156,10 @@ def spectrum_coefficients(p: npt.ArrayLike) -> FloatArray:
     (its Allan variance 3 f_h h₂/(4π²τ²) = 3Q²/τ² with f_h = 1/(2τ0)).
     """
     q2, n2, b2, k2, _ = np.asarray(p, dtype=float)
-    return np.array([0.0, 2.0 * n2, b2 / math.pi, k2 / (2.0 * math.pi**2)]) + np.array(
-        [8.0 * math.pi**2 * q2, 0.0, 0.0, 0.0]
+    return np.asarray(
+        np.array([0.0, 2.0 * n2, b2 / math.pi, k2 / (2.0 * math.pi**2)])
+        + np.array([8.0 * math.pi**2 * q2, 0.0, 0.0, 0.0]),
+        dtype=float,
     )
 
 

@@ -97,7 +97,7 @@ def _residual_variance(theta: FloatArray, y: FloatArray, V: FloatArray, g: float
     """(m,) σ_w² = nᵀ L⁻¹ V_w L⁻ᵀ n, the variance of r_w from the window-mean noise."""
     _, _, n, Linv = _residual_and_jacobian(theta, y, g)
     a = n @ Linv
-    return np.einsum("wi,wij,wj->w", a, V, a)
+    return np.asarray(np.einsum("wi,wij,wj->w", a, V, a), dtype=float)
 
 
 def _weighted_residual(theta: FloatArray, y: FloatArray, g: float, w: FloatArray) -> FloatArray:

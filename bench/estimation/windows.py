@@ -89,7 +89,9 @@ class WindowStats:
     mid_s: FloatArray
 
 
-def _check_inputs(t_s: npt.ArrayLike, accel: npt.ArrayLike, table_rad: npt.ArrayLike | None):
+def _check_inputs(
+    t_s: npt.ArrayLike, accel: npt.ArrayLike, table_rad: npt.ArrayLike | None
+) -> tuple[FloatArray, FloatArray, FloatArray | None]:
     t = np.asarray(t_s, dtype=float).reshape(-1)
     a = np.asarray(accel, dtype=float)
     n = t.shape[0]

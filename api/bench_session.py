@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from api.certificates.conformity import check_uncertainties
+from api.certificates.issue import limits_model_name, run_budget
 from api.settings import Settings
 from bench.calibration import CalibrationResult, calibrate_recording
 from bench.dwell_policy import fixed_dwell
@@ -24,6 +26,7 @@ from bench.estimation.scalar_fit import PARAMETER_NAMES as SCALAR_NAMES
 from bench.estimation.static_fit import PARAMETER_NAMES as STATIC_NAMES
 from bench.limits import UnitLimits, describe, load_limits, verdict
 from bench.procedures import build_procedure, preview
+from bench.recording import Recording
 from bench.recording.model import Sidecar, TableAxis, TableGeometry
 from bench.recording.reader import read_recording
 from bench.records import (
@@ -109,23 +112,44 @@ def fit_covariance(result: CalibrationResult) -> tuple[tuple[tuple[float, ...], 
     return cov, names
 
 
-def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_path: Path,
-            limits: UnitLimits | None) -> RunRecord:
+def judged_uncertainties(
+    rec: Recording, calibration: dict[str, Any], settings: Settings | None
+) -> dict[str, float]:
+    """The expanded uncertainty of each value the limits check, as the certificate will state
+    it: from the uncertainty budget with the bench's Type B settings, or (no settings, or no
+    budget can be formed) the fit's Type A σ with k = 2."""
+    budget = None
+    if settings is not None:
+        budget, _why = run_budget(rec, calibration, settings)
+    return check_uncertainties(calibration, budget)
+
+
+def _finish(
+    seq: Sequencer,
+    acq_outcome: Outcome | None,
+    error: str | None,
+    csv_path: Path,
+    limits: UnitLimits | None,
+    settings: Settings | None = None,
+) -> RunRecord:
     calibration: dict[str, object] | None = None
     outcome = acq_outcome
     checks: tuple[LimitCheck, ...] = ()
     cov: tuple[tuple[float, ...], ...] | None = None
     names: tuple[str, ...] = ()
+    rec: Recording | None = None
     if outcome is None:
         try:
-            result = calibrate_recording(read_recording(csv_path))
+            rec = read_recording(csv_path)
+            result = calibrate_recording(rec)
             calibration = result.to_contract()
             cov, names = fit_covariance(result)
         except ValueError as exc:
             outcome, error = Outcome.ERROR, f"fit failed: {exc}"
-    if calibration is not None:
+    if calibration is not None and rec is not None:
         try:
-            outcome, checks = verdict(calibration, limits)
+            us = judged_uncertainties(rec, calibration, settings) if limits is not None else None
+            outcome, checks = verdict(calibration, limits, us)
         except ValueError as exc:
             outcome, error = Outcome.ERROR, f"limits check failed: {exc}"
         if outcome is Outcome.FAIL:
@@ -145,10 +169,15 @@ def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_
     )
 
 
-def _execute(seq: Sequencer, csv_path: Path, observers: Sequence[RunObserver],
-             limits: UnitLimits | None) -> RunRecord:
+def _execute(
+    seq: Sequencer,
+    csv_path: Path,
+    observers: Sequence[RunObserver],
+    limits: UnitLimits | None,
+    settings: Settings | None = None,
+) -> RunRecord:
     acq = seq.run()
-    record = _finish(seq, acq.outcome, acq.error, csv_path, limits)
+    record = _finish(seq, acq.outcome, acq.error, csv_path, limits, settings)
     for obs in observers:
         obs.on_finish(record)
     return record
@@ -165,7 +194,7 @@ def limits_for(settings: Settings, model: str | None, channel_unit: str) -> Unit
     :raises ValueError: the limits file is unreadable or malformed (named).
     """
     table = load_limits(settings.limits_file)
-    name = model if model in table else settings.limits_model
+    name = limits_model_name(settings, model)
     chosen = table.get(name) if name else None
     return chosen if chosen is not None and chosen.channel_unit == channel_unit else None
 
@@ -271,7 +300,7 @@ def start_run(
             (config or _config(settings)),
             dwell,
         )
-        return _execute(seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None)
+        return _execute(seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None, settings)
     finally:
         if owned:
             devices.close()
@@ -310,8 +339,18 @@ def resume_run(
         if point.recording_path is None:
             raise ValueError(f"run {run_id}: no recording path stored")
         return continue_run(
-            settings, sessions, run_id, serial, model, procedure_name, params, point,
-            sim=sim, sim_speed=sim_speed, observers=observers, control=control,
+            settings,
+            sessions,
+            run_id,
+            serial,
+            model,
+            procedure_name,
+            params,
+            point,
+            sim=sim,
+            sim_speed=sim_speed,
+            observers=observers,
+            control=control,
         )
     finally:
         engine.dispose()
@@ -368,10 +407,20 @@ def continue_run(
             resumed_from_window=point.next_window_index,
         )
         obs = [DbRunObserver(sessions), *observers]
-        seq = Sequencer(devices.table, devices.daq, proc, recorder, start, obs, control, config, dwell,
-                        start_window=point.next_window_index)
+        seq = Sequencer(
+            devices.table,
+            devices.daq,
+            proc,
+            recorder,
+            start,
+            obs,
+            control,
+            config,
+            dwell,
+            start_window=point.next_window_index,
+        )
         limits = limits_for(settings, model, devices.daq.channel_unit)
-        return _execute(seq, csv_path, obs, limits)
+        return _execute(seq, csv_path, obs, limits, settings)
     finally:
         devices.close()
 

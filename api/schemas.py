@@ -61,6 +61,33 @@ class RunCreated(BaseModel):
     state: RunStateName = "queued"
 
 
+class LimitCheckOut(BaseModel):
+    """One fitted value checked against its tolerance under the unit model's decision rule."""
+
+    name: str
+    unit: str
+    value: float
+    low: float | None = None
+    high: float | None = None
+    passed: bool
+    expanded_uncertainty: float | None = Field(default=None, description="U of the value (k ≈ 2)")
+    acceptance_low: float | None = None
+    acceptance_high: float | None = None
+    rule: str = "simple-acceptance"
+
+
+class WindowOut(BaseModel):
+    """One completed window of a run."""
+
+    index: int
+    label: str
+    kind: str
+    start_s: float
+    end_s: float
+    n_samples: int
+    pose_deg: list[float] = Field(default_factory=list)
+
+
 class RunOut(BaseModel):
     """One run as stored (or, before its first database write, as the bench's worker knows it)."""
 
@@ -93,6 +120,16 @@ class RunOut(BaseModel):
     diagnosis_note: str | None = Field(
         default=None, description="why there is no diagnosis, when there is none"
     )
+    limit_checks: list[LimitCheckOut] = Field(
+        default_factory=list,
+        description="the unit model's limits evaluated on the fit (empty: no limits applied or no fit yet)",
+    )
+    decision_rule: str | None = Field(
+        default=None, description="the decision rule of the limit checks (ILAC-G8), null without checks"
+    )
+    windows: list[WindowOut] | None = Field(
+        default=None, description="the completed windows (in `GET /api/runs/{id}`; null in lists)"
+    )
 
 
 class AbortOut(BaseModel):
@@ -124,9 +161,7 @@ class UnitRegistration(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     model: str | None = Field(default=None, max_length=200, examples=["ADXL335"])
-    description: str | None = Field(
-        default=None, max_length=200, examples=["triaxial MEMS accelerometer"]
-    )
+    description: str | None = Field(default=None, max_length=200, examples=["triaxial MEMS accelerometer"])
     channel_unit: Literal["V", "count", "m/s2", "g"] | None = None
     customer_name: str | None = Field(default=None, max_length=200)
     customer_address: str | None = Field(default=None, max_length=500)

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from api.certificates.budget import combined
+from api.certificates.conformity import conformity_statement
 from api.certificates.rounding import expanded_quantity, round_significant
 
 TITLE = "Calibration Certificate"
@@ -112,6 +113,11 @@ class CertificateInputs:
     :param budget: the uncertainty budget (``api.certificates.budget.certificate_budget``), or
         ``None`` (Type A only, k = 2).
     :param budget_note: why there is no budget, when there is none.
+    :param limit_checks: the run's stored limit checks (``bench.records.LimitCheck`` as dicts,
+        with U and the acceptance interval of the decision rule); empty: no limits applied.
+    :param outcome: the run's stored outcome (``PASS``/``FAIL``), which the conformity
+        statement must agree with.
+    :param limits_model: the unit model whose limits judged the run.
     """
 
     run: dict[str, Any]
@@ -126,6 +132,9 @@ class CertificateInputs:
     deviations: list[str] = field(default_factory=list)
     budget: dict[str, Any] | None = None
     budget_note: str = ""
+    limit_checks: tuple[dict[str, Any], ...] = ()
+    outcome: str | None = None
+    limits_model: str | None = None
 
 
 @dataclass(frozen=True)
@@ -307,7 +316,7 @@ def certificate_content(
         if inp.budget is not None
         else TYPE_A_ONLY_STATEMENT.format(reason=inp.budget_note or "no budget given"),
         "diagnosis": _findings(inp),
-        "conformity": "no statement of conformity was requested (no limits configured for the unit)",
+        "conformity": conformity_statement(inp.limit_checks, inp.outcome, inp.limits_model, None),
         "traceability": traceability,
         "statements": [ONLY_ITEM, NOT_REPRODUCED],
         "authorized_by": lab.authorized_by,

@@ -25,6 +25,7 @@ from api.certificates.certificate import CertificateInputs, Laboratory, certific
 from api.certificates.pdf import render_pdf
 from api.settings import Settings
 from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording
+from bench.limits import load_limits
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
 from db.models import Certificate, FitKind, Run, Unit
@@ -53,8 +54,12 @@ def diagnose(rec: Recording) -> dict[str, Any]:
 def laboratory(settings: Settings) -> Laboratory:
     """The issuing laboratory from the settings."""
     return Laboratory(
-        settings.lab_name, settings.lab_address, settings.lab_location, settings.authorized_by,
-        settings.customer_name, settings.customer_address,
+        settings.lab_name,
+        settings.lab_address,
+        settings.lab_location,
+        settings.authorized_by,
+        settings.customer_name,
+        settings.customer_address,
     )
 
 
@@ -174,11 +179,16 @@ def store_results(s: Session, record: RunRecord, analysis: RunAnalysis) -> None:
 def unit_inputs(unit: Unit) -> dict[str, Any]:
     """What the certificate states about the item and its customer, from the unit's registration."""
     return {
-        "serial": unit.serial, "model": unit.model, "channel_unit": unit.channel_unit,
-        "description": unit.description, "condition": unit.condition,
-        "customer_name": unit.customer_name, "customer_address": unit.customer_address,
+        "serial": unit.serial,
+        "model": unit.model,
+        "channel_unit": unit.channel_unit,
+        "description": unit.description,
+        "condition": unit.condition,
+        "customer_name": unit.customer_name,
+        "customer_address": unit.customer_address,
         "received_on": unit.received_on.isoformat() if unit.received_on else None,
-        "nominal_scale": unit.nominal_scale, "nominal_bias": unit.nominal_bias,
+        "nominal_scale": unit.nominal_scale,
+        "nominal_bias": unit.nominal_bias,
     }
 
 
@@ -187,6 +197,16 @@ def unit_nominal(unit: Unit | None) -> Nominal | None:
     if unit is None or unit.nominal_scale is None:
         return None
     return unit.nominal_scale, unit.nominal_bias
+
+
+def limits_model_name(settings: Settings, model: str | None) -> str | None:
+    """The unit model whose limits judge a unit registered as ``model``: ``model`` when the
+    limits file has it, else ``settings.limits_model`` (``None`` when empty).
+
+    :raises ValueError: the limits file is unreadable or malformed (named).
+    """
+    table = load_limits(settings.limits_file)
+    return model if model in table else (settings.limits_model or None)
 
 
 def run_budget(
@@ -234,9 +254,14 @@ def issue_for_run(
     g_local = rec.sidecar.g_local_m_s2 if rec is not None else None
     budget, budget_note = run_budget(rec, calibration, settings)
     inputs = CertificateInputs(
-        run={"id": run.id, "procedure": run.procedure, "started_at": run.started_at,
-             "finished_at": run.finished_at, "parameters": run.params.get("parameters", {}),
-             "bench": run.params.get("bench")},
+        run={
+            "id": run.id,
+            "procedure": run.procedure,
+            "started_at": run.started_at,
+            "finished_at": run.finished_at,
+            "parameters": run.params.get("parameters", {}),
+            "bench": run.params.get("bench"),
+        },
         unit=unit_inputs(unit),
         calibration=calibration,
         g_local_m_s2=g_local,
@@ -247,6 +272,9 @@ def issue_for_run(
         simulated=bool(run.params.get("sim")),
         budget=budget,
         budget_note=budget_note,
+        limit_checks=tuple(dict(c) for c in (run.limit_checks or [])),
+        outcome=run.outcome,
+        limits_model=limits_model_name(settings, unit.model) if run.limit_checks else None,
     )
     now = now or utc_now()
     cert = issue_certificate(s, run_id, {"pending": run_id}, now=now)
@@ -269,15 +297,25 @@ def finish_calibration(
     if record.calibration is None or record.outcome is None or record.outcome.value != "PASS":
         return None
     return issue_for_run(
-        s, settings, record.run_id, rec=analysis.rec, diagnosis=analysis.diagnosis,
-        diagnosis_note=analysis.note, temp_c=_temperature(record),
+        s,
+        settings,
+        record.run_id,
+        rec=analysis.rec,
+        diagnosis=analysis.diagnosis,
+        diagnosis_note=analysis.note,
+        temp_c=_temperature(record),
     )
 
 
 def findings_of(s: Session, run_id: str) -> list[dict[str, Any]]:
     """Stored findings of a run as dicts."""
     return [
-        {"effect": f.effect, "summary": f.summary, "parameters": f.parameters, "sigma": f.sigma,
-         "delta_bic": f.delta_bic}
+        {
+            "effect": f.effect,
+            "summary": f.summary,
+            "parameters": f.parameters,
+            "sigma": f.sigma,
+            "delta_bic": f.delta_bic,
+        }
         for f in list_findings(s, run_id)
     ]

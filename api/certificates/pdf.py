@@ -186,10 +186,10 @@ def _statements(f: Flow, c: dict[str, Any]) -> None:
     if diag["findings"]:
         rows = [("Effect", "Finding")] + [(str(x["effect"]), str(x["summary"])) for x in diag["findings"]]
         f.table(rows, widths=(0.25, 0.75), header=True)
-    f.heading("7  Conformity, traceability, external providers")
+    _conformity(f, c)
+    f.heading("8  Traceability, external providers")
     f.table(
         [
-            ("Conformity", c["conformity"]),
             ("Traceability", c["traceability"]),
             ("External providers", _text(c["external_providers"])),
         ],
@@ -201,6 +201,50 @@ def _statements(f: Flow, c: dict[str, Any]) -> None:
     f.end(c["end"])
 
 
+def conformity_line(c: dict[str, Any]) -> str:
+    """The one line on every page that states the conformity verdict (or that none is made)."""
+    conf = c["conformity"]
+    if isinstance(conf, str):  # a certificate issued before the statement had its own section
+        return f"Conformity: {conf}"
+    if not conf.get("requested"):
+        return "Conformity: no statement of conformity (no specification limits apply)"
+    rule = str(conf.get("rule", "")).replace("-", " ")
+    spec = str(conf["specification"]).removeprefix("limits of ")
+    return f"Conformity: {conf['outcome']} against the limits of {spec} ({rule})"
+
+
+def _check_row(r: dict[str, Any]) -> tuple[str, ...]:
+    U = r.get("expanded_uncertainty")
+    value, u_text = (
+        value_and_u(float(r["value"]), float(U))
+        if isinstance(U, float | int) and U > 0
+        else (f"{float(r['value']):.6g}", "not stated")
+    )
+    lo, hi = r.get("low"), r.get("high")
+    alo, ahi = r.get("acceptance_low"), r.get("acceptance_high")
+    tol = f"[{'−∞' if lo is None else f'{lo:.6g}'}, {'+∞' if hi is None else f'{hi:.6g}'}]"
+    acc = f"[{'−∞' if alo is None else f'{alo:.6g}'}, {'+∞' if ahi is None else f'{ahi:.6g}'}]"
+    return (str(r["quantity"]), value, u_text, _unit(str(r["unit"])), tol, acc, str(r["verdict"]))
+
+
+def _conformity(f: Flow, c: dict[str, Any]) -> None:
+    conf = c["conformity"]
+    f.heading("7  Statement of conformity (ISO/IEC 17025 7.8.6)")
+    if isinstance(conf, str):
+        f.paragraph(conf)
+        return
+    f.paragraph(conf["statement"], size=9)
+    f.paragraph(f"Decision rule: {conf['decision_rule']}.", size=7.5)
+    if conf.get("checks"):
+        f.paragraph(
+            f"Specification: {conf['specification']}. U of the |g| check: {conf['g_check_uncertainty']}.",
+            size=7.5,
+        )
+        rows = [("Quantity", "Value", "U", "Unit", "Tolerance interval", "Acceptance interval", "Verdict")]
+        rows += [_check_row(r) for r in conf["checks"]]
+        f.table(rows, widths=(0.15, 0.14, 0.11, 0.10, 0.18, 0.18, 0.14), header=True, size=7)
+
+
 def _decorate(fig: Figure, page: Page, n: int, total: int, c: dict[str, Any], sha256: str) -> None:
     lab = c["laboratory"]
     fig.text(0.07, 0.962, lab["name"], fontsize=11, weight="bold", family=FONT)
@@ -208,6 +252,7 @@ def _decorate(fig: Figure, page: Page, n: int, total: int, c: dict[str, Any], sh
     fig.text(0.93, 0.962, c["title"], fontsize=13, weight="bold", ha="right", family=FONT)
     fig.text(0.93, 0.947, f"Certificate No. {c['number']}", fontsize=9, ha="right", family=FONT)
     fig.text(0.93, 0.934, f"Page {n} of {total}", fontsize=8, ha="right", family=FONT)
+    fig.text(0.07, 0.932, conformity_line(c), fontsize=7.5, weight="bold", family=FONT)
     fig.add_artist(_rule(0.927))
     fig.add_artist(_rule(0.052))
     foot = f"Certificate No. {c['number']}  ·  SHA-256 of the content: {sha256}"

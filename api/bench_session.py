@@ -217,8 +217,12 @@ def start_run(
     config: SequencerConfig | None = None,
     limits: UnitLimits | str | None = "settings",
     procedure_kw: dict[str, Any] | None = None,
+    defer_final_state: bool = False,
 ) -> RunRecord:
     """Run a procedure on the bench from start to verdict.
+
+    :param defer_final_state: leave the finished run's stored state live for the caller to
+        finalise with what it stores after the run (``db.observer.finish_record``).
 
     :param procedure_kw: the procedure's own parameters (e.g. ``rates_deg_s``), stored with the
         run so a resume rebuilds the same steps.
@@ -288,7 +292,7 @@ def start_run(
             dwell=dwell,
             parameters=meta,
         )
-        obs = [DbRunObserver(sessions), *observers]
+        obs = [DbRunObserver(sessions, defer_final_state=defer_final_state), *observers]
         seq = Sequencer(
             devices.table,
             devices.daq,
@@ -371,6 +375,7 @@ def continue_run(
     truth: SensorTruth | None = None,
     observers: Sequence[RunObserver] = (),
     control: RunControl | None = None,
+    defer_final_state: bool = False,
 ) -> RunRecord:
     """Continue a run claimed for resumption from ``point`` to its verdict.
 
@@ -406,7 +411,7 @@ def continue_run(
             parameters=dict(stored),
             resumed_from_window=point.next_window_index,
         )
-        obs = [DbRunObserver(sessions), *observers]
+        obs = [DbRunObserver(sessions, defer_final_state=defer_final_state), *observers]
         seq = Sequencer(
             devices.table,
             devices.daq,

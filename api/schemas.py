@@ -61,6 +61,20 @@ class RunCreated(BaseModel):
     state: RunStateName = "queued"
 
 
+class ProcedurePreviewOut(BaseModel):
+    """A procedure before it is started: how long, how many poses and windows, with what dwell."""
+
+    procedure: str
+    duration_s: float = Field(description="expected duration on the bench clock (s)")
+    wall_duration_s: float = Field(description="expected wall-clock duration (s); bench clock / sim speed")
+    n_poses: int
+    n_windows: int
+    dwell_s: float | None = Field(description="static dwell per pose (s); null: decided by a noise window")
+    dwell_source: Literal["given", "service setting", "provisional"]
+    assumptions: list[str]
+    problems: list[str] = Field(description="table-limit violations; empty when the procedure can run")
+
+
 class LimitCheckOut(BaseModel):
     """One fitted value checked against its tolerance under the unit model's decision rule."""
 
@@ -126,6 +140,9 @@ class RunOut(BaseModel):
     )
     decision_rule: str | None = Field(
         default=None, description="the decision rule of the limit checks (ILAC-G8), null without checks"
+    )
+    certificate_note: str | None = Field(
+        default=None, description="why a completed run has no certificate, when it has none"
     )
     windows: list[WindowOut] | None = Field(
         default=None, description="the completed windows (in `GET /api/runs/{id}`; null in lists)"
@@ -281,6 +298,15 @@ class Health(BaseModel):
     database_ok: bool
     busy_run: str | None
     public_read: bool
+    certificate_problems: list[str] = Field(
+        default_factory=list,
+        description="what this bench's certificates lack (settings named); on a real bench the first "
+        "three kinds (laboratory name, address, authorising person) stop certificates being issued",
+    )
+    certificates_blocked: bool = Field(
+        default=False,
+        description="a real bench that cannot issue certificates until its settings are completed",
+    )
 
 
 class WhoAmI(BaseModel):

@@ -14,12 +14,13 @@ u_c is the fit's Type A σ and k = 2.
 from __future__ import annotations
 
 import datetime as dt
+import importlib.metadata
 import math
 from dataclasses import dataclass, field
 from typing import Any
 
 from api.certificates.budget import combined
-from api.certificates.conformity import conformity_statement
+from api.certificates.conformity import G_CHECK_U_BASIS, conformity_statement
 from api.certificates.rounding import expanded_quantity, round_significant
 
 TITLE = "Calibration Certificate"
@@ -80,6 +81,11 @@ REQUIRED_ITEMS = {
 """Each ISO/IEC 17025:2017 item a certificate must carry, and where it is in the content
 (dotted path); every one is filled, with :data:`NOT_STATED` where the laboratory gave nothing."""
 
+SIMULATED_EQUIPMENT = (
+    "simulated three-axis rate table (sim://, calbench's table simulator): no calibration status",
+    "simulated DAQ (Modbus-TCP simulator): no calibration status",
+)
+SIMULATED_AMBIENT = "simulated bench: no ambient conditions"
 NOT_STATED = "not stated"
 """What a certificate says where the laboratory did not give an item (never a null)."""
 ONLY_ITEM = "The results relate only to the item calibrated."
@@ -139,8 +145,10 @@ class CertificateInputs:
 
 @dataclass(frozen=True)
 class Laboratory:
-    """Who issues: name, address, location of the work, who authorises (7.8.2.1 b, c, o), and
-    the customer of units registered without one (an in-house laboratory's own department)."""
+    """Who issues: name, address, location of the work, who authorises (7.8.2.1 b, c, o), the
+    customer of units registered without one (an in-house laboratory's own department), the
+    bench's reference standards with their calibration status (7.8.4.1 c) and the ambient
+    conditions (7.8.4.1 b)."""
 
     name: str
     address: str
@@ -148,6 +156,8 @@ class Laboratory:
     authorized_by: str
     default_customer_name: str = ""
     default_customer_address: str = ""
+    reference_equipment: tuple[str, ...] = ()
+    ambient_conditions: str = ""
 
 
 def _iso(value: Any) -> str | None:
@@ -161,6 +171,21 @@ def _stated(value: Any) -> Any:
     return NOT_STATED if value is None or (isinstance(value, str) and not value.strip()) else value
 
 
+def _nominal(value: Any, unit: str) -> dict[str, Any]:
+    """A nominal value with its unit; "not stated" carries no unit."""
+    stated = _stated(value)
+    return {"value": stated, "unit": "" if stated == NOT_STATED else unit}
+
+
+def software() -> dict[str, str]:
+    """The software that acquired, fitted and reported (name and installed version)."""
+    try:
+        version = importlib.metadata.version("calbench")
+    except importlib.metadata.PackageNotFoundError:
+        version = NOT_STATED
+    return {"name": "calbench", "version": version}
+
+
 def _item(unit: dict[str, Any]) -> dict[str, Any]:
     cu = unit.get("channel_unit") or NOT_STATED
     return {
@@ -168,8 +193,8 @@ def _item(unit: dict[str, Any]) -> dict[str, Any]:
         "serial": unit.get("serial"),
         "model": _stated(unit.get("model")),
         "channel_unit": cu,
-        "nominal_scale": {"value": _stated(unit.get("nominal_scale")), "unit": f"{cu}/(m/s2)"},
-        "nominal_zero_g_output": {"value": _stated(unit.get("nominal_bias")), "unit": cu},
+        "nominal_scale": _nominal(unit.get("nominal_scale"), f"{cu}/(m/s2)"),
+        "nominal_zero_g_output": _nominal(unit.get("nominal_bias"), cu),
         "condition": _stated(unit.get("condition")),
         "adjustment": "none: the item was not adjusted; results are as found",
     }
@@ -225,9 +250,13 @@ def _g_check(cal: dict[str, Any]) -> dict[str, Any]:
     missing = {"before": f"{NOT_STATED}: no nominal scale known for this unit", "after": NOT_STATED}
     for when in ("before", "after"):
         if isinstance(g.get(when), dict):
-            out[when] = {k: _two_digits(v) for k, v in g[when].items() if k != "nominal"}
+            out[when] = {k: (v if k == "n" else _two_digits(v)) for k, v in g[when].items() if k != "nominal"}
+            n, std = g[when].get("n"), g[when].get("std_m_s2")
+            if isinstance(n, int) and n >= 2 and isinstance(std, int | float) and math.isfinite(std):
+                out[when]["expanded_uncertainty_m_s2"] = _two_digits(2.0 * float(std) / math.sqrt(n))
         else:
             out[when] = missing[when]
+    out["uncertainty_basis"] = G_CHECK_U_BASIS
     nominal = g.get("before", {}).get("nominal") if isinstance(g.get("before"), dict) else None
     out["before_basis"] = (
         f"nominal scale {nominal['scale']:g} and zero-g output {nominal['bias']:g} ({nominal['source']})"
@@ -287,6 +316,7 @@ def certificate_content(
         "customer": _customer(unit, lab),
         "method": {
             "procedure": procedure,
+            "procedure_version": f"{procedure} as implemented by calbench {software()['version']}",
             "description": METHOD.get(procedure, procedure),
             "parameters": run.get("parameters", {}),
             "deviations": list(inp.deviations) or ["none"],
@@ -305,7 +335,12 @@ def certificate_content(
             "sensor_temperature": temp,
             "g_local_m_s2": _stated(inp.g_local_m_s2),
             "table": _stated(inp.table),
+            "ambient": SIMULATED_AMBIENT if inp.simulated else _stated(lab.ambient_conditions),
         },
+        "reference_equipment": list(SIMULATED_EQUIPMENT)
+        if inp.simulated
+        else list(lab.reference_equipment) or [NOT_STATED],
+        "software": software(),
         "results": _results(inp.calibration, inp.budget),
         "g_check": _g_check(inp.calibration),
         "uncertainty_statement": (

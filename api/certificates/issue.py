@@ -51,15 +51,27 @@ def diagnose(rec: Recording) -> dict[str, Any]:
     return dict(diagnose_recording(rec).to_contract())
 
 
+class CertificateRefused(ValueError):
+    """A real bench's certificate cannot be issued: the laboratory's identity or the
+    authorising person is not configured (the message names each setting)."""
+
+
+def _configured(value: str, env: str) -> str:
+    return value.strip() or f"not configured ({env})"
+
+
 def laboratory(settings: Settings) -> Laboratory:
-    """The issuing laboratory from the settings."""
+    """The issuing laboratory from the settings (an unset item reads "not configured (ENV)",
+    which only a simulated bench's certificate can carry)."""
     return Laboratory(
-        settings.lab_name,
-        settings.lab_address,
+        _configured(settings.lab_name, "CALBENCH_LAB_NAME"),
+        _configured(settings.lab_address, "CALBENCH_LAB_ADDRESS"),
         settings.lab_location,
-        settings.authorized_by,
+        _configured(settings.authorized_by, "CALBENCH_AUTHORIZED_BY"),
         settings.customer_name,
         settings.customer_address,
+        tuple(settings.reference_equipment),
+        settings.ambient_conditions,
     )
 
 
@@ -251,6 +263,12 @@ def issue_for_run(
             rec = None
     if diagnosis is None and isinstance(run.params.get("diagnosis"), dict):
         diagnosis = run.params["diagnosis"]
+    simulated = bool(run.params.get("sim"))
+    blocking, _warnings = settings.certificate_gaps()
+    if blocking and not simulated:
+        raise CertificateRefused(
+            f"no certificate issued for run {run_id} from a real bench: " + "; ".join(blocking)
+        )
     g_local = rec.sidecar.g_local_m_s2 if rec is not None else None
     budget, budget_note = run_budget(rec, calibration, settings)
     inputs = CertificateInputs(
@@ -269,7 +287,7 @@ def issue_for_run(
         table=_table(rec) if rec is not None else None,
         diagnosis=diagnosis,
         diagnosis_note=diagnosis_note or str(run.params.get("diagnosis_error", "")),
-        simulated=bool(run.params.get("sim")),
+        simulated=simulated,
         budget=budget,
         budget_note=budget_note,
         limit_checks=tuple(dict(c) for c in (run.limit_checks or [])),
@@ -296,6 +314,14 @@ def finish_calibration(
     store_results(s, record, analysis)
     if record.calibration is None or record.outcome is None or record.outcome.value != "PASS":
         return None
+    try:
+        return _issue_after_run(s, settings, record, analysis)
+    except CertificateRefused as exc:
+        merge_params(s, record.run_id, {"certificate_error": str(exc)})
+        return None
+
+
+def _issue_after_run(s: Session, settings: Settings, record: RunRecord, analysis: RunAnalysis) -> Certificate:
     return issue_for_run(
         s,
         settings,

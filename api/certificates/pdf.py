@@ -87,8 +87,14 @@ def _identification(f: Flow, c: dict[str, Any]) -> None:
             ("Item", f"{item['description']}, model {item['model']}"),
             ("Serial number", _text(item["serial"])),
             ("Output unit", _unit(_text(item["channel_unit"]))),
-            ("Nominal scale factor", f"{_text(nominal.get('value'))} {_unit(_text(nominal.get('unit')))}"),
-            ("Nominal zero-g output", f"{_text(zero_g.get('value'))} {_unit(_text(zero_g.get('unit')))}"),
+            (
+                "Nominal scale factor",
+                f"{_text(nominal.get('value'))} {_unit(_text(nominal.get('unit')))}".strip(),
+            ),
+            (
+                "Nominal zero-g output",
+                f"{_text(zero_g.get('value'))} {_unit(_text(zero_g.get('unit')))}".strip(),
+            ),
             ("Condition as received", _text(item["condition"])),
             ("Adjustment", _text(item.get("adjustment"))),
             ("Date of receipt", _text(dates["received"])),
@@ -101,6 +107,11 @@ def _identification(f: Flow, c: dict[str, Any]) -> None:
     )
 
 
+def _software(c: dict[str, Any]) -> str:
+    sw = c.get("software")
+    return f"{sw['name']} {sw['version']}" if isinstance(sw, dict) else "not stated"
+
+
 def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
     m, cond = c["method"], c["conditions"]
     given = sorted((k, v) for k, v in m.get("parameters", {}).items() if v is not None)
@@ -110,8 +121,11 @@ def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
         [
             ("Procedure", f"{m['procedure']}: {m['description']}"),
             ("Parameters", params),
+            ("Procedure version", _text(m.get("procedure_version", "not stated"))),
             ("Deviations from the method", "; ".join(m["deviations"])),
             ("Sampling", _text(m.get("sampling"))),
+            ("Software", _software(c)),
+            ("Reference equipment", "; ".join(c.get("reference_equipment", ["not stated"]))),
         ],
         widths=(0.3, 0.7),
     )
@@ -130,6 +144,7 @@ def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
     f.heading("3  Conditions of calibration")
     f.table(
         [
+            ("Ambient conditions", _text(cond.get("ambient", "not stated"))),
             ("Sensor temperature", temp),
             ("Local gravity g_local", f"{g_local:.6f} m/s²" if isinstance(g_local, float) else str(g_local)),
             ("Rotary table", table_text),
@@ -165,15 +180,23 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
         else "over the static positions"
     )
     f.subheading(f"|g| check: |K⁻¹(raw − b)| − g_local {where} (m/s²)")
-    rows = [("", "mean error", "standard deviation")]
+    rows = [("", "mean error", "U of the mean, k = 2", "standard deviation", "n")]
     for when, label in (("before", "before adjustment (nominal)"), ("after", "after (this calibration)")):
         v = g[when]
         rows.append(
-            (label, _stat(v.get("mean_error_m_s2")), _stat(v.get("std_m_s2")))
+            (
+                label,
+                _stat(v.get("mean_error_m_s2")),
+                _stat(v.get("expanded_uncertainty_m_s2")) or "not stated",
+                _stat(v.get("std_m_s2")),
+                _text(v.get("n")),
+            )
             if isinstance(v, dict)
-            else (label, _text(v), "")
+            else (label, _text(v), "", "", "")
         )
-    f.table(rows, widths=(0.36, 0.32, 0.32), header=True, align="right")
+    f.table(rows, widths=(0.3, 0.18, 0.2, 0.2, 0.12), header=True, align="right")
+    if g.get("uncertainty_basis"):
+        f.paragraph(f"U of the mean error: {g['uncertainty_basis']}.", size=7.5)
     if g.get("before_basis"):
         f.paragraph(f"Basis of 'before': {g['before_basis']}.", size=7.5)
     f.paragraph(c["uncertainty_statement"], size=7.5)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from api.routes import certificates, drift, health, recordings, runs, tokens, units
+from api.routes import certificates, drift, health, procedures, recordings, runs, tokens, units
 
 api_router = APIRouter()
-for _module in (health, runs, certificates, units, recordings, drift, tokens):
+for _module in (health, runs, procedures, certificates, units, recordings, drift, tokens):
     api_router.include_router(_module.router)

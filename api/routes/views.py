@@ -58,6 +58,9 @@ def run_out(
         n_findings=len(diag.get("findings", [])) if diag is not None else None,
         diagnosis=diag if with_diagnosis else None,
         diagnosis_note=str(note) if diag is None and note else None,
+        certificate_note=str(run.params["certificate_error"])
+        if run.params.get("certificate_error")
+        else None,
         limit_checks=[_check(c) for c in (run.limit_checks or [])],
         decision_rule=_rule(run.limit_checks),
         windows=[_window(w) for w in windows] if windows is not None else None,

@@ -44,6 +44,12 @@ async function refreshBench() {
     const busy = hl.busy_run ? ` · busy: run ${hl.busy_run}` : " · idle";
     document.getElementById("bench").textContent =
       `bench ${hl.bench}${hl.simulated ? " (simulated)" : ""}${busy}${hl.database_ok ? "" : " · DATABASE UNREACHABLE"}`;
+    const cfg = document.getElementById("config-notice");
+    const problems = hl.certificate_problems || [];
+    if (cfg) {
+      cfg.hidden = !problems.length;
+      cfg.textContent = problems.length ? `${hl.certificates_blocked ? "No certificates can be issued: " : "Certificates are incomplete: "}${problems.join("; ")}.` : "";
+    }
   } catch { document.getElementById("bench").textContent = "service unreachable"; }
 }
 

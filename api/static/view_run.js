@@ -55,23 +55,65 @@ function liveCard(run, session, act) {
     run.state === "interrupted" ? h("p", { class: "note", id: "interrupted-note" },
       "The run stopped before finishing. Every complete window is kept: Resume continues it on this bench "
       + "from the next window, and the certificate is issued at the end.") : null);
+  const t0 = Date.now();
+  let p0 = run.progress || 0;
+  const remaining = (p) => {
+    // wall-clock rate of the progress so far (the bench clock's estimate assumes a provisional dwell)
+    const dt = (Date.now() - t0) / 1000, dp = p - p0;
+    if (!(dt > 5 && dp > 0.02)) return "";
+    return ` · about ${seconds((1 - p) * dt / dp)} left at the pace so far`;
+  };
   const update = (p) => {
     if (p.progress !== undefined) { setProgress(bar, p.progress); pct.textContent = `${Math.round(p.progress * 100)} %`; }
     if (p.state) state.replaceChildren(badge(p.state));
     if (p.step_label !== undefined) step.textContent = `${Math.min(p.step_index + 1, p.n_steps)} of ${p.n_steps}: ${p.step_label}`;
     if (p.n_windows) windows.textContent = p.window_index == null ? `between windows (${p.n_windows} planned)` : `${p.window_index + 1} of ${p.n_windows}`;
-    if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} of about ${seconds(p.expected_total_s)} (bench clock)`;
+    if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} of about ${seconds(p.expected_total_s)} (bench clock)${remaining(p.progress ?? p.elapsed_s / p.expected_total_s)}`;
     if (p.table_deg) pose.textContent = p.table_deg.map((a) => `${a.toFixed(1)}°`).join("  ");
     if (p.state) controls(p.state);
   };
-  if (!LIVE.has(run.state)) {
-    step.textContent = `ended ${run.state}${run.outcome ? ` (${run.outcome})` : ""}`;
-    windows.textContent = run.last_complete_window == null ? "none complete" : `${run.last_complete_window + 1} complete`;
-    const wall = (Date.parse(run.finished_at) - Date.parse(run.started_at)) / 1000;
+  const final = (r) => {
+    state.replaceChildren(badge(r.state));
+    controls(r.state);
+    setProgress(bar, r.progress); pct.textContent = `${Math.round(r.progress * 100)} %`;
+    step.textContent = `ended ${r.state}${r.outcome ? ` (${r.outcome})` : ""}`;
+    windows.textContent = r.last_complete_window == null ? "none complete" : `${r.last_complete_window + 1} complete`;
+    const wall = (Date.parse(r.finished_at) - Date.parse(r.started_at)) / 1000;
     time.textContent = Number.isFinite(wall) ? `${seconds(wall)} (wall clock)` : "–";
-    if (run.n_samples) { poseLabel.textContent = "Recording"; pose.textContent = `${run.n_samples} samples`; }
-  }
-  return { el, update };
+    if (r.n_samples) { poseLabel.textContent = "Recording"; pose.textContent = `${r.n_samples} samples`; }
+  };
+  if (!LIVE.has(run.state)) final(run);
+  return { el, update, final };
+}
+
+function verdictBanner() {
+  const el = h("div", { id: "verdict", class: "verdict", role: "status", hidden: true });
+  const show = (run) => {
+    if (LIVE.has(run.state) || !run.outcome) { el.hidden = true; return; }
+    const checks = run.limit_checks || [];
+    const bad = checks.filter((c) => !c.passed).length;
+    const what = checks.length
+      ? (bad ? `${bad} of ${checks.length} limit checks outside their acceptance intervals` : `all ${checks.length} limit checks inside their acceptance intervals`)
+      : (run.outcome === "PASS" ? "no limits apply to this unit: no statement of conformity" : run.error || "");
+    el.className = `verdict ${run.outcome.toLowerCase()}`;
+    el.replaceChildren(h("strong", { id: "verdict-outcome" }, run.outcome), h("span", {}, what));
+    el.hidden = false;
+  };
+  return { el, show };
+}
+
+function bound(v) { return v == null ? "∞" : fmt(v, 6); }
+
+function conformityCard(run) {
+  const checks = run.limit_checks || [];
+  const c = h("section", { class: "card span", "aria-label": "Limit checks", id: "limit-checks" }, h("h2", {}, "Limit checks"));
+  if (!checks.length) { c.append(message("No limits apply to this unit's model: the certificate makes no statement of conformity.")); return c; }
+  c.append(table(`decision rule: ${run.decision_rule}`, ["Quantity", "Value", "U", "Unit", "Tolerance", "Acceptance", "Verdict"],
+    checks.map((k) => [k.name, fmt(k.value, 6), k.expanded_uncertainty == null ? "–" : fmt(k.expanded_uncertainty, 2), k.unit.replace("m/s2", "m/s²"),
+      `[${k.low == null ? "−∞" : fmt(k.low, 6)}, ${bound(k.high)}]`,
+      `[${k.acceptance_low == null ? "−∞" : fmt(k.acceptance_low, 6)}, ${bound(k.acceptance_high)}]`,
+      badge(k.passed ? "pass" : "fail")]), [1, 2]));
+  return c;
 }
 
 function fitCard(cal) {
@@ -168,7 +210,11 @@ function diagnosisCard(d) {
 
 function certificateCard(run) {
   const c = h("section", { class: "card", "aria-label": "Certificate", id: "certificate" }, h("h2", {}, "Certificate"));
-  if (!run.certificate_number) { c.append(message(run.state === "completed" ? "No certificate issued for this run." : `No certificate: the run is ${run.state}.`)); return c; }
+  if (!run.certificate_number) {
+    c.append(message(run.certificate_note ? `No certificate: ${run.certificate_note}`
+      : run.state === "completed" ? "No certificate issued for this run." : `No certificate: the run is ${run.state}.`));
+    return c;
+  }
   const status = h("span", { class: "note", "aria-live": "polite" });
   c.append(h("p", {}, h("strong", {}, run.certificate_number)),
     h("p", {},
@@ -196,6 +242,7 @@ async function renderResults(box, run, signal) {
     return;
   }
   grid.append(certificateCard(run));
+  grid.append(conformityCard(run));
   const [gc, rs, al] = await Promise.all(["g-check", "residuals", "allan"].map((p) => optional(`/api/runs/${enc(run.id)}/plots/${p}`, signal)));
   grid.append(gc.error ? card("|g| check", message(gc.error)) : gCard(gc, run.id, run.calibration.channel_unit));
   grid.append(rs.error ? card("Residuals", message(rs.error)) : residualCard(rs));
@@ -207,6 +254,9 @@ export async function runView(view, runId, session, signal) {
   let run = await getJson(`/api/runs/${enc(runId)}`, { signal });
   view.append(h("div", { class: "page-head" }, h("h1", {}, "Run ", h("span", { class: "mono" }, run.id)),
     h("span", { class: "muted" }, "unit ", h("a", { href: `#/units/${enc(run.unit_serial)}` }, run.unit_serial), ` · ${run.procedure} · ${when(run.started_at || run.created_at)}`)));
+  const banner = verdictBanner();
+  view.append(banner.el);
+  banner.show(run);
   const status = h("p", { class: "note", "aria-live": "polite" });
   const post = (action, done, then) => async () => {
     try { await postJson(`/api/runs/${enc(runId)}/${action}`); status.textContent = done; if (then) then(); }
@@ -227,15 +277,22 @@ export async function runView(view, runId, session, signal) {
       h("thead", {}, h("tr", {}, ["#", "Label", "Kind", "Table pose", "Samples"].map((c, i) => h("th", { scope: "col", class: [0, 3, 4].includes(i) ? "num" : null }, c)))),
       winBody)));
   view.append(h("div", { class: "grid" }, live.el, winCard), status, results);
+  const seen = new Set();
   const addWindow = (w) => {
+    if (seen.has(w.index)) return;
+    seen.add(w.index);
     winCard.hidden = false;
     winBody.prepend(h("tr", {}, h("td", { class: "num" }, String(w.index + 1)), h("td", {}, w.label), h("td", {}, w.kind),
       h("td", { class: "num" }, (w.pose_deg || []).map((a) => `${Number(a).toFixed(1)}°`).join("  ")),
       h("td", { class: "num" }, String(w.n_samples))));
   };
+  for (const w of run.windows || []) addWindow(w);
   const finish = async () => {
     run = await getJson(`/api/runs/${enc(runId)}`, { signal });
-    live.update({ state: run.state, progress: run.progress });
+    for (const w of run.windows || []) addWindow(w);
+    if (LIVE.has(run.state)) live.update({ state: run.state, progress: run.progress });
+    else live.final(run);
+    banner.show(run);
     await renderResults(results, run, signal);
   };
   if (!LIVE.has(run.state)) { await finish(); return; }
@@ -252,8 +309,7 @@ export async function runView(view, runId, session, signal) {
     status.textContent = `Live stream unavailable (${err.message}); polling instead.`;
   }
   // The stream ended (or failed): poll until the stored run is final and its results are in.
-  // A completed fit gets its certificate just after the state turns final: wait a few polls for it.
-  let grace = 10;
+  // A run's final state is stored with its certificate (or drift check) in one transaction.
   while (!signal.aborted) {
     try { run = await getJson(`/api/runs/${enc(runId)}`, { signal }); }
     catch (err) {
@@ -263,8 +319,7 @@ export async function runView(view, runId, session, signal) {
       continue;
     }
     live.update({ state: run.state, progress: run.progress });
-    const awaitingCertificate = run.state === "completed" && run.calibration && !run.certificate_number;
-    if (!LIVE.has(run.state) && (!awaitingCertificate || grace-- <= 0)) break;
+    if (!LIVE.has(run.state)) break;
     await new Promise((r) => setTimeout(r, POLL_MS));
   }
   if (!signal.aborted) await finish();

@@ -21,6 +21,7 @@ from typing import Any
 
 from api.certificates.budget import combined
 from api.certificates.conformity import G_CHECK_U_BASIS, conformity_statement
+from api.certificates.datasheet_units import datasheet_results
 from api.certificates.rounding import expanded_quantity, round_significant
 
 TITLE = "Calibration Certificate"
@@ -235,6 +236,7 @@ def _results(cal: dict[str, Any], budget: dict[str, Any] | None) -> dict[str, An
         "bias": expanded_quantity(cal["bias"], u_b, unit, k_b),
         "scale_matrix": expanded_quantity(cal["scale_matrix"], u_k, f"{unit}/(m/s2)", k_k),
         "uncertainty_budget": budget if budget is not None else NOT_STATED,
+        "datasheet_units": datasheet_results(cal, budget),
         "residual_rms": {"value": _two_digits(cal.get("residual_rms")), "unit": unit},
         "extra": cal.get("extra", {}),
     }

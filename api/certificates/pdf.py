@@ -153,6 +153,37 @@ def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
     )
 
 
+def _vu(v: Any, u: Any) -> str:
+    return "–" if v is None else " ± ".join(value_and_u(float(v), float(u)))
+
+
+def _datasheet(f: Flow, d: dict[str, Any] | None) -> None:
+    """The same model in data-sheet units: sensitivity, zero-g output, cross-axis (mrad)."""
+    if not isinstance(d, dict):
+        return
+    s, z, x = d["sensitivity"], d["zero_g_output"], d["cross_axis"]
+    f.subheading("The same results in data-sheet units, value ± U")
+    rows = [
+        (
+            "Axis",
+            f"Sensitivity ({s['unit']})",
+            f"Zero-g output ({z['unit']})",
+            *(f"Cross-axis from {b} ({x['unit']})" for b in AXES),
+        )
+    ]
+    for i, a in enumerate(AXES):
+        rows.append(
+            (
+                a,
+                _vu(s["value"][i], s["expanded_uncertainty"][i]),
+                _vu(z["value"][i], z["expanded_uncertainty"][i]),
+                *(_vu(x["value"][i][j], x["expanded_uncertainty"][i][j]) for j in range(3)),
+            )
+        )
+    f.table(rows, widths=(0.07, 0.19, 0.19, 0.183, 0.183, 0.184), header=True, align="right", size=7.5)
+    f.paragraph(f"Sensitivity: {s['basis']}. Cross-axis: {x['basis']}.", size=7.5)
+
+
 def _results(f: Flow, c: dict[str, Any]) -> None:
     res = c["results"]
     f.heading("4  Results")
@@ -171,6 +202,7 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
     for a, vr, ur in zip(AXES, sm["value"], sm["expanded_uncertainty"], strict=True):
         rows.append((a, *(" ± ".join(value_and_u(v, u)) for v, u in zip(vr, ur, strict=True))))
     f.table(rows, widths=(0.16, 0.28, 0.28, 0.28), header=True, align="right")
+    _datasheet(f, res.get("datasheet_units"))
     rms = res["residual_rms"]
     f.paragraph(f"Residual RMS of the fit: {_stat(rms['value']) or 'not available'} {_unit(rms['unit'])}.")
     g = c["g_check"]

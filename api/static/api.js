@@ -50,6 +50,16 @@ export async function postJson(path, body) {
   return resp.json();
 }
 
+export async function putJson(path, body) {
+  const resp = await fetch(path, {
+    method: "PUT",
+    headers: headers({ "Content-Type": "application/json" }),
+    body: JSON.stringify(body),
+  });
+  if (!resp.ok) throw await failure(resp);
+  return resp.json();
+}
+
 /** A link the browser opens itself (PDF): the token travels as ?access_token=. */
 export function linkWithToken(path) {
   const t = getToken();

@@ -63,7 +63,7 @@ async function route() {
   view.replaceChildren();
   try {
     if (session.role === "none" && parts.length) view.append(Object.assign(document.createElement("p"), { className: "muted", textContent: "Paste a token above to see this page." }));
-    else if (parts[0] === "units" && parts[1]) await unitView(view, parts.slice(1).join("/"), signal);
+    else if (parts[0] === "units" && parts[1]) await unitView(view, parts.slice(1).join("/"), signal, session);
     else if (parts[0] === "units") await unitsView(view, signal);
     else if (parts[0] === "runs" && parts[1]) await runView(view, parts[1], session, signal);
     else await overviewView(view, session, signal);

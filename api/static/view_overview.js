@@ -50,8 +50,10 @@ function startForm(session) {
   };
   proc.addEventListener("change", showPreview);
   showPreview();
+  const details = h("a", { href: "#/units", id: "unit-details", title: "customer, model, date of receipt, nominal values: what the certificate states" }, "unit registration…");
+  serial.addEventListener("input", () => { details.href = serial.value.trim() ? `#/units/${encodeURIComponent(serial.value.trim())}` : "#/units"; });
   const form = h("form", { class: "start", "aria-label": "start a run" },
-    h("label", { for: "start-serial" }, "Unit serial", serial),
+    h("label", { for: "start-serial" }, "Unit serial", serial, details),
     h("label", { for: "start-procedure" }, "Procedure", proc),
     button);
   form.addEventListener("submit", async (ev) => {

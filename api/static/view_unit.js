@@ -1,6 +1,6 @@
 // One unit: coefficient trends with ±U bands, its runs, certificates and drift checks.
 
-import { downloadJson, getJson, linkWithToken } from "./api.js";
+import { downloadJson, getJson, linkWithToken, putJson } from "./api.js";
 import { badge, card, h, message, table, when } from "./dom.js";
 import { fmt, sparkline } from "./svgplot.js";
 
@@ -44,12 +44,59 @@ function driftChecks(checks) {
   ]), [3]);
 }
 
-export async function unitView(view, serial, signal) {
+const G0 = 9.80665; // datasheets give sensitivity per standard gravity
+
+// What the laboratory states about the unit on its certificates (ISO/IEC 17025 7.8.2.1 e, g, h).
+function registrationCard(serial, u, session, onSaved) {
+  const canEdit = session && (session.role === "operator" || session.role === "admin");
+  const unit = u.channel_unit || "V";
+  const field = (id, label, attrs, value) => {
+    const input = h(attrs.rows ? "textarea" : "input", { id, name: id, ...attrs, disabled: !canEdit });
+    if (value !== null && value !== undefined) input.value = String(value);
+    return [h("label", { for: id }, label, input), input];
+  };
+  const [lModel, model] = field("reg-model", "Model", { maxlength: 200, placeholder: "ADXL325" }, u.model);
+  const [lDesc, desc] = field("reg-description", "Description", { maxlength: 200, placeholder: "triaxial accelerometer" }, u.description);
+  const [lCust, cust] = field("reg-customer", "Customer", { maxlength: 200 }, u.customer_name);
+  const [lAddr, addr] = field("reg-address", "Customer address", { maxlength: 500 }, u.customer_address);
+  const [lRecv, recv] = field("reg-received", "Date of receipt", { type: "date" }, u.received_on);
+  const sensValue = u.nominal_scale == null ? null : +(u.nominal_scale * G0 * (unit === "V" ? 1000 : 1)).toPrecision(6);
+  const sensUnit = unit === "V" ? "mV/g" : `${unit}/g`;
+  const [lSens, sens] = field("reg-sensitivity", `Nominal sensitivity (${sensUnit})`, { type: "number", step: "any", inputmode: "decimal" }, sensValue);
+  const [lZero, zero] = field("reg-zero", `Nominal zero-g output (${unit})`, { type: "number", step: "any", inputmode: "decimal" }, u.nominal_bias);
+  const [lCond, cond] = field("reg-condition", "Condition as received", { maxlength: 500, placeholder: "no visible damage" }, u.condition);
+  const status = h("span", { class: "note", "aria-live": "polite", id: "reg-status" });
+  const save = h("button", { type: "submit", id: "reg-save", disabled: !canEdit }, "Save");
+  const form = h("form", { class: "start", id: "registration", "aria-label": "unit registration" },
+    lModel, lDesc, lCust, lAddr, lRecv, lSens, lZero, lCond, save, status);
+  const text = (x) => (x.value.trim() === "" ? null : x.value.trim());
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    const body = { model: text(model), description: text(desc), customer_name: text(cust), customer_address: text(addr),
+      received_on: text(recv), condition: text(cond),
+      nominal_scale: sens.value === "" ? null : Number(sens.value) / (unit === "V" ? 1000 : 1) / G0,
+      nominal_bias: zero.value === "" ? null : Number(zero.value) };
+    try { await putJson(`/api/units/${encodeURIComponent(serial)}`, body); status.textContent = "Saved: the next certificates state these."; if (onSaved) onSaved(); }
+    catch (err) { status.textContent = `Not saved: ${err.message}`; }
+  });
+  return h("section", { class: "card span", "aria-label": "Registration", id: "unit-registration" }, h("h2", {}, "Registration (on the certificate)"),
+    form, canEdit ? null : message("Editing the registration needs an operator token."));
+}
+
+export async function unitView(view, serial, signal, session) {
   const enc = encodeURIComponent(serial);
-  const [hist, series] = await Promise.all([
-    getJson(`/api/units/${enc}/history`, { signal }),
-    getJson(`/api/units/${enc}/plots/history`, { signal }),
-  ]);
+  let hist, series;
+  try {
+    [hist, series] = await Promise.all([
+      getJson(`/api/units/${enc}/history`, { signal }),
+      getJson(`/api/units/${enc}/plots/history`, { signal }),
+    ]);
+  } catch (err) {
+    if (err.status !== 404) throw err;
+    view.append(h("div", { class: "page-head" }, h("h1", {}, `Unit ${serial}`), h("span", { class: "muted" }, "not registered yet")),
+      h("div", { class: "grid wide" }, registrationCard(serial, {}, session, () => window.dispatchEvent(new HashChangeEvent("hashchange")))));
+    return;
+  }
   const u = hist.unit;
   view.append(h("div", { class: "page-head" },
     h("h1", {}, `Unit ${u.serial}`),
@@ -63,6 +110,7 @@ export async function unitView(view, serial, signal) {
       r.kind === "drift_check" ? `${r.procedure} (drift check)` : r.procedure, badge(r.state),
       when(r.finished_at), r.certificate_number || "–",
     ])) : message("No runs.")),
+    registrationCard(serial, u, session),
     card("Certificates", certificates(hist.certificates, serial)),
     card("Drift checks", driftChecks(hist.drift_checks))));
 }

@@ -6,6 +6,9 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+import shutil
+import struct
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -13,9 +16,10 @@ import pytest
 
 from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
 from api.certificates.conformity import check_uncertainties, conformity_statement
-from api.certificates.pdf import certificate_lines, conformity_line
+from api.certificates.pdf import certificate_lines, conformity_line, render_pdf
 from bench.limits import load_limits, verdict
 from bench.records import Outcome
+from db.repo.certificates import canonical_sha256
 
 SPEC = {
     "channel_unit": "V",
@@ -126,3 +130,51 @@ def test_without_limits_the_certificate_says_no_statement_is_made() -> None:
     assert isinstance(conf, dict) and not conf["requested"] and conf["checks"] == []
     assert conformity_line(c) == "Conformity: no statement of conformity (no specification limits apply)"
     assert conformity_statement([], None, "M", None)["decision_rule"] == "not applicable"
+
+
+def test_datasheet_units_convert_the_fit_with_matching_digits() -> None:
+    from api.certificates.datasheet_units import datasheet_results
+
+    d = datasheet_results(CAL, None)
+    s = d["sensitivity"]
+    # K_xx = 0.0201 V/(m/s2) -> 0.0201 * 9.80665 * 1000 mV/g = 197.113665 mV/g; U = 4e-6 * 9806.65 = 0.039
+    assert s["unit"] == "mV/g" and s["expanded_uncertainty"][0] == pytest.approx(0.039)
+    assert s["value"][0] == pytest.approx(197.114, abs=1e-9)  # to U's last digit (0.001)
+    x = d["cross_axis"]
+    assert x["unit"] == "mrad" and x["value"][0][0] is None
+    assert x["value"][0][1] == pytest.approx(4.00, abs=1e-9)  # K_xy/K_xx = 0.004 -> 4.00 mrad
+    assert d["zero_g_output"]["value"][1] == pytest.approx(1460.00) and d["zero_g_output"]["unit"] == "mV"
+
+
+@pytest.mark.skipif(
+    shutil.which("pdftoppm") is None or shutil.which("pdftotext") is None,
+    reason="poppler-utils not installed",
+)
+@pytest.mark.parametrize("with_limits", [True, False])
+def test_every_pdf_page_renders_and_states_the_stored_outcome(tmp_path: Path, with_limits: bool) -> None:
+    if with_limits:
+        outcome, checks = verdict(CAL, _limits(tmp_path, None), check_uncertainties(CAL, None))
+        rows, stored = [dataclasses.asdict(c) for c in checks], outcome.value
+        expected = "Conformity: PASS against the limits of unit model M (simple acceptance)"
+    else:
+        rows, stored = [], "PASS"
+        expected = "Conformity: no statement of conformity (no specification limits apply)"
+    c = _content(rows, stored)
+    pdf = tmp_path / "c.pdf"
+    pdf.write_bytes(render_pdf(c, canonical_sha256(c)))
+    subprocess.run(["pdftoppm", "-r", "50", "-png", str(pdf), str(tmp_path / "page")], check=True)
+    pngs = sorted(tmp_path.glob("page-*.png"))
+    assert len(pngs) >= 3
+    for n, png in enumerate(pngs, start=1):
+        data = png.read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n"
+        width, height = struct.unpack(">II", data[16:24])
+        assert (width, height) == (414, 585), (width, height)  # A4 at 50 dpi
+        text = subprocess.run(
+            ["pdftotext", "-f", str(n), "-l", str(n), "-layout", str(pdf), "-"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        assert " ".join(text.split()).count(expected) == 1, (n, text[:400])
+        assert f"Page {n} of {len(pngs)}" in text

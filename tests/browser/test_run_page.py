@@ -112,3 +112,48 @@ def test_completed_run_has_its_certificate_at_once(service: str) -> None:
     cert = httpx.get(f"{service}/api/runs/{run_id}/certificate", headers=VIEW)
     assert cert.status_code == 200
     assert cert.json()["content"]["conformity"]["outcome"] == run["outcome"] == "PASS"
+
+
+def test_a_unit_registered_from_the_page_is_stated_on_its_certificate(service: str, browser: Any) -> None:
+    ctx, page, console = _operator_page(browser, service)
+    page.fill("#start-serial", "SN-RP-3")
+    page.click("#unit-details")
+    page.wait_for_selector("#registration")
+    assert "not registered yet" in page.inner_text("main")
+    page.fill("#reg-model", "ADXL325")
+    page.fill("#reg-customer", "Acme Sensors Ltd")
+    page.fill("#reg-address", "7 Works Lane, Town")
+    page.fill("#reg-received", "2026-11-02")
+    page.fill("#reg-sensitivity", "174")
+    page.fill("#reg-zero", "1.5")
+    page.fill("#reg-condition", "no visible damage")
+    page.click("#reg-save")
+    page.wait_for_function("document.querySelector('#reg-status')?.textContent.startsWith('Saved')")
+    unit = httpx.get(f"{service}/api/units", headers=VIEW).json()
+    got = next(u for u in unit if u["serial"] == "SN-RP-3")
+    assert got["customer_name"] == "Acme Sensors Ltd" and got["received_on"] == "2026-11-02"
+    assert got["nominal_scale"] == pytest.approx(0.174 / 9.80665, rel=1e-12)
+    created = httpx.post(
+        f"{service}/api/runs", json={"unit_serial": "SN-RP-3", "procedure": "static-12"}, headers=OP
+    )
+    run_id = created.json()["id"]
+    deadline = time.monotonic() + RUN_TIMEOUT_S
+    while time.monotonic() < deadline:
+        run = httpx.get(f"{service}/api/runs/{run_id}", headers=VIEW).json()
+        if run["state"] not in ("queued", "running", "paused", "suspended"):
+            break
+        time.sleep(0.2)
+    c = httpx.get(f"{service}/api/runs/{run_id}/certificate", headers=VIEW).json()["content"]
+    assert c["customer"] == {
+        "name": "Acme Sensors Ltd",
+        "address": "7 Works Lane, Town",
+        "source": "unit registration",
+    }
+    assert c["dates"]["received"] == "2026-11-02" and c["item"]["model"] == "ADXL325"
+    assert c["item"]["nominal_scale"]["unit"] == "V/(m/s2)"
+    # the page of the registered unit shows the saved values again
+    page.goto(f"{service}/#/units/SN-RP-3")
+    page.wait_for_selector("#registration")
+    assert page.input_value("#reg-sensitivity") == "174"
+    assert console.errors == []
+    ctx.close()

@@ -6,6 +6,7 @@ import { badge, card, h, message, progressBar, setProgress, table, when } from "
 import { CHANNEL_COLOURS, bars, chart, fmt, legend } from "./svgplot.js";
 
 const LIVE = new Set(["queued", "running", "paused", "suspended"]);
+const G0 = 9.80665; // standard gravity: datasheets give sensitivity per g0
 const POLL_MS = 1500;
 const enc = encodeURIComponent;
 
@@ -89,7 +90,7 @@ function liveCard(run, session, act) {
 function verdictBanner() {
   const el = h("div", { id: "verdict", class: "verdict", role: "status", hidden: true });
   const show = (run) => {
-    if (LIVE.has(run.state) || !run.outcome) { el.hidden = true; return; }
+    if (LIVE.has(run.state) || !run.outcome || run.kind === "drift_check") { el.hidden = true; return; }
     const checks = run.limit_checks || [];
     const bad = checks.filter((c) => !c.passed).length;
     const what = checks.length
@@ -125,16 +126,22 @@ function fitCard(cal) {
     h("caption", {}, `scale matrix K (${unit} per m/s²), value ± U`),
     h("tbody", {}, cal.scale_matrix.map((row, i) => h("tr", {}, h("th", { scope: "row" }, ax[i]),
       row.map((v, j) => h("td", {}, `${fmt(v, 6)} ± ${fmt(U(cal.scale_matrix_sigma[i][j]), 2)}`)))))));
+  const mv = unit === "V" ? 1000 : 1, sUnit = unit === "V" ? "mV/g" : `${unit}/g`;
+  const sheet = table(`data-sheet units: sensitivity S = K_ii·g_n, cross-axis K_ij/K_ii (mrad), ± U (k=2)`,
+    ["", `S (${sUnit})`, "U", "from x", "from y", "from z"],
+    ax.map((a, i) => [a, fmt(cal.scale_matrix[i][i] * G0 * mv, 6), fmt(U(cal.scale_matrix_sigma[i][i]) * G0 * mv, 2),
+      ...ax.map((_, j) => (i === j ? "–" : `${fmt(1000 * cal.scale_matrix[i][j] / cal.scale_matrix[i][i], 3)} ± ${fmt(1000 * U(Math.hypot(
+        cal.scale_matrix_sigma[i][j] / cal.scale_matrix[i][i],
+        cal.scale_matrix[i][j] * cal.scale_matrix_sigma[i][i] / cal.scale_matrix[i][i] ** 2)), 2)}`))]), [1, 2, 3, 4, 5]);
   const g = cal.g_check || {};
   const gRows = ["before", "after"].filter((k) => g[k]).map((k) => [k, fmt(g[k].mean_error_m_s2, 3), fmt(g[k].std_m_s2, 3)]);
-  return card("Fitted model", bias, K,
+  return card("Fitted model", sheet, bias, K,
     h("p", { class: "note" }, `terms: ${(cal.terms || []).join(", ")} · residual RMS ${fmt(cal.residual_rms, 3)} ${unit}`),
     gRows.length ? table(String(cal.method || "").startsWith("dynamic")
       ? "|g| check over 1 s blocks of the moving recording (m/s²)"
       : "|g| check over static windows (m/s²)", ["", "mean error", "std"], gRows, [1, 2]) : null);
 }
 
-const G0 = 9.80665; // standard gravity: datasheets give sensitivity per g0
 
 function datasheetForm(runId, unit, onResult) {
   const sens = h("input", { id: "nominal-sens", type: "number", step: "any", min: "0", required: true, inputmode: "decimal", placeholder: "0.174" });
@@ -183,14 +190,32 @@ function residualCard(rs) {
       + `χ² = ${fmt(rs.chi2, 4)} for ${rs.dof} degrees of freedom (${rs.method} fit).`));
 }
 
-function allanCard(al) {
+// Noise in the units of a data sheet from the Allan curve and the fitted sensitivity K_ii:
+// white-noise density N = σ(τ₀)·√τ₀ at the shortest τ (σ ∝ τ^-1/2 there), bias instability
+// B = min σ(τ) / 0.664 (IEEE Std 952 Annex C), both divided by K_ii and g_n, in µg/√Hz and µg.
+function noiseTable(al, cal) {
+  if (!cal || !al.taus_s.length) return null;
+  const scale = (k) => cal.scale_matrix[k][k] * G0 / 1e6; // channel unit per µg
+  const rows = al.channels.map((c, k) => {
+    const s0 = al.adev[k][0], t0 = al.taus_s[0];
+    const finite = al.adev[k].filter(Number.isFinite);
+    const minS = Math.min(...finite);
+    return [c, fmt(s0 * Math.sqrt(t0) / scale(k), 3), fmt(minS / 0.664 / scale(k), 3),
+      `${fmt(s0 * Math.sqrt(t0), 3)} ${al.unit}·√s`, `${fmt(minS / 0.664, 3)} ${al.unit}`];
+  });
+  return table("noise, from the curve and the fitted sensitivity", ["", "density (µg/√Hz)", "bias instability (µg)", "density (raw)", "instability (raw)"], rows, [1, 2, 3, 4]);
+}
+
+function allanCard(al, cal) {
   const series = al.channels.map((c, k) => ({ name: c, y: al.adev[k], lo: al.adev_lo[k], hi: al.adev_hi[k], colour: CHANNEL_COLOURS[k] }));
   return h("section", { class: "card", "aria-label": "Allan deviation", id: "allan" }, h("h2", {}, "Allan deviation"),
     chart({ x: al.taus_s, series, xlog: true, ylog: true, xlabel: "averaging time τ (s)", ylabel: `σ(τ) (${al.unit})`,
       height: 280, label: `overlapping Allan deviation of the ${al.source}` }),
     legend(series.map((s) => ({ name: s.name, colour: s.colour }))),
+    noiseTable(al, cal),
     h("p", { class: "note" }, `${al.source}, ${fmt(al.start_s, 4)}–${fmt(al.end_s, 4)} s, ${al.n_samples} samples; `
-      + `bands: ${Math.round(al.ci_level * 100)} % χ² interval.`));
+      + `bands: ${Math.round(al.ci_level * 100)} % χ² interval. Density N = σ(τ₀)·√τ₀ at the shortest τ; `
+      + "bias instability B = min σ(τ)/0.664 (IEEE Std 952), converted with the fitted K_ii and g_n = 9.80665 m/s²."));
 }
 
 function diagnosisCard(d) {
@@ -230,10 +255,31 @@ async function optional(path, signal) {
   try { return await getJson(path, { signal }); } catch (err) { if (err.name === "AbortError") throw err; return { error: err.message }; }
 }
 
+// A drift check's comparison with the unit's last certificate: Δ of each coefficient against
+// its limit k·sqrt(u_ref² + u_check² + u_rep²).
+async function driftCard(run, signal) {
+  const c = h("section", { class: "card span", "aria-label": "Drift check", id: "drift-result" }, h("h2", {}, "Drift against the last certificate"));
+  let checks;
+  try { checks = await getJson(`/api/drift/checks?unit_serial=${enc(run.unit_serial)}&limit=1000`, { signal }); }
+  catch (err) { if (err.name === "AbortError") throw err; c.append(message(`Not available: ${err.message}`)); return c; }
+  const d = checks.find((x) => x.run_id === run.id);
+  if (!d) { c.append(message("No comparison stored for this run.")); return c; }
+  const r = d.result;
+  if (r.status !== "compared") { c.append(message(r.error || r.status)); return c; }
+  c.querySelector("h2").append(" ", badge(d.flagged ? "flagged" : "ok"));
+  c.append(h("p", { class: "note" }, `Against ${d.reference_certificate || r.reference_number}; limit = ${r.k}·√(u_ref² + u_check² + u_rep²) per coefficient; `
+    + `an unchanged unit is flagged with probability ${fmt(100 * r.false_alarm_probability, 2)} %. Largest |Δ|/limit ${fmt(r.max_ratio, 3)}.`),
+  table(null, ["Coefficient", "Unit", "Certificate", "Check", "Δ", "Limit", "|Δ|/limit", ""],
+    r.coefficients.map((x) => [x.name, x.unit.replace("m/s2", "m/s²"), fmt(x.reference, 7), fmt(x.check, 7), fmt(x.delta, 3), fmt(x.limit, 3),
+      fmt(Math.abs(x.delta) / x.limit, 3), badge(x.exceeded ? "flagged" : "ok")]), [2, 3, 4, 5, 6]));
+  return c;
+}
+
 async function renderResults(box, run, signal) {
   box.replaceChildren();
   const grid = h("div", { class: "grid wide" });
   box.append(grid);
+  if (run.kind === "drift_check") grid.append(await driftCard(run, signal));
   if (run.calibration) grid.append(fitCard(run.calibration));
   const diag = await optional(`/api/runs/${enc(run.id)}/diagnosis`, signal);
   if (!run.calibration) {
@@ -241,18 +287,20 @@ async function renderResults(box, run, signal) {
     if (!diag.error) grid.append(diagnosisCard(diag));
     return;
   }
-  grid.append(certificateCard(run));
-  grid.append(conformityCard(run));
+  if (run.kind !== "drift_check") {
+    grid.append(certificateCard(run));
+    grid.append(conformityCard(run));
+  }
   const [gc, rs, al] = await Promise.all(["g-check", "residuals", "allan"].map((p) => optional(`/api/runs/${enc(run.id)}/plots/${p}`, signal)));
   grid.append(gc.error ? card("|g| check", message(gc.error)) : gCard(gc, run.id, run.calibration.channel_unit));
   grid.append(rs.error ? card("Residuals", message(rs.error)) : residualCard(rs));
-  grid.append(al.error ? card("Allan deviation", message(al.error)) : allanCard(al));
+  grid.append(al.error ? card("Allan deviation", message(al.error)) : allanCard(al, run.calibration));
   grid.append(diag.error ? card("Diagnosis", message(diag.error)) : diagnosisCard(diag));
 }
 
 export async function runView(view, runId, session, signal) {
   let run = await getJson(`/api/runs/${enc(runId)}`, { signal });
-  view.append(h("div", { class: "page-head" }, h("h1", {}, "Run ", h("span", { class: "mono" }, run.id)),
+  view.append(h("div", { class: "page-head" }, h("h1", {}, run.kind === "drift_check" ? "Drift check " : "Run ", h("span", { class: "mono" }, run.id)),
     h("span", { class: "muted" }, "unit ", h("a", { href: `#/units/${enc(run.unit_serial)}` }, run.unit_serial), ` · ${run.procedure} · ${when(run.started_at || run.created_at)}`)));
   const banner = verdictBanner();
   view.append(banner.el);

@@ -1,10 +1,15 @@
 // One unit: coefficient trends with ±U bands, its runs, certificates and drift checks.
 
-import { downloadJson, getJson, linkWithToken, putJson } from "./api.js";
+import { downloadJson, getJson, linkWithToken, postJson, putJson } from "./api.js";
 import { badge, card, h, message, table, when } from "./dom.js";
-import { fmt, sparkline } from "./svgplot.js";
+import { fmt, sparkAxis, sparkline } from "./svgplot.js";
 
 function trends(hist) {
+  const dates = (c) => c.run_index.map((k) => {
+    const r = hist.runs[k];
+    const t = r && (r.finished_at || r.started_at);
+    return t ? new Date(t).toLocaleDateString(undefined, { dateStyle: "medium" }) : "";
+  });
   const cs = hist.coefficients.filter((c) => c.value.length);
   if (!cs.length) return message("No calibrated run yet: trends appear after the first fit.");
   const box = h("div", { class: "sparks", id: "trends" });
@@ -16,7 +21,8 @@ function trends(hist) {
         h("div", { class: "name" }, `${c.label} (${c.unit})`),
         h("div", { class: "value num" }, `${fmt(c.value[last], 6)}${u == null ? "" : ` ± ${fmt(u, 2)}`}`)),
       sparkline(c.value, c.U, `${c.label} over ${c.value.length} runs, latest ${fmt(c.value[last], 6)} ${c.unit}`,
-        220, 56, c.run_index.map((k) => hist.runs[k].kind === "drift_check"))));
+        220, 56, c.run_index.map((k) => hist.runs[k].kind === "drift_check"), dates(c)),
+      sparkAxis(c.value, c.U, c.unit, dates(c))));
   }
   return h("div", {}, box, h("p", { class: "note" },
     `Each point is one fitted run, oldest left (filled: calibration, open: drift check); the band is U = ${hist.coverage_k}σ, σ the fit's Type A standard uncertainty (the certificate's U adds Type B).`));
@@ -33,6 +39,21 @@ function certificates(certs, serial) {
       " · ",
       h("a", { href: linkWithToken(`/api/runs/${encodeURIComponent(c.run_id)}/certificate.pdf`), target: "_blank", rel: "noopener" }, "PDF")),
   ]));
+}
+
+function driftControls(serial, drift, session, hasCertificate) {
+  const canRun = session && (session.role === "operator" || session.role === "admin");
+  const status = h("span", { class: "note", "aria-live": "polite", id: "drift-status" });
+  const next = drift && drift.enabled && drift.next_run_at
+    ? `Next nightly check: ${new Date(drift.next_run_at).toLocaleString(undefined, { dateStyle: "medium", timeStyle: "short" })} (${drift.procedure}, ${drift.dwell_s} s dwell, limits at k = ${drift.k}).`
+    : "No nightly drift check is scheduled on this service (CALBENCH_DRIFT_TIME).";
+  const button = h("button", { type: "button", id: "drift-run", disabled: !canRun || !hasCertificate,
+    title: !hasCertificate ? "a drift check compares with the unit's last certificate: calibrate it first" : canRun ? "" : "needs an operator token",
+    onclick: async () => {
+      try { await postJson("/api/drift/run", { unit_serial: serial }); status.textContent = "Drift check queued: it runs as soon as the bench is free."; }
+      catch (err) { status.textContent = `Not queued: ${err.message}`; }
+    } }, "Check drift now");
+  return h("div", {}, h("p", { class: "note", id: "drift-next" }, next), h("p", {}, button, " ", status));
 }
 
 function driftChecks(checks) {
@@ -85,18 +106,18 @@ function registrationCard(serial, u, session, onSaved) {
 
 export async function unitView(view, serial, signal, session) {
   const enc = encodeURIComponent(serial);
-  let hist, series;
-  try {
-    [hist, series] = await Promise.all([
-      getJson(`/api/units/${enc}/history`, { signal }),
-      getJson(`/api/units/${enc}/plots/history`, { signal }),
-    ]);
-  } catch (err) {
-    if (err.status !== 404) throw err;
-    view.append(h("div", { class: "page-head" }, h("h1", {}, `Unit ${serial}`), h("span", { class: "muted" }, "not registered yet")),
-      h("div", { class: "grid wide" }, registrationCard(serial, {}, session, () => window.dispatchEvent(new HashChangeEvent("hashchange")))));
+  const known = await getJson("/api/units", { signal });
+  if (!known.some((x) => x.serial === serial)) {
+    const state = h("span", { class: "muted", id: "unit-state" }, "not registered yet");
+    view.append(h("div", { class: "page-head" }, h("h1", {}, `Unit ${serial}`), state),
+      h("div", { class: "grid wide" }, registrationCard(serial, {}, session, () => { state.textContent = "registered: no run yet"; })));
     return;
   }
+  const [hist, series, drift] = await Promise.all([
+    getJson(`/api/units/${enc}/history`, { signal }),
+    getJson(`/api/units/${enc}/plots/history`, { signal }),
+    getJson("/api/drift", { signal }).catch(() => null),
+  ]);
   const u = hist.unit;
   view.append(h("div", { class: "page-head" },
     h("h1", {}, `Unit ${u.serial}`),
@@ -112,5 +133,5 @@ export async function unitView(view, serial, signal, session) {
     ])) : message("No runs.")),
     registrationCard(serial, u, session),
     card("Certificates", certificates(hist.certificates, serial)),
-    card("Drift checks", driftChecks(hist.drift_checks))));
+    card("Drift checks", driftControls(serial, drift, session, hist.certificates.length > 0), driftChecks(hist.drift_checks))));
 }

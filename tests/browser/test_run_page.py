@@ -75,6 +75,13 @@ def test_run_page_ends_with_the_verdict_and_a_reload_keeps_the_windows(service: 
     rows = page.locator("#limit-checks tbody tr")
     assert rows.count() == 13
     assert "simple acceptance" in page.inner_text("#limit-checks caption")
+    # the fit in data-sheet units beside the raw form, noise in µg/√Hz and µg
+    page.wait_for_selector("#allan table")
+    fit = page.inner_text("section[aria-label='Fitted model']")
+    assert "S (mV/g)" in fit and "mrad" in fit and "scale matrix K (V per m/s²)" in fit
+    assert "density (µg/√Hz)" in page.inner_text("#allan") and "bias instability (µg)" in page.inner_text(
+        "#allan"
+    )
     n_windows = page.locator("#windows tbody tr").count()
     assert n_windows >= 12
     shot(page, "desk-run-verdict")
@@ -112,6 +119,22 @@ def test_completed_run_has_its_certificate_at_once(service: str) -> None:
     cert = httpx.get(f"{service}/api/runs/{run_id}/certificate", headers=VIEW)
     assert cert.status_code == 200
     assert cert.json()["content"]["conformity"]["outcome"] == run["outcome"] == "PASS"
+
+
+def _calibrated(service: str, serial: str) -> dict[str, Any]:
+    """Run static-12 for ``serial`` over the API and return the finished run."""
+    created = httpx.post(
+        f"{service}/api/runs", json={"unit_serial": serial, "procedure": "static-12"}, headers=OP
+    )
+    assert created.status_code == 202, created.text
+    run_id = created.json()["id"]
+    deadline = time.monotonic() + RUN_TIMEOUT_S
+    while time.monotonic() < deadline:
+        run = httpx.get(f"{service}/api/runs/{run_id}", headers=VIEW).json()
+        if run["state"] not in ("queued", "running", "paused", "suspended"):
+            return run
+        time.sleep(0.2)
+    raise AssertionError(f"run {run_id} did not finish within {RUN_TIMEOUT_S} s")
 
 
 def test_a_unit_registered_from_the_page_is_stated_on_its_certificate(service: str, browser: Any) -> None:
@@ -155,5 +178,37 @@ def test_a_unit_registered_from_the_page_is_stated_on_its_certificate(service: s
     page.goto(f"{service}/#/units/SN-RP-3")
     page.wait_for_selector("#registration")
     assert page.input_value("#reg-sensitivity") == "174"
+    assert console.errors == []
+    ctx.close()
+
+
+def test_drift_check_started_from_the_unit_page_shows_its_deltas(service: str, browser: Any) -> None:
+    _calibrated(service, "SN-RP-4")
+    ctx, page, console = _operator_page(browser, service)
+    page.goto(f"{service}/#/units/SN-RP-4")
+    page.wait_for_selector("#drift-run")
+    assert page.is_enabled("#drift-run"), page.inner_text("main")
+    assert "No nightly drift check is scheduled" in page.inner_text("#drift-next")  # drift_time = ""
+    # the trend plots state their y range and dates
+    assert page.locator("#trends .spark-axis").count() == page.locator("#trends figure").count() > 0
+    assert " … " in page.inner_text("#trends .spark-axis >> nth=0")
+    page.click("#drift-run")
+    page.wait_for_function(
+        "document.querySelector('#drift-status').textContent.startsWith('Drift check queued')"
+    )
+    deadline = time.monotonic() + RUN_TIMEOUT_S
+    checks: list[Any] = []
+    while not checks and time.monotonic() < deadline:
+        time.sleep(0.5)
+        checks = httpx.get(
+            f"{service}/api/drift/checks", params={"unit_serial": "SN-RP-4"}, headers=VIEW
+        ).json()
+    assert checks, "the drift check did not finish"
+    page.goto(f"{service}/#/runs/{checks[0]['run_id']}")
+    page.wait_for_selector("#drift-result table")
+    assert page.inner_text("h1").startswith("Drift check")
+    assert page.locator("#drift-result tbody tr").count() == 12
+    assert ("flagged" if checks[0]["flagged"] else "ok") in page.inner_text("#drift-result h2")
+    assert page.locator("#verdict").is_hidden() and page.locator("#certificate").count() == 0
     assert console.errors == []
     ctx.close()

@@ -113,7 +113,7 @@ def fit_covariance(result: CalibrationResult) -> tuple[tuple[tuple[float, ...], 
 
 
 def judged_uncertainties(
-    rec: Recording, calibration: dict[str, Any], settings: Settings | None
+    rec: Recording, calibration: dict[str, Any], settings: Settings | None, g_check_n: int | None = None
 ) -> dict[str, float]:
     """The expanded uncertainty of each value the limits check, as the certificate will state
     it: from the uncertainty budget with the bench's Type B settings, or (no settings, or no
@@ -121,7 +121,7 @@ def judged_uncertainties(
     budget = None
     if settings is not None:
         budget, _why = run_budget(rec, calibration, settings)
-    return check_uncertainties(calibration, budget)
+    return check_uncertainties(calibration, budget, g_check_n)
 
 
 def _finish(
@@ -148,7 +148,8 @@ def _finish(
             outcome, error = Outcome.ERROR, f"fit failed: {exc}"
     if calibration is not None and rec is not None:
         try:
-            us = judged_uncertainties(rec, calibration, settings) if limits is not None else None
+            n_g = int(np.size(result.g_after.error_m_s2))
+            us = judged_uncertainties(rec, calibration, settings, n_g) if limits is not None else None
             outcome, checks = verdict(calibration, limits, us)
         except ValueError as exc:
             outcome, error = Outcome.ERROR, f"limits check failed: {exc}"

@@ -143,8 +143,8 @@ class CalibrationResult:
         }
 
 
-def _g_dict(g: GCheck) -> dict[str, float | int]:
-    return {"mean_error_m_s2": g.mean_error_m_s2, "std_m_s2": g.std_m_s2, "n": int(np.size(g.error_m_s2))}
+def _g_dict(g: GCheck) -> dict[str, float]:
+    return {"mean_error_m_s2": g.mean_error_m_s2, "std_m_s2": g.std_m_s2}
 
 
 def _where(rec: Recording) -> str:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from api.certificates.budget import combined
-from api.certificates.conformity import G_CHECK_U_BASIS, conformity_statement
+from api.certificates.conformity import G_CHECK_U_BASIS, conformity_statement, g_check_u
 from api.certificates.datasheet_units import datasheet_results
 from api.certificates.rounding import expanded_quantity, round_significant
 
@@ -125,6 +125,8 @@ class CertificateInputs:
     :param outcome: the run's stored outcome (``PASS``/``FAIL``), which the conformity
         statement must agree with.
     :param limits_model: the unit model whose limits judged the run.
+    :param g_check_n: windows (or 1 s blocks) of the |g| check, for the U of its mean; ``None``
+        when not known (U not stated).
     """
 
     run: dict[str, Any]
@@ -142,6 +144,7 @@ class CertificateInputs:
     limit_checks: tuple[dict[str, Any], ...] = ()
     outcome: str | None = None
     limits_model: str | None = None
+    g_check_n: int | None = None
 
 
 @dataclass(frozen=True)
@@ -243,7 +246,7 @@ def _results(cal: dict[str, Any], budget: dict[str, Any] | None) -> dict[str, An
     return results
 
 
-def _g_check(cal: dict[str, Any]) -> dict[str, Any]:
+def _g_check(cal: dict[str, Any], g_check_n: int | None) -> dict[str, Any]:
     g = cal.get("g_check", {})
     out: dict[str, Any] = {
         "description": "|K⁻¹(raw − b)| − g_local over the static windows: mean error and standard "
@@ -252,10 +255,10 @@ def _g_check(cal: dict[str, Any]) -> dict[str, Any]:
     missing = {"before": f"{NOT_STATED}: no nominal scale known for this unit", "after": NOT_STATED}
     for when in ("before", "after"):
         if isinstance(g.get(when), dict):
-            out[when] = {k: (v if k == "n" else _two_digits(v)) for k, v in g[when].items() if k != "nominal"}
-            n, std = g[when].get("n"), g[when].get("std_m_s2")
-            if isinstance(n, int) and n >= 2 and isinstance(std, int | float) and math.isfinite(std):
-                out[when]["expanded_uncertainty_m_s2"] = _two_digits(2.0 * float(std) / math.sqrt(n))
+            out[when] = {k: _two_digits(v) for k, v in g[when].items() if k != "nominal"}
+            u_g = g_check_u(g[when].get("std_m_s2"), g_check_n)
+            out[when]["expanded_uncertainty_m_s2"] = u_g if u_g is not None else NOT_STATED
+            out[when]["n"] = g_check_n if g_check_n is not None else NOT_STATED
         else:
             out[when] = missing[when]
     out["uncertainty_basis"] = G_CHECK_U_BASIS
@@ -344,7 +347,7 @@ def certificate_content(
         else list(lab.reference_equipment) or [NOT_STATED],
         "software": software(),
         "results": _results(inp.calibration, inp.budget),
-        "g_check": _g_check(inp.calibration),
+        "g_check": _g_check(inp.calibration, inp.g_check_n),
         "uncertainty_statement": (
             DYNAMIC_COVERAGE_STATEMENT
             if inp.calibration.get("method") == "dynamic-batch"

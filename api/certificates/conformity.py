@@ -50,10 +50,22 @@ def _u2(x: float) -> float:
     return round_significant(x) if math.isfinite(x) and x > 0 else float(x)
 
 
-def check_uncertainties(cal: Mapping[str, Any], budget: Mapping[str, Any] | None) -> dict[str, float]:
+def g_check_u(std_m_s2: Any, n: int | None) -> float | None:
+    """U (k = 2, two significant digits) of the |g| check's mean error over ``n`` windows,
+    ``None`` when ``n`` < 2 or the standard deviation is not a finite number."""
+    if n is None or n < 2 or not isinstance(std_m_s2, int | float) or not math.isfinite(std_m_s2):
+        return None
+    return _u2(COVERAGE_K * float(std_m_s2) / math.sqrt(float(n)))
+
+
+def check_uncertainties(
+    cal: Mapping[str, Any], budget: Mapping[str, Any] | None, g_check_n: int | None = None
+) -> dict[str, float]:
     """Expanded uncertainty U (two significant digits) of each value the limits check, by limit
     name (``bench.limits.checked_values``), from a ``calibrate --json`` object and its budget.
 
+    :param g_check_n: the number of windows (or 1 s blocks) of the |g| check; ``None``: its U
+        is not stated.
     :raises ValueError: the fit lacks a σ or a value.
     """
     try:
@@ -71,10 +83,9 @@ def check_uncertainties(cal: Mapping[str, Any], budget: Mapping[str, Any] | None
                 u = math.hypot(u_K[i, j] / kii, kij * u_K[i, i] / kii**2)
                 out[f"cross_axis_{a}{AXES[j]}"] = _u2(k_K * u)
     after = cal.get("g_check", {}).get("after", {}) if isinstance(cal.get("g_check"), Mapping) else {}
-    n = after.get("n") if isinstance(after, Mapping) else None
-    std = after.get("std_m_s2") if isinstance(after, Mapping) else None
-    if isinstance(n, int | float) and n >= 2 and isinstance(std, int | float) and math.isfinite(std):
-        out["g_error_after"] = _u2(COVERAGE_K * float(std) / math.sqrt(float(n)))
+    u_g = g_check_u(after.get("std_m_s2") if isinstance(after, Mapping) else None, g_check_n)
+    if u_g is not None:
+        out["g_error_after"] = u_g
     return out
 
 

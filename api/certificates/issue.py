@@ -24,7 +24,8 @@ from api.certificates.budget import TypeBSettings, certificate_budget
 from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
 from api.certificates.pdf import render_pdf
 from api.settings import Settings
-from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording
+from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording, select_windows
+from bench.calibration_dynamic import is_dynamic
 from bench.limits import load_limits
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
@@ -211,6 +212,17 @@ def unit_nominal(unit: Unit | None) -> Nominal | None:
     return unit.nominal_scale, unit.nominal_bias
 
 
+def g_check_count(rec: Recording) -> int | None:
+    """Windows of the |g| check of a static fit (its static windows); ``None`` for a moving
+    recording (whose 1 s blocks only the dynamic fit forms)."""
+    if is_dynamic(rec):
+        return None
+    try:
+        return len(select_windows(rec))
+    except ValueError:
+        return None
+
+
 def limits_model_name(settings: Settings, model: str | None) -> str | None:
     """The unit model whose limits judge a unit registered as ``model``: ``model`` when the
     limits file has it, else ``settings.limits_model`` (``None`` when empty).
@@ -293,6 +305,7 @@ def issue_for_run(
         limit_checks=tuple(dict(c) for c in (run.limit_checks or [])),
         outcome=run.outcome,
         limits_model=limits_model_name(settings, unit.model) if run.limit_checks else None,
+        g_check_n=g_check_count(rec) if rec is not None else None,
     )
     now = now or utc_now()
     cert = issue_certificate(s, run_id, {"pending": run_id}, now=now)

@@ -48,8 +48,10 @@ function startForm(session) {
         + (p.problems.length ? ` · cannot run: ${p.problems.join("; ")}` : "");
     } catch (err) { pv.textContent = `No preview: ${err.message}`; }
   };
-  proc.addEventListener("change", showPreview);
-  showPreview();
+  if (session.role !== "none") {
+    proc.addEventListener("change", showPreview);
+    showPreview();
+  }
   const details = h("a", { href: "#/units", id: "unit-details", title: "customer, model, date of receipt, nominal values: what the certificate states" }, "unit registration…");
   serial.addEventListener("input", () => { details.href = serial.value.trim() ? `#/units/${encodeURIComponent(serial.value.trim())}` : "#/units"; });
   const form = h("form", { class: "start", "aria-label": "start a run" },

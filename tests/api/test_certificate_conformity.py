@@ -41,7 +41,7 @@ CAL = {
     "terms": ["bias", "scale_matrix"],
     "extra": {},
     "residual_rms": 7.7e-6,
-    "g_check": {"after": {"mean_error_m_s2": 1e-4, "std_m_s2": 4e-4, "n": 16}},
+    "g_check": {"after": {"mean_error_m_s2": 1e-4, "std_m_s2": 4e-4}},
 }
 
 
@@ -53,7 +53,7 @@ def _limits(tmp_path: Path, rule: str | None) -> object:
 
 
 def test_uncertainty_of_each_check_is_k_sigma_and_the_ratio_propagates_both_terms() -> None:
-    us = check_uncertainties(CAL, None)
+    us = check_uncertainties(CAL, None, 16)
     assert us["bias_y"] == pytest.approx(4.0e-5) and us["scale_x"] == pytest.approx(4.0e-6)
     assert us["g_error_after"] == pytest.approx(2 * 4e-4 / 4)  # s/sqrt(n), k = 2
     # the ratio K_xy/K_xx by Monte Carlo (a different formulation than the first-order propagation)
@@ -66,7 +66,7 @@ def test_uncertainty_of_each_check_is_k_sigma_and_the_ratio_propagates_both_term
 def test_guard_band_rejects_a_value_within_u_of_its_limit_that_simple_acceptance_passes(
     tmp_path: Path,
 ) -> None:
-    us = check_uncertainties(CAL, None)
+    us = check_uncertainties(CAL, None, 16)
     # bias_x = 1.54 is 0.01 V inside its limit 1.55: U = 2e-5 V leaves it acceptable either way
     simple = _limits(tmp_path, None)
     guarded = _limits(tmp_path, "guarded-acceptance")
@@ -99,6 +99,7 @@ def _content(checks: list[dict[str, object]], outcome: str | None) -> dict[str, 
         calibration=CAL,
         g_local_m_s2=9.81,
         limit_checks=tuple(checks),
+        g_check_n=16,
         outcome=outcome,
         limits_model="M",
     )
@@ -107,7 +108,9 @@ def _content(checks: list[dict[str, object]], outcome: str | None) -> dict[str, 
 
 
 def test_certificate_lists_every_check_and_states_the_runs_outcome(tmp_path: Path) -> None:
-    outcome, checks = verdict(CAL, _limits(tmp_path, "guarded-acceptance"), check_uncertainties(CAL, None))
+    outcome, checks = verdict(
+        CAL, _limits(tmp_path, "guarded-acceptance"), check_uncertainties(CAL, None, 16)
+    )
     rows = [dataclasses.asdict(c) for c in checks]
     c = _content(rows, outcome.value)
     conf = c["conformity"]
@@ -115,6 +118,11 @@ def test_certificate_lists_every_check_and_states_the_runs_outcome(tmp_path: Pat
     assert "guarded acceptance (ILAC-G8:09/2019 4.2.2" in conf["decision_rule"]
     assert [r["quantity"] for r in conf["checks"]] == [ch.name for ch in checks] and len(conf["checks"]) == 13
     assert conf["checks"][0]["expanded_uncertainty"] == 2e-5 and conf["checks"][0]["verdict"] == "conforms"
+    assert (
+        c["g_check"]["after"]["expanded_uncertainty_m_s2"]
+        == conf["checks"][-1]["expanded_uncertainty"]
+        == 2e-4
+    )
     line = conformity_line(c)
     assert line.startswith("Conformity: PASS against the limits of unit model M (guarded acceptance)")
     text = "\n".join(certificate_lines(c, "0" * 64))
@@ -153,7 +161,7 @@ def test_datasheet_units_convert_the_fit_with_matching_digits() -> None:
 @pytest.mark.parametrize("with_limits", [True, False])
 def test_every_pdf_page_renders_and_states_the_stored_outcome(tmp_path: Path, with_limits: bool) -> None:
     if with_limits:
-        outcome, checks = verdict(CAL, _limits(tmp_path, None), check_uncertainties(CAL, None))
+        outcome, checks = verdict(CAL, _limits(tmp_path, None), check_uncertainties(CAL, None, 16))
         rows, stored = [dataclasses.asdict(c) for c in checks], outcome.value
         expected = "Conformity: PASS against the limits of unit model M (simple acceptance)"
     else:

@@ -86,6 +86,7 @@ def test_a_simulated_bench_issues_and_says_what_is_not_configured(tmp_path: Path
         assert c["traceability"].startswith("SIMULATED BENCH")
         assert all("simulated" in e for e in c["reference_equipment"])
         after = c["g_check"]["after"]
-        assert after["n"] == 16 and after["expanded_uncertainty_m_s2"] == pytest.approx(2 * 4e-4 / 4)
+        # no recording to count the windows of the |g| check: its U is not stated, never guessed
+        assert after["n"] == "not stated" and after["expanded_uncertainty_m_s2"] == "not stated"
     finally:
         engine.dispose()

@@ -247,7 +247,10 @@ function certificateCard(run) {
         try { const data = await downloadJson(`/api/runs/${enc(run.id)}/certificate`, `${run.certificate_number}.json`); status.textContent = `downloaded, sha256 ${data.sha256.slice(0, 12)}…`; }
         catch (err) { status.textContent = `download failed: ${err.message}`; }
       } }, "Download JSON"), " ",
-      h("a", { id: "pdf-link", href: linkWithToken(`/api/runs/${enc(run.id)}/certificate.pdf`), target: "_blank", rel: "noopener" }, "Open PDF"), " ", status));
+      h("a", { id: "pdf-link", href: linkWithToken(`/api/runs/${enc(run.id)}/certificate.pdf`), target: "_blank", rel: "noopener" }, "Open PDF"), " ", status),
+    h("p", { class: "note", id: "exports" }, "The correction for other tools: ",
+      ...[["imucal", "imucal JSON"], ["kalibr", "Kalibr YAML"], ["c-header", "C header"], ["json", "JSON"]].flatMap(([f, label], i) => [
+        i ? " · " : "", h("a", { href: linkWithToken(`/api/runs/${enc(run.id)}/export/${f}`), download: "", "data-format": f }, label)])));
   return c;
 }
 

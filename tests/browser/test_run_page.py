@@ -82,6 +82,12 @@ def test_run_page_ends_with_the_verdict_and_a_reload_keeps_the_windows(service: 
     assert "density (µg/√Hz)" in page.inner_text("#allan") and "bias instability (µg)" in page.inner_text(
         "#allan"
     )
+    # the correction leaves the building from the certificate card
+    href = page.get_attribute("#exports a[data-format='c-header']", "href")
+    assert href is not None
+    header = page.request.get(f"{service}/{href.lstrip('/')}")
+    assert header.status == 200 and "calbench_correct" in header.text()
+    assert page.locator("#exports a").count() == 4
     n_windows = page.locator("#windows tbody tr").count()
     assert n_windows >= 12
     shot(page, "desk-run-verdict")

@@ -295,7 +295,9 @@ def _conformity(f: Flow, c: dict[str, Any]) -> None:
             f"Specification: {conf['specification']}. U of the |g| check: {conf['g_check_uncertainty']}.",
             size=7.5,
         )
-        rows = [("Quantity", "Value", "U", "Unit", "Tolerance interval", "Acceptance interval", "Verdict")]
+        rows: list[tuple[str, ...]] = [
+            ("Quantity", "Value", "U", "Unit", "Tolerance interval", "Acceptance interval", "Verdict")
+        ]
         rows += [_check_row(r) for r in conf["checks"]]
         f.table(rows, widths=(0.15, 0.14, 0.11, 0.10, 0.18, 0.18, 0.14), header=True, size=7)
 

@@ -9,7 +9,9 @@ so the U beside each verdict is the U of the results table:
 * ``cross_axis_ij`` = K_ij / K_ii: u² = (u(K_ij)/K_ii)² + (K_ij·u(K_ii)/K_ii²)² (first-order
   propagation, the two taken uncorrelated), k of the scale matrix;
 * ``g_error_after``, the mean of e_w = |f̂_w| − g_local over the n windows (or 1 s blocks):
-  u = s(e)/√n (Type A, GUM 4.2.3), k = 2.
+  u = s(e)/√n (Type A, GUM 4.2.3), k = 2 — conservative: the fit of b and K to the same
+  windows draws the mean towards 0 (over simulated static-12 recordings |mean| stays far
+  inside U, ``tests/api/test_certificate_conformity.py``).
 
 Without a budget, u is the fit's Type A σ and k = 2 (as in the results table).
 """
@@ -28,7 +30,8 @@ from bench.limits import AXES, DECISION_RULES
 
 COVERAGE_K = 2.0
 G_CHECK_U_BASIS = (
-    "u = s(e)/√n, s(e) the standard deviation of the n per-window errors |f̂| − g (Type A), k = 2"
+    "u = s(e)/√n, s(e) the standard deviation of the n per-window errors |f̂| − g (Type A), k = 2; an "
+    "upper bound, as the least-squares fit itself draws the mean error towards 0"
 )
 
 

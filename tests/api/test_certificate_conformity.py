@@ -186,3 +186,24 @@ def test_every_pdf_page_renders_and_states_the_stored_outcome(tmp_path: Path, wi
         ).stdout
         assert " ".join(text.split()).count(expected) == 1, (n, text[:400])
         assert f"Page {n} of {len(pngs)}" in text
+
+
+@pytest.mark.slow
+def test_g_check_u_covers_the_after_mean_error_over_simulated_recordings() -> None:
+    from bench.estimation.g_check import correct, g_check
+    from bench.estimation.static_fit import fit_static
+    from tests.bench.static_sim import random_truth, tumble_specific_force
+
+    rng = np.random.default_rng(3)
+    f = tumble_specific_force()
+    m, g = f.shape[0], float(np.linalg.norm(f[0]))
+    z = []
+    for _ in range(300):
+        b, K = random_truth(rng)
+        sigma = 2e-5
+        y = b + f @ K.T + rng.normal(0.0, sigma, (m, 3))
+        fit = fit_static(f, y, np.repeat((sigma**2 * np.eye(3))[None], m, axis=0))
+        gc = g_check(correct(y, fit.bias, fit.K), g)
+        z.append(gc.mean_error_m_s2 / (2 * gc.std_m_s2 / np.sqrt(m)))  # error / U
+    # U never too small: the mean error after the fit stays well inside its U (conservative)
+    assert np.max(np.abs(z)) < 0.5

@@ -83,9 +83,13 @@ export async function overviewView(view, session, signal) {
   const unitsBox = h("div", {}, message("Loading units…"));
   view.append(h("div", { class: "grid wide" }, startForm(session), card("Units", unitsBox), h("section", { class: "card span", "aria-label": "Runs" }, h("h2", {}, "Runs"), runsBox)));
   const load = async () => {
-    const [runs, units] = await Promise.all([getJson("/api/runs?limit=20", { signal }), getJson("/api/units", { signal })]);
+    const [runs, units, drift] = await Promise.all([getJson("/api/runs?limit=20", { signal }), getJson("/api/units", { signal }),
+      getJson("/api/drift", { signal }).catch(() => null)]);
     runsBox.replaceChildren(runsTable(runs));
-    unitsBox.replaceChildren(unitsTable(units));
+    const next = drift && drift.enabled && drift.next_run_at
+      ? `Nightly drift check of every certified unit: next ${when(drift.next_run_at)}${drift.pending_units.length ? ` · waiting: ${drift.pending_units.join(", ")}` : ""}. Run one now from a unit's page.`
+      : "No nightly drift check is scheduled (CALBENCH_DRIFT_TIME); run one from a unit's page.";
+    unitsBox.replaceChildren(unitsTable(units), h("p", { class: "note", id: "drift-schedule" }, next));
     return runs.some((r) => LIVE.has(r.state));
   };
   if (session.role === "none") {

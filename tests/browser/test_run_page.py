@@ -101,6 +101,7 @@ def test_run_page_ends_with_the_verdict_and_a_reload_keeps_the_windows(service: 
     page.wait_for_selector(f"a[href='#/runs/{run_id}']")
     row = page.locator("tr", has=page.locator(f"a[href='#/runs/{run_id}']"))
     assert "PASS" in row.inner_text()
+    assert "No nightly drift check is scheduled" in page.inner_text("#drift-schedule")
     assert console.errors == []
     ctx.close()
 

@@ -90,3 +90,27 @@ def test_a_simulated_bench_issues_and_says_what_is_not_configured(tmp_path: Path
         assert after["n"] == "not stated" and after["expanded_uncertainty_m_s2"] == "not stated"
     finally:
         engine.dispose()
+
+
+def test_health_names_the_gaps_and_the_preview_matches_the_procedure(tmp_path: Path) -> None:
+    from fastapi.testclient import TestClient
+
+    from api.main import create_app
+    from bench.procedures import build_procedure, preview
+    from tests.api.service_helpers import VIEW, service_settings
+
+    settings = service_settings(tmp_path, sim_speed=4.0, lab_name="Acme Metrology")
+    with TestClient(create_app(settings)) as client:
+        health = client.get("/api/health").json()
+        assert not health["certificates_blocked"]  # a simulated bench still issues, marked as such
+        problems = " ".join(health["certificate_problems"])
+        assert "CALBENCH_LAB_ADDRESS" in problems and "CALBENCH_AUTHORIZED_BY" in problems
+        assert "CALBENCH_LAB_NAME" not in problems
+        got = client.get("/api/procedures/static-12/preview", headers=VIEW).json()
+        assert client.get("/api/procedures/nope/preview", headers=VIEW).status_code == 404
+    pv = preview(build_procedure("static-12", dwell_s=3.0))
+    assert got["n_windows"] == len(pv.windows) and got["n_poses"] == len(pv.poses_deg)
+    assert got["dwell_s"] == 3.0 and got["dwell_source"] == "service setting"
+    assert got["wall_duration_s"] == pytest.approx(pv.duration_s / 4.0)
+    real = Settings(**IDENTITY)
+    assert real.certificate_gaps()[0] == []

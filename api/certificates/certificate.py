@@ -250,7 +250,12 @@ def _results(cal: dict[str, Any], budget: dict[str, Any] | None) -> dict[str, An
     return results
 
 
-def _g_check(cal: dict[str, Any], g_check_n: int | None) -> dict[str, Any]:
+def _g_check(
+    cal: dict[str, Any], g_check_n: int | None, checks: tuple[dict[str, Any], ...] = ()
+) -> dict[str, Any]:
+    checked_u = {
+        c["name"]: c.get("expanded_uncertainty") for c in checks if c.get("expanded_uncertainty") is not None
+    }
     g = cal.get("g_check", {})
     out: dict[str, Any] = {
         "description": "|K⁻¹(raw − b)| − g_local over the static windows: mean error and standard "
@@ -261,6 +266,8 @@ def _g_check(cal: dict[str, Any], g_check_n: int | None) -> dict[str, Any]:
         if isinstance(g.get(when), dict):
             out[when] = {k: _two_digits(v) for k, v in g[when].items() if k != "nominal"}
             u_g = g_check_u(g[when].get("std_m_s2"), g_check_n)
+            if u_g is None and when == "after":  # a moving recording: the U its limit check carries
+                u_g = checked_u.get("g_error_after")
             out[when]["expanded_uncertainty_m_s2"] = u_g if u_g is not None else NOT_STATED
             out[when]["n"] = g_check_n if g_check_n is not None else NOT_STATED
         else:
@@ -351,7 +358,7 @@ def certificate_content(
         else list(lab.reference_equipment) or [NOT_STATED],
         "software": software(),
         "results": _results(inp.calibration, inp.budget),
-        "g_check": _g_check(inp.calibration, inp.g_check_n),
+        "g_check": _g_check(inp.calibration, inp.g_check_n, inp.limit_checks),
         "uncertainty_statement": (
             DYNAMIC_COVERAGE_STATEMENT
             if inp.calibration.get("method") == "dynamic-batch"

@@ -115,9 +115,10 @@ def fit_covariance(result: CalibrationResult) -> tuple[tuple[tuple[float, ...], 
 def judged_uncertainties(
     rec: Recording, calibration: dict[str, Any], settings: Settings | None, g_check_n: int | None = None
 ) -> dict[str, float]:
-    """The expanded uncertainty of each value the limits check, as the certificate will state
-    it: from the uncertainty budget with the bench's Type B settings, or (no settings, or no
-    budget can be formed) the fit's Type A σ with k = 2."""
+    """The expanded uncertainty of each value the limits check: with ``settings``, as the
+    certificate will state it (the uncertainty budget with the bench's Type B settings, needed
+    by a guard band); without, or when no budget can be formed, the fit's Type A σ with k = 2
+    (simple acceptance, where U is stated beside the verdict; the certificate states its own)."""
     budget = None
     if settings is not None:
         budget, _why = run_budget(rec, calibration, settings)
@@ -149,7 +150,11 @@ def _finish(
     if calibration is not None and rec is not None:
         try:
             n_g = int(np.size(result.g_after.error_m_s2))
-            us = judged_uncertainties(rec, calibration, settings, n_g) if limits is not None else None
+            # the budget (refits for a moving table) only where the decision needs it: a guard band
+            guarded = limits is not None and limits.decision_rule == "guarded-acceptance"
+            us = (
+                judged_uncertainties(rec, calibration, settings if guarded else None, n_g) if limits else None
+            )
             outcome, checks = verdict(calibration, limits, us)
         except ValueError as exc:
             outcome, error = Outcome.ERROR, f"limits check failed: {exc}"

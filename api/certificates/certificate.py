@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from api.certificates.budget import combined
-from api.certificates.conformity import G_CHECK_U_BASIS, conformity_statement, g_check_u
+from api.certificates.conformity import G_CHECK_U_BASIS, check_uncertainties, conformity_statement, g_check_u
 from api.certificates.datasheet_units import datasheet_results
 from api.certificates.rounding import expanded_quantity, round_significant
 
@@ -367,7 +367,13 @@ def certificate_content(
         if inp.budget is not None
         else TYPE_A_ONLY_STATEMENT.format(reason=inp.budget_note or "no budget given"),
         "diagnosis": _findings(inp),
-        "conformity": conformity_statement(inp.limit_checks, inp.outcome, inp.limits_model, None),
+        "conformity": conformity_statement(
+            inp.limit_checks,
+            inp.outcome,
+            inp.limits_model,
+            None,
+            check_uncertainties(inp.calibration, inp.budget, inp.g_check_n) if inp.limit_checks else None,
+        ),
         "traceability": traceability,
         "statements": [ONLY_ITEM, NOT_REPRODUCED],
         "authorized_by": lab.authorized_by,

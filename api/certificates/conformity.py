@@ -97,10 +97,19 @@ def _verdict_word(passed: bool) -> str:
 
 
 def conformity_statement(
-    checks: Sequence[Mapping[str, Any]], outcome: str | None, model: str | None, rule: str | None
+    checks: Sequence[Mapping[str, Any]],
+    outcome: str | None,
+    model: str | None,
+    rule: str | None,
+    uncertainties: Mapping[str, float] | None = None,
 ) -> dict[str, Any]:
     """The certificate's conformity section from the run's stored limit checks
     (``bench.records.LimitCheck`` as dicts) and its stored outcome.
+
+    :param uncertainties: the certificate's own U of each checked value
+        (:func:`check_uncertainties` with its budget), stated in place of the stored one; the
+        verdicts and acceptance intervals are the stored ones (under guarded acceptance they
+        were formed with this same U).
 
     The statement's verdict is the run's outcome; it is checked against the checks, so a
     certificate can never state another verdict than the checks it lists.
@@ -127,7 +136,7 @@ def conformity_statement(
             {
                 "quantity": c["name"],
                 "value": c["value"],
-                "expanded_uncertainty": c.get("expanded_uncertainty"),
+                "expanded_uncertainty": (uncertainties or {}).get(c["name"], c.get("expanded_uncertainty")),
                 "unit": c["unit"],
                 "low": lo,
                 "high": hi,

@@ -48,6 +48,7 @@ async function refreshBench() {
     const problems = hl.certificate_problems || [];
     if (cfg) {
       cfg.hidden = !problems.length;
+      cfg.className = hl.certificates_blocked ? "notice" : "notice info";
       cfg.textContent = problems.length ? `${hl.certificates_blocked ? "No certificates can be issued: " : "Certificates are incomplete: "}${problems.join("; ")}.` : "";
     }
   } catch { document.getElementById("bench").textContent = "service unreachable"; }

@@ -43,7 +43,7 @@ function liveCard(run, session, act) {
     pause.hidden = !(st === "running" || st === "queued");
     cont.hidden = !(st === "paused" || st === "suspended");
     resume.hidden = st !== "interrupted";
-    abort.hidden = st === "interrupted";
+    abort.hidden = !LIVE.has(st);
     abort.disabled = !canAct || !LIVE.has(st);
   };
   controls(run.state);

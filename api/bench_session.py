@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from api.certificates.conformity import check_uncertainties
+from api.certificates.issue import limits_model_name, run_budget
 from api.settings import Settings
 from bench.bench_config import SIM_BENCH_FILE, BenchConfig, apply_to_daq, load_bench_config
 from bench.calibration import CalibrationResult, calibrate_recording
@@ -26,6 +28,7 @@ from bench.estimation.scalar_fit import PARAMETER_NAMES as SCALAR_NAMES
 from bench.estimation.static_fit import PARAMETER_NAMES as STATIC_NAMES
 from bench.limits import UnitLimits, describe, load_limits, verdict
 from bench.procedures import build_procedure, preview
+from bench.recording import Recording
 from bench.recording.model import Sidecar
 from bench.recording.reader import read_recording
 from bench.records import (
@@ -169,23 +172,50 @@ def fit_covariance(result: CalibrationResult) -> tuple[tuple[tuple[float, ...], 
     return cov, names
 
 
-def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_path: Path,
-            limits: UnitLimits | None) -> RunRecord:
+def judged_uncertainties(
+    rec: Recording, calibration: dict[str, Any], settings: Settings | None, g_check_n: int | None = None
+) -> dict[str, float]:
+    """The expanded uncertainty of each value the limits check: with ``settings``, as the
+    certificate will state it (the uncertainty budget with the bench's Type B settings, needed
+    by a guard band); without, or when no budget can be formed, the fit's Type A σ with k = 2
+    (simple acceptance, where U is stated beside the verdict; the certificate states its own)."""
+    budget = None
+    if settings is not None:
+        budget, _why = run_budget(rec, calibration, settings)
+    return check_uncertainties(calibration, budget, g_check_n)
+
+
+def _finish(
+    seq: Sequencer,
+    acq_outcome: Outcome | None,
+    error: str | None,
+    csv_path: Path,
+    limits: UnitLimits | None,
+    settings: Settings | None = None,
+) -> RunRecord:
     calibration: dict[str, object] | None = None
     outcome = acq_outcome
     checks: tuple[LimitCheck, ...] = ()
     cov: tuple[tuple[float, ...], ...] | None = None
     names: tuple[str, ...] = ()
+    rec: Recording | None = None
     if outcome is None:
         try:
-            result = calibrate_recording(read_recording(csv_path))
+            rec = read_recording(csv_path)
+            result = calibrate_recording(rec)
             calibration = result.to_contract()
             cov, names = fit_covariance(result)
         except ValueError as exc:
             outcome, error = Outcome.ERROR, f"fit failed: {exc}"
-    if calibration is not None:
+    if calibration is not None and rec is not None:
         try:
-            outcome, checks = verdict(calibration, limits)
+            n_g = int(np.size(result.g_after.error_m_s2))
+            # the budget (refits for a moving table) only where the decision needs it: a guard band
+            guarded = limits is not None and limits.decision_rule == "guarded-acceptance"
+            us = (
+                judged_uncertainties(rec, calibration, settings if guarded else None, n_g) if limits else None
+            )
+            outcome, checks = verdict(calibration, limits, us)
         except ValueError as exc:
             outcome, error = Outcome.ERROR, f"limits check failed: {exc}"
         if outcome is Outcome.FAIL:
@@ -238,10 +268,15 @@ def finish_observers(observers: Sequence[RunObserver], record: RunRecord, retry_
                            f"(retried {retry_s:g} s): " + "; ".join(problems))
 
 
-def _execute(seq: Sequencer, csv_path: Path, observers: Sequence[RunObserver],
-             limits: UnitLimits | None) -> RunRecord:
+def _execute(
+    seq: Sequencer,
+    csv_path: Path,
+    observers: Sequence[RunObserver],
+    limits: UnitLimits | None,
+    settings: Settings | None = None,
+) -> RunRecord:
     acq = seq.run()
-    record = _finish(seq, acq.outcome, acq.error, csv_path, limits)
+    record = _finish(seq, acq.outcome, acq.error, csv_path, limits, settings)
     finish_observers(observers, record)
     return record
 
@@ -257,7 +292,7 @@ def limits_for(settings: Settings, model: str | None, channel_unit: str) -> Unit
     :raises ValueError: the limits file is unreadable or malformed (named).
     """
     table = load_limits(settings.limits_file)
-    name = model if model in table else settings.limits_model
+    name = limits_model_name(settings, model)
     chosen = table.get(name) if name else None
     return chosen if chosen is not None and chosen.channel_unit == channel_unit else None
 
@@ -280,8 +315,12 @@ def start_run(
     config: SequencerConfig | None = None,
     limits: UnitLimits | str | None = "settings",
     procedure_kw: dict[str, Any] | None = None,
+    defer_final_state: bool = False,
 ) -> RunRecord:
     """Run a procedure on the bench from start to verdict.
+
+    :param defer_final_state: leave the finished run's stored state live for the caller to
+        finalise with what it stores after the run (``db.observer.finish_record``).
 
     :param procedure_kw: the procedure's own parameters (e.g. ``rates_deg_s``), stored with the
         run so a resume rebuilds the same steps.
@@ -359,7 +398,7 @@ def start_run(
             dwell=dwell,
             parameters=meta,
         )
-        obs = [DbRunObserver(sessions), *observers]
+        obs = [DbRunObserver(sessions, defer_final_state=defer_final_state), *observers]
         seq = Sequencer(
             devices.table,
             daq,
@@ -371,7 +410,7 @@ def start_run(
             (config or _config(settings)),
             dwell,
         )
-        return _execute(seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None)
+        return _execute(seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None, settings)
     finally:
         if owned:
             devices.close()
@@ -410,8 +449,18 @@ def resume_run(
         if point.recording_path is None:
             raise ValueError(f"run {run_id}: no recording path stored")
         return continue_run(
-            settings, sessions, run_id, serial, model, procedure_name, params, point,
-            sim=sim, sim_speed=sim_speed, observers=observers, control=control,
+            settings,
+            sessions,
+            run_id,
+            serial,
+            model,
+            procedure_name,
+            params,
+            point,
+            sim=sim,
+            sim_speed=sim_speed,
+            observers=observers,
+            control=control,
         )
     finally:
         engine.dispose()
@@ -432,6 +481,7 @@ def continue_run(
     truth: SensorTruth | None = None,
     observers: Sequence[RunObserver] = (),
     control: RunControl | None = None,
+    defer_final_state: bool = False,
 ) -> RunRecord:
     """Continue a run claimed for resumption from ``point`` to its verdict.
 
@@ -476,11 +526,21 @@ def continue_run(
             parameters=dict(stored),
             resumed_from_window=point.next_window_index,
         )
-        obs = [DbRunObserver(sessions), *observers]
-        seq = Sequencer(devices.table, devices.daq, proc, recorder, start, obs, control, config, dwell,
-                        start_window=point.next_window_index)
+        obs = [DbRunObserver(sessions, defer_final_state=defer_final_state), *observers]
+        seq = Sequencer(
+            devices.table,
+            devices.daq,
+            proc,
+            recorder,
+            start,
+            obs,
+            control,
+            config,
+            dwell,
+            start_window=point.next_window_index,
+        )
         limits = limits_for(settings, model, devices.daq.channel_unit)
-        return _execute(seq, csv_path, obs, limits)
+        return _execute(seq, csv_path, obs, limits, settings)
     finally:
         devices.close()
 

@@ -45,6 +45,7 @@ from api.startup_check import check_configuration
 from bench.records import RunRecord, utc_now
 from db.engine import make_session_factory
 from db.migrate import open_database
+from db.observer import finish_record
 from db.repo.recovery import mark_interrupted_runs
 from db.repo.runs import merge_params
 from db.repo.units import get_unit_by_serial
@@ -77,6 +78,9 @@ def make_finisher(
             analysis = analyse_run(record, nominal)
         with sessions.begin() as s:
             merge_params(s, record.run_id, {"service_kind": live.kind})
+            # the final state commits in one transaction with the certificate (or drift check):
+            # a run that reads completed has them
+            finish_record(s, record)
             if live.kind == "calibration":
                 cert = finish_calibration(s, settings, record, analysis)
                 live.extra["certificate_number"] = cert.number if cert is not None else None
@@ -103,6 +107,14 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
         marked = mark_interrupted_runs(s, socket.gethostname()) + recover_shutdown_aborts(s)
     if marked:
         log.warning("runs left live by a dead process, now interrupted: %s", ", ".join(marked))
+    blocking, warnings = settings.certificate_gaps()
+    for gap in blocking:
+        if settings.sim:
+            log.warning("certificate: %s; the simulated bench's certificates say so", gap)
+        else:
+            log.error("certificate: %s; this bench issues no certificate until it is set", gap)
+    for gap in warnings:
+        log.warning("certificate: %s", gap)
     hub = ProgressHub()
     finisher = make_finisher(settings, sessions, read_sessions)
     runner = BenchRunner(settings, sessions, hub, finisher, clock=clock)

@@ -33,9 +33,11 @@ from api.progress_hub import TERMINAL_EVENT, ProgressHub
 from api.service_resume import SHUTDOWN_REASON, NotResumable
 from api.settings import Settings
 from bench.procedures import build_procedure, preview
-from bench.records import Outcome, RunObserver, RunRecord, new_run_id, utc_now
+from bench.records import Outcome, RunObserver, RunRecord, RunState, new_run_id, utc_now
 from bench.sequencer.control import RunControl, SequencerConfig
+from db.observer import finish_record
 from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
+from db.repo.runs import merge_params
 from db.repo.units import get_unit_by_serial
 from drivers.sim.physics import SensorTruth
 
@@ -162,8 +164,15 @@ class BenchRunner:
             with self.sessions.begin() as s:
                 claimed = service_resume.claim(s, run_id)
             age = claimed.sim_age_days
-            live = LiveRun(run_id, claimed.unit_serial, claimed.procedure, claimed.kind,  # type: ignore[arg-type]
-                           RunControl(), age if age is not None else 0.0, resumed=True)
+            live = LiveRun(
+                run_id,
+                claimed.unit_serial,
+                claimed.procedure,
+                claimed.kind,  # type: ignore[arg-type]
+                RunControl(),
+                age if age is not None else 0.0,
+                resumed=True,
+            )
             live.extra["claimed"] = claimed
             live.extra["resumed_from_window"] = claimed.point.next_window_index
             self._claim_bench(live, self._work)
@@ -212,8 +221,15 @@ class BenchRunner:
             truth = None
             if self.settings.sim and claimed.sim_age_days is not None:
                 truth = simulated_unit(live.unit_serial, claimed.sim_age_days)
-            return service_resume.execute(self.settings, self.sessions, claimed, truth=truth,
-                                          observers=self._observers(live), control=live.control)
+            return service_resume.execute(
+                self.settings,
+                self.sessions,
+                claimed,
+                truth=truth,
+                observers=self._observers(live),
+                control=live.control,
+                defer_final_state=True,
+            )
         return start_run(
             self.settings,
             live.procedure,
@@ -225,6 +241,7 @@ class BenchRunner:
             control=live.control,
             run_id=live.id,
             truth=simulated_unit(live.unit_serial, live.age_days) if self.settings.sim else None,
+            defer_final_state=True,
         )
 
     def _work(self, live: LiveRun) -> None:
@@ -245,14 +262,20 @@ class BenchRunner:
             if live.resumed and record is None:  # claimed but not continued: resumable again
                 interrupted = self._release_claim(live)
         finally:
+            if record is not None and not interrupted:
+                self._finalise(live, record)
             live.state = "interrupted" if interrupted else _final_state(record)
             live.progress = 1.0 if live.state == "completed" else live.progress
             hidden = ("dwell_s", "claimed")
             self.hub.publish(
                 live.id,
                 TERMINAL_EVENT,
-                {"state": live.state, "outcome": record.outcome.value if record and record.outcome else None,
-                 "error": live.error, **{k: v for k, v in live.extra.items() if k not in hidden}},
+                {
+                    "state": live.state,
+                    "outcome": record.outcome.value if record and record.outcome else None,
+                    "error": live.error,
+                    **{k: v for k, v in live.extra.items() if k not in hidden},
+                },
             )
             with self._lock:
                 self._recent[live.id] = live
@@ -260,6 +283,18 @@ class BenchRunner:
                     self._recent.pop(next(iter(self._recent)))
                 self._current = None
             live.done.set()
+
+    def _finalise(self, live: LiveRun, record: RunRecord) -> None:
+        """Store the final state of a run whose verdict was left live for the finisher (which
+        normally stores it with the certificate); a finisher that failed leaves its error."""
+        if record.state is not RunState.FINISHED:
+            return
+        try:
+            with self.sessions.begin() as s:
+                if finish_record(s, record) and live.error and live.error != record.error:
+                    merge_params(s, live.id, {"certificate_error": f"results not stored: {live.error}"})
+        except Exception:
+            log.exception("run %s: could not store its final state", live.id)
 
     def _release_claim(self, live: LiveRun) -> bool:
         try:
@@ -284,8 +319,11 @@ class BenchRunner:
         live.shutdown = True
         live.control.abort(SHUTDOWN_REASON)
         if not live.done.wait(timeout_s):
-            log.error("run %s did not stop within %g s of the shutdown; the next start marks it "
-                      "interrupted", live.id, timeout_s)
+            log.error(
+                "run %s did not stop within %g s of the shutdown; the next start marks it interrupted",
+                live.id,
+                timeout_s,
+            )
         return live.id
 
 

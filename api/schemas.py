@@ -91,6 +91,47 @@ class SampleGapOut(BaseModel):
     daq_epoch: int = 0
 
 
+class ProcedurePreviewOut(BaseModel):
+    """A procedure before it is started: how long, how many poses and windows, with what dwell."""
+
+    procedure: str
+    duration_s: float = Field(description="expected duration on the bench clock (s)")
+    wall_duration_s: float = Field(description="expected wall-clock duration (s); bench clock / sim speed")
+    n_poses: int
+    n_windows: int
+    dwell_s: float | None = Field(description="static dwell per pose (s); null: decided by a noise window")
+    dwell_source: Literal["given", "service setting", "provisional"]
+    assumptions: list[str]
+    problems: list[str] = Field(description="table-limit violations; empty when the procedure can run")
+
+
+class LimitCheckOut(BaseModel):
+    """One fitted value checked against its tolerance under the unit model's decision rule."""
+
+    name: str
+    unit: str
+    value: float
+    low: float | None = None
+    high: float | None = None
+    passed: bool
+    expanded_uncertainty: float | None = Field(default=None, description="U of the value (k ≈ 2)")
+    acceptance_low: float | None = None
+    acceptance_high: float | None = None
+    rule: str = "simple-acceptance"
+
+
+class WindowOut(BaseModel):
+    """One completed window of a run."""
+
+    index: int
+    label: str
+    kind: str
+    start_s: float
+    end_s: float
+    n_samples: int
+    pose_deg: list[float] = Field(default_factory=list)
+
+
 class RunOut(BaseModel):
     """One run as stored (or, before its first database write, as the bench's worker knows it)."""
 
@@ -129,6 +170,19 @@ class RunOut(BaseModel):
     gaps: list[SampleGapOut] | None = Field(
         default=None,
         description="every sample gap: where it is, what was done (in `GET /api/runs/{id}`; null in lists)",
+    )
+    limit_checks: list[LimitCheckOut] = Field(
+        default_factory=list,
+        description="the unit model's limits evaluated on the fit (empty: no limits applied or no fit yet)",
+    )
+    decision_rule: str | None = Field(
+        default=None, description="the decision rule of the limit checks (ILAC-G8), null without checks"
+    )
+    certificate_note: str | None = Field(
+        default=None, description="why a completed run has no certificate, when it has none"
+    )
+    windows: list[WindowOut] | None = Field(
+        default=None, description="the completed windows (in `GET /api/runs/{id}`; null in lists)"
     )
 
 
@@ -292,6 +346,15 @@ class Health(BaseModel):
     database_ok: bool
     busy_run: str | None
     public_read: bool
+    certificate_problems: list[str] = Field(
+        default_factory=list,
+        description="what this bench's certificates lack (settings named); on a real bench the first "
+        "three kinds (laboratory name, address, authorising person) stop certificates being issued",
+    )
+    certificates_blocked: bool = Field(
+        default=False,
+        description="a real bench that cannot issue certificates until its settings are completed",
+    )
 
 
 class WhoAmI(BaseModel):

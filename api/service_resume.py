@@ -143,6 +143,7 @@ def execute(
     truth: SensorTruth | None,
     observers: Sequence[RunObserver] = (),
     control: RunControl | None = None,
+    defer_final_state: bool = False,
 ) -> RunRecord:
     """Continue a claimed run from ``claimed.point`` to its verdict (the fit as a fresh run's),
     with the same simulated unit it started with (``truth``; ``None``: the stored seed's).
@@ -150,6 +151,17 @@ def execute(
     :param sessions: database session factory (the run's database observer writes with it).
     """
     return continue_run(
-        settings, sessions, claimed.run_id, claimed.unit_serial, claimed.model, claimed.procedure,
-        claimed.params, claimed.point, sim=settings.sim, truth=truth, observers=observers, control=control,
+        settings,
+        sessions,
+        claimed.run_id,
+        claimed.unit_serial,
+        claimed.model,
+        claimed.procedure,
+        claimed.params,
+        claimed.point,
+        sim=settings.sim,
+        truth=truth,
+        observers=observers,
+        control=control,
+        defer_final_state=defer_final_state,
     )

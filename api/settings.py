@@ -52,8 +52,14 @@ class Settings(BaseSettings):
         the one shipped with calbench (``bench/data/unit_limits.json``).
     :param limits_model: model whose limits judge a run when the unit's registration names
         none (or one the file lacks); empty: no limits, every completed fit PASSes.
-    :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c).
-    :param authorized_by: who authorises certificates (7.8.2.1 o).
+    :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c);
+        a real (non-simulated) bench issues no certificate while the name or address is empty.
+    :param authorized_by: who authorises certificates (7.8.2.1 o); required as the lab identity is.
+    :param reference_equipment: the bench's reference standards and their calibration status,
+        ``CALBENCH_REFERENCE_EQUIPMENT="rotary table T-3 s/n 42, cal. PTB-1234, due 2027-03;
+        DAQ M-16 s/n 7, cal. DAkkS-55, due 2026-12"`` (``;``-separated, one item each).
+    :param ambient_conditions: the laboratory's ambient conditions during calibration, e.g.
+        ``"(23 ± 2) °C, 30 % to 60 % rh"`` (7.8.4.1 b); empty: "not stated".
     :param customer_name, customer_address: the customer of units registered without one
         (7.8.2.1 e; an in-house laboratory's own department); empty: "not stated".
     """
@@ -81,10 +87,12 @@ class Settings(BaseSettings):
     drift_bias_repeatability_m_s2: float = Field(5e-4, ge=0, description="bias run-to-run, m/s2")
     limits_file: Path | None = None
     limits_model: str = "ADXL325"
-    lab_name: str = "calbench calibration laboratory"
-    lab_address: str = "address not configured (CALBENCH_LAB_ADDRESS)"
+    lab_name: str = ""
+    lab_address: str = ""
     lab_location: str = "bench room"
-    authorized_by: str = "not configured (CALBENCH_AUTHORIZED_BY)"
+    authorized_by: str = ""
+    reference_equipment: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    ambient_conditions: str = ""
     customer_name: str = ""
     customer_address: str = ""
     # Type B standard uncertainties of the certificate's uncertainty budget (bench.uncertainty.budget);
@@ -104,6 +112,41 @@ class Settings(BaseSettings):
         if isinstance(value, str):
             return [part.strip() for part in value.split(",") if part.strip()]
         return value
+
+    @field_validator("reference_equipment", mode="before")
+    @classmethod
+    def _split_equipment(cls, value: object) -> object:
+        """``;``-separated items, blanks dropped."""
+        if isinstance(value, str):
+            return [part.strip() for part in value.split(";") if part.strip()]
+        return value
+
+    def certificate_gaps(self) -> tuple[list[str], list[str]]:
+        """What a certificate of this bench lacks: (``blocking``, ``warnings``), each item naming
+        its environment variable. ``blocking`` items (laboratory name and address, the
+        authorising person) stop a real bench from issuing certificates; a simulated one issues
+        them marked not traceable."""
+        blocking = [
+            f"{what} is not configured ({env})"
+            for what, env, value in (
+                ("the laboratory's name", "CALBENCH_LAB_NAME", self.lab_name),
+                ("the laboratory's address", "CALBENCH_LAB_ADDRESS", self.lab_address),
+                ("the person who authorises certificates", "CALBENCH_AUTHORIZED_BY", self.authorized_by),
+            )
+            if not value.strip()
+        ]
+        warnings = []
+        if not self.reference_equipment:
+            warnings.append(
+                "the reference equipment and its calibration status are not configured "
+                "(CALBENCH_REFERENCE_EQUIPMENT): certificates say 'not stated'"
+            )
+        if not self.ambient_conditions.strip():
+            warnings.append(
+                "the ambient conditions are not configured (CALBENCH_AMBIENT_CONDITIONS): "
+                "certificates say 'not stated'"
+            )
+        return blocking, warnings
 
     @property
     def effective_database_url(self) -> str:

@@ -12,9 +12,13 @@ format ``calbench-unit-limits/1``) give, per model:
 * ``g_error_after_max_m_s2``: the |g| check after correction (mean of |f̂| − g over the
   poses, ``g_check.after.mean_error_m_s2`` of the contract) within ``±`` this.
 
-Decision rule: simple acceptance (ILAC-G8:09/2019 §4.2.1, no guard band) — a value passes
-when it lies inside its interval; the fit's uncertainty is reported beside the verdict, not
-subtracted from the limits.
+Decision rule (ILAC-G8:09/2019 §4.2), chosen per model by the optional key ``decision_rule``:
+
+* ``"simple-acceptance"`` (the default; §4.2.1, guard band w = 0): a value passes when it lies
+  inside its tolerance interval; its expanded uncertainty U is reported beside the verdict;
+* ``"guarded-acceptance"`` (§4.2.2, guard band w = U): the acceptance interval is the tolerance
+  interval shrunk by U at each bound, [low + U, high − U]; a value passes only inside it, so
+  the probability of false acceptance is below about 2.5 %. Needs U of every checked value.
 """
 
 from __future__ import annotations
@@ -31,8 +35,23 @@ from bench.records import LimitCheck, Outcome
 DEFAULT_LIMITS_FILE = Path(__file__).with_name("data") / "unit_limits.json"
 FORMAT = "calbench-unit-limits/1"
 AXES = "xyz"
-_KEYS = ("channel_unit", "nominal_bias", "bias_tolerance", "nominal_scale", "scale_tolerance_rel",
-         "cross_axis_max", "g_error_after_max_m_s2")
+DECISION_RULES = {
+    "simple-acceptance": "simple acceptance (ILAC-G8:09/2019 4.2.1, guard band w = 0): a value conforms when "
+    "it lies inside its tolerance interval; the expanded uncertainty U is stated but not subtracted",
+    "guarded-acceptance": "guarded acceptance (ILAC-G8:09/2019 4.2.2, binary statement with guard band "
+    "w = U): a value conforms when it lies inside its tolerance interval shrunk by its expanded "
+    "uncertainty U at each bound (probability of false acceptance below about 2.5 %)",
+}
+"""Each decision rule and the sentence a certificate states for it."""
+_KEYS = (
+    "channel_unit",
+    "nominal_bias",
+    "bias_tolerance",
+    "nominal_scale",
+    "scale_tolerance_rel",
+    "cross_axis_max",
+    "g_error_after_max_m_s2",
+)
 
 
 @dataclass(frozen=True)
@@ -48,11 +67,30 @@ class Limit:
     low: float | None
     high: float | None
 
-    def check(self, value: float) -> LimitCheck:
-        """The check of ``value`` (NaN never passes)."""
-        ok = math.isfinite(value) and (self.low is None or value >= self.low) and (
-            self.high is None or value <= self.high)
-        return LimitCheck(self.name, self.unit, float(value), self.low, self.high, bool(ok))
+    def check(
+        self, value: float, expanded_uncertainty: float | None = None, rule: str = "simple-acceptance"
+    ) -> LimitCheck:
+        """The check of ``value`` under the decision ``rule`` (NaN never passes).
+
+        :param expanded_uncertainty: U of ``value`` (same unit); required by guarded acceptance.
+        :raises ValueError: unknown rule, or guarded acceptance without a finite U >= 0.
+        """
+        if rule not in DECISION_RULES:
+            raise ValueError(
+                f"limit {self.name}: unknown decision rule {rule!r} (known: {', '.join(DECISION_RULES)})"
+            )
+        U = None if expanded_uncertainty is None else float(expanded_uncertainty)
+        w = 0.0
+        if rule == "guarded-acceptance":
+            if U is None or not (math.isfinite(U) and U >= 0):
+                raise ValueError(
+                    f"limit {self.name}: guarded acceptance needs the expanded uncertainty, got {U!r}"
+                )
+            w = U
+        lo = None if self.low is None else self.low + w
+        hi = None if self.high is None else self.high - w
+        ok = math.isfinite(value) and (lo is None or value >= lo) and (hi is None or value <= hi)
+        return LimitCheck(self.name, self.unit, float(value), self.low, self.high, bool(ok), U, lo, hi, rule)
 
 
 @dataclass(frozen=True)
@@ -61,11 +99,13 @@ class UnitLimits:
 
     :param model: model name. :param channel_unit: the unit of the outputs they apply to.
     :param limits: bias_x..z, scale_x..z, cross_axis_xy..zy, g_error_after.
+    :param decision_rule: a :data:`DECISION_RULES` key.
     """
 
     model: str
     channel_unit: str
     limits: tuple[Limit, ...]
+    decision_rule: str = "simple-acceptance"
 
     @classmethod
     def from_spec(cls, model: str, spec: Mapping[str, Any], where: str = "limits") -> UnitLimits:
@@ -75,15 +115,29 @@ class UnitLimits:
             raise ValueError(f"{where}: model {model!r} lacks {', '.join(missing)}")
         unit = str(spec["channel_unit"])
         nb, ns = _vec3(spec, "nominal_bias", model, where), _vec3(spec, "nominal_scale", model, where)
-        tol_b, tol_s, tol_c, tol_g = (_positive(spec, k, model, where) for k in (
-            "bias_tolerance", "scale_tolerance_rel", "cross_axis_max", "g_error_after_max_m_s2"))
+        tol_b, tol_s, tol_c, tol_g = (
+            _positive(spec, k, model, where)
+            for k in ("bias_tolerance", "scale_tolerance_rel", "cross_axis_max", "g_error_after_max_m_s2")
+        )
         out = [Limit(f"bias_{a}", unit, nb[i] - tol_b, nb[i] + tol_b) for i, a in enumerate(AXES)]
-        out += [Limit(f"scale_{a}", f"{unit}/(m/s2)", ns[i] * (1 - tol_s), ns[i] * (1 + tol_s))
-                for i, a in enumerate(AXES)]
-        out += [Limit(f"cross_axis_{AXES[i]}{AXES[j]}", "1", -tol_c, tol_c)
-                for i in range(3) for j in range(3) if i != j]
+        out += [
+            Limit(f"scale_{a}", f"{unit}/(m/s2)", ns[i] * (1 - tol_s), ns[i] * (1 + tol_s))
+            for i, a in enumerate(AXES)
+        ]
+        out += [
+            Limit(f"cross_axis_{AXES[i]}{AXES[j]}", "1", -tol_c, tol_c)
+            for i in range(3)
+            for j in range(3)
+            if i != j
+        ]
         out.append(Limit("g_error_after", "m/s2", -tol_g, tol_g))
-        return cls(model, unit, tuple(out))
+        rule = spec.get("decision_rule", "simple-acceptance")
+        if rule not in DECISION_RULES:
+            raise ValueError(
+                f"{where}: model {model!r}: decision_rule must be one of {', '.join(DECISION_RULES)}, "
+                f"got {rule!r}"
+            )
+        return cls(model, unit, tuple(out), str(rule))
 
 
 def _vec3(spec: Mapping[str, Any], key: str, model: str, where: str) -> tuple[float, float, float]:
@@ -121,14 +175,11 @@ def load_limits(path: str | Path | None = None) -> dict[str, UnitLimits]:
     return {name: UnitLimits.from_spec(name, spec, str(path)) for name, spec in doc["models"].items()}
 
 
-def evaluate(contract: Mapping[str, Any], limits: UnitLimits) -> tuple[LimitCheck, ...]:
-    """Check a ``calibrate --json`` object against a model's limits (order of ``limits.limits``).
+def checked_values(contract: Mapping[str, Any]) -> dict[str, float]:
+    """The values the limits check, by limit name, from a ``calibrate --json`` object.
 
-    :raises ValueError: the channel units differ, or the contract lacks a checked value.
+    :raises ValueError: the contract lacks a checked value.
     """
-    if contract.get("channel_unit") != limits.channel_unit:
-        raise ValueError(f"limits of {limits.model} are for {limits.channel_unit} outputs, the fit is in "
-                         f"{contract.get('channel_unit')!r}")
     try:
         b = [float(v) for v in contract["bias"]]
         K = [[float(v) for v in row] for row in contract["scale_matrix"]]
@@ -137,22 +188,51 @@ def evaluate(contract: Mapping[str, Any], limits: UnitLimits) -> tuple[LimitChec
         raise ValueError(f"the fit lacks a value the limits check: {exc!r}") from exc
     values = {f"bias_{a}": b[i] for i, a in enumerate(AXES)}
     values.update({f"scale_{a}": K[i][i] for i, a in enumerate(AXES)})
-    values.update({f"cross_axis_{AXES[i]}{AXES[j]}": K[i][j] / K[i][i] for i in range(3) for j in range(3)
-                   if i != j})
+    values.update(
+        {f"cross_axis_{AXES[i]}{AXES[j]}": K[i][j] / K[i][i] for i in range(3) for j in range(3) if i != j}
+    )
     values["g_error_after"] = g_after
-    return tuple(lim.check(values[lim.name]) for lim in limits.limits)
+    return values
 
 
-def verdict(contract: Mapping[str, Any], limits: UnitLimits | None) -> tuple[Outcome, tuple[LimitCheck, ...]]:
+def evaluate(
+    contract: Mapping[str, Any], limits: UnitLimits, uncertainties: Mapping[str, float] | None = None
+) -> tuple[LimitCheck, ...]:
+    """Check a ``calibrate --json`` object against a model's limits (order of ``limits.limits``)
+    under the model's decision rule.
+
+    :param uncertainties: expanded uncertainty U of each checked value by limit name
+        (:func:`checked_values` names); required by guarded acceptance, stated otherwise.
+    :raises ValueError: the channel units differ, the contract lacks a checked value, or
+        guarded acceptance lacks a U.
+    """
+    if contract.get("channel_unit") != limits.channel_unit:
+        raise ValueError(
+            f"limits of {limits.model} are for {limits.channel_unit} outputs, the fit is in "
+            f"{contract.get('channel_unit')!r}"
+        )
+    values = checked_values(contract)
+    us = uncertainties or {}
+    return tuple(lim.check(values[lim.name], us.get(lim.name), limits.decision_rule) for lim in limits.limits)
+
+
+def verdict(
+    contract: Mapping[str, Any], limits: UnitLimits | None, uncertainties: Mapping[str, float] | None = None
+) -> tuple[Outcome, tuple[LimitCheck, ...]]:
     """PASS when every check passes (or no limits apply), else FAIL; with the checks."""
     if limits is None:
         return Outcome.PASS, ()
-    checks = evaluate(contract, limits)
+    checks = evaluate(contract, limits, uncertainties)
     return (Outcome.PASS if all(c.passed for c in checks) else Outcome.FAIL), checks
 
 
 def describe(check: LimitCheck) -> str:
-    """``"bias_x = 1.62 V, limits [1.45, 1.55] V"``."""
+    """``"bias_x = 1.62 V, limits [1.45, 1.55] V"`` (and the acceptance interval under a guard band)."""
     lo = "-inf" if check.low is None else f"{check.low:.6g}"
     hi = "inf" if check.high is None else f"{check.high:.6g}"
-    return f"{check.name} = {check.value:.6g} {check.unit}, limits [{lo}, {hi}] {check.unit}"
+    text = f"{check.name} = {check.value:.6g} {check.unit}, limits [{lo}, {hi}] {check.unit}"
+    if check.rule == "guarded-acceptance":
+        alo = "-inf" if check.acceptance_low is None else f"{check.acceptance_low:.6g}"
+        ahi = "inf" if check.acceptance_high is None else f"{check.acceptance_high:.6g}"
+        text += f", acceptance [{alo}, {ahi}] (guard band U = {check.expanded_uncertainty:.2g})"
+    return text

@@ -300,7 +300,12 @@ class LimitCheck:
     :param value: the fitted value.
     :param low: lower limit (``None``: unbounded).
     :param high: upper limit (``None``: unbounded).
-    :param passed: ``low <= value <= high``.
+    :param passed: the decision rule's verdict: ``acceptance_low <= value <= acceptance_high``.
+    :param expanded_uncertainty: U of ``value`` (k ≈ 2, the certificate's), ``None`` when not known.
+    :param acceptance_low: lower acceptance limit: ``low`` (simple acceptance) or ``low + U``
+        (guarded acceptance, guard band w = U); ``None``: unbounded.
+    :param acceptance_high: upper acceptance limit: ``high`` or ``high - U``.
+    :param rule: the decision rule (``bench.limits.DECISION_RULES`` key).
     """
 
     name: str
@@ -309,6 +314,10 @@ class LimitCheck:
     low: float | None
     high: float | None
     passed: bool
+    expanded_uncertainty: float | None = None
+    acceptance_low: float | None = None
+    acceptance_high: float | None = None
+    rule: str = "simple-acceptance"
 
 
 @dataclass(frozen=True)

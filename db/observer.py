@@ -49,6 +49,18 @@ def final_state(outcome: br.Outcome | None) -> RunState:
     return _FINAL[outcome]
 
 
+def finish_record(s: Session, record: br.RunRecord) -> bool:
+    """Move a FINISHED run to its final state with its outcome and error (False: it was final)."""
+    return runs.finish_run(
+        s,
+        record.run_id,
+        final_state(record.outcome),
+        outcome=record.outcome.value if record.outcome is not None else None,
+        error=record.error,
+        now=record.ended_at,
+    )
+
+
 def fit_kind_for(procedure: str, contract: dict[str, Any]) -> FitKind:
     """``scalar`` for the orientation-free fit, ``dynamic`` for rate/oscillation procedures,
     else ``static``."""
@@ -67,6 +79,11 @@ class DbRunObserver(br.NullObserver):
     :param min_progress_interval_s: progress (and heartbeat) written at most this often (s).
     :param retries: attempts per event on ``OperationalError``; :param retry_wait_s: wait between them.
     :param clock: monotonic clock (s), replaceable in tests.
+    :param defer_final_state: a run finished with a verdict (PASS or FAIL) has its results stored
+        but its state stays live
+        (``running``, progress 1) until the caller stores what follows (the service's
+        certificate) and calls :func:`finish_record` in the same transaction, so a run that
+        reads ``completed`` always has them.
     """
 
     def __init__(
@@ -77,8 +94,10 @@ class DbRunObserver(br.NullObserver):
         retries: int = 3,
         retry_wait_s: float = 0.5,
         clock: Callable[[], float] = time.monotonic,
+        defer_final_state: bool = False,
     ) -> None:
         self._factory = session_factory
+        self._defer_final_state = defer_final_state
         self._min_progress_interval_s = min_progress_interval_s
         self._retries = max(1, retries)
         self._retry_wait_s = retry_wait_s
@@ -253,19 +272,21 @@ class DbRunObserver(br.NullObserver):
             if record.state is not br.RunState.FINISHED:
                 recovery.mark_run_interrupted(s, run_id, record.error or "the run stopped before finishing")
                 return
-            runs.finish_run(
-                s,
-                run_id,
-                final_state(record.outcome),
-                outcome=record.outcome.value if record.outcome is not None else None,
-                error=record.error,
-                now=record.ended_at,
-            )
+            if self._defer_final_state and record.outcome in (br.Outcome.PASS, br.Outcome.FAIL):
+                run.progress = 1.0
+            else:
+                finish_record(s, record)
             if record.calibration is not None:
                 contract = dict(record.calibration)
                 run.params = {**run.params, "calibration": contract}
-                results.add_fit(s, run_id, fit_kind_for(run.procedure, contract), contract,
-                                covariance=record.fit_covariance, param_names=record.fit_param_names)
+                results.add_fit(
+                    s,
+                    run_id,
+                    fit_kind_for(run.procedure, contract),
+                    contract,
+                    covariance=record.fit_covariance,
+                    param_names=record.fit_param_names,
+                )
 
         self._tx(write)
         self._first_chunk_pending.discard(run_id)

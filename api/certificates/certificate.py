@@ -14,11 +14,14 @@ u_c is the fit's Type A σ and k = 2.
 from __future__ import annotations
 
 import datetime as dt
+import importlib.metadata
 import math
 from dataclasses import dataclass, field
 from typing import Any
 
 from api.certificates.budget import combined
+from api.certificates.conformity import G_CHECK_U_BASIS, check_uncertainties, conformity_statement, g_check_u
+from api.certificates.datasheet_units import datasheet_results
 from api.certificates.rounding import expanded_quantity, round_significant
 
 TITLE = "Calibration Certificate"
@@ -70,6 +73,10 @@ REQUIRED_ITEMS = {
     "7.8.4.1 a uncertainty": "results.bias.expanded_uncertainty",
     "7.8.4.1 b conditions: temperature": "conditions.sensor_temperature",
     "7.8.4.1 b conditions: local g": "conditions.g_local_m_s2",
+    "7.8.4.1 b conditions: ambient": "conditions.ambient",
+    "7.8.4.1 c reference standards": "reference_equipment",
+    "7.8.2.1 f software version": "software.version",
+    "7.8.2.1 f procedure version": "method.procedure_version",
     "7.8.4.1 c traceability": "traceability",
     "7.8.4.1 d before adjustment": "g_check.before",
     "7.8.4.1 d after adjustment": "g_check.after",
@@ -79,6 +86,11 @@ REQUIRED_ITEMS = {
 """Each ISO/IEC 17025:2017 item a certificate must carry, and where it is in the content
 (dotted path); every one is filled, with :data:`NOT_STATED` where the laboratory gave nothing."""
 
+SIMULATED_EQUIPMENT = (
+    "simulated three-axis rate table (sim://, calbench's table simulator): no calibration status",
+    "simulated DAQ (Modbus-TCP simulator): no calibration status",
+)
+SIMULATED_AMBIENT = "simulated bench: no ambient conditions"
 NOT_STATED = "not stated"
 """What a certificate says where the laboratory did not give an item (never a null)."""
 ONLY_ITEM = "The results relate only to the item calibrated."
@@ -114,6 +126,13 @@ class CertificateInputs:
     :param budget: the uncertainty budget (``api.certificates.budget.certificate_budget``), or
         ``None`` (Type A only, k = 2).
     :param budget_note: why there is no budget, when there is none.
+    :param limit_checks: the run's stored limit checks (``bench.records.LimitCheck`` as dicts,
+        with U and the acceptance interval of the decision rule); empty: no limits applied.
+    :param outcome: the run's stored outcome (``PASS``/``FAIL``), which the conformity
+        statement must agree with.
+    :param limits_model: the unit model whose limits judged the run.
+    :param g_check_n: windows (or 1 s blocks) of the |g| check, for the U of its mean; ``None``
+        when not known (U not stated).
     """
 
     run: dict[str, Any]
@@ -128,12 +147,18 @@ class CertificateInputs:
     deviations: list[str] = field(default_factory=list)
     budget: dict[str, Any] | None = None
     budget_note: str = ""
+    limit_checks: tuple[dict[str, Any], ...] = ()
+    outcome: str | None = None
+    limits_model: str | None = None
+    g_check_n: int | None = None
 
 
 @dataclass(frozen=True)
 class Laboratory:
-    """Who issues: name, address, location of the work, who authorises (7.8.2.1 b, c, o), and
-    the customer of units registered without one (an in-house laboratory's own department)."""
+    """Who issues: name, address, location of the work, who authorises (7.8.2.1 b, c, o), the
+    customer of units registered without one (an in-house laboratory's own department), the
+    bench's reference standards with their calibration status (7.8.4.1 c) and the ambient
+    conditions (7.8.4.1 b)."""
 
     name: str
     address: str
@@ -141,6 +166,8 @@ class Laboratory:
     authorized_by: str
     default_customer_name: str = ""
     default_customer_address: str = ""
+    reference_equipment: tuple[str, ...] = ()
+    ambient_conditions: str = ""
 
 
 def _iso(value: Any) -> str | None:
@@ -154,6 +181,21 @@ def _stated(value: Any) -> Any:
     return NOT_STATED if value is None or (isinstance(value, str) and not value.strip()) else value
 
 
+def _nominal(value: Any, unit: str) -> dict[str, Any]:
+    """A nominal value with its unit; "not stated" carries no unit."""
+    stated = _stated(value)
+    return {"value": stated, "unit": "" if stated == NOT_STATED else unit}
+
+
+def software() -> dict[str, str]:
+    """The software that acquired, fitted and reported (name and installed version)."""
+    try:
+        version = importlib.metadata.version("calbench")
+    except importlib.metadata.PackageNotFoundError:
+        version = NOT_STATED
+    return {"name": "calbench", "version": version}
+
+
 def _item(unit: dict[str, Any]) -> dict[str, Any]:
     cu = unit.get("channel_unit") or NOT_STATED
     return {
@@ -161,8 +203,8 @@ def _item(unit: dict[str, Any]) -> dict[str, Any]:
         "serial": unit.get("serial"),
         "model": _stated(unit.get("model")),
         "channel_unit": cu,
-        "nominal_scale": {"value": _stated(unit.get("nominal_scale")), "unit": f"{cu}/(m/s2)"},
-        "nominal_zero_g_output": {"value": _stated(unit.get("nominal_bias")), "unit": cu},
+        "nominal_scale": _nominal(unit.get("nominal_scale"), f"{cu}/(m/s2)"),
+        "nominal_zero_g_output": _nominal(unit.get("nominal_bias"), cu),
         "condition": _stated(unit.get("condition")),
         "adjustment": "none: the item was not adjusted; results are as found",
     }
@@ -203,13 +245,19 @@ def _results(cal: dict[str, Any], budget: dict[str, Any] | None) -> dict[str, An
         "bias": expanded_quantity(cal["bias"], u_b, unit, k_b),
         "scale_matrix": expanded_quantity(cal["scale_matrix"], u_k, f"{unit}/(m/s2)", k_k),
         "uncertainty_budget": budget if budget is not None else NOT_STATED,
+        "datasheet_units": datasheet_results(cal, budget),
         "residual_rms": {"value": _two_digits(cal.get("residual_rms")), "unit": unit},
         "extra": cal.get("extra", {}),
     }
     return results
 
 
-def _g_check(cal: dict[str, Any]) -> dict[str, Any]:
+def _g_check(
+    cal: dict[str, Any], g_check_n: int | None, checks: tuple[dict[str, Any], ...] = ()
+) -> dict[str, Any]:
+    checked_u = {
+        c["name"]: c.get("expanded_uncertainty") for c in checks if c.get("expanded_uncertainty") is not None
+    }
     g = cal.get("g_check", {})
     out: dict[str, Any] = {
         "description": "|K⁻¹(raw − b)| − g_local over the static windows: mean error and standard "
@@ -219,8 +267,14 @@ def _g_check(cal: dict[str, Any]) -> dict[str, Any]:
     for when in ("before", "after"):
         if isinstance(g.get(when), dict):
             out[when] = {k: _two_digits(v) for k, v in g[when].items() if k != "nominal"}
+            u_g = g_check_u(g[when].get("std_m_s2"), g_check_n)
+            if u_g is None and when == "after":  # a moving recording: the U its limit check carries
+                u_g = checked_u.get("g_error_after")
+            out[when]["expanded_uncertainty_m_s2"] = u_g if u_g is not None else NOT_STATED
+            out[when]["n"] = g_check_n if g_check_n is not None else NOT_STATED
         else:
             out[when] = missing[when]
+    out["uncertainty_basis"] = G_CHECK_U_BASIS
     nominal = g.get("before", {}).get("nominal") if isinstance(g.get("before"), dict) else None
     out["before_basis"] = (
         f"nominal scale {nominal['scale']:g} and zero-g output {nominal['bias']:g} ({nominal['source']})"
@@ -308,6 +362,7 @@ def certificate_content(
         "customer": _customer(unit, lab),
         "method": {
             "procedure": procedure,
+            "procedure_version": f"{procedure} as implemented by calbench {software()['version']}",
             "description": METHOD.get(procedure, procedure),
             "parameters": run.get("parameters", {}),
             "deviations": list(inp.deviations) or ["none"],
@@ -328,9 +383,14 @@ def certificate_content(
             "table": _stated(inp.table),
             "sample_integrity": sample_integrity(run.get("sample_gaps")),
             "bench_configuration": bench_configuration(run.get("bench_config")),
+            "ambient": SIMULATED_AMBIENT if inp.simulated else _stated(lab.ambient_conditions),
         },
+        "reference_equipment": list(SIMULATED_EQUIPMENT)
+        if inp.simulated
+        else list(lab.reference_equipment) or [NOT_STATED],
+        "software": software(),
         "results": _results(inp.calibration, inp.budget),
-        "g_check": _g_check(inp.calibration),
+        "g_check": _g_check(inp.calibration, inp.g_check_n, inp.limit_checks),
         "uncertainty_statement": (
             DYNAMIC_COVERAGE_STATEMENT
             if inp.calibration.get("method") == "dynamic-batch"
@@ -339,7 +399,13 @@ def certificate_content(
         if inp.budget is not None
         else TYPE_A_ONLY_STATEMENT.format(reason=inp.budget_note or "no budget given"),
         "diagnosis": _findings(inp),
-        "conformity": "no statement of conformity was requested (no limits configured for the unit)",
+        "conformity": conformity_statement(
+            inp.limit_checks,
+            inp.outcome,
+            inp.limits_model,
+            None,
+            check_uncertainties(inp.calibration, inp.budget, inp.g_check_n) if inp.limit_checks else None,
+        ),
         "traceability": traceability,
         "statements": [ONLY_ITEM, NOT_REPRODUCED],
         "authorized_by": lab.authorized_by,

@@ -24,7 +24,9 @@ from api.certificates.budget import TypeBSettings, certificate_budget
 from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
 from api.certificates.pdf import render_pdf
 from api.settings import Settings
-from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording
+from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording, select_windows
+from bench.calibration.dynamic import is_dynamic
+from bench.limits import load_limits
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
 from db.models import Certificate, FitKind, Run, Unit
@@ -50,11 +52,27 @@ def diagnose(rec: Recording) -> dict[str, Any]:
     return dict(diagnose_recording(rec).to_contract())
 
 
+class CertificateRefused(ValueError):
+    """A real bench's certificate cannot be issued: the laboratory's identity or the
+    authorising person is not configured (the message names each setting)."""
+
+
+def _configured(value: str, env: str) -> str:
+    return value.strip() or f"not configured ({env})"
+
+
 def laboratory(settings: Settings) -> Laboratory:
-    """The issuing laboratory from the settings."""
+    """The issuing laboratory from the settings (an unset item reads "not configured (ENV)",
+    which only a simulated bench's certificate can carry)."""
     return Laboratory(
-        settings.lab_name, settings.lab_address, settings.lab_location, settings.authorized_by,
-        settings.customer_name, settings.customer_address,
+        _configured(settings.lab_name, "CALBENCH_LAB_NAME"),
+        _configured(settings.lab_address, "CALBENCH_LAB_ADDRESS"),
+        settings.lab_location,
+        _configured(settings.authorized_by, "CALBENCH_AUTHORIZED_BY"),
+        settings.customer_name,
+        settings.customer_address,
+        tuple(settings.reference_equipment),
+        settings.ambient_conditions,
     )
 
 
@@ -174,11 +192,16 @@ def store_results(s: Session, record: RunRecord, analysis: RunAnalysis) -> None:
 def unit_inputs(unit: Unit) -> dict[str, Any]:
     """What the certificate states about the item and its customer, from the unit's registration."""
     return {
-        "serial": unit.serial, "model": unit.model, "channel_unit": unit.channel_unit,
-        "description": unit.description, "condition": unit.condition,
-        "customer_name": unit.customer_name, "customer_address": unit.customer_address,
+        "serial": unit.serial,
+        "model": unit.model,
+        "channel_unit": unit.channel_unit,
+        "description": unit.description,
+        "condition": unit.condition,
+        "customer_name": unit.customer_name,
+        "customer_address": unit.customer_address,
         "received_on": unit.received_on.isoformat() if unit.received_on else None,
-        "nominal_scale": unit.nominal_scale, "nominal_bias": unit.nominal_bias,
+        "nominal_scale": unit.nominal_scale,
+        "nominal_bias": unit.nominal_bias,
     }
 
 
@@ -187,6 +210,27 @@ def unit_nominal(unit: Unit | None) -> Nominal | None:
     if unit is None or unit.nominal_scale is None:
         return None
     return unit.nominal_scale, unit.nominal_bias
+
+
+def g_check_count(rec: Recording) -> int | None:
+    """Windows of the |g| check of a static fit (its static windows); ``None`` for a moving
+    recording (whose 1 s blocks only the dynamic fit forms)."""
+    if is_dynamic(rec):
+        return None
+    try:
+        return len(select_windows(rec))
+    except ValueError:
+        return None
+
+
+def limits_model_name(settings: Settings, model: str | None) -> str | None:
+    """The unit model whose limits judge a unit registered as ``model``: ``model`` when the
+    limits file has it, else ``settings.limits_model`` (``None`` when empty).
+
+    :raises ValueError: the limits file is unreadable or malformed (named).
+    """
+    table = load_limits(settings.limits_file)
+    return model if model in table else (settings.limits_model or None)
 
 
 def run_budget(
@@ -231,6 +275,12 @@ def issue_for_run(
             rec = None
     if diagnosis is None and isinstance(run.params.get("diagnosis"), dict):
         diagnosis = run.params["diagnosis"]
+    simulated = bool(run.params.get("sim"))
+    blocking, _warnings = settings.certificate_gaps()
+    if blocking and not simulated:
+        raise CertificateRefused(
+            f"no certificate issued for run {run_id} from a real bench: " + "; ".join(blocking)
+        )
     g_local = rec.sidecar.g_local_m_s2 if rec is not None else None
     bench_file = run.params.get("bench_config")
     u_g = bench_file.get("g_local_u_m_s2") if isinstance(bench_file, dict) else None
@@ -238,10 +288,16 @@ def issue_for_run(
         settings = settings.model_copy(update={"g_local_u_m_s2": u_g})
     budget, budget_note = run_budget(rec, calibration, settings)
     inputs = CertificateInputs(
-        run={"id": run.id, "procedure": run.procedure, "started_at": run.started_at,
-             "finished_at": run.finished_at, "parameters": run.params.get("parameters", {}),
-             "bench": run.params.get("bench"), "sample_gaps": run.params.get("sample_gaps", []),
-             "bench_config": run.params.get("bench_config")},
+        run={
+            "id": run.id,
+            "procedure": run.procedure,
+            "started_at": run.started_at,
+            "finished_at": run.finished_at,
+            "parameters": run.params.get("parameters", {}),
+            "bench": run.params.get("bench"),
+            "sample_gaps": run.params.get("sample_gaps", []),
+            "bench_config": run.params.get("bench_config"),
+        },
         unit=unit_inputs(unit),
         calibration=calibration,
         g_local_m_s2=g_local,
@@ -249,9 +305,13 @@ def issue_for_run(
         table=_table(rec) if rec is not None else None,
         diagnosis=diagnosis,
         diagnosis_note=diagnosis_note or str(run.params.get("diagnosis_error", "")),
-        simulated=bool(run.params.get("sim")),
+        simulated=simulated,
         budget=budget,
         budget_note=budget_note,
+        limit_checks=tuple(dict(c) for c in (run.limit_checks or [])),
+        outcome=run.outcome,
+        limits_model=limits_model_name(settings, unit.model) if run.limit_checks else None,
+        g_check_n=g_check_count(rec) if rec is not None else None,
     )
     now = now or utc_now()
     cert = issue_certificate(s, run_id, {"pending": run_id}, now=now)
@@ -273,16 +333,34 @@ def finish_calibration(
     store_results(s, record, analysis)
     if record.calibration is None or record.outcome is None or record.outcome.value != "PASS":
         return None
+    try:
+        return _issue_after_run(s, settings, record, analysis)
+    except CertificateRefused as exc:
+        merge_params(s, record.run_id, {"certificate_error": str(exc)})
+        return None
+
+
+def _issue_after_run(s: Session, settings: Settings, record: RunRecord, analysis: RunAnalysis) -> Certificate:
     return issue_for_run(
-        s, settings, record.run_id, rec=analysis.rec, diagnosis=analysis.diagnosis,
-        diagnosis_note=analysis.note, temp_c=_temperature(record),
+        s,
+        settings,
+        record.run_id,
+        rec=analysis.rec,
+        diagnosis=analysis.diagnosis,
+        diagnosis_note=analysis.note,
+        temp_c=_temperature(record),
     )
 
 
 def findings_of(s: Session, run_id: str) -> list[dict[str, Any]]:
     """Stored findings of a run as dicts."""
     return [
-        {"effect": f.effect, "summary": f.summary, "parameters": f.parameters, "sigma": f.sigma,
-         "delta_bic": f.delta_bic}
+        {
+            "effect": f.effect,
+            "summary": f.summary,
+            "parameters": f.parameters,
+            "sigma": f.sigma,
+            "delta_bic": f.delta_bic,
+        }
         for f in list_findings(s, run_id)
     ]

@@ -87,8 +87,14 @@ def _identification(f: Flow, c: dict[str, Any]) -> None:
             ("Item", f"{item['description']}, model {item['model']}"),
             ("Serial number", _text(item["serial"])),
             ("Output unit", _unit(_text(item["channel_unit"]))),
-            ("Nominal scale factor", f"{_text(nominal.get('value'))} {_unit(_text(nominal.get('unit')))}"),
-            ("Nominal zero-g output", f"{_text(zero_g.get('value'))} {_unit(_text(zero_g.get('unit')))}"),
+            (
+                "Nominal scale factor",
+                f"{_text(nominal.get('value'))} {_unit(_text(nominal.get('unit')))}".strip(),
+            ),
+            (
+                "Nominal zero-g output",
+                f"{_text(zero_g.get('value'))} {_unit(_text(zero_g.get('unit')))}".strip(),
+            ),
             ("Condition as received", _text(item["condition"])),
             ("Adjustment", _text(item.get("adjustment"))),
             ("Date of receipt", _text(dates["received"])),
@@ -101,6 +107,11 @@ def _identification(f: Flow, c: dict[str, Any]) -> None:
     )
 
 
+def _software(c: dict[str, Any]) -> str:
+    sw = c.get("software")
+    return f"{sw['name']} {sw['version']}" if isinstance(sw, dict) else "not stated"
+
+
 def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
     m, cond = c["method"], c["conditions"]
     given = sorted((k, v) for k, v in m.get("parameters", {}).items() if v is not None)
@@ -110,8 +121,11 @@ def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
         [
             ("Procedure", f"{m['procedure']}: {m['description']}"),
             ("Parameters", params),
+            ("Procedure version", _text(m.get("procedure_version", "not stated"))),
             ("Deviations from the method", "; ".join(m["deviations"])),
             ("Sampling", _text(m.get("sampling"))),
+            ("Software", _software(c)),
+            ("Reference equipment", "; ".join(c.get("reference_equipment", ["not stated"]))),
         ],
         widths=(0.3, 0.7),
     )
@@ -130,6 +144,7 @@ def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
     f.heading("3  Conditions of calibration")
     f.table(
         [
+            ("Ambient conditions", _text(cond.get("ambient", "not stated"))),
             ("Sensor temperature", temp),
             ("Local gravity g_local", f"{g_local:.6f} m/s²" if isinstance(g_local, float) else str(g_local)),
             ("Rotary table", table_text),
@@ -138,6 +153,37 @@ def _method_conditions(f: Flow, c: dict[str, Any]) -> None:
         ],
         widths=(0.3, 0.7),
     )
+
+
+def _vu(v: Any, u: Any) -> str:
+    return "–" if v is None else " ± ".join(value_and_u(float(v), float(u)))
+
+
+def _datasheet(f: Flow, d: dict[str, Any] | None) -> None:
+    """The same model in data-sheet units: sensitivity, zero-g output, cross-axis (mrad)."""
+    if not isinstance(d, dict):
+        return
+    s, z, x = d["sensitivity"], d["zero_g_output"], d["cross_axis"]
+    f.subheading("The same results in data-sheet units, value ± U")
+    rows = [
+        (
+            "Axis",
+            f"Sensitivity ({s['unit']})",
+            f"Zero-g output ({z['unit']})",
+            *(f"Cross-axis from {b} ({x['unit']})" for b in AXES),
+        )
+    ]
+    for i, a in enumerate(AXES):
+        rows.append(
+            (
+                a,
+                _vu(s["value"][i], s["expanded_uncertainty"][i]),
+                _vu(z["value"][i], z["expanded_uncertainty"][i]),
+                *(_vu(x["value"][i][j], x["expanded_uncertainty"][i][j]) for j in range(3)),
+            )
+        )
+    f.table(rows, widths=(0.07, 0.19, 0.19, 0.183, 0.183, 0.184), header=True, align="right", size=7.5)
+    f.paragraph(f"Sensitivity: {s['basis']}. Cross-axis: {x['basis']}.", size=7.5)
 
 
 def _results(f: Flow, c: dict[str, Any]) -> None:
@@ -158,6 +204,7 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
     for a, vr, ur in zip(AXES, sm["value"], sm["expanded_uncertainty"], strict=True):
         rows.append((a, *(" ± ".join(value_and_u(v, u)) for v, u in zip(vr, ur, strict=True))))
     f.table(rows, widths=(0.16, 0.28, 0.28, 0.28), header=True, align="right")
+    _datasheet(f, res.get("datasheet_units"))
     rms = res["residual_rms"]
     f.paragraph(f"Residual RMS of the fit: {_stat(rms['value']) or 'not available'} {_unit(rms['unit'])}.")
     g = c["g_check"]
@@ -167,15 +214,23 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
         else "over the static positions"
     )
     f.subheading(f"|g| check: |K⁻¹(raw − b)| − g_local {where} (m/s²)")
-    rows = [("", "mean error", "standard deviation")]
+    rows = [("", "mean error", "U of the mean, k = 2", "standard deviation", "n")]
     for when, label in (("before", "before adjustment (nominal)"), ("after", "after (this calibration)")):
         v = g[when]
         rows.append(
-            (label, _stat(v.get("mean_error_m_s2")), _stat(v.get("std_m_s2")))
+            (
+                label,
+                _stat(v.get("mean_error_m_s2")),
+                _stat(v.get("expanded_uncertainty_m_s2")) or "not stated",
+                _stat(v.get("std_m_s2")),
+                _text(v.get("n")),
+            )
             if isinstance(v, dict)
-            else (label, _text(v), "")
+            else (label, _text(v), "", "", "")
         )
-    f.table(rows, widths=(0.36, 0.32, 0.32), header=True, align="right")
+    f.table(rows, widths=(0.3, 0.18, 0.2, 0.2, 0.12), header=True, align="right")
+    if g.get("uncertainty_basis"):
+        f.paragraph(f"U of the mean error: {g['uncertainty_basis']}.", size=7.5)
     if g.get("before_basis"):
         f.paragraph(f"Basis of 'before': {g['before_basis']}.", size=7.5)
     f.paragraph(c["uncertainty_statement"], size=7.5)
@@ -188,10 +243,10 @@ def _statements(f: Flow, c: dict[str, Any]) -> None:
     if diag["findings"]:
         rows = [("Effect", "Finding")] + [(str(x["effect"]), str(x["summary"])) for x in diag["findings"]]
         f.table(rows, widths=(0.25, 0.75), header=True)
-    f.heading("7  Conformity, traceability, external providers")
+    _conformity(f, c)
+    f.heading("8  Traceability, external providers")
     f.table(
         [
-            ("Conformity", c["conformity"]),
             ("Traceability", c["traceability"]),
             ("External providers", _text(c["external_providers"])),
         ],
@@ -203,6 +258,52 @@ def _statements(f: Flow, c: dict[str, Any]) -> None:
     f.end(c["end"])
 
 
+def conformity_line(c: dict[str, Any]) -> str:
+    """The one line on every page that states the conformity verdict (or that none is made)."""
+    conf = c["conformity"]
+    if isinstance(conf, str):  # a certificate issued before the statement had its own section
+        return f"Conformity: {conf}"
+    if not conf.get("requested"):
+        return "Conformity: no statement of conformity (no specification limits apply)"
+    rule = str(conf.get("rule", "")).replace("-", " ")
+    spec = str(conf["specification"]).removeprefix("limits of ")
+    return f"Conformity: {conf['outcome']} against the limits of {spec} ({rule})"
+
+
+def _check_row(r: dict[str, Any]) -> tuple[str, ...]:
+    U = r.get("expanded_uncertainty")
+    value, u_text = (
+        value_and_u(float(r["value"]), float(U))
+        if isinstance(U, float | int) and U > 0
+        else (f"{float(r['value']):.6g}", "not stated")
+    )
+    lo, hi = r.get("low"), r.get("high")
+    alo, ahi = r.get("acceptance_low"), r.get("acceptance_high")
+    tol = f"[{'−∞' if lo is None else f'{lo:.6g}'}, {'+∞' if hi is None else f'{hi:.6g}'}]"
+    acc = f"[{'−∞' if alo is None else f'{alo:.6g}'}, {'+∞' if ahi is None else f'{ahi:.6g}'}]"
+    return (str(r["quantity"]), value, u_text, _unit(str(r["unit"])), tol, acc, str(r["verdict"]))
+
+
+def _conformity(f: Flow, c: dict[str, Any]) -> None:
+    conf = c["conformity"]
+    f.heading("7  Statement of conformity (ISO/IEC 17025 7.8.6)")
+    if isinstance(conf, str):
+        f.paragraph(conf)
+        return
+    f.paragraph(conf["statement"], size=9)
+    f.paragraph(f"Decision rule: {conf['decision_rule']}.", size=7.5)
+    if conf.get("checks"):
+        f.paragraph(
+            f"Specification: {conf['specification']}. U of the |g| check: {conf['g_check_uncertainty']}.",
+            size=7.5,
+        )
+        rows: list[tuple[str, ...]] = [
+            ("Quantity", "Value", "U", "Unit", "Tolerance interval", "Acceptance interval", "Verdict")
+        ]
+        rows += [_check_row(r) for r in conf["checks"]]
+        f.table(rows, widths=(0.15, 0.14, 0.11, 0.10, 0.18, 0.18, 0.14), header=True, size=7)
+
+
 def _decorate(fig: Figure, page: Page, n: int, total: int, c: dict[str, Any], sha256: str) -> None:
     lab = c["laboratory"]
     fig.text(0.07, 0.962, lab["name"], fontsize=11, weight="bold", family=FONT)
@@ -210,6 +311,7 @@ def _decorate(fig: Figure, page: Page, n: int, total: int, c: dict[str, Any], sh
     fig.text(0.93, 0.962, c["title"], fontsize=13, weight="bold", ha="right", family=FONT)
     fig.text(0.93, 0.947, f"Certificate No. {c['number']}", fontsize=9, ha="right", family=FONT)
     fig.text(0.93, 0.934, f"Page {n} of {total}", fontsize=8, ha="right", family=FONT)
+    fig.text(0.07, 0.932, conformity_line(c), fontsize=7.5, weight="bold", family=FONT)
     fig.add_artist(_rule(0.927))
     fig.add_artist(_rule(0.052))
     foot = f"Certificate No. {c['number']}  ·  SHA-256 of the content: {sha256}"

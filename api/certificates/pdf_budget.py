@@ -1,6 +1,7 @@
 """The uncertainty budget section of the certificate PDF (GUM 8, ILAC-P14 5.4).
 
-Two tables, for the biases and for the diagonal of K (the scale factors): one row per source
+Four tables, for the biases, the diagonal of K (the scale factors) and its six off-diagonal
+(cross-axis) terms: one row per source
 (the Type A part, then each group of Type B inputs: its inputs' contributions |c_i|·u(x_i)
 added in quadrature), one column per axis, then u_c, ν_eff, k and U. The contributions to
 every parameter, with each input's u(x_i) and sensitivity c_i, are in the JSON content
@@ -15,7 +16,12 @@ from typing import Any
 from api.certificates.pdf_layout import Flow
 
 AXES = ("x", "y", "z")
-TABLES = (("Bias b", ("b_x", "b_y", "b_z")), ("Scale factors K_ii", ("K_xx", "K_yy", "K_zz")))
+TABLES = (
+    ("Bias b", ("b_x", "b_y", "b_z")),
+    ("Scale factors K_ii", ("K_xx", "K_yy", "K_zz")),
+    ("Cross-axis terms K_ij, row x and y", ("K_xy", "K_xz", "K_yx")),
+    ("Cross-axis terms K_ij, row y and z", ("K_yz", "K_zx", "K_zy")),
+)
 
 
 def _g(x: float) -> str:

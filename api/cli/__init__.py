@@ -19,6 +19,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("api.cli.calibrate", "fit bias and scale/misalignment to a recording"),
     "diagnose": ("api.cli.diagnose", "find the physics the model left out, add it, refit"),
     "allan": ("api.cli.allan", "Allan deviation, noise terms and the dwell rule"),
+    "export": ("api.cli.export", "write the fitted correction for imucal, Kalibr, C firmware or JSON"),
     "convert": ("api.cli.convert", "convert another tool's data set into calbench-recording/1"),
     "simulate": ("api.cli.simulate", "write a simulated recording with chosen effects"),
     "run": ("api.cli.run", "run a calibration procedure on the bench"),

@@ -62,10 +62,6 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
 
     if getattr(args, "bench_file", None) is not None:
         update["bench_file"] = Path(args.bench_file)
-    try:  # a bad or missing bench file stops the start, naming the file and the key
-        bench_config_for(settings.model_copy(update=update), bool(args.sim or settings.sim))
-    except ValueError as exc:
-        raise BadInput(str(exc)) from None
     generated: dict[str, str] = {}
     if not settings.tokens:
         generated[new_secret()] = "admin"
@@ -73,8 +69,9 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
             explicit = os.environ.get("CALBENCH_PUBLIC_READ") is not None
             update["public_read"] = settings.public_read if explicit else True
     final = settings.model_copy(update=update)
-    try:
+    try:  # device URLs and database file first, then the bench file (naming the file and the key)
         check_configuration(final)
+        bench_config_for(final, bool(args.sim or settings.sim))
     except ValueError as exc:
         raise BadInput(str(exc)) from None
     return final, generated

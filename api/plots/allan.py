@@ -14,11 +14,12 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from api.plots.colours import CHANNEL_COLOURS as XYZ_COLOURS
 from bench.estimation.allan import AllanResult
 from bench.estimation.dwell import DwellRecommendation
 from bench.estimation.noise_terms import NoiseTerms
 
-CHANNEL_COLOURS = ("tab:red", "tab:green", "tab:blue", "tab:purple", "tab:orange", "tab:brown")
+CHANNEL_COLOURS = (*XYZ_COLOURS, "tab:purple", "tab:orange", "tab:brown")
 
 
 def allan_figure(

@@ -7,9 +7,10 @@ import html
 
 import numpy as np
 
+from api.plots.colours import CHANNEL_COLOURS
 from bench.diagnosis.result import Diagnosis
 
-_COLORS = ("#1f77b4", "#2ca02c", "#d62728")
+_COLORS = CHANNEL_COLOURS  # x, y, z as on the dashboard and the Allan plot
 
 
 def _bars_svg(values: np.ndarray, labels: tuple[str, ...], title: str, limit: float = 3.0) -> str:

@@ -22,6 +22,7 @@ def health(services: ServicesDep) -> Health:
     except sa.exc.SQLAlchemyError:
         ok = False
     cur = services.runner.current
+    blocking, warnings = services.settings.certificate_gaps()
     return Health(
         status="ok" if ok else "degraded",
         version=VERSION,
@@ -31,6 +32,8 @@ def health(services: ServicesDep) -> Health:
         database_ok=ok,
         busy_run=cur.id if cur is not None else None,
         public_read=services.auth.public_read,
+        certificate_problems=blocking + warnings,
+        certificates_blocked=bool(blocking) and not services.settings.sim,
     )
 
 

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, HTTPException, Query, status
+from fastapi import APIRouter, HTTPException, Query, Response, status
 from sqlalchemy.orm import Session
 
-from api.deps import SessionDep, ViewerDep
+from api.deps import SessionDep, ViewerDep, ViewerLinkDep
+from api.exports import export_text
 from api.plots.history_series import HistoryPoint, coefficient_history
 from api.plots.run_bundle import BundleCache, RunBundle, build_bundle
+from bench.export import FORMATS, MEDIA_TYPES, SUFFIX
 from db.models import ACTIVE_STATES, Run
 from db.repo.progress import list_windows
 from db.repo.runs import get_run, list_runs
@@ -24,8 +26,11 @@ from db.repo.units import get_unit_by_serial
 router = APIRouter(tags=["plots"])
 CACHE = BundleCache()
 _404: dict[int | str, dict[str, Any]] = {404: {"description": "no such run"}}
-_ERRORS: dict[int | str, dict[str, Any]] = {**_404, 409: {"description": "the run is live or has no fit"},
-           422: {"description": "the recording cannot be read or fitted"}}
+_ERRORS: dict[int | str, dict[str, Any]] = {
+    **_404,
+    409: {"description": "the run is live or has no fit"},
+    422: {"description": "the recording cannot be read or fitted"},
+}
 
 
 def _final_run(session: Session, run_id: str) -> Run:
@@ -154,3 +159,30 @@ def history(serial: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
     out["unit_serial"] = serial
     out["channel_unit"] = channel_unit
     return out
+
+
+@router.get(
+    "/api/runs/{run_id}/export/{fmt}",
+    response_class=Response,
+    responses={**_ERRORS, 200: {"content": {m: {} for m in set(MEDIA_TYPES.values())}}},
+)
+def export(run_id: str, fmt: str, session: SessionDep, _: ViewerLinkDep) -> Response:
+    """The run's stored fit (the certificate's values) for another tool: ``imucal`` (imucal's
+    calibration JSON), ``kalibr`` (Kalibr-style IMU YAML with noise from the run's Allan
+    curve), ``c-header`` (C99 firmware header) or ``json`` (``calbench-correction/1``)."""
+    if fmt not in FORMATS:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND, f"unknown export format {fmt!r}; known: {', '.join(FORMATS)}"
+        )
+    with session.begin():
+        run = _final_run(session, run_id)
+        contract = {**run.params["calibration"], "unit": run.params["calibration"].get("unit") or run_id}
+    allan = _bundle(session, run_id)[1].allan if fmt == "kalibr" else None
+    try:
+        text = export_text(fmt, contract, allan, f"run {run_id}")
+    except ValueError as exc:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id}: {exc}") from None
+    name = f"{run_id}{SUFFIX[fmt]}"
+    return Response(
+        text, media_type=MEDIA_TYPES[fmt], headers={"Content-Disposition": f'attachment; filename="{name}"'}
+    )

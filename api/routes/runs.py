@@ -18,6 +18,7 @@ from api.routes.views import live_out, run_out
 from api.runner import BenchBusy, NotResumable
 from api.schemas import AbortOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
 from db.models import Certificate, RunState
+from db.repo.progress import list_windows
 from db.repo.runs import get_run, list_runs
 
 router = APIRouter(prefix="/api/runs", tags=["runs"])
@@ -83,7 +84,14 @@ def run(run_id: str, session: SessionDep, runner: RunnerDep, settings: SettingsD
         row = get_run(session, run_id, with_unit=True)
         if row is not None:
             number = session.scalar(sa.select(Certificate.number).where(Certificate.run_id == run_id))
-            return run_out(row, row.unit.serial, runner.live(run_id), number, with_diagnosis=True)
+            return run_out(
+                row,
+                row.unit.serial,
+                runner.live(run_id),
+                number,
+                with_diagnosis=True,
+                windows=list_windows(session, run_id),
+            )
     live = runner.live(run_id)
     if live is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")

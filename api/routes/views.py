@@ -5,8 +5,9 @@ from __future__ import annotations
 from typing import Any
 
 from api.runner import LiveRun
-from api.schemas import CertificateOut, DriftCheckOut, RunOut, SampleGapOut
-from db.models import Certificate, DriftCheck, Run
+from api.schemas import CertificateOut, DriftCheckOut, LimitCheckOut, RunOut, SampleGapOut, WindowOut
+from bench.limits import DECISION_RULES
+from db.models import Certificate, DriftCheck, Run, RunWindow
 
 
 def _kind(run: Run, live: LiveRun | None) -> str:
@@ -23,10 +24,12 @@ def run_out(
     certificate: str | None = None,
     *,
     with_diagnosis: bool = False,
+    windows: list[RunWindow] | None = None,
 ) -> RunOut:
     """A stored run; a live one shows the runner's fresher progress.
 
     :param with_diagnosis: include the whole diagnosis object (one run's view, not lists).
+    :param windows: the run's stored windows (one run's view), ``None`` in lists.
     """
     cal = run.params.get("calibration")
     diag = run.params.get("diagnosis")
@@ -59,6 +62,39 @@ def run_out(
         diagnosis_note=str(note) if diag is None and note else None,
         n_samples_lost=sum(g.n_lost or 0 for g in gaps) if run.n_samples is not None or gaps else None,
         gaps=gaps if with_diagnosis else None,
+        certificate_note=str(run.params["certificate_error"])
+        if run.params.get("certificate_error")
+        else None,
+        limit_checks=[_check(c) for c in (run.limit_checks or [])],
+        decision_rule=_rule(run.limit_checks),
+        windows=[_window(w) for w in windows] if windows is not None else None,
+    )
+
+
+def _check(c: dict[str, Any]) -> LimitCheckOut:
+    """A stored check; one stored before checks carried U has its tolerance as acceptance interval."""
+    out = dict(c)
+    if "acceptance_low" not in out:
+        out["acceptance_low"], out["acceptance_high"] = out.get("low"), out.get("high")
+    return LimitCheckOut(**{k: v for k, v in out.items() if k in LimitCheckOut.model_fields})
+
+
+def _rule(checks: list[Any] | None) -> str | None:
+    if not checks:
+        return None
+    rule = str(checks[0].get("rule", "simple-acceptance"))
+    return DECISION_RULES.get(rule, rule)
+
+
+def _window(w: RunWindow) -> WindowOut:
+    return WindowOut(
+        index=w.index,
+        label=w.label,
+        kind=w.kind,
+        start_s=w.start_s,
+        end_s=w.end_s,
+        n_samples=w.n_samples,
+        pose_deg=[float(a) for a in (w.pose_deg or [])],
     )
 
 

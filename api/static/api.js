@@ -81,6 +81,16 @@ export function linkAnchor(h, attrs, text, path) {
   return a;
 }
 
+export async function putJson(path, body) {
+  const resp = await fetch(path, {
+    method: "PUT",
+    headers: headers({ "Content-Type": "application/json" }),
+    body: JSON.stringify(body),
+  });
+  if (!resp.ok) throw await failure(resp);
+  return resp.json();
+}
+
 /** Download a JSON resource as a file (the token goes in the header, not the URL). */
 export async function downloadJson(path, filename) {
   const data = await getJson(path);

@@ -44,6 +44,13 @@ async function refreshBench() {
     const busy = hl.busy_run ? ` · busy: run ${hl.busy_run}` : " · idle";
     document.getElementById("bench").textContent =
       `bench ${hl.bench}${hl.simulated ? " (simulated)" : ""}${busy}${hl.database_ok ? "" : " · DATABASE UNREACHABLE"}`;
+    const cfg = document.getElementById("config-notice");
+    const problems = hl.certificate_problems || [];
+    if (cfg) {
+      cfg.hidden = !problems.length;
+      cfg.className = hl.certificates_blocked ? "notice" : "notice info";
+      cfg.textContent = problems.length ? `${hl.certificates_blocked ? "No certificates can be issued: " : "Certificates are incomplete: "}${problems.join("; ")}.` : "";
+    }
   } catch { document.getElementById("bench").textContent = "service unreachable"; }
 }
 
@@ -57,7 +64,7 @@ async function route() {
   view.replaceChildren();
   try {
     if (session.role === "none" && parts.length) view.append(Object.assign(document.createElement("p"), { className: "muted", textContent: "Paste a token above to see this page." }));
-    else if (parts[0] === "units" && parts[1]) await unitView(view, parts.slice(1).join("/"), signal);
+    else if (parts[0] === "units" && parts[1]) await unitView(view, parts.slice(1).join("/"), signal, session);
     else if (parts[0] === "units") await unitsView(view, signal);
     else if (parts[0] === "runs" && parts[1]) await runView(view, parts[1], session, signal);
     else await overviewView(view, session, signal);

@@ -207,7 +207,7 @@ export function bars(opts) {
 }
 
 /** Sparkline: values with a ±U band, the last point marked; points where hollow[i] drawn open. */
-export function sparkline(values, U, label, width = 220, height = 56, hollow = []) {
+export function sparkline(values, U, label, width = 220, height = 56, hollow = [], dates = []) {
   const svg = frame(width, height, label);
   const n = values.length;
   const lo = values.map((v, i) => (U[i] == null ? v : v - U[i]));
@@ -225,10 +225,25 @@ export function sparkline(values, U, label, width = 220, height = 56, hollow = [
     if (U[i] != null) svg.append(el("line", { x1: X(i), x2: X(i), y1: Y(lo[i]), y2: Y(hi[i]), stroke: "var(--accent)", "stroke-opacity": 0.5 }));
     const c = el("circle", { cx: X(i), cy: Y(v), r: i === n - 1 ? 3.5 : 2.4,
       fill: hollow[i] ? "#fff" : "var(--accent)", stroke: "var(--accent)", "stroke-width": 1.2 });
-    c.append(el("title", {}, `${fmt(v, 6)} ± ${fmt(U[i], 2)}`));
+    c.append(el("title", {}, `${fmt(v, 6)} ± ${fmt(U[i], 2)}${dates[i] ? ` · ${dates[i]}` : ""}`));
     svg.append(c);
   });
   return svg;
+}
+
+/** The y range and the dates a sparkline covers, as a caption row under it. */
+export function sparkAxis(values, U, unit, dates) {
+  const lo = Math.min(...values.map((v, i) => (U[i] == null ? v : v - U[i])));
+  const hi = Math.max(...values.map((v, i) => (U[i] == null ? v : v + U[i])));
+  const div = document.createElement("div");
+  div.className = "spark-axis";
+  const y = document.createElement("span");
+  y.className = "num";
+  y.textContent = `y ${fmt(lo, 5)} … ${fmt(hi, 5)} ${unit}`;
+  const x = document.createElement("span");
+  x.textContent = dates.length ? `${dates[0]} → ${dates[dates.length - 1]}` : "";
+  div.append(y, x);
+  return div;
 }
 
 /** A legend row: [{name, colour}]. */

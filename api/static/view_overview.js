@@ -22,9 +22,10 @@ export function unitsTable(units) {
 
 function runsTable(runs) {
   if (!runs.length) return message("No runs yet.");
-  return table("Most recent first", ["Run", "Unit", "Procedure", "State", "Progress", "Started"],
+  return table("Most recent first", ["Run", "Unit", "Procedure", "State", "Outcome", "Progress", "Started"],
     runs.map((r) => [
-      runLink(r.id), unitLink(r.unit_serial), r.procedure, badge(r.state),
+      runLink(r.id), unitLink(r.unit_serial), r.kind === "drift_check" ? `${r.procedure} (drift check)` : r.procedure, badge(r.state),
+      r.outcome ? badge(r.outcome) : "–",
       h("div", { class: "progress-line" }, progressBar(r.progress, false, `progress of run ${r.id}`), `${Math.round(r.progress * 100)} %`),
       when(r.started_at || r.created_at),
     ]));
@@ -35,9 +36,26 @@ function startForm(session) {
     pattern: "[A-Za-z0-9][A-Za-z0-9._\\-]{0,63}", title: "letters, digits, '.', '_', '-'" });
   const proc = h("select", { id: "start-procedure", name: "procedure" }, PROCEDURES.map((p) => h("option", { value: p }, p)));
   const status = h("p", { class: "note", "aria-live": "polite" });
+  const pv = h("p", { class: "preview", id: "start-preview", "aria-live": "polite" }, "");
   const button = h("button", { type: "submit", id: "start-run" }, "Start run");
+  const showPreview = async () => {
+    try {
+      const p = await getJson(`/api/procedures/${encodeURIComponent(proc.value)}/preview`);
+      const dwell = p.dwell_s == null ? "dwell decided by a noise window at the start (estimate assumes a provisional one)" : `dwell ${p.dwell_s} s per pose (${p.dwell_source})`;
+      const mins = (s) => (s >= 90 ? `${Math.round(s / 60)} min` : `${Math.round(s)} s`);
+      pv.textContent = `${p.n_poses} poses, ${p.n_windows} windows, ${dwell}; about ${mins(p.wall_duration_s)}`
+        + (Math.abs(p.wall_duration_s - p.duration_s) > 1 ? ` (${mins(p.duration_s)} on the bench clock)` : "")
+        + (p.problems.length ? ` · cannot run: ${p.problems.join("; ")}` : "");
+    } catch (err) { pv.textContent = `No preview: ${err.message}`; }
+  };
+  if (session.role !== "none") {
+    proc.addEventListener("change", showPreview);
+    showPreview();
+  }
+  const details = h("a", { href: "#/units", id: "unit-details", title: "customer, model, date of receipt, nominal values: what the certificate states" }, "unit registration…");
+  serial.addEventListener("input", () => { details.href = serial.value.trim() ? `#/units/${encodeURIComponent(serial.value.trim())}` : "#/units"; });
   const form = h("form", { class: "start", "aria-label": "start a run" },
-    h("label", { for: "start-serial" }, "Unit serial", serial),
+    h("label", { for: "start-serial" }, "Unit serial", serial, details),
     h("label", { for: "start-procedure" }, "Procedure", proc),
     button);
   form.addEventListener("submit", async (ev) => {
@@ -56,7 +74,7 @@ function startForm(session) {
     for (const c of [serial, proc, button]) c.disabled = true;
     status.textContent = "Starting runs needs an operator token; this view is read-only.";
   }
-  return card("Start a run", form, status);
+  return card("Start a run", form, pv, status);
 }
 
 export async function overviewView(view, session, signal) {
@@ -65,9 +83,13 @@ export async function overviewView(view, session, signal) {
   const unitsBox = h("div", {}, message("Loading units…"));
   view.append(h("div", { class: "grid wide" }, startForm(session), card("Units", unitsBox), h("section", { class: "card span", "aria-label": "Runs" }, h("h2", {}, "Runs"), runsBox)));
   const load = async () => {
-    const [runs, units] = await Promise.all([getJson("/api/runs?limit=20", { signal }), getJson("/api/units", { signal })]);
+    const [runs, units, drift] = await Promise.all([getJson("/api/runs?limit=20", { signal }), getJson("/api/units", { signal }),
+      getJson("/api/drift", { signal }).catch(() => null)]);
     runsBox.replaceChildren(runsTable(runs));
-    unitsBox.replaceChildren(unitsTable(units));
+    const next = drift && drift.enabled && drift.next_run_at
+      ? `Nightly drift check of every certified unit: next ${when(drift.next_run_at)}${drift.pending_units.length ? ` · waiting: ${drift.pending_units.join(", ")}` : ""}. Run one now from a unit's page.`
+      : "No nightly drift check is scheduled (CALBENCH_DRIFT_TIME); run one from a unit's page.";
+    unitsBox.replaceChildren(unitsTable(units), h("p", { class: "note", id: "drift-schedule" }, next));
     return runs.some((r) => LIVE.has(r.state));
   };
   if (session.role === "none") {

@@ -6,6 +6,7 @@ import { badge, card, h, message, progressBar, setProgress, table, when } from "
 import { CHANNEL_COLOURS, bars, chart, fmt, legend } from "./svgplot.js";
 
 const LIVE = new Set(["queued", "running", "paused", "suspended"]);
+const G0 = 9.80665; // standard gravity: datasheets give sensitivity per g0
 const POLL_MS = 1500;
 const enc = encodeURIComponent;
 
@@ -61,7 +62,7 @@ function liveCard(run, session, act) {
     pause.hidden = !(st === "running" || st === "queued");
     cont.hidden = !(st === "paused" || st === "suspended");
     resume.hidden = st !== "interrupted";
-    abort.hidden = st === "interrupted";
+    abort.hidden = !LIVE.has(st);
     abort.disabled = !canAct || !LIVE.has(st);
   };
   controls(run.state);
@@ -75,23 +76,65 @@ function liveCard(run, session, act) {
     run.state === "interrupted" ? h("p", { class: "note", id: "interrupted-note" },
       "The run stopped before finishing. Every complete window is kept: Resume continues it on this bench "
       + "from the next window, and the certificate is issued at the end.") : null);
+  const t0 = Date.now();
+  let p0 = run.progress || 0;
+  const remaining = (p) => {
+    // wall-clock rate of the progress so far (the bench clock's estimate assumes a provisional dwell)
+    const dt = (Date.now() - t0) / 1000, dp = p - p0;
+    if (!(dt > 5 && dp > 0.02)) return "";
+    return ` · about ${seconds((1 - p) * dt / dp)} left at the pace so far`;
+  };
   const update = (p) => {
     if (p.progress !== undefined) { setProgress(bar, p.progress); pct.textContent = `${Math.round(p.progress * 100)} %`; }
     if (p.state) state.replaceChildren(badge(p.state));
     if (p.step_label !== undefined) step.textContent = `${Math.min(p.step_index + 1, p.n_steps)} of ${p.n_steps}: ${p.step_label}`;
     if (p.n_windows) windows.textContent = p.window_index == null ? `between windows (${p.n_windows} planned)` : `${p.window_index + 1} of ${p.n_windows}`;
-    if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} of about ${seconds(p.expected_total_s)} (bench clock)`;
+    if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} of about ${seconds(p.expected_total_s)} (bench clock)${remaining(p.progress ?? p.elapsed_s / p.expected_total_s)}`;
     if (p.table_deg) pose.textContent = p.table_deg.map((a) => `${a.toFixed(1)}°`).join("  ");
     if (p.state) controls(p.state);
   };
-  if (!LIVE.has(run.state)) {
-    step.textContent = `ended ${run.state}${run.outcome ? ` (${run.outcome})` : ""}`;
-    windows.textContent = run.last_complete_window == null ? "none complete" : `${run.last_complete_window + 1} complete`;
-    const wall = (Date.parse(run.finished_at) - Date.parse(run.started_at)) / 1000;
+  const final = (r) => {
+    state.replaceChildren(badge(r.state));
+    controls(r.state);
+    setProgress(bar, r.progress); pct.textContent = `${Math.round(r.progress * 100)} %`;
+    step.textContent = `ended ${r.state}${r.outcome ? ` (${r.outcome})` : ""}`;
+    windows.textContent = r.last_complete_window == null ? "none complete" : `${r.last_complete_window + 1} complete`;
+    const wall = (Date.parse(r.finished_at) - Date.parse(r.started_at)) / 1000;
     time.textContent = Number.isFinite(wall) ? `${seconds(wall)} (wall clock)` : "–";
-    if (run.n_samples) { poseLabel.textContent = "Recording"; pose.textContent = `${run.n_samples} samples`; }
-  }
-  return { el, update, addGap: gaps.add };
+    if (r.n_samples) { poseLabel.textContent = "Recording"; pose.textContent = `${r.n_samples} samples`; }
+  };
+  if (!LIVE.has(run.state)) final(run);
+  return { el, update, final, addGap: gaps.add };
+}
+
+function verdictBanner() {
+  const el = h("div", { id: "verdict", class: "verdict", role: "status", hidden: true });
+  const show = (run) => {
+    if (LIVE.has(run.state) || !run.outcome || run.kind === "drift_check") { el.hidden = true; return; }
+    const checks = run.limit_checks || [];
+    const bad = checks.filter((c) => !c.passed).length;
+    const what = checks.length
+      ? (bad ? `${bad} of ${checks.length} limit checks outside their acceptance intervals` : `all ${checks.length} limit checks inside their acceptance intervals`)
+      : (run.outcome === "PASS" ? "no limits apply to this unit: no statement of conformity" : run.error || "");
+    el.className = `verdict ${run.outcome.toLowerCase()}`;
+    el.replaceChildren(h("strong", { id: "verdict-outcome" }, run.outcome), h("span", {}, what));
+    el.hidden = false;
+  };
+  return { el, show };
+}
+
+function bound(v) { return v == null ? "∞" : fmt(v, 6); }
+
+function conformityCard(run) {
+  const checks = run.limit_checks || [];
+  const c = h("section", { class: "card span", "aria-label": "Limit checks", id: "limit-checks" }, h("h2", {}, "Limit checks"));
+  if (!checks.length) { c.append(message("No limits apply to this unit's model: the certificate makes no statement of conformity.")); return c; }
+  c.append(table(`decision rule: ${run.decision_rule}`, ["Quantity", "Value", "U", "Unit", "Tolerance", "Acceptance", "Verdict"],
+    checks.map((k) => [k.name, fmt(k.value, 6), k.expanded_uncertainty == null ? "–" : fmt(k.expanded_uncertainty, 2), k.unit.replace("m/s2", "m/s²"),
+      `[${k.low == null ? "−∞" : fmt(k.low, 6)}, ${bound(k.high)}]`,
+      `[${k.acceptance_low == null ? "−∞" : fmt(k.acceptance_low, 6)}, ${bound(k.acceptance_high)}]`,
+      badge(k.passed ? "pass" : "fail")]), [1, 2]));
+  return c;
 }
 
 function fitCard(cal) {
@@ -103,16 +146,22 @@ function fitCard(cal) {
     h("caption", {}, `scale matrix K (${unit} per m/s²), value ± U`),
     h("tbody", {}, cal.scale_matrix.map((row, i) => h("tr", {}, h("th", { scope: "row" }, ax[i]),
       row.map((v, j) => h("td", {}, `${fmt(v, 6)} ± ${fmt(U(cal.scale_matrix_sigma[i][j]), 2)}`)))))));
+  const mv = unit === "V" ? 1000 : 1, sUnit = unit === "V" ? "mV/g" : `${unit}/g`;
+  const sheet = table(`data-sheet units: sensitivity S = K_ii·g_n, cross-axis K_ij/K_ii (mrad), ± U (k=2)`,
+    ["", `S (${sUnit})`, "U", "from x", "from y", "from z"],
+    ax.map((a, i) => [a, fmt(cal.scale_matrix[i][i] * G0 * mv, 6), fmt(U(cal.scale_matrix_sigma[i][i]) * G0 * mv, 2),
+      ...ax.map((_, j) => (i === j ? "–" : `${fmt(1000 * cal.scale_matrix[i][j] / cal.scale_matrix[i][i], 3)} ± ${fmt(1000 * U(Math.hypot(
+        cal.scale_matrix_sigma[i][j] / cal.scale_matrix[i][i],
+        cal.scale_matrix[i][j] * cal.scale_matrix_sigma[i][i] / cal.scale_matrix[i][i] ** 2)), 2)}`))]), [1, 2, 3, 4, 5]);
   const g = cal.g_check || {};
   const gRows = ["before", "after"].filter((k) => g[k]).map((k) => [k, fmt(g[k].mean_error_m_s2, 3), fmt(g[k].std_m_s2, 3)]);
-  return card("Fitted model", bias, K,
+  return card("Fitted model", sheet, bias, K,
     h("p", { class: "note" }, `terms: ${(cal.terms || []).join(", ")} · residual RMS ${fmt(cal.residual_rms, 3)} ${unit}`),
     gRows.length ? table(String(cal.method || "").startsWith("dynamic")
       ? "|g| check over 1 s blocks of the moving recording (m/s²)"
       : "|g| check over static windows (m/s²)", ["", "mean error", "std"], gRows, [1, 2]) : null);
 }
 
-const G0 = 9.80665; // standard gravity: datasheets give sensitivity per g0
 
 function datasheetForm(runId, unit, onResult) {
   const sens = h("input", { id: "nominal-sens", type: "number", step: "any", min: "0", required: true, inputmode: "decimal", placeholder: "0.174" });
@@ -161,14 +210,32 @@ function residualCard(rs) {
       + `χ² = ${fmt(rs.chi2, 4)} for ${rs.dof} degrees of freedom (${rs.method} fit).`));
 }
 
-function allanCard(al) {
+// Noise in the units of a data sheet from the Allan curve and the fitted sensitivity K_ii:
+// white-noise density N = σ(τ₀)·√τ₀ at the shortest τ (σ ∝ τ^-1/2 there), bias instability
+// B = min σ(τ) / 0.664 (IEEE Std 952 Annex C), both divided by K_ii and g_n, in µg/√Hz and µg.
+function noiseTable(al, cal) {
+  if (!cal || !al.taus_s.length) return null;
+  const scale = (k) => cal.scale_matrix[k][k] * G0 / 1e6; // channel unit per µg
+  const rows = al.channels.map((c, k) => {
+    const s0 = al.adev[k][0], t0 = al.taus_s[0];
+    const finite = al.adev[k].filter(Number.isFinite);
+    const minS = Math.min(...finite);
+    return [c, fmt(s0 * Math.sqrt(t0) / scale(k), 3), fmt(minS / 0.664 / scale(k), 3),
+      `${fmt(s0 * Math.sqrt(t0), 3)} ${al.unit}·√s`, `${fmt(minS / 0.664, 3)} ${al.unit}`];
+  });
+  return table("noise, from the curve and the fitted sensitivity", ["", "density (µg/√Hz)", "bias instability (µg)", "density (raw)", "instability (raw)"], rows, [1, 2, 3, 4]);
+}
+
+function allanCard(al, cal) {
   const series = al.channels.map((c, k) => ({ name: c, y: al.adev[k], lo: al.adev_lo[k], hi: al.adev_hi[k], colour: CHANNEL_COLOURS[k] }));
   return h("section", { class: "card", "aria-label": "Allan deviation", id: "allan" }, h("h2", {}, "Allan deviation"),
     chart({ x: al.taus_s, series, xlog: true, ylog: true, xlabel: "averaging time τ (s)", ylabel: `σ(τ) (${al.unit})`,
       height: 280, label: `overlapping Allan deviation of the ${al.source}` }),
     legend(series.map((s) => ({ name: s.name, colour: s.colour }))),
+    noiseTable(al, cal),
     h("p", { class: "note" }, `${al.source}, ${fmt(al.start_s, 4)}–${fmt(al.end_s, 4)} s, ${al.n_samples} samples; `
-      + `bands: ${Math.round(al.ci_level * 100)} % χ² interval.`));
+      + `bands: ${Math.round(al.ci_level * 100)} % χ² interval. Density N = σ(τ₀)·√τ₀ at the shortest τ; `
+      + "bias instability B = min σ(τ)/0.664 (IEEE Std 952), converted with the fitted K_ii and g_n = 9.80665 m/s²."));
 }
 
 function diagnosisCard(d) {
@@ -188,7 +255,11 @@ function diagnosisCard(d) {
 
 function certificateCard(run) {
   const c = h("section", { class: "card", "aria-label": "Certificate", id: "certificate" }, h("h2", {}, "Certificate"));
-  if (!run.certificate_number) { c.append(message(run.state === "completed" ? "No certificate issued for this run." : `No certificate: the run is ${run.state}.`)); return c; }
+  if (!run.certificate_number) {
+    c.append(message(run.certificate_note ? `No certificate: ${run.certificate_note}`
+      : run.state === "completed" ? "No certificate issued for this run." : `No certificate: the run is ${run.state}.`));
+    return c;
+  }
   const status = h("span", { class: "note", "aria-live": "polite" });
   c.append(h("p", {}, h("strong", {}, run.certificate_number)),
     h("p", {},
@@ -196,7 +267,10 @@ function certificateCard(run) {
         try { const data = await downloadJson(`/api/runs/${enc(run.id)}/certificate`, `${run.certificate_number}.json`); status.textContent = `downloaded, sha256 ${data.sha256.slice(0, 12)}…`; }
         catch (err) { status.textContent = `download failed: ${err.message}`; }
       } }, "Download JSON"), " ",
-      linkAnchor(h, { id: "pdf-link", target: "_blank", rel: "noopener" }, "Open PDF", `/api/runs/${enc(run.id)}/certificate.pdf`), " ", status));
+      linkAnchor(h, { id: "pdf-link", target: "_blank", rel: "noopener" }, "Open PDF", `/api/runs/${enc(run.id)}/certificate.pdf`), " ", status),
+    h("p", { class: "note", id: "exports" }, "The correction for other tools: ",
+      ...[["imucal", "imucal JSON"], ["kalibr", "Kalibr YAML"], ["c-header", "C header"], ["json", "JSON"]].flatMap(([f, label], i) => [
+        i ? " · " : "", linkAnchor(h, { download: "", "data-format": f }, label, `/api/runs/${enc(run.id)}/export/${f}`)])));
   return c;
 }
 
@@ -204,10 +278,31 @@ async function optional(path, signal) {
   try { return await getJson(path, { signal }); } catch (err) { if (err.name === "AbortError") throw err; return { error: err.message }; }
 }
 
+// A drift check's comparison with the unit's last certificate: Δ of each coefficient against
+// its limit k·sqrt(u_ref² + u_check² + u_rep²).
+async function driftCard(run, signal) {
+  const c = h("section", { class: "card span", "aria-label": "Drift check", id: "drift-result" }, h("h2", {}, "Drift against the last certificate"));
+  let checks;
+  try { checks = await getJson(`/api/drift/checks?unit_serial=${enc(run.unit_serial)}&limit=1000`, { signal }); }
+  catch (err) { if (err.name === "AbortError") throw err; c.append(message(`Not available: ${err.message}`)); return c; }
+  const d = checks.find((x) => x.run_id === run.id);
+  if (!d) { c.append(message("No comparison stored for this run.")); return c; }
+  const r = d.result;
+  if (r.status !== "compared") { c.append(message(r.error || r.status)); return c; }
+  c.querySelector("h2").append(" ", badge(d.flagged ? "flagged" : "ok"));
+  c.append(h("p", { class: "note" }, `Against ${d.reference_certificate || r.reference_number}; limit = ${r.k}·√(u_ref² + u_check² + u_rep²) per coefficient; `
+    + `an unchanged unit is flagged with probability ${fmt(100 * r.false_alarm_probability, 2)} %. Largest |Δ|/limit ${fmt(r.max_ratio, 3)}.`),
+  table(null, ["Coefficient", "Unit", "Certificate", "Check", "Δ", "Limit", "|Δ|/limit", ""],
+    r.coefficients.map((x) => [x.name, x.unit.replace("m/s2", "m/s²"), fmt(x.reference, 7), fmt(x.check, 7), fmt(x.delta, 3), fmt(x.limit, 3),
+      fmt(Math.abs(x.delta) / x.limit, 3), badge(x.exceeded ? "flagged" : "ok")]), [2, 3, 4, 5, 6]));
+  return c;
+}
+
 async function renderResults(box, run, signal) {
   box.replaceChildren();
   const grid = h("div", { class: "grid wide" });
   box.append(grid);
+  if (run.kind === "drift_check") grid.append(await driftCard(run, signal));
   if (run.calibration) grid.append(fitCard(run.calibration));
   const diag = await optional(`/api/runs/${enc(run.id)}/diagnosis`, signal);
   if (!run.calibration) {
@@ -215,18 +310,24 @@ async function renderResults(box, run, signal) {
     if (!diag.error) grid.append(diagnosisCard(diag));
     return;
   }
-  grid.append(certificateCard(run));
+  if (run.kind !== "drift_check") {
+    grid.append(certificateCard(run));
+    grid.append(conformityCard(run));
+  }
   const [gc, rs, al] = await Promise.all(["g-check", "residuals", "allan"].map((p) => optional(`/api/runs/${enc(run.id)}/plots/${p}`, signal)));
   grid.append(gc.error ? card("|g| check", message(gc.error)) : gCard(gc, run.id, run.calibration.channel_unit));
   grid.append(rs.error ? card("Residuals", message(rs.error)) : residualCard(rs));
-  grid.append(al.error ? card("Allan deviation", message(al.error)) : allanCard(al));
+  grid.append(al.error ? card("Allan deviation", message(al.error)) : allanCard(al, run.calibration));
   grid.append(diag.error ? card("Diagnosis", message(diag.error)) : diagnosisCard(diag));
 }
 
 export async function runView(view, runId, session, signal) {
   let run = await getJson(`/api/runs/${enc(runId)}`, { signal });
-  view.append(h("div", { class: "page-head" }, h("h1", {}, "Run ", h("span", { class: "mono" }, run.id)),
+  view.append(h("div", { class: "page-head" }, h("h1", {}, run.kind === "drift_check" ? "Drift check " : "Run ", h("span", { class: "mono" }, run.id)),
     h("span", { class: "muted" }, "unit ", h("a", { href: `#/units/${enc(run.unit_serial)}` }, run.unit_serial), ` · ${run.procedure} · ${when(run.started_at || run.created_at)}`)));
+  const banner = verdictBanner();
+  view.append(banner.el);
+  banner.show(run);
   const status = h("p", { class: "note", "aria-live": "polite" });
   const post = (action, done, then) => async () => {
     try { await postJson(`/api/runs/${enc(runId)}/${action}`); status.textContent = done; if (then) then(); }
@@ -247,15 +348,22 @@ export async function runView(view, runId, session, signal) {
       h("thead", {}, h("tr", {}, ["#", "Label", "Kind", "Table pose", "Samples"].map((c, i) => h("th", { scope: "col", class: [0, 3, 4].includes(i) ? "num" : null }, c)))),
       winBody)));
   view.append(h("div", { class: "grid" }, live.el, winCard), status, results);
+  const seen = new Set();
   const addWindow = (w) => {
+    if (seen.has(w.index)) return;
+    seen.add(w.index);
     winCard.hidden = false;
     winBody.prepend(h("tr", {}, h("td", { class: "num" }, String(w.index + 1)), h("td", {}, w.label), h("td", {}, w.kind),
       h("td", { class: "num" }, (w.pose_deg || []).map((a) => `${Number(a).toFixed(1)}°`).join("  ")),
       h("td", { class: "num" }, String(w.n_samples))));
   };
+  for (const w of run.windows || []) addWindow(w);
   const finish = async () => {
     run = await getJson(`/api/runs/${enc(runId)}`, { signal });
-    live.update({ state: run.state, progress: run.progress });
+    for (const w of run.windows || []) addWindow(w);
+    if (LIVE.has(run.state)) live.update({ state: run.state, progress: run.progress });
+    else live.final(run);
+    banner.show(run);
     await renderResults(results, run, signal);
   };
   if (!LIVE.has(run.state)) { await finish(); return; }
@@ -273,8 +381,7 @@ export async function runView(view, runId, session, signal) {
     status.textContent = `Live stream unavailable (${err.message}); polling instead.`;
   }
   // The stream ended (or failed): poll until the stored run is final and its results are in.
-  // A completed fit gets its certificate just after the state turns final: wait a few polls for it.
-  let grace = 10;
+  // A run's final state is stored with its certificate (or drift check) in one transaction.
   while (!signal.aborted) {
     try { run = await getJson(`/api/runs/${enc(runId)}`, { signal }); }
     catch (err) {
@@ -284,8 +391,7 @@ export async function runView(view, runId, session, signal) {
       continue;
     }
     live.update({ state: run.state, progress: run.progress });
-    const awaitingCertificate = run.state === "completed" && run.calibration && !run.certificate_number;
-    if (!LIVE.has(run.state) && (!awaitingCertificate || grace-- <= 0)) break;
+    if (!LIVE.has(run.state)) break;
     await new Promise((r) => setTimeout(r, POLL_MS));
   }
   if (!signal.aborted) await finish();

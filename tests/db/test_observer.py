@@ -117,7 +117,18 @@ def test_fresh_run_to_pass(db_session_factory):
         }
         assert run.params["poses"] == 4 and run.params["sample_rate_hz"] == 100.0
         assert run.limit_checks == [
-            {"name": "bias_x", "unit": "V", "value": 1.5, "low": 1.4, "high": 1.6, "passed": True}
+            {
+                "name": "bias_x",
+                "unit": "V",
+                "value": 1.5,
+                "low": 1.4,
+                "high": 1.6,
+                "passed": True,
+                "expanded_uncertainty": None,
+                "acceptance_low": None,
+                "acceptance_high": None,
+                "rule": "simple-acceptance",
+            }
         ]
         w = progress.list_windows(s, start.run_id)
         assert [x.label for x in w] == ["pos00", "pos01", "pos02", "pos03"]

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from api.bench_session import start_run
+from api.certificates.issue import issue_for_run
 from bench.limits import load_limits
 from bench.records import Outcome
 from db.engine import make_session_factory
@@ -28,8 +29,9 @@ def test_a_unit_with_its_x_bias_outside_the_limits_fails(tmp_path: Path) -> None
     truth = SensorTruth.typical("V", 5)
     bad = dataclasses.replace(truth, bias=truth.bias + np.array([bias_x.high - truth.bias[0] + 0.03, 0, 0]))
     settings = settings_for(tmp_path)
-    record = start_run(settings, "static-12", "SN-OUT", sim=True, sim_speed=SIM_SPEED, seed=5, dwell_s=6.0,
-                       truth=bad)
+    record = start_run(
+        settings, "static-12", "SN-OUT", sim=True, sim_speed=SIM_SPEED, seed=5, dwell_s=6.0, truth=bad
+    )
     assert record.outcome is Outcome.FAIL, record.error
     assert record.error is not None and record.error.startswith("outside limits: bias_x = ")
     failed = [c.name for c in record.limit_checks if not c.passed]
@@ -52,9 +54,22 @@ def test_the_same_unit_passes_without_limits_and_the_typical_unit_passes_with_th
     record = start_run(settings, "static-12", "SN-IN", sim=True, sim_speed=SIM_SPEED, seed=5, dwell_s=6.0)
     assert record.outcome is Outcome.PASS, record.error
     assert len(record.limit_checks) == 13 and all(c.passed for c in record.limit_checks)
+    # the certificate states the run's verdict, each check with the U of its own results table
+    engine = open_database(settings.effective_database_url)
+    with make_session_factory(engine).begin() as s:
+        cert = issue_for_run(s, settings, record.run_id)
+        conf, res = cert.content["conformity"], cert.content["results"]
+    engine.dispose()
+    assert conf["outcome"] == "PASS" and len(conf["checks"]) == 13
+    assert "simple acceptance" in conf["decision_rule"]
+    by_name = {r["quantity"]: r for r in conf["checks"]}
+    assert by_name["bias_x"]["expanded_uncertainty"] == res["bias"]["expanded_uncertainty"][0]
+    assert by_name["scale_z"]["expanded_uncertainty"] == res["scale_matrix"]["expanded_uncertainty"][2][2]
+    assert by_name["g_error_after"]["expanded_uncertainty"] > 0
     unlimited = settings.model_copy(update={"limits_model": ""})
     truth = SensorTruth.typical("V", 5)
     bad = dataclasses.replace(truth, bias=truth.bias + np.array([0.2, 0.0, 0.0]))
-    free = start_run(unlimited, "static-12", "SN-FREE", sim=True, sim_speed=SIM_SPEED, seed=5, dwell_s=3.0,
-                     truth=bad)
+    free = start_run(
+        unlimited, "static-12", "SN-FREE", sim=True, sim_speed=SIM_SPEED, seed=5, dwell_s=3.0, truth=bad
+    )
     assert free.outcome is Outcome.PASS and free.limit_checks == ()

@@ -52,7 +52,7 @@ def test_the_budget_takes_u_g_from_the_bench_file_and_the_conditions_name_it(tmp
             "static-12",
             state=RunState.COMPLETED,
             recording_path=str(path),
-            params={"calibration": cal, "bench_config": identity},
+            params={"calibration": cal, "bench_config": identity, "sim": True},
         )
         run.started_at = run.finished_at = dt.datetime(2025, 1, 1, tzinfo=dt.UTC)
         content = issue_for_run(s, settings, "run-bf").content

@@ -42,10 +42,15 @@ def test_rounding_refuses_non_finite_and_negative() -> None:
 
 
 CAL = {
-    "unit": "SN-C", "channel_unit": "V", "procedure": "static-12",
-    "bias": [1.5042, 1.5003, 1.4955], "bias_sigma": [1.1e-5, 1.2e-5, 0.9e-5],
+    "unit": "SN-C",
+    "channel_unit": "V",
+    "procedure": "static-12",
+    "bias": [1.5042, 1.5003, 1.4955],
+    "bias_sigma": [1.1e-5, 1.2e-5, 0.9e-5],
     "scale_matrix": [[0.01744, 9.2e-5, -1.08e-4], [1e-5, 0.0175, 2e-5], [3e-5, -2e-5, 0.0176]],
-    "scale_matrix_sigma": [[1.6e-6] * 3] * 3, "terms": ["bias", "scale_matrix"], "extra": {},
+    "scale_matrix_sigma": [[1.6e-6] * 3] * 3,
+    "terms": ["bias", "scale_matrix"],
+    "extra": {},
     "residual_rms": 7.7e-6,
     "g_check": {"after": {"mean_error_m_s2": 3.2e-9, "std_m_s2": 3.3e-4}},
 }
@@ -53,16 +58,32 @@ CAL = {
 
 def _content() -> dict[str, object]:
     inputs = CertificateInputs(
-        run={"id": "r1", "procedure": "static-12", "started_at": dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
-             "finished_at": dt.datetime(2025, 1, 1, 0, 5, tzinfo=dt.UTC), "parameters": {"dwell_s": 8.0}},
+        run={
+            "id": "r1",
+            "procedure": "static-12",
+            "started_at": dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
+            "finished_at": dt.datetime(2025, 1, 1, 0, 5, tzinfo=dt.UTC),
+            "parameters": {"dwell_s": 8.0},
+        },
         unit={"serial": "SN-C", "model": "ADXL325", "channel_unit": "V"},
-        calibration=CAL, g_local_m_s2=9.81535, temp_c=(24.4, 24.6, 24.9),
-        diagnosis={"findings": [{"effect": "nonlinearity_quadratic", "summary": "z: k2 = 1.5e-3 per g",
-                                 "parameters": {"k2_per_g": [0, 0, 0.0015]}, "sigma": {}}]},
+        calibration=CAL,
+        g_local_m_s2=9.81535,
+        temp_c=(24.4, 24.6, 24.9),
+        diagnosis={
+            "findings": [
+                {
+                    "effect": "nonlinearity_quadratic",
+                    "summary": "z: k2 = 1.5e-3 per g",
+                    "parameters": {"k2_per_g": [0, 0, 0.0015]},
+                    "sigma": {},
+                }
+            ]
+        },
     )
     lab = Laboratory("Test lab", "1 Lab Road", "room 2", "A. Person")
-    return certificate_content(inputs, lab, number="CB-2025-00007",
-                               issued_at=dt.datetime(2025, 1, 2, tzinfo=dt.UTC))
+    return certificate_content(
+        inputs, lab, number="CB-2025-00007", issued_at=dt.datetime(2025, 1, 2, tzinfo=dt.UTC)
+    )
 
 
 def test_content_carries_the_17025_items_and_the_model_under_the_contract_names() -> None:
@@ -85,12 +106,24 @@ def test_pdf_text_holds_number_results_and_hash(tmp_path: Path) -> None:
     digest = canonical_sha256(c)
     path = tmp_path / "c.pdf"
     path.write_bytes(render_pdf(c, digest))
-    text = subprocess.run(["pdftotext", "-layout", str(path), "-"], capture_output=True, text=True,
-                          check=True).stdout
-    for needle in ("Calibration Certificate", "CB-2025-00007", "Page 1 of 2", "Page 2 of 2", digest,
-                   "End of certificate", "nonlinearity_quadratic", "Customer address", "not stated",
-                   "Authorised by", "A. Person",
-                   "2025-01-01 00:00:00 UTC to 2025-01-01 00:05:00 UTC", "U, k = 2 (V)"):
+    text = subprocess.run(
+        ["pdftotext", "-layout", str(path), "-"], capture_output=True, text=True, check=True
+    ).stdout
+    for needle in (
+        "Calibration Certificate",
+        "CB-2025-00007",
+        "Page 1 of 3",
+        "Page 3 of 3",
+        digest,
+        "End of certificate",
+        "nonlinearity_quadratic",
+        "Customer address",
+        "not stated",
+        "Authorised by",
+        "A. Person",
+        "2025-01-01 00:00:00 UTC to 2025-01-01 00:05:00 UTC",
+        "U, k = 2 (V)",
+    ):
         assert needle in text, needle
     # bias and its U on one table row, to U's second significant digit (U = 2.2e-5 V: 6 decimals)
     assert re.search(r"x\s+1\.504200\s+0\.000022", text), text
@@ -105,8 +138,12 @@ def test_every_17025_item_is_filled_and_missing_ones_say_not_stated() -> None:
     assert c["customer"] == not_given
     assert c["dates"]["received"] == "not stated" and c["item"]["model"] == "ADXL325"
     lab = Laboratory("L", "A", "room", "P", default_customer_name="Dept. 7", default_customer_address="B 2")
-    inputs = CertificateInputs(run={"procedure": "static-12"}, unit={"serial": "S", "customer_name": "Acme",
-                               "received_on": "2025-01-01"}, calibration=CAL, g_local_m_s2=None)
+    inputs = CertificateInputs(
+        run={"procedure": "static-12"},
+        unit={"serial": "S", "customer_name": "Acme", "received_on": "2025-01-01"},
+        calibration=CAL,
+        g_local_m_s2=None,
+    )
     c2 = certificate_content(inputs, lab, number="N", issued_at=dt.datetime(2025, 1, 2, tzinfo=dt.UTC))
     assert c2["customer"] == {"name": "Acme", "address": "not stated", "source": "unit registration"}
     assert c2["dates"]["received"] == "2025-01-01" and c2["conditions"]["g_local_m_s2"] == "not stated"

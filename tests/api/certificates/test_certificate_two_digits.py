@@ -45,7 +45,10 @@ def test_certificate_states_and_prints_two_digits() -> None:
     lab = Laboratory("Lab", "1 Road", "room", "A. Person")
     c = certificate_content(inputs, lab, number="CB-2025-00003", issued_at=dt.datetime(2025, 1, 2))
     assert c["results"]["residual_rms"]["value"] == 2.0e-5
-    assert c["g_check"]["before"] == {"mean_error_m_s2": 0.13, "std_m_s2": 0.30}
+    before = c["g_check"]["before"]
+    assert (before["mean_error_m_s2"], before["std_m_s2"]) == (0.13, 0.30)
+    # no window count in the inputs: the check's U cannot be stated, and says so
+    assert before["expanded_uncertainty_m_s2"] == "not stated" and before["n"] == "not stated"
     text = "\n".join(certificate_lines(c, "0" * 64))
     assert "Residual RMS of the fit: 2.0e-05 V." in text
     for cell in ("0.13", "0.30", "-0.00010", "0.00030"):

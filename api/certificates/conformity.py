@@ -1,0 +1,165 @@
+"""The statement of conformity (ISO/IEC 17025:2017 7.8.6) from a run's limit checks.
+
+The expanded uncertainties the checks carry are the certificate's own (:func:`check_uncertainties`),
+so the U beside each verdict is the U of the results table:
+
+* ``bias_i``, ``scale_i`` (K_ii): U = k·u_c of the parameter, k the quantity's coverage factor
+  (the largest t_95.45 %(ν_eff) of its elements, :func:`api.certificates.budget.combined`),
+  rounded to two significant digits (GUM 7.2.6);
+* ``cross_axis_ij`` = K_ij / K_ii: u² = (u(K_ij)/K_ii)² + (K_ij·u(K_ii)/K_ii²)² (first-order
+  propagation, the two taken uncorrelated), k of the scale matrix;
+* ``g_error_after``, the mean of e_w = |f̂_w| − g_local over the n windows (or 1 s blocks):
+  u = s(e)/√n (Type A, GUM 4.2.3), k = 2 — conservative: the fit of b and K to the same
+  windows draws the mean towards 0 (over simulated static-12 recordings |mean| stays far
+  inside U, ``tests/api/test_certificate_conformity.py``).
+
+Without a budget, u is the fit's Type A σ and k = 2 (as in the results table).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from api.certificates.budget import combined
+from api.certificates.rounding import round_significant
+from bench.limits import AXES, DECISION_RULES
+
+COVERAGE_K = 2.0
+G_CHECK_U_BASIS = (
+    "u = s(e)/√n, s(e) the standard deviation of the n per-window errors |f̂| − g (Type A), k = 2; an "
+    "upper bound, as the least-squares fit itself draws the mean error towards 0"
+)
+
+
+def _u_k(
+    cal: Mapping[str, Any], budget: Mapping[str, Any] | None
+) -> tuple[np.ndarray, float, np.ndarray, float]:
+    if budget is not None:
+        (u_b, k_b), (u_k, k_k) = combined(dict(budget), "bias"), combined(dict(budget), "scale_matrix")
+        return np.asarray(u_b, float), k_b, np.asarray(u_k, float), k_k
+    return (
+        np.asarray(cal["bias_sigma"], float),
+        COVERAGE_K,
+        np.asarray(cal["scale_matrix_sigma"], float),
+        COVERAGE_K,
+    )
+
+
+def _u2(x: float) -> float:
+    return round_significant(x) if math.isfinite(x) and x > 0 else float(x)
+
+
+def g_check_u(std_m_s2: Any, n: int | None) -> float | None:
+    """U (k = 2, two significant digits) of the |g| check's mean error over ``n`` windows,
+    ``None`` when ``n`` < 2 or the standard deviation is not a finite number."""
+    if n is None or n < 2 or not isinstance(std_m_s2, int | float) or not math.isfinite(std_m_s2):
+        return None
+    return _u2(COVERAGE_K * float(std_m_s2) / math.sqrt(float(n)))
+
+
+def check_uncertainties(
+    cal: Mapping[str, Any], budget: Mapping[str, Any] | None, g_check_n: int | None = None
+) -> dict[str, float]:
+    """Expanded uncertainty U (two significant digits) of each value the limits check, by limit
+    name (``bench.limits.checked_values``), from a ``calibrate --json`` object and its budget.
+
+    :param g_check_n: the number of windows (or 1 s blocks) of the |g| check; ``None``: its U
+        is not stated.
+    :raises ValueError: the fit lacks a σ or a value.
+    """
+    try:
+        K = np.asarray(cal["scale_matrix"], float)
+        u_b, k_b, u_K, k_K = _u_k(cal, budget)
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"the fit lacks an uncertainty the conformity statement needs: {exc!r}") from exc
+    out: dict[str, float] = {}
+    for i, a in enumerate(AXES):
+        out[f"bias_{a}"] = _u2(k_b * float(u_b[i]))
+        out[f"scale_{a}"] = _u2(k_K * float(u_K[i, i]))
+        for j in range(3):
+            if i != j:
+                kii, kij = K[i, i], K[i, j]
+                u = math.hypot(u_K[i, j] / kii, kij * u_K[i, i] / kii**2)
+                out[f"cross_axis_{a}{AXES[j]}"] = _u2(k_K * u)
+    after = cal.get("g_check", {}).get("after", {}) if isinstance(cal.get("g_check"), Mapping) else {}
+    u_g = g_check_u(after.get("std_m_s2") if isinstance(after, Mapping) else None, g_check_n)
+    if u_g is not None:
+        out["g_error_after"] = u_g
+    return out
+
+
+def _verdict_word(passed: bool) -> str:
+    return "conforms" if passed else "does not conform"
+
+
+def conformity_statement(
+    checks: Sequence[Mapping[str, Any]],
+    outcome: str | None,
+    model: str | None,
+    rule: str | None,
+    uncertainties: Mapping[str, float] | None = None,
+) -> dict[str, Any]:
+    """The certificate's conformity section from the run's stored limit checks
+    (``bench.records.LimitCheck`` as dicts) and its stored outcome.
+
+    :param uncertainties: the certificate's own U of each checked value
+        (:func:`check_uncertainties` with its budget), stated in place of the stored one; the
+        verdicts and acceptance intervals are the stored ones (under guarded acceptance they
+        were formed with this same U).
+
+    The statement's verdict is the run's outcome; it is checked against the checks, so a
+    certificate can never state another verdict than the checks it lists.
+
+    :raises ValueError: the outcome disagrees with the checks.
+    """
+    if not checks:
+        return {
+            "requested": False,
+            "statement": "No statement of conformity is made: no specification limits apply to this unit "
+            f"(no limits are configured for its model {model or 'not stated'}).",
+            "decision_rule": "not applicable",
+            "checks": [],
+        }
+    rule = rule or str(checks[0].get("rule", "simple-acceptance"))
+    all_pass = all(bool(c["passed"]) for c in checks)
+    if outcome not in ("PASS", "FAIL") or (outcome == "PASS") != all_pass:
+        which = "all" if all_pass else "not all"
+        raise ValueError(f"the run's outcome {outcome!r} disagrees with its limit checks ({which} pass)")
+    rows = []
+    for c in checks:
+        lo, hi = c.get("low"), c.get("high")
+        rows.append(
+            {
+                "quantity": c["name"],
+                "value": c["value"],
+                "expanded_uncertainty": (uncertainties or {}).get(c["name"], c.get("expanded_uncertainty")),
+                "unit": c["unit"],
+                "low": lo,
+                "high": hi,
+                "acceptance_low": c.get("acceptance_low", lo),
+                "acceptance_high": c.get("acceptance_high", hi),
+                "verdict": _verdict_word(bool(c["passed"])),
+            }
+        )
+    n_bad = sum(1 for c in checks if not c["passed"])
+    what = (
+        f"the item conforms to the specification of model {model or 'not stated'}: all {len(checks)} "
+        "checked values are inside their acceptance intervals"
+        if all_pass
+        else f"the item does not conform to the specification of model {model or 'not stated'}: "
+        f"{n_bad} of {len(checks)} checked values are outside their acceptance intervals"
+    )
+    return {
+        "requested": True,
+        "statement": f"Statement of conformity: {'PASS' if all_pass else 'FAIL'} — {what}.",
+        "outcome": "PASS" if all_pass else "FAIL",
+        "specification": f"limits of unit model {model or 'not stated'}",
+        "decision_rule": DECISION_RULES.get(rule, rule),
+        "rule": rule,
+        "g_check_uncertainty": G_CHECK_U_BASIS,
+        "checks": rows,
+    }

@@ -1,0 +1,7 @@
+"""The colours of the accelerometer channels x, y, z in every plot: the dashboard (``--cx``,
+``--cy``, ``--cz`` in ``api/static/style.css``), the Allan PNG and the diagnose HTML report."""
+
+from __future__ import annotations
+
+CHANNEL_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")
+"""x red, y green, z blue (matplotlib's tab:red, tab:green, tab:blue)."""

@@ -1,0 +1,55 @@
+"""What a procedure will do before it is started: duration, poses, windows, dwell."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, HTTPException, Query, status
+
+from api.deps import SettingsDep, ViewerDep
+from api.schemas import ProcedurePreviewOut
+from bench.procedures import PROCEDURES, build_procedure, preview
+from bench.sequencer.control import SequencerConfig
+
+router = APIRouter(prefix="/api/procedures", tags=["procedures"])
+
+
+@router.get(
+    "/{name}/preview", response_model=ProcedurePreviewOut, responses={404: {"description": "unknown"}}
+)
+def procedure_preview(
+    name: str,
+    settings: SettingsDep,
+    _: ViewerDep,
+    dwell_s: Annotated[float | None, Query(gt=0, le=86400)] = None,
+) -> ProcedurePreviewOut:
+    """The procedure walked against the table's limits with the dwell a run started now would
+    use (``dwell_s``, else the service's ``run_dwell_s``, else a provisional one that the run's
+    noise window replaces): the duration on the bench clock and, on a simulated bench, on the
+    wall clock (bench seconds / ``sim_speed``)."""
+    if name not in PROCEDURES:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND, f"unknown procedure {name!r}; known: {', '.join(PROCEDURES)}"
+        )
+    dwell = dwell_s if dwell_s is not None else settings.run_dwell_s
+    try:
+        proc = build_procedure(name, dwell_s=dwell)
+    except ValueError as exc:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
+    pv = preview(proc, SequencerConfig(temp_band_c=settings.temp_band_c).limits)
+    speed = settings.sim_speed if settings.sim and settings.sim_speed > 0 else 1.0
+    return ProcedurePreviewOut(
+        procedure=name,
+        duration_s=pv.duration_s,
+        wall_duration_s=pv.duration_s / speed,
+        n_poses=len(pv.poses_deg),
+        n_windows=len(pv.windows),
+        dwell_s=dwell,
+        dwell_source="given"
+        if dwell_s is not None
+        else "service setting"
+        if dwell is not None
+        else "provisional",
+        assumptions=list(pv.assumptions),
+        problems=list(pv.problems),
+    )

@@ -1,0 +1,117 @@
+"""No placeholder goes out as a certificate: a real bench without the laboratory's identity or
+the authorising person issues none; a simulated one says what is not configured; the settings
+name each gap at start-up and in the health answer."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from sqlalchemy.orm import Session
+
+from api.certificates.issue import CertificateRefused, issue_for_run
+from api.settings import Settings
+from db.engine import make_session_factory
+from db.migrate import open_database
+from db.models import RunState
+from db.repo.runs import merge_params
+from tests.api.certificates.test_certificate_conformity import CAL
+from tests.db._factories import make_run
+
+IDENTITY = {"lab_name": "Acme Metrology", "lab_address": "1 Lab Road, Town", "authorized_by": "A. Person"}
+
+
+def _completed_run(s: Session, run_id: str, *, sim: bool) -> None:
+    run = make_run(s, run_id, state=RunState.COMPLETED)
+    run.outcome = "PASS"
+    merge_params(s, run_id, {"calibration": CAL, "sim": {"seed": 1} if sim else None})
+    s.flush()
+
+
+def _sessions(tmp_path: Path):
+    engine = open_database(f"sqlite:///{tmp_path / 'c.db'}")
+    return engine, make_session_factory(engine)
+
+
+def test_settings_name_each_missing_item_with_its_variable() -> None:
+    blocking, warnings = Settings().certificate_gaps()
+    assert [b.split("(")[-1] for b in blocking] == [
+        "CALBENCH_LAB_NAME)",
+        "CALBENCH_LAB_ADDRESS)",
+        "CALBENCH_AUTHORIZED_BY)",
+    ]
+    assert any("CALBENCH_REFERENCE_EQUIPMENT" in w for w in warnings)
+    full = Settings(
+        **IDENTITY,
+        reference_equipment="table T-3 s/n 42, cal. PTB-1, due 2027-03; DAQ s/n 7",
+        ambient_conditions="(23 ± 2) °C",
+    )
+    assert full.certificate_gaps() == ([], [])
+    assert full.reference_equipment == ["table T-3 s/n 42, cal. PTB-1, due 2027-03", "DAQ s/n 7"]
+
+
+def test_a_real_bench_without_identity_issues_no_certificate_and_allocates_no_number(tmp_path: Path) -> None:
+    engine, sessions = _sessions(tmp_path)
+    try:
+        with sessions.begin() as s:
+            _completed_run(s, "r-real", sim=False)
+        with sessions.begin() as s, pytest.raises(CertificateRefused) as info:
+            issue_for_run(s, Settings(authorized_by="A. Person"), "r-real")
+        msg = str(info.value)
+        assert "CALBENCH_LAB_NAME" in msg and "CALBENCH_LAB_ADDRESS" in msg and "AUTHORIZED_BY" not in msg
+        settings = Settings(
+            **IDENTITY, reference_equipment="table T-3 s/n 42, due 2027-03", ambient_conditions="(23 ± 2) °C"
+        )
+        with sessions.begin() as s:
+            cert = issue_for_run(s, settings, "r-real")
+            c = cert.content
+            assert cert.number.endswith("00001")  # the refusal used no number
+        assert c["laboratory"] == {"name": "Acme Metrology", "address": "1 Lab Road, Town"}
+        assert c["authorized_by"] == "A. Person"
+        assert c["reference_equipment"] == ["table T-3 s/n 42, due 2027-03"]
+        assert c["conditions"]["ambient"] == "(23 ± 2) °C"
+        assert c["software"]["name"] == "calbench" and c["software"]["version"] != "not stated"
+        assert c["item"]["nominal_scale"] == {"value": "not stated", "unit": ""}
+    finally:
+        engine.dispose()
+
+
+def test_a_simulated_bench_issues_and_says_what_is_not_configured(tmp_path: Path) -> None:
+    engine, sessions = _sessions(tmp_path)
+    try:
+        with sessions.begin() as s:
+            _completed_run(s, "r-sim", sim=True)
+            c = issue_for_run(s, Settings(), "r-sim").content
+        assert c["laboratory"]["address"] == "not configured (CALBENCH_LAB_ADDRESS)"
+        assert c["authorized_by"] == "not configured (CALBENCH_AUTHORIZED_BY)"
+        assert c["traceability"].startswith("SIMULATED BENCH")
+        assert all("simulated" in e for e in c["reference_equipment"])
+        after = c["g_check"]["after"]
+        # no recording to count the windows of the |g| check: its U is not stated, never guessed
+        assert after["n"] == "not stated" and after["expanded_uncertainty_m_s2"] == "not stated"
+    finally:
+        engine.dispose()
+
+
+def test_health_names_the_gaps_and_the_preview_matches_the_procedure(tmp_path: Path) -> None:
+    from fastapi.testclient import TestClient
+
+    from api.main import create_app
+    from bench.procedures import build_procedure, preview
+    from tests.support.service_helpers import VIEW, service_settings
+
+    settings = service_settings(tmp_path, sim_speed=4.0, lab_name="Acme Metrology")
+    with TestClient(create_app(settings)) as client:
+        health = client.get("/api/health").json()
+        assert not health["certificates_blocked"]  # a simulated bench still issues, marked as such
+        problems = " ".join(health["certificate_problems"])
+        assert "CALBENCH_LAB_ADDRESS" in problems and "CALBENCH_AUTHORIZED_BY" in problems
+        assert "CALBENCH_LAB_NAME" not in problems
+        got = client.get("/api/procedures/static-12/preview", headers=VIEW).json()
+        assert client.get("/api/procedures/nope/preview", headers=VIEW).status_code == 404
+    pv = preview(build_procedure("static-12", dwell_s=3.0))
+    assert got["n_windows"] == len(pv.windows) and got["n_poses"] == len(pv.poses_deg)
+    assert got["dwell_s"] == 3.0 and got["dwell_source"] == "service setting"
+    assert got["wall_duration_s"] == pytest.approx(pv.duration_s / 4.0)
+    real = Settings(**IDENTITY)
+    assert real.certificate_gaps()[0] == []

@@ -9,7 +9,7 @@ other method gets a writing one (``BEGIN IMMEDIATE`` on SQLite).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Annotated
 
 from fastapi import Depends, HTTPException, Query, Request
@@ -17,6 +17,7 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
+from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, AuthError, Role
 from api.drift import DriftScheduler
 from api.progress_hub import ProgressHub
@@ -36,6 +37,7 @@ class Services:
     runner: BenchRunner
     drift: DriftScheduler
     auth: Authenticator
+    analysis: AnalysisPool = field(default_factory=lambda: AnalysisPool(0))
 
 
 def get_services(request: Request) -> Services:

@@ -31,6 +31,7 @@ from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 from sqlalchemy.orm import Session, sessionmaker
 
+from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, Role, parse_tokens
 from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
 from api.deps import Services
@@ -101,7 +102,8 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     runner = BenchRunner(settings, sessions, hub, finisher, clock=clock)
     drift = DriftScheduler(settings, sessions, runner, clock=clock)
     auth = Authenticator(env_tokens, sessions, read_sessions, public_read=settings.public_read)
-    return Services(settings, engine, sessions, read_sessions, hub, runner, drift, auth)
+    analysis = AnalysisPool(settings.upload_workers)
+    return Services(settings, engine, sessions, read_sessions, hub, runner, drift, auth, analysis)
 
 
 @contextmanager
@@ -164,6 +166,7 @@ def create_app(
             if stopped is not None:
                 log.warning("run %s interrupted by the shutdown; resume it after the restart", stopped)
             services.auth.close()
+            services.analysis.close()
             app.state.services = None
             services.engine.dispose()
 

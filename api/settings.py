@@ -48,6 +48,8 @@ class Settings(BaseSettings):
         the one shipped with calbench (``bench/data/unit_limits.json``).
     :param limits_model: model whose limits judge a run when the unit's registration names
         none (or one the file lacks); empty: no limits, every completed fit PASSes.
+    :param upload_workers: worker processes that fit and diagnose uploaded recordings
+        (``POST /api/recordings``); 0: a thread of the server (never the event loop).
     :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c).
     :param authorized_by: who authorises certificates (7.8.2.1 o).
     :param customer_name, customer_address: the customer of units registered without one
@@ -76,6 +78,7 @@ class Settings(BaseSettings):
     drift_bias_repeatability_m_s2: float = Field(5e-4, ge=0, description="bias run-to-run, m/s2")
     limits_file: Path | None = None
     limits_model: str = "ADXL325"
+    upload_workers: int = Field(1, ge=0, le=32)
     lab_name: str = "calbench calibration laboratory"
     lab_address: str = "address not configured (CALBENCH_LAB_ADDRESS)"
     lab_location: str = "bench room"

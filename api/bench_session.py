@@ -61,10 +61,10 @@ def sim_url(settings: Settings, speed: float | None, seed: int) -> str:
 def open_devices(
     settings: Settings, sim: bool, sim_speed: float | None, seed: int, truth: SensorTruth | None = None
 ) -> BenchDevices:
-    """Table and DAQ: a simulated bench (``sim``, unit ``truth`` or the seed's typical one)
-    or the URLs of the settings."""
+    """Table and DAQ: a simulated bench (``sim``, unit ``truth`` or the seed's typical one;
+    in its own process when ``settings.sim_process``) or the URLs of the settings."""
     if sim:
-        return open_bench(sim_url(settings, sim_speed, seed), truth=truth)
+        return open_bench(sim_url(settings, sim_speed, seed), truth=truth, sim_process=settings.sim_process)
     return open_bench(settings.table_url, settings.daq_url)
 
 
@@ -109,8 +109,9 @@ def fit_covariance(result: CalibrationResult) -> tuple[tuple[tuple[float, ...], 
     return cov, names
 
 
-def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_path: Path,
-            limits: UnitLimits | None) -> RunRecord:
+def _finish(
+    seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_path: Path, limits: UnitLimits | None
+) -> RunRecord:
     calibration: dict[str, object] | None = None
     outcome = acq_outcome
     checks: tuple[LimitCheck, ...] = ()
@@ -145,8 +146,9 @@ def _finish(seq: Sequencer, acq_outcome: Outcome | None, error: str | None, csv_
     )
 
 
-def _execute(seq: Sequencer, csv_path: Path, observers: Sequence[RunObserver],
-             limits: UnitLimits | None) -> RunRecord:
+def _execute(
+    seq: Sequencer, csv_path: Path, observers: Sequence[RunObserver], limits: UnitLimits | None
+) -> RunRecord:
     acq = seq.run()
     record = _finish(seq, acq.outcome, acq.error, csv_path, limits)
     for obs in observers:
@@ -310,8 +312,18 @@ def resume_run(
         if point.recording_path is None:
             raise ValueError(f"run {run_id}: no recording path stored")
         return continue_run(
-            settings, sessions, run_id, serial, model, procedure_name, params, point,
-            sim=sim, sim_speed=sim_speed, observers=observers, control=control,
+            settings,
+            sessions,
+            run_id,
+            serial,
+            model,
+            procedure_name,
+            params,
+            point,
+            sim=sim,
+            sim_speed=sim_speed,
+            observers=observers,
+            control=control,
         )
     finally:
         engine.dispose()
@@ -368,8 +380,18 @@ def continue_run(
             resumed_from_window=point.next_window_index,
         )
         obs = [DbRunObserver(sessions), *observers]
-        seq = Sequencer(devices.table, devices.daq, proc, recorder, start, obs, control, config, dwell,
-                        start_window=point.next_window_index)
+        seq = Sequencer(
+            devices.table,
+            devices.daq,
+            proc,
+            recorder,
+            start,
+            obs,
+            control,
+            config,
+            dwell,
+            start_window=point.next_window_index,
+        )
         limits = limits_for(settings, model, devices.daq.channel_unit)
         return _execute(seq, csv_path, obs, limits)
     finally:

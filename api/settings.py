@@ -29,6 +29,8 @@ class Settings(BaseSettings):
     :param temp_band_c: allowed sensor temperature band (°C) or ``None``.
     :param public_read: reads need no token (a lab that shows the dashboard on a wall screen).
     :param sim: the service drives a simulated bench (``calbench serve --sim``).
+    :param sim_process: the simulated bench runs in its own process (like hardware, unaffected
+        by how busy the bench's process is); ``False``: threads of the process that drives it.
     :param sim_seed: seed of the simulated bench's noise; each unit's own errors come from its serial.
     :param run_dwell_s: static dwell of runs started over REST (s); ``None``: a noise window decides.
     :param drift_time: local time of the nightly drift check, ``HH:MM``; empty: no scheduler.
@@ -70,6 +72,7 @@ class Settings(BaseSettings):
     public_read: bool = False
     sim: bool = False
     sim_seed: int = 0
+    sim_process: bool = True
     run_dwell_s: float | None = None
     drift_time: str = "02:00"
     drift_procedure: str = "static-12"

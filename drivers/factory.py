@@ -24,6 +24,7 @@ from drivers.errors import DriverError
 from drivers.modbus_daq import ModbusDaq
 from drivers.sim.bench import DEFAULT_AXES, SimBench
 from drivers.sim.physics import SensorTruth
+from drivers.sim.process import SimBenchProcess
 from drivers.table import SerialRotaryTable
 
 TableOpener = Callable[[str, float, int], RotaryTable]
@@ -123,7 +124,7 @@ class BenchDevices:
 
     table: RotaryTable
     daq: Daq
-    sim: SimBench | None = None
+    sim: SimBench | SimBenchProcess | None = None
 
     def close(self) -> None:
         """Close the drivers, then stop the simulated bench (idempotent)."""
@@ -148,11 +149,14 @@ def open_bench(
     timeout_s: float = 1.0,
     n_axes: int = 3,
     truth: SensorTruth | None = None,
+    sim_process: bool = False,
 ) -> BenchDevices:
     """Open the table and the DAQ; ``table_url`` ``sim://...`` starts a :class:`SimBench` first.
 
     With ``sim://`` the DAQ URL must be absent or ``sim://`` too (one simulation feeds
-    both); ``truth`` chooses the simulated unit.
+    both); ``truth`` chooses the simulated unit; ``sim_process`` runs the simulation in its
+    own process (:class:`SimBenchProcess`: it keeps time like hardware however busy this
+    process is), otherwise in threads of this one (tests that inject faults reach it there).
 
     :raises ValueError: a bad URL or combination.
     """
@@ -163,13 +167,15 @@ def open_bench(
         seed = int(p.get("seed", 0))
         if truth is None:
             truth = SensorTruth.typical(str(p.get("unit", "V")), seed)
-        sim = SimBench(
-            truth,
-            speed=float(p.get("speed", 1.0)),
-            sample_rate_hz=float(p.get("rate", 100.0)),
-            seed=seed,
-            axes=DEFAULT_AXES[:n_axes],
-        )
+        sim_kw = {
+            "speed": float(p.get("speed", 1.0)),
+            "sample_rate_hz": float(p.get("rate", 100.0)),
+            "seed": seed,
+            "axes": DEFAULT_AXES[:n_axes],
+        }
+        sim: SimBench | SimBenchProcess = (
+            SimBenchProcess(truth, **sim_kw) if sim_process else SimBench(truth, **sim_kw)
+        )  # type: ignore[arg-type]
         try:
             table = open_table(sim.table_url, timeout_s=timeout_s, n_axes=n_axes)
             try:

@@ -167,15 +167,12 @@ def open_bench(
         seed = int(p.get("seed", 0))
         if truth is None:
             truth = SensorTruth.typical(str(p.get("unit", "V")), seed)
-        sim_kw = {
-            "speed": float(p.get("speed", 1.0)),
-            "sample_rate_hz": float(p.get("rate", 100.0)),
-            "seed": seed,
-            "axes": DEFAULT_AXES[:n_axes],
-        }
-        sim: SimBench | SimBenchProcess = (
-            SimBenchProcess(truth, **sim_kw) if sim_process else SimBench(truth, **sim_kw)
-        )  # type: ignore[arg-type]
+        speed, rate, axes = float(p.get("speed", 1.0)), float(p.get("rate", 100.0)), DEFAULT_AXES[:n_axes]
+        sim: SimBench | SimBenchProcess
+        if sim_process:
+            sim = SimBenchProcess(truth, speed=speed, sample_rate_hz=rate, seed=seed, axes=axes)
+        else:
+            sim = SimBench(truth, speed=speed, sample_rate_hz=rate, seed=seed, axes=axes)
         try:
             table = open_table(sim.table_url, timeout_s=timeout_s, n_axes=n_axes)
             try:

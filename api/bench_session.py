@@ -233,18 +233,30 @@ def start_run(
             unit = get_or_create_unit(s, unit_serial, channel_unit=sidecar.channel_unit, bench_id=bench.id)
             if limits == "settings":  # before the run exists: a bad limits file refuses the run
                 limits = limits_for(settings, getattr(unit, "model", None), sidecar.channel_unit)
-            create_run(
-                s,
-                run_id,
-                unit.id,
-                procedure_name,
-                bench_id=bench.id,
-                params=meta,
-                recording_path=str(csv_path),
-                state=DbRunState.RUNNING,
-                owner_pid=os.getpid(),
-                owner_host=socket.gethostname(),
-            )
+            queued = s.get(Run, run_id, with_for_update=True)
+            if queued is None:
+                create_run(
+                    s,
+                    run_id,
+                    unit.id,
+                    procedure_name,
+                    bench_id=bench.id,
+                    params=meta,
+                    recording_path=str(csv_path),
+                    state=DbRunState.RUNNING,
+                    owner_pid=os.getpid(),
+                    owner_host=socket.gethostname(),
+                )
+            else:  # claimed from the queue by this process (db.repo.queue.claim_next_run)
+                owner = (queued.owner_pid, queued.owner_host)
+                if queued.state is not DbRunState.RUNNING or owner != (os.getpid(), socket.gethostname()):
+                    raise ValueError(
+                        f"run {run_id} is {queued.state.value} owned by {owner[0]}@{owner[1]}: "
+                        "not claimed by this process"
+                    )
+                queued.recording_path = str(csv_path)
+                queued.params = {**queued.params, **meta}
+                s.flush()
         recorder = RunRecorder.create(csv_path, sidecar, has_temp=True, run_meta=meta)
         if dwell is not None:
             recorder.record_dwell(dwell)

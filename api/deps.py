@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 from fastapi import Depends, HTTPException, Query, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
@@ -21,8 +21,11 @@ from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, AuthError, Role
 from api.drift import DriftScheduler
 from api.progress_hub import ProgressHub
-from api.runner import BenchRunner
+from api.run_queue import RunQueue
 from api.settings import Settings
+
+if TYPE_CHECKING:
+    from api.agent import BenchAgent
 
 
 @dataclass
@@ -34,10 +37,12 @@ class Services:
     sessions: sessionmaker[Session]
     read_sessions: sessionmaker[Session]
     hub: ProgressHub
-    runner: BenchRunner
+    runner: RunQueue
     drift: DriftScheduler
     auth: Authenticator
     analysis: AnalysisPool = field(default_factory=lambda: AnalysisPool(0))
+    agent: BenchAgent | None = None
+    """The bench agent running in this process (``settings.agent == "embedded"``), else ``None``."""
 
 
 def get_services(request: Request) -> Services:
@@ -69,13 +74,13 @@ def get_settings(services: ServicesDep) -> Settings:
     return services.settings
 
 
-def get_runner(services: ServicesDep) -> BenchRunner:
-    """The bench's runner."""
+def get_runner(services: ServicesDep) -> RunQueue:
+    """The bench's run queue."""
     return services.runner
 
 
 SettingsDep = Annotated[Settings, Depends(get_settings)]
-RunnerDep = Annotated[BenchRunner, Depends(get_runner)]
+RunnerDep = Annotated[RunQueue, Depends(get_runner)]
 
 _bearer = HTTPBearer(auto_error=False, description="a viewer, operator or admin token")
 

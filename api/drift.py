@@ -35,7 +35,7 @@ import logging
 import math
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sqlalchemy as sa
@@ -50,6 +50,9 @@ from db.models import Bench, Certificate, DriftCheck, Run, Unit
 from db.repo.certificates import latest_certificate
 from db.repo.drift import add_drift_check
 from db.repo.units import get_bench_by_name, get_unit_by_serial
+
+if TYPE_CHECKING:
+    from api.run_queue import RunQueue
 
 log = logging.getLogger(__name__)
 
@@ -246,7 +249,7 @@ class DriftScheduler:
         self,
         settings: Settings,
         sessions: sessionmaker[Session],
-        runner: BenchRunner,
+        runner: BenchRunner | RunQueue,
         clock: Callable[[], dt.datetime] = utc_now,
         poll_s: float = 20.0,
     ) -> None:

@@ -29,6 +29,7 @@ from api.settings import Settings
 from bench.records import RunObserver, RunRecord
 from bench.sequencer_control import RunControl
 from db.models import Run, RunState, Unit
+from db.repo.queue import ClaimedRun
 from db.repo.recovery import ResumePoint, claim_for_resume
 from db.types import utc_now
 from drivers.sim.physics import SensorTruth
@@ -135,6 +136,24 @@ def claim(session: Session, run_id: str) -> Claimed:
     )
 
 
+def from_queue(queued: ClaimedRun) -> Claimed:
+    """The :class:`Claimed` of a resume the agent claimed from the queue (``queued.point`` set)."""
+    if queued.point is None:
+        raise ValueError(f"run {queued.run_id} was queued as a fresh run, not a resume")
+    kind = queued.params.get("service_kind")
+    age = queued.params.get(SIM_AGE_KEY)
+    return Claimed(
+        queued.run_id,
+        queued.unit_serial,
+        queued.model,
+        queued.procedure,
+        queued.params,
+        queued.point,
+        kind if kind in ("calibration", "drift_check") else "calibration",
+        float(age) if isinstance(age, int | float) else None,
+    )
+
+
 def execute(
     settings: Settings,
     sessions: Any,
@@ -150,6 +169,16 @@ def execute(
     :param sessions: database session factory (the run's database observer writes with it).
     """
     return continue_run(
-        settings, sessions, claimed.run_id, claimed.unit_serial, claimed.model, claimed.procedure,
-        claimed.params, claimed.point, sim=settings.sim, truth=truth, observers=observers, control=control,
+        settings,
+        sessions,
+        claimed.run_id,
+        claimed.unit_serial,
+        claimed.model,
+        claimed.procedure,
+        claimed.params,
+        claimed.point,
+        sim=settings.sim,
+        truth=truth,
+        observers=observers,
+        control=control,
     )

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import socket
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
@@ -29,6 +29,9 @@ class Settings(BaseSettings):
     :param temp_band_c: allowed sensor temperature band (°C) or ``None``.
     :param public_read: reads need no token (a lab that shows the dashboard on a wall screen).
     :param sim: the service drives a simulated bench (``calbench serve --sim``).
+    :param agent: ``embedded``: the service runs the bench agent in a thread of its own process
+        (one process does everything); ``external``: the agent is another process
+        (``calbench agent``) and the service never touches the bench's devices.
     :param sim_process: the simulated bench runs in its own process (like hardware, unaffected
         by how busy the bench's process is); ``False``: threads of the process that drives it.
     :param sim_seed: seed of the simulated bench's noise; each unit's own errors come from its serial.
@@ -73,6 +76,7 @@ class Settings(BaseSettings):
     sim: bool = False
     sim_seed: int = 0
     sim_process: bool = True
+    agent: Literal["embedded", "external"] = "embedded"
     run_dwell_s: float | None = None
     drift_time: str = "02:00"
     drift_procedure: str = "static-12"

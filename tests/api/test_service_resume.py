@@ -30,8 +30,9 @@ def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
         yield c
 
 
-def wait_run(client: TestClient, run_id: str, cond: Any, what: str, timeout_s: float = 240.0
-             ) -> dict[str, Any]:
+def wait_run(
+    client: TestClient, run_id: str, cond: Any, what: str, timeout_s: float = 240.0
+) -> dict[str, Any]:
     """Poll ``GET /api/runs/{id}`` until ``cond(run)``; a generous deadline, not a measurement."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -65,12 +66,18 @@ def test_pause_holds_the_run_and_resume_continues_it(client: TestClient) -> None
     run_id = started(client, "SN-PAUSE")
     wait_run(client, run_id, lambda r: (r.get("last_complete_window") or -1) >= 1, "two windows")
     r = client.post(f"/api/runs/{run_id}/pause", headers=OP)
-    assert r.status_code == 200 and r.json() == {"id": run_id, "action": "pause", "state": "paused",
-                                                  "resumed_from_window": None}
+    assert r.status_code == 200 and r.json() == {
+        "id": run_id,
+        "action": "pause",
+        "state": "paused",
+        "resumed_from_window": None,
+    }
     held = wait_run(client, run_id, lambda r: r["state"] == "paused", "the pause")
-    # While it holds, the run cannot be resumed as if it had died, and a second start is refused.
-    assert client.post("/api/runs", json={"unit_serial": "SN-X", "procedure": "static-12"},
-                       headers=OP).status_code == 409
+    # While it holds the bench, a second start waits in the queue (and is withdrawn here).
+    second = client.post("/api/runs", json={"unit_serial": "SN-X", "procedure": "static-12"}, headers=OP)
+    assert second.status_code == 202
+    assert client.get(f"/api/runs/{second.json()['id']}", headers=VIEW).json()["state"] == "queued"
+    assert client.post(f"/api/runs/{second.json()['id']}/abort", headers=OP).status_code == 200
     r = client.post(f"/api/runs/{run_id}/resume", headers=OP)
     assert r.status_code == 202 and r.json()["action"] == "continue"
     body = wait_final(client, run_id)
@@ -97,8 +104,9 @@ def test_shutdown_leaves_the_run_interrupted_and_resume_finishes_it(tmp_path: Pa
     settings = service_settings(tmp_path)
     with TestClient(create_app(settings, start_scheduler=False)) as first:
         run_id = started(first, "SN-RESTART")
-        before = wait_run(first, run_id, lambda r: (r.get("last_complete_window") or -1) >= 2,
-                          "three windows")
+        before = wait_run(
+            first, run_id, lambda r: (r.get("last_complete_window") or -1) >= 2, "three windows"
+        )
     # The app has shut down with the run live: it is stored interrupted, not aborted.
     with TestClient(create_app(settings, start_scheduler=False)) as second:
         run = second.get(f"/api/runs/{run_id}", headers=VIEW).json()
@@ -108,8 +116,12 @@ def test_shutdown_leaves_the_run_interrupted_and_resume_finishes_it(tmp_path: Pa
         assert done >= before["last_complete_window"]
         r = second.post(f"/api/runs/{run_id}/resume", headers=OP)
         assert r.status_code == 202, r.text
-        assert r.json() == {"id": run_id, "action": "resume", "state": "queued",
-                            "resumed_from_window": done + 1}
+        assert r.json() == {
+            "id": run_id,
+            "action": "resume",
+            "state": "queued",
+            "resumed_from_window": done + 1,
+        }
         events = stream(second, run_id)
         windows = [d["index"] for e, d in events if e == "window"]
         assert windows and windows[0] >= done + 1 and windows[-1] == 11

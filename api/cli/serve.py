@@ -1,4 +1,10 @@
-"""``calbench serve [--sim] [--sim-speed N] [--host H] [--port P]``: the REST service and dashboard.
+"""``calbench serve [--sim] [--sim-speed N] [--host H] [--port P] [--agent MODE]``: the REST
+service and dashboard.
+
+The service never drives the bench itself: by default it starts the bench's agent
+(``calbench agent``, :mod:`api.supervisor`) as a child process and keeps it running;
+``--agent external`` leaves that to someone else (docker compose, systemd), ``--agent
+embedded`` runs the agent in a thread of the service (one process, as before).
 
 Settings come from ``CALBENCH_*`` (see ``docs/service.md``). Without ``CALBENCH_TOKENS``
 an admin token is generated and printed once on stderr (it may also create database tokens
@@ -28,6 +34,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=8000, help="port (default 8000)")
     parser.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
+    parser.add_argument(
+        "--agent",
+        default="spawn",
+        choices=["spawn", "external", "embedded"],
+        help="spawn (default): start and watch the bench agent process; external: it runs elsewhere; "
+        "embedded: in a thread of this process",
+    )
 
 
 def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
@@ -50,6 +63,7 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         if not args.sim_speed > 0:
             raise BadInput(f"--sim-speed {args.sim_speed}: expected a positive number")
         update["sim_speed"] = args.sim_speed
+    update["agent"] = "embedded" if getattr(args, "agent", "spawn") == "embedded" else "external"
     generated: dict[str, str] = {}
     if not settings.tokens:
         generated[new_secret()] = "admin"
@@ -75,6 +89,16 @@ def run(args: argparse.Namespace) -> int:
         f"{'simulated bench' if settings.sim else settings.table_url}, http://{args.host}:{args.port}/",
         file=sys.stderr,
     )
-    app = create_app(settings, extra_tokens=generated)
-    uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level)
+    supervisor = None
+    if args.agent == "spawn":
+        from api.supervisor import AgentSupervisor
+
+        supervisor = AgentSupervisor(settings, sim=settings.sim, sim_speed=args.sim_speed)
+        supervisor.start()
+    try:
+        app = create_app(settings, extra_tokens=generated)
+        uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level)
+    finally:
+        if supervisor is not None:
+            supervisor.stop()
     return 0

@@ -115,6 +115,7 @@ def create_app(
     clock: Callable[[], dt.datetime] = utc_now,
     start_scheduler: bool = True,
     extra_tokens: dict[str, str] | None = None,
+    on_shutdown: Callable[[], None] | None = None,
 ) -> FastAPI:
     """The FastAPI application for ``settings``.
 
@@ -122,6 +123,8 @@ def create_app(
     :param start_scheduler: start the drift scheduler's thread (tests call ``tick`` instead).
     :param extra_tokens: ``{secret: role}`` accepted besides ``settings.tokens`` (the
         admin token ``calbench serve`` generates when none is configured).
+    :param on_shutdown: called at the end of the lifespan (``calbench serve`` stops the bench
+        agent it started there: after a signal the server re-raises it once the lifespan is over).
     """
 
     @asynccontextmanager
@@ -146,6 +149,8 @@ def create_app(
             if agent is not None:
                 agent.stop()
                 agent.close()
+            if on_shutdown is not None:
+                on_shutdown()
             services.auth.close()
             services.analysis.close()
             app.state.services = None

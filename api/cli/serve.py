@@ -96,9 +96,10 @@ def run(args: argparse.Namespace) -> int:
         supervisor = AgentSupervisor(settings, sim=settings.sim, sim_speed=args.sim_speed)
         supervisor.start()
     try:
-        app = create_app(settings, extra_tokens=generated)
+        stop_agent = supervisor.stop if supervisor is not None else None
+        app = create_app(settings, extra_tokens=generated, on_shutdown=stop_agent)
         uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level)
-    finally:
+    finally:  # also when the app never started; stopping twice is harmless
         if supervisor is not None:
             supervisor.stop()
     return 0

@@ -48,6 +48,8 @@ DWELL_S = max(60.0, 1.2 * LOAD_LIMIT_S * SPEED / 12)
 """Static dwell of the loaded run: its twelve windows outlast the load."""
 POLL_S = 3.0
 """The dashboard's overview polls every 3 s (``view_overview.js``); the run page follows the stream."""
+POLLS_S = [float(x) for x in os.environ.get("CALBENCH_LOAD_POLLS", f"{POLL_S:g},0").split(",")]
+"""The load phases: the readers' pause between cycles (s), 0 = never pause."""
 BASELINE_CYCLES = 40
 OPERATOR = "operator-bench-load-0001"
 VIEWER = "viewer-bench-load-0001"
@@ -322,8 +324,8 @@ def main() -> None:
                 threading.Lock(),
             )
             print(f"idle baseline: one reader, {BASELINE_CYCLES} cycles, bench idle")
-            _load_phase(base, data_dir, serial, done_id, POLL_S, base_lat)
-            _load_phase(base, data_dir, serial, done_id, 0.0, base_lat)
+            for poll_s in POLLS_S:
+                _load_phase(base, data_dir, serial, done_id, poll_s, base_lat)
         finally:
             proc.terminate()
             try:

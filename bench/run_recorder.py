@@ -10,6 +10,11 @@ always on disk.
 Recording clock: ``t = t_daq − t_daq0 + t_offset``; a fresh run starts at 0, a resumed run
 continues one sample period after the last row kept.
 
+A failed write (a full disk, an I/O error) ends the recording where it was last durable:
+the CSV is cut back to the last durable chunk's end (never a torn last row) and the error is
+raised with what was kept, so the sequencer ends the run as ERROR with the table made safe;
+the database's chunk rows describe exactly the file that is left.
+
 Window metadata the format has no column for (kind, pose, means) is kept in the sidecar's
 ``calbench_windows`` list beside ``segments``, so a resumed run can rebuild its record from
 the files alone.
@@ -73,6 +78,10 @@ class RunRecorder:
         self._chunk_first = n_rows
         self._chunk_t0: float | None = None
         self._last_flush_wall = time.monotonic()
+        self.failed: OSError | None = None
+        writer.flush()  # the header (or the rows kept by a resume) is the first durable end
+        self._durable_end_byte = self.csv_path.stat().st_size
+        self._durable_rows = n_rows
 
     # -- construction --------------------------------------------------------------------
 
@@ -154,7 +163,11 @@ class RunRecorder:
         """Append samples (``t_s`` already on the recording clock); return a chunk if one became durable."""
         if t_s.size == 0:
             return None
-        self.writer.append(t_s, accel, table_deg, temp_c)
+        self._check_usable()
+        try:
+            self.writer.append(t_s, accel, table_deg, temp_c)
+        except OSError as exc:
+            raise self._cut_after(exc) from exc
         self.n_rows += int(t_s.size)
         self.last_t_s = float(t_s[-1])
         if self._chunk_t0 is None:
@@ -168,8 +181,13 @@ class RunRecorder:
         """Make everything appended so far durable; ``None`` if nothing was pending."""
         if self.n_rows == self._chunk_first or self.last_t_s is None:
             return None
-        self.writer.flush()
+        self._check_usable()
+        try:
+            self.writer.flush()
+        except OSError as exc:
+            raise self._cut_after(exc) from exc
         end_byte = Path(self.writer.csv_path).stat().st_size
+        self._durable_end_byte, self._durable_rows = end_byte, self.n_rows
         chunk = ChunkRecord(seq=self.chunk_seq, first_sample=self._chunk_first,
                             n_samples=self.n_rows - self._chunk_first, last_t_s=self.last_t_s,
                             end_byte=end_byte, window_index=window_index)
@@ -198,7 +216,32 @@ class RunRecorder:
         return chunk
 
     def close(self) -> ChunkRecord | None:
-        """Flush what is pending and close the files."""
+        """Flush what is pending and close the files (after a failed write: nothing more)."""
+        if self.failed is not None:
+            return None
         chunk = self.flush_chunk(None)
         self.writer.close()
         return chunk
+
+    # -- failed writes -------------------------------------------------------------------
+
+    def _check_usable(self) -> None:
+        if self.failed is not None:
+            raise OSError(self.failed.errno, f"recording {self.csv_path} was cut after a failed write")
+
+    def _cut_after(self, exc: OSError) -> OSError:
+        """Abandon the writer's buffer and cut the CSV to the last durable chunk; the error to raise."""
+        self.failed = exc
+        self.writer.abandon()
+        end = self._durable_end_byte
+        try:
+            with self.csv_path.open("r+b") as f:
+                f.truncate(end)
+                f.flush()
+                os.fsync(f.fileno())
+            kept = f"cut at the last durable chunk: {self._durable_rows} samples, {end} bytes"
+        except OSError as cut_exc:
+            kept = f"could not be cut to the last durable chunk ({end} bytes): {cut_exc}"
+        self.n_rows = self._durable_rows
+        reason = exc.strerror or str(exc)
+        return OSError(exc.errno, f"writing {self.csv_path} failed ({reason}); the recording was {kept}")

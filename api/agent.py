@@ -26,6 +26,7 @@ import socket
 import threading
 from collections.abc import Callable
 
+import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
 from api import service_resume
@@ -37,7 +38,7 @@ from api.runner import BenchBusy, BenchRunner
 from api.settings import Settings
 from bench.records import RunRecord, utc_now
 from db.engine import make_session_factory, open_database
-from db.models import RunState
+from db.models import Run, RunState
 from db.repo.queue import ClaimedRun, claim_next_run, pending_control
 from db.repo.recovery import mark_interrupted_runs
 from db.repo.runs import finish_run, merge_params
@@ -116,12 +117,40 @@ class BenchAgent:
         if cur is not None:
             self._apply_control(cur)
             return None
+        self.end_orphans()
         with self.sessions.begin() as s:
             claimed = claim_next_run(s, self.bench_id, owner_pid=self.pid, owner_host=self.host)
         if claimed is None:
             return None
         self._start(claimed)
         return claimed.run_id
+
+    def end_orphans(self) -> list[str]:
+        """End as ERROR the runs this process owns in a live state although its runner is idle
+        (their end could not be stored when they ended: the database refused a write), so no
+        run stays ``running`` for ever; their ids. Call only while the runner holds no run."""
+        with self.sessions.begin() as s:
+            ids = list(
+                s.scalars(
+                    sa.select(Run.id).where(
+                        Run.owner_pid == self.pid,
+                        Run.owner_host == self.host,
+                        Run.state.in_([RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED]),
+                    )
+                )
+            )
+            for run_id in ids:
+                finish_run(
+                    s,
+                    run_id,
+                    RunState.ERROR,
+                    outcome="ERROR",
+                    error="the run ended but its end could not be stored (a database write failed); "
+                    "its recording holds the chunks the database counts",
+                )
+        if ids:
+            log.error("runs whose end could not be stored, now error: %s", ", ".join(ids))
+        return ids
 
     def _start(self, claimed: ClaimedRun) -> None:
         self._applied = (claimed.run_id, 0, False)

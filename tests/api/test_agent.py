@@ -1,0 +1,53 @@
+"""The bench agent's own rules: a run it owns but no longer drives is ended, not left running;
+a queued run of another bench is not its business."""
+
+from __future__ import annotations
+
+import os
+import socket
+from pathlib import Path
+
+from api.agent import BenchAgent
+from db.models import Run, RunState
+from db.repo.queue import queue_run
+from db.repo.runs import create_run
+from db.repo.units import get_or_create_bench, get_or_create_unit
+from tests.api.service_helpers import service_settings
+
+
+def test_a_run_left_live_by_a_failed_write_is_ended_as_error(tmp_path: Path) -> None:
+    agent = BenchAgent(service_settings(tmp_path))
+    try:
+        with agent.sessions.begin() as s:
+            unit = get_or_create_unit(s, "SN-ORPHAN", bench_id=agent.bench_id)
+            create_run(
+                s,
+                "orphan",
+                unit.id,
+                "static-12",
+                bench_id=agent.bench_id,
+                state=RunState.RUNNING,
+                owner_pid=os.getpid(),
+                owner_host=socket.gethostname(),
+            )
+            create_run(
+                s,
+                "other-owner",
+                unit.id,
+                "static-12",
+                bench_id=agent.bench_id,
+                state=RunState.RUNNING,
+                owner_pid=os.getpid() + 1,
+                owner_host="another-host",
+            )
+            other = get_or_create_bench(s, "another-bench")
+            queue_run(s, "elsewhere", unit.id, other.id, "static-12", {"service_kind": "calibration"})
+        assert agent.tick() is None  # idle runner: the orphan is ended; the bench is held by the other
+        with agent.sessions.begin() as s:
+            orphan, held, elsewhere = (s.get(Run, i) for i in ("orphan", "other-owner", "elsewhere"))
+            assert orphan is not None and orphan.state is RunState.ERROR and orphan.outcome == "ERROR"
+            assert orphan.error is not None and "could not be stored" in orphan.error
+            assert held is not None and held.state is RunState.RUNNING  # another process's run
+            assert elsewhere is not None and elsewhere.state is RunState.QUEUED  # another bench's
+    finally:
+        agent.close()

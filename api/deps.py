@@ -26,6 +26,7 @@ from api.settings import Settings
 
 if TYPE_CHECKING:
     from api.agent import BenchAgent
+    from api.run_events import SnapshotCache
 
 
 @dataclass
@@ -43,6 +44,8 @@ class Services:
     analysis: AnalysisPool = field(default_factory=lambda: AnalysisPool(0))
     agent: BenchAgent | None = None
     """The bench agent running in this process (``settings.agent == "embedded"``), else ``None``."""
+    snapshots: SnapshotCache | None = None
+    """The runs' snapshots shared by this process's event streams (``None``: one per stream)."""
 
 
 def get_services(request: Request) -> Services:

@@ -43,6 +43,7 @@ from api.deps import Services
 from api.drift import DriftScheduler
 from api.progress_hub import ProgressHub
 from api.routes import api_router
+from api.run_events import SnapshotCache
 from api.run_queue import RunQueue
 from api.service_resume import recover_shutdown_aborts
 from api.settings import Settings
@@ -79,7 +80,18 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     drift = DriftScheduler(settings, sessions, runner, clock=clock)
     auth = Authenticator(env_tokens, sessions, read_sessions, public_read=settings.public_read)
     analysis = AnalysisPool(settings.upload_workers)
-    return Services(settings, engine, sessions, read_sessions, hub, runner, drift, auth, analysis)
+    return Services(
+        settings,
+        engine,
+        sessions,
+        read_sessions,
+        hub,
+        runner,
+        drift,
+        auth,
+        analysis,
+        snapshots=SnapshotCache(read_sessions),
+    )
 
 
 @contextmanager

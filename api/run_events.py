@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import threading
+import time
 from typing import Any
 
 import sqlalchemy as sa
@@ -104,3 +106,30 @@ def run_snapshot(
             last,
             _finished(run, utc_now()),
         )
+
+
+class SnapshotCache:
+    """One database read per run per ``max_age_s`` for all the event streams of a process.
+
+    Every open stream of a run asks for its snapshot every :data:`EVENT_POLL_S`; fifty
+    streams would make fifty reads. The first ask after ``max_age_s`` reads the run (with all
+    its windows) and the others reuse that snapshot, each taking the windows it has not sent.
+    """
+
+    def __init__(self, sessions: sessionmaker[Session], max_age_s: float = EVENT_POLL_S / 2) -> None:
+        self.sessions, self.max_age_s = sessions, max_age_s
+        self._lock = threading.Lock()
+        self._cache: dict[str, tuple[float, RunSnapshot | None]] = {}
+
+    def get(self, run_id: str) -> RunSnapshot | None:
+        """The run's snapshot with every complete window, at most ``max_age_s`` old."""
+        with self._lock:
+            now = time.monotonic()
+            hit = self._cache.get(run_id)
+            if hit is not None and now - hit[0] < self.max_age_s:
+                return hit[1]
+            snap = run_snapshot(self.sessions, run_id, -1)
+            for key in [k for k, (t, _) in self._cache.items() if now - t > 60.0]:
+                del self._cache[key]
+            self._cache[run_id] = (now, snap)
+            return snap

@@ -15,7 +15,7 @@ from starlette.concurrency import run_in_threadpool
 from api.deps import OperatorDep, RunnerDep, ServicesDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
 from api.progress_hub import CLOSED_EVENT, TERMINAL_EVENT
 from api.routes.views import live_out, run_out
-from api.run_events import EVENT_POLL_S, RunSnapshot, run_snapshot
+from api.run_events import EVENT_POLL_S, RunSnapshot, SnapshotCache
 from api.run_queue import NotResumable
 from api.schemas import AbortOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
 from db.models import Certificate, RunState
@@ -165,16 +165,18 @@ async def events(run_id: str, request: Request, services: ServicesDep, _: Viewer
     ``finished`` event with its stored state.
 
     The events come from the database, where the bench's agent writes them (whichever
-    process this is, and also after it restarted mid-run): it is read every
-    ``EVENT_POLL_S`` in a worker thread, never on the event loop."""
-    hub, reads = services.hub, services.read_sessions
-    first = await run_in_threadpool(run_snapshot, reads, run_id, None)
+    process this is, and also after it restarted mid-run): the run is read at most twice per
+    ``EVENT_POLL_S`` for all the streams of this process (:class:`api.run_events.SnapshotCache`),
+    in a worker thread, never on the event loop."""
+    hub, snapshots = services.hub, services.snapshots or SnapshotCache(services.read_sessions)
+    first = await run_in_threadpool(snapshots.get, run_id)
     if first is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
 
     async def stream() -> AsyncIterator[str]:
         snap: RunSnapshot | None = first
-        state, live, last_window = None, None, snap.last_window if snap else None
+        state, live = None, None
+        last_window = snap.last_window if snap is not None else None  # a late stream does not replay
         quiet_s = 0.0
         while snap is not None:
             if hub.closed is not None:
@@ -186,8 +188,9 @@ async def events(run_id: str, request: Request, services: ServicesDep, _: Viewer
                 yield _sse("state", {"state": state, "reason": snap.error or ""})
                 sent = True
             for window in snap.windows:
-                yield _sse("window", window)
-                last_window, sent = window["index"], True
+                if last_window is None or window["index"] > last_window:
+                    yield _sse("window", window)
+                    last_window, sent = window["index"], True
             if snap.live is not None and snap.live != live and snap.finished is None:
                 live = snap.live
                 yield _sse("progress", live)
@@ -202,8 +205,6 @@ async def events(run_id: str, request: Request, services: ServicesDep, _: Viewer
                 quiet_s = 0.0
                 yield ": keepalive\n\n"
             await asyncio.sleep(EVENT_POLL_S)
-            after = last_window if last_window is not None else -1
-            snap = await run_in_threadpool(run_snapshot, reads, run_id, after)
-            last_window = snap.last_window if snap is not None else last_window
+            snap = await run_in_threadpool(snapshots.get, run_id)
 
     return StreamingResponse(stream(), media_type="text/event-stream", headers={"Cache-Control": "no-cache"})

@@ -27,7 +27,7 @@ from api.settings import Settings
 from bench.procedures import build_procedure, preview
 from bench.records import new_run_id, utc_now
 from bench.sequencer_control import RunControl, SequencerConfig
-from db.models import FINAL_STATES, Run, Unit
+from db.models import ACTIVE_STATES, FINAL_STATES, Run, Unit
 from db.repo.queue import (
     ControlAction,
     bench_id_of,
@@ -111,6 +111,8 @@ class RunQueue:
         self, unit_serial: str, procedure: str, *, dwell_s: float | None = None, kind: RunKind = "calibration"
     ) -> LiveRun:
         """Queue a run for this bench (also while it is busy); the agent starts it when free.
+        A drift check of a unit that has one queued or running already is that one (several API
+        processes each run the nightly scheduler).
 
         :raises ValueError: unknown procedure or one the table limits refuse.
         """
@@ -125,6 +127,13 @@ class RunQueue:
         with self.sessions.begin() as s:
             bench = get_or_create_bench(s, self.settings.bench_name)
             unit = get_or_create_unit(s, unit_serial, bench_id=bench.id)
+            if kind == "drift_check":  # every API process has a scheduler: one check per unit at a time
+                live = s.scalars(
+                    sa.select(Run).where(Run.unit_id == unit.id, Run.state.in_(list(ACTIVE_STATES)))
+                ).all()
+                for run in live:
+                    if run.params.get("service_kind") == "drift_check":
+                        return _live_of(run, unit_serial)
             queue_run(s, run_id, unit.id, bench.id, procedure, params)
         return LiveRun(run_id, unit_serial, procedure, kind, RunControl(), 0.0)
 

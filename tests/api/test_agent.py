@@ -8,6 +8,8 @@ import socket
 from pathlib import Path
 
 from api.agent import BenchAgent
+from api.run_queue import RunQueue
+from db.engine import make_session_factory, open_database
 from db.models import Run, RunState
 from db.repo.queue import queue_run
 from db.repo.runs import create_run
@@ -51,3 +53,22 @@ def test_a_run_left_live_by_a_failed_write_is_ended_as_error(tmp_path: Path) -> 
             assert elsewhere is not None and elsewhere.state is RunState.QUEUED  # another bench's
     finally:
         agent.close()
+
+
+def test_a_drift_check_is_queued_once_per_unit_by_several_api_processes(tmp_path: Path) -> None:
+    settings = service_settings(tmp_path)
+    engine = open_database(settings.effective_database_url)
+    try:
+        queues = [
+            RunQueue(settings, make_session_factory(engine), make_session_factory(engine, read_only=True))
+            for _ in range(2)
+        ]  # two API processes, each with its nightly scheduler
+        first = queues[0].start("SN-DRIFT", "static-12", dwell_s=3.0, kind="drift_check")
+        again = queues[1].start("SN-DRIFT", "static-12", dwell_s=3.0, kind="drift_check")
+        other = queues[1].start("SN-DRIFT", "static-12", dwell_s=3.0)  # an operator's calibration
+        assert again.id == first.id and other.id != first.id
+        assert queues[0].queued() == [first.id, other.id]
+        assert queues[0].abort(first.id) and queues[0].queued() == [other.id]
+        assert queues[1].start("SN-DRIFT", "static-12", dwell_s=3.0, kind="drift_check").id != first.id
+    finally:
+        engine.dispose()

@@ -84,9 +84,13 @@ def run(run_id: str, session: SessionDep, runner: RunnerDep, settings: SettingsD
     responses={404: {"description": "no such run"}, 409: {"description": "the run is not live"}},
 )
 def abort(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -> AbortOut:
-    """Abort a live run: the table goes to its safe state, the recording is kept."""
+    """Abort a live run: the table goes to its safe state, the recording is kept. A run still
+    queued ends at once (``state`` ``aborted``); a live one is stopped by the bench's agent."""
     if runner.abort(run_id):
-        return AbortOut(id=run_id, abort_requested=True, state="running")
+        with session.begin():
+            row = get_run(session, run_id)
+            state = row.state.value if row is not None else "running"
+        return AbortOut(id=run_id, abort_requested=True, state=state)  # type: ignore[arg-type]
     raise _not_live(session, run_id, "nothing to abort")
 
 

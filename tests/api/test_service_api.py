@@ -103,7 +103,7 @@ def test_a_start_on_a_busy_bench_queues_and_abort_ends_the_run(client: TestClien
     # Queued behind the first: an abort of a queued run ends it at once, without the table.
     assert client.get(f"/api/runs/{second_id}", headers=VIEW).json()["state"] == "queued"
     r = client.post(f"/api/runs/{second_id}/abort", headers=OP)
-    assert r.status_code == 200, r.text
+    assert r.status_code == 200 and r.json()["state"] == "aborted", r.text
     queued_abort = client.get(f"/api/runs/{second_id}", headers=VIEW).json()
     assert queued_abort["state"] == "aborted" and "before it started" in queued_abort["error"]
     assert client.get("/api/health").json()["busy_run"] == run_id

@@ -63,9 +63,9 @@ def lock_path(settings: Settings) -> Path:
     return settings.data_dir / f"agent-{safe}.lock"
 
 
-def take_lock(path: Path) -> IO[str] | None:
-    """Hold the lock file (it stays held while the returned file is open); ``None`` when
-    another process holds it."""
+def take_lock(path: Path, *, write_pid: bool = True) -> IO[str] | None:
+    """Hold the lock file (it stays held while the returned file is open) and write this
+    process's pid into it; ``None`` when another process holds it."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handle = path.open("a+")
     try:
@@ -73,16 +73,19 @@ def take_lock(path: Path) -> IO[str] | None:
     except BlockingIOError:
         handle.close()
         return None
-    handle.seek(0)
-    handle.truncate()
-    handle.write(f"{os.getpid()}\n")
-    handle.flush()
+    if write_pid:
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
     return handle
 
 
 def lock_holder(path: Path) -> int | None:
-    """The pid written in the lock file, if the lock is held; ``None`` when it is free."""
-    handle = take_lock(path)
+    """The pid written in the lock file, if the lock is held; ``None`` when it is free (the
+    check holds the lock for an instant: an agent starting just then exits with
+    :data:`ALREADY_RUNNING`, and its supervisor starts it again)."""
+    handle = take_lock(path, write_pid=False)
     if handle is not None:
         handle.close()
         return None

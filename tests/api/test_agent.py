@@ -7,7 +7,11 @@ import os
 import socket
 from pathlib import Path
 
+import pytest
+
 from api.agent import BenchAgent
+from api.cli import main
+from api.cli.agent import ALREADY_RUNNING, lock_holder, take_lock
 from api.run_queue import RunQueue
 from db.engine import make_session_factory, open_database
 from db.models import Run, RunState
@@ -72,3 +76,22 @@ def test_a_drift_check_is_queued_once_per_unit_by_several_api_processes(tmp_path
         assert queues[1].start("SN-DRIFT", "static-12", dwell_s=3.0, kind="drift_check").id != first.id
     finally:
         engine.dispose()
+
+
+def test_a_second_agent_for_the_bench_exits_naming_the_first(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("CALBENCH_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("CALBENCH_DATABASE_URL", f"sqlite:///{tmp_path / 'calbench.db'}")
+    monkeypatch.setenv("CALBENCH_BENCH_NAME", "bench/one")
+    path = tmp_path / "agent-bench_one.lock"
+    held = take_lock(path)  # the first agent
+    assert held is not None
+    try:
+        assert lock_holder(path) == os.getpid()
+        assert main(["agent", "--sim"]) == ALREADY_RUNNING
+        err = capsys.readouterr().err
+        assert f"already has an agent (pid {os.getpid()}" in err and "bench/one" in err
+    finally:
+        held.close()
+    assert lock_holder(path) is None

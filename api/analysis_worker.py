@@ -51,6 +51,13 @@ def analyse_upload(csv_path: str) -> AnalysisResult:
         return calibration, None, str(exc).replace(prefix, "")
 
 
+def _import_analysis() -> None:
+    """Import what :func:`analyse_upload` needs (run in a fresh worker)."""
+    import api.certificates.issue  # noqa: F401
+    import bench.calibration
+    import bench.recording  # noqa: F401
+
+
 class AnalysisPool:
     """Where upload analyses run: ``workers`` spawned processes, or the thread pool (0).
 
@@ -74,6 +81,13 @@ class AnalysisPool:
                     self.workers, mp_context=multiprocessing.get_context("spawn")
                 )
             return self._pool
+
+    def warm(self) -> None:
+        """Start the worker processes now and let them import the analysis (seconds on a busy
+        machine), so the first upload does not wait for it; nothing with 0 workers."""
+        if self.workers > 0:
+            for _ in range(self.workers):
+                self._executor().submit(_import_analysis)
 
     async def analyse(self, csv_path: Path) -> AnalysisResult:
         """:func:`analyse_upload` of ``csv_path`` in a worker; the event loop stays free.

@@ -149,6 +149,7 @@ def create_app(
             agent = BenchAgent(settings, clock=clock)
             agent.start()
         services.agent = agent
+        services.analysis.warm()
         app.state.services = services
         if start_scheduler and services.drift.time_of_day is not None:
             services.drift.start()

@@ -32,6 +32,7 @@ def service_settings(tmp_path: Path, **overrides: Any) -> Settings:
         "run_dwell_s": 3.0,
         "drift_time": "",
         "drift_dwell_s": 3.0,
+        "upload_workers": 0,  # uploads in a thread: no worker process per test app on 2 cores
     }
     values.update(overrides)
     return Settings(**values)

@@ -13,7 +13,9 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import multiprocessing
+import os
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +53,18 @@ def analyse_upload(csv_path: str) -> AnalysisResult:
         return calibration, None, str(exc).replace(prefix, "")
 
 
+def _end_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
+    """Worker initializer: the worker ends when the server that started it is gone (killed:
+    the pool never told it to stop), instead of staying behind as an orphan."""
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(poll_s)
+        os._exit(0)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
 def _import_analysis() -> None:
     """Import what :func:`analyse_upload` needs (run in a fresh worker)."""
     import api.certificates.issue  # noqa: F401
@@ -78,7 +92,10 @@ class AnalysisPool:
         with self._lock:
             if self._pool is None:
                 self._pool = concurrent.futures.ProcessPoolExecutor(
-                    self.workers, mp_context=multiprocessing.get_context("spawn")
+                    self.workers,
+                    mp_context=multiprocessing.get_context("spawn"),
+                    initializer=_end_with_parent,
+                    initargs=(os.getpid(),),
                 )
             return self._pool
 

@@ -81,3 +81,49 @@ def test_a_dead_worker_is_reported_and_replaced(tmp_path: Path, shared_dir: Path
         assert len(cal["bias"]) == 3
     finally:
         pool.close()
+
+
+OWNER = """
+import time
+from api.analysis_worker import AnalysisPool
+pool = AnalysisPool(1)
+pool.warm()
+ex = pool._executor()
+deadline = time.monotonic() + 120
+while not ex._processes and time.monotonic() < deadline:
+    time.sleep(0.1)
+print(*ex._processes, flush=True)
+time.sleep(600)
+"""
+
+
+def test_workers_end_with_a_killed_server() -> None:
+    """A server killed with SIGKILL never stops its pool: the workers notice and end."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    repo = Path(__file__).resolve().parents[2]
+    owner = subprocess.Popen([sys.executable, "-c", OWNER], cwd=repo, stdout=subprocess.PIPE, text=True)
+    try:
+        assert owner.stdout is not None
+        workers = [int(p) for p in owner.stdout.readline().split()]
+        assert workers and all(_alive(p) for p in workers)
+        owner.send_signal(signal.SIGKILL)
+        owner.wait(30)
+        deadline = time.monotonic() + 60
+        while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not any(_alive(p) for p in workers), f"workers {workers} outlived the server"
+    finally:
+        if owner.poll() is None:
+            owner.kill()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:
+        return False
+    return "\nState:\tZ" not in status

@@ -12,5 +12,6 @@ USER calbench
 ENV CALBENCH_DATA_DIR=/data
 EXPOSE 8000
 # --sim: the simulated table and DAQ (real drivers on loopback); drop it and set
-# CALBENCH_TABLE_URL / CALBENCH_DAQ_URL for a real bench.
+# CALBENCH_TABLE_URL / CALBENCH_DAQ_URL for a real bench. Alone, the service starts the bench
+# agent as its child process; docker-compose.yml runs `calbench agent` as its own service.
 CMD ["calbench", "serve", "--sim", "--host", "0.0.0.0", "--port", "8000"]

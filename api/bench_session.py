@@ -98,8 +98,8 @@ def open_devices(
 ) -> BenchDevices:
     """Table and DAQ of the bench file ``config`` (default :func:`bench_config_for`): a
     simulated bench built to its geometry (``sim``, a ``sim://`` file, unit ``truth`` or the
-    seed's typical one) or the file's URLs; the DAQ is checked against the file and its
-    channels mapped to the sensor's x, y, z.
+    seed's typical one; in its own process when ``settings.sim_process``) or the file's URLs;
+    the DAQ is checked against the file and its channels mapped to the sensor's x, y, z.
     """
     config = config or bench_config_for(settings, sim)
     n_axes = len(config.axes)
@@ -107,7 +107,13 @@ def open_devices(
         url = sim_url(settings, sim_speed, seed, config.channel_unit)
         if not sim and settings.bench_file is None and settings.table_url.lower().startswith("sim:"):
             url = settings.table_url  # a sim:// table URL with its own parameters
-        devices = open_bench(url, truth=truth, n_axes=n_axes, sim_geometry=_sim_geometry(config))
+        devices = open_bench(
+            url,
+            truth=truth,
+            n_axes=n_axes,
+            sim_geometry=_sim_geometry(config),
+            sim_process=settings.sim_process,
+        )
     else:
         devices = open_bench(config.table_url, config.daq_url, n_axes=n_axes)
     try:
@@ -370,18 +376,30 @@ def start_run(
             unit = get_or_create_unit(s, unit_serial, channel_unit=sidecar.channel_unit, bench_id=bench.id)
             if limits == "settings":  # before the run exists: a bad limits file refuses the run
                 limits = limits_for(settings, getattr(unit, "model", None), sidecar.channel_unit)
-            create_run(
-                s,
-                run_id,
-                unit.id,
-                procedure_name,
-                bench_id=bench.id,
-                params=meta,
-                recording_path=str(csv_path),
-                state=DbRunState.RUNNING,
-                owner_pid=os.getpid(),
-                owner_host=socket.gethostname(),
-            )
+            queued = s.get(Run, run_id, with_for_update=True)
+            if queued is None:
+                create_run(
+                    s,
+                    run_id,
+                    unit.id,
+                    procedure_name,
+                    bench_id=bench.id,
+                    params=meta,
+                    recording_path=str(csv_path),
+                    state=DbRunState.RUNNING,
+                    owner_pid=os.getpid(),
+                    owner_host=socket.gethostname(),
+                )
+            else:  # claimed from the queue by this process (db.repo.queue.claim_next_run)
+                owner = (queued.owner_pid, queued.owner_host)
+                if queued.state is not DbRunState.RUNNING or owner != (os.getpid(), socket.gethostname()):
+                    raise ValueError(
+                        f"run {run_id} is {queued.state.value} owned by {owner[0]}@{owner[1]}: "
+                        "not claimed by this process"
+                    )
+                queued.recording_path = str(csv_path)
+                queued.params = {**queued.params, **meta}
+                s.flush()
         recorder = RunRecorder.create(csv_path, sidecar, has_temp=True, run_meta=meta)
         if dwell is not None:
             recorder.record_dwell(dwell)

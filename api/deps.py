@@ -9,19 +9,24 @@ other method gets a writing one (``BEGIN IMMEDIATE`` on SQLite).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
-from typing import Annotated
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Annotated
 
 from fastapi import Depends, HTTPException, Query, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
+from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, AuthError, Principal, Role
 from api.drift import DriftScheduler
 from api.progress_hub import ProgressHub
-from api.runner import BenchRunner
+from api.run_queue import RunQueue
 from api.settings import Settings
+
+if TYPE_CHECKING:
+    from api.agent import BenchAgent
+    from api.run_events import SnapshotCache
 
 
 @dataclass
@@ -33,9 +38,14 @@ class Services:
     sessions: sessionmaker[Session]
     read_sessions: sessionmaker[Session]
     hub: ProgressHub
-    runner: BenchRunner
+    runner: RunQueue
     drift: DriftScheduler
     auth: Authenticator
+    analysis: AnalysisPool = field(default_factory=lambda: AnalysisPool(0))
+    agent: BenchAgent | None = None
+    """The bench agent running in this process (``settings.agent == "embedded"``), else ``None``."""
+    snapshots: SnapshotCache | None = None
+    """The runs' snapshots shared by this process's event streams (``None``: one per stream)."""
 
 
 def get_services(request: Request) -> Services:
@@ -67,13 +77,13 @@ def get_settings(services: ServicesDep) -> Settings:
     return services.settings
 
 
-def get_runner(services: ServicesDep) -> BenchRunner:
-    """The bench's runner."""
+def get_runner(services: ServicesDep) -> RunQueue:
+    """The bench's run queue."""
     return services.runner
 
 
 SettingsDep = Annotated[Settings, Depends(get_settings)]
-RunnerDep = Annotated[BenchRunner, Depends(get_runner)]
+RunnerDep = Annotated[RunQueue, Depends(get_runner)]
 
 _bearer = HTTPBearer(auto_error=False, description="a viewer, operator or admin token")
 

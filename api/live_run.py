@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import math
 import threading
+import time
+from collections.abc import Callable
 from typing import Any, Literal
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -72,22 +75,7 @@ class HubObserver(NullObserver):
     def on_progress(self, run_id: str, progress: Progress) -> None:
         self.live.state = "running" if progress.state.value == "running" else progress.state.value
         self.live.progress = progress.fraction
-        self.hub.publish(
-            run_id,
-            "progress",
-            {
-                "progress": progress.fraction,
-                "step_index": progress.step_index,
-                "n_steps": progress.n_steps,
-                "step_label": progress.step_label,
-                "window_index": progress.window_index,
-                "n_windows": progress.n_windows,
-                "elapsed_s": progress.elapsed_s,
-                "expected_total_s": progress.expected_total_s,
-                "table_deg": list(progress.table_deg),
-                "state": progress.state.value,
-            },
-        )
+        self.hub.publish(run_id, "progress", progress_data(progress))
 
     def on_gap(self, run_id: str, gap: GapRecord) -> None:
         """A sample gap, as the run page shows it (``GET /api/runs/{id}`` ``gaps`` items)."""
@@ -97,8 +85,13 @@ class HubObserver(NullObserver):
         self.hub.publish(
             run_id,
             "window",
-            {"index": window.index, "label": window.label, "kind": window.kind.value,
-             "pose_deg": list(window.pose_deg), "n_samples": window.n_samples},
+            {
+                "index": window.index,
+                "label": window.label,
+                "kind": window.kind.value,
+                "pose_deg": list(window.pose_deg),
+                "n_samples": window.n_samples,
+            },
         )
 
 
@@ -115,3 +108,51 @@ class ServiceParamsObserver(NullObserver):
             extra[SIM_AGE_KEY] = self.live.age_days
         with self.sessions.begin() as s:
             merge_params(s, start.run_id, extra)
+
+
+LIVE_KEY = "live"
+"""``Run.params`` key of the run's latest progress (the ``progress`` event's data), written by
+the bench's agent so that every API process can stream it."""
+
+
+class DbLiveObserver(NullObserver):
+    """Stores the latest progress of the run in ``params["live"]`` at most every
+    ``min_interval_s`` (and always on a state change), for the event streams of API processes
+    that do not hold the bench.
+
+    :param clock: monotonic clock (s), replaceable in tests.
+    """
+
+    def __init__(
+        self,
+        sessions: sessionmaker[Session],
+        min_interval_s: float = 1.0,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.sessions, self.min_interval_s, self.clock = sessions, min_interval_s, clock
+        self._last = -math.inf
+
+    def on_progress(self, run_id: str, progress: Progress) -> None:
+        now = self.clock()
+        if now - self._last < self.min_interval_s and progress.fraction < 1.0:
+            return
+        self._last = now
+        data = progress_data(progress)
+        with self.sessions.begin() as s:
+            merge_params(s, run_id, {LIVE_KEY: data})
+
+
+def progress_data(progress: Progress) -> dict[str, Any]:
+    """The ``progress`` event's data."""
+    return {
+        "progress": progress.fraction,
+        "step_index": progress.step_index,
+        "n_steps": progress.n_steps,
+        "step_label": progress.step_label,
+        "window_index": progress.window_index,
+        "n_windows": progress.n_windows,
+        "elapsed_s": progress.elapsed_s,
+        "expected_total_s": progress.expected_total_s,
+        "table_deg": list(progress.table_deg),
+        "state": progress.state.value,
+    }

@@ -1,13 +1,19 @@
-"""The service: ``create_app(settings)`` wires database, runner, drift scheduler, auth and routes.
+"""The service: ``create_app(settings)`` wires database, run queue, drift scheduler, auth, routes.
+
+The API never drives the bench itself: runs and control requests go to the database
+(:class:`api.run_queue.RunQueue`) and the bench's agent (:mod:`api.agent`) executes them.
+With ``settings.agent == "external"`` the agent is another process (``calbench agent``,
+started by ``calbench serve`` or by docker compose); with ``"embedded"`` (the default of
+``create_app``: tests, a one-process set-up) the lifespan runs one in a thread of this process,
+through the same queue, and on shutdown leaves the run it holds ``interrupted`` — table safe,
+recording closed, resumable with ``POST /api/runs/{id}/resume`` after the restart.
 
 The lifespan opens (creates and migrates) the database, marks runs left live by a dead
 process ``interrupted`` (and runs a previous shutdown stopped, see
-:mod:`api.service_resume`), starts the drift scheduler's thread, and on shutdown stops the
-scheduler and leaves the run holding the bench ``interrupted`` — table safe, recording
-closed, resumable with ``POST /api/runs/{id}/resume`` after the restart. On SIGTERM/SIGINT
-the open event streams end first, so the server does not wait for them before the run is
-stopped. Nothing is read from the environment here:
-the caller builds ``Settings`` (``calbench serve`` does, from ``CALBENCH_*``).
+:mod:`api.service_resume`) and starts the drift scheduler's thread. On SIGTERM/SIGINT
+the open event streams end first, so the server does not wait for them before stopping.
+Nothing is read from the environment here: the caller builds ``Settings`` (``calbench
+serve`` does, from ``CALBENCH_*``).
 
 The dashboard (``api/static`` at ``/static`` and ``GET /`` from ``api.routes.dashboard``,
 each when present) is mounted beside the JSON API.
@@ -29,26 +35,24 @@ from pathlib import Path
 
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
-from sqlalchemy.orm import Session, sessionmaker
 
+from api.agent import BenchAgent
+from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, Role, parse_tokens
-from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
 from api.deps import Services
-from api.drift import DriftScheduler, record_drift_check
+from api.drift import DriftScheduler
 from api.guard import RequestGuard, install_error_handlers, install_log_redaction
 from api.progress_hub import ProgressHub
 from api.routes import api_router
-from api.runner import BenchRunner, LiveRun
+from api.run_events import SnapshotCache
+from api.run_queue import RunQueue
 from api.service_resume import recover_shutdown_aborts
 from api.settings import Settings
 from api.startup_check import check_configuration
-from bench.records import RunRecord, utc_now
+from bench.records import utc_now
 from db.engine import make_session_factory
 from db.migrate import open_database
-from db.observer import finish_record
 from db.repo.recovery import mark_interrupted_runs
-from db.repo.runs import merge_params
-from db.repo.units import get_unit_by_serial
 
 log = logging.getLogger(__name__)
 STATIC_DIR = Path(__file__).resolve().parent / "static"
@@ -63,37 +67,8 @@ a short-lived signed link (`POST /api/links`), never with a token in the URL.
 """
 
 
-def make_finisher(
-    settings: Settings, sessions: sessionmaker[Session], read_sessions: sessionmaker[Session]
-) -> Callable[[LiveRun, RunRecord], None]:
-    """What the runner's worker does after a run: results, certificate or drift comparison.
-
-    The recording is read and diagnosed before the write transaction opens."""
-
-    def finish(live: LiveRun, record: RunRecord) -> None:
-        analysis = None
-        if live.kind == "calibration":
-            with read_sessions.begin() as s:
-                nominal = unit_nominal(get_unit_by_serial(s, live.unit_serial))
-            analysis = analyse_run(record, nominal)
-        with sessions.begin() as s:
-            merge_params(s, record.run_id, {"service_kind": live.kind})
-            # the final state commits in one transaction with the certificate (or drift check):
-            # a run that reads completed has them
-            finish_record(s, record)
-            if live.kind == "calibration":
-                cert = finish_calibration(s, settings, record, analysis)
-                live.extra["certificate_number"] = cert.number if cert is not None else None
-            else:
-                check = record_drift_check(s, settings, live.unit_serial, record)
-                live.extra["drift_flagged"] = check.flagged
-                live.extra["drift_check_id"] = check.id
-
-    return finish
-
-
 def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_now) -> Services:
-    """Open the database (migrating it) and build runner, scheduler and authenticator.
+    """Open the database (migrating it) and build the run queue, scheduler and authenticator.
 
     :raises ValueError: a malformed ``CALBENCH_TOKENS`` entry or ``CALBENCH_DRIFT_TIME``, or a
         configuration :func:`api.startup_check.check_configuration` refuses (device URL, database file).
@@ -116,11 +91,22 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     for gap in warnings:
         log.warning("certificate: %s", gap)
     hub = ProgressHub()
-    finisher = make_finisher(settings, sessions, read_sessions)
-    runner = BenchRunner(settings, sessions, hub, finisher, clock=clock)
+    runner = RunQueue(settings, sessions, read_sessions, clock=clock)
     drift = DriftScheduler(settings, sessions, runner, clock=clock)
     auth = Authenticator(env_tokens, sessions, read_sessions, public_read=settings.public_read)
-    return Services(settings, engine, sessions, read_sessions, hub, runner, drift, auth)
+    analysis = AnalysisPool(settings.upload_workers)
+    return Services(
+        settings,
+        engine,
+        sessions,
+        read_sessions,
+        hub,
+        runner,
+        drift,
+        auth,
+        analysis,
+        snapshots=SnapshotCache(read_sessions),
+    )
 
 
 @contextmanager
@@ -156,6 +142,7 @@ def create_app(
     clock: Callable[[], dt.datetime] = utc_now,
     start_scheduler: bool = True,
     extra_tokens: dict[str, str] | None = None,
+    on_shutdown: Callable[[], None] | None = None,
 ) -> FastAPI:
     """The FastAPI application for ``settings``.
 
@@ -163,6 +150,8 @@ def create_app(
     :param start_scheduler: start the drift scheduler's thread (tests call ``tick`` instead).
     :param extra_tokens: ``{secret: role}`` accepted besides ``settings.tokens`` (the
         admin token ``calbench serve`` generates when none is configured).
+    :param on_shutdown: called at the end of the lifespan (``calbench serve`` stops the bench
+        agent it started there: after a signal the server re-raises it once the lifespan is over).
     """
 
     @asynccontextmanager
@@ -171,6 +160,12 @@ def create_app(
         services = build_services(settings, clock)
         for secret, role in (extra_tokens or {}).items():
             services.auth.add(secret, Role[role.upper()])
+        agent = None
+        if settings.agent == "embedded":
+            agent = BenchAgent(settings, clock=clock)
+            agent.start()
+        services.agent = agent
+        services.analysis.warm()
         app.state.services = services
         if start_scheduler and services.drift.time_of_day is not None:
             services.drift.start()
@@ -180,10 +175,13 @@ def create_app(
         finally:
             services.hub.close_all("the service is stopping")
             services.drift.stop()
-            stopped = services.runner.shutdown()
-            if stopped is not None:
-                log.warning("run %s interrupted by the shutdown; resume it after the restart", stopped)
+            if agent is not None:
+                agent.stop()
+                agent.close()
+            if on_shutdown is not None:
+                on_shutdown()
             services.auth.close()
+            services.analysis.close()
             app.state.services = None
             services.engine.dispose()
 

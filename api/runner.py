@@ -28,16 +28,18 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from api import service_resume
 from api.bench_session import start_run
-from api.live_run import HubObserver, LiveRun, RunKind, ServiceParamsObserver
+from api.live_run import DbLiveObserver, HubObserver, LiveRun, RunKind, ServiceParamsObserver
 from api.progress_hub import TERMINAL_EVENT, ProgressHub
 from api.service_resume import SHUTDOWN_REASON, NotResumable
 from api.settings import Settings
 from bench.procedures import build_procedure, preview
 from bench.records import Outcome, RunObserver, RunRecord, RunState, new_run_id, utc_now
 from bench.sequencer.control import RunControl, SequencerConfig
+from db.models import Run
+from db.models import RunState as DbRunState
 from db.observer import finish_record
 from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
-from db.repo.runs import merge_params
+from db.repo.runs import finish_run, merge_params
 from db.repo.units import get_unit_by_serial
 from drivers.sim.physics import SensorTruth
 
@@ -46,6 +48,9 @@ __all__ = ["BenchBusy", "BenchRunner", "LiveRun", "NotResumable", "RunKind", "si
 log = logging.getLogger(__name__)
 
 Finisher = Callable[[LiveRun, RunRecord], None]
+FINISHED_KEY = "service_finished"
+"""``Run.params`` key of a service run's final event (state, outcome, error, certificate number
+or drift result), written once its results are stored."""
 
 
 class BenchBusy(Exception):
@@ -76,6 +81,8 @@ class BenchRunner:
     :param finisher: called in the worker after the run ended (stores results); its
         exceptions are logged and reported on the stream, the run's state stays as stored.
     :param clock: wall clock (UTC), replaceable in tests to age simulated units.
+    :param store_live: also store each run's latest progress in the database
+        (:class:`~api.live_run.DbLiveObserver`), for API processes that do not hold the bench.
     """
 
     def __init__(
@@ -85,8 +92,10 @@ class BenchRunner:
         hub: ProgressHub,
         finisher: Finisher | None = None,
         clock: Callable[[], dt.datetime] = utc_now,
+        store_live: bool = False,
     ) -> None:
         self.settings, self.sessions, self.hub = settings, sessions, hub
+        self.store_live = store_live
         self.finisher = finisher
         self.clock = clock
         self._lock = threading.Lock()
@@ -123,10 +132,18 @@ class BenchRunner:
         self._thread = threading.Thread(target=target, args=(live,), name=f"bench-run-{live.id}", daemon=True)
 
     def start(
-        self, unit_serial: str, procedure: str, *, dwell_s: float | None = None, kind: RunKind = "calibration"
+        self,
+        unit_serial: str,
+        procedure: str,
+        *,
+        dwell_s: float | None = None,
+        kind: RunKind = "calibration",
+        run_id: str | None = None,
     ) -> LiveRun:
-        """Queue a run and start its worker.
+        """Start a run's worker.
 
+        :param run_id: the id of a run this process has claimed from the queue
+            (:mod:`db.repo.queue`); default: a new id.
         :raises ValueError: unknown procedure or one the table limits refuse.
         :raises BenchBusy: another run holds the bench.
         """
@@ -138,7 +155,12 @@ class BenchRunner:
         age = self.age_days(unit_serial)
         with self._lock:
             live = LiveRun(
-                new_run_id(unit_serial, self.clock()), unit_serial, procedure, kind, RunControl(), age
+                run_id or new_run_id(unit_serial, self.clock()),
+                unit_serial,
+                procedure,
+                kind,
+                RunControl(),
+                age,
             )
             live.extra["dwell_s"] = dwell_s
             self._claim_bench(live, self._work)
@@ -166,6 +188,30 @@ class BenchRunner:
             age = claimed.sim_age_days
             live = LiveRun(
                 run_id,
+                claimed.unit_serial,
+                claimed.procedure,
+                claimed.kind,  # type: ignore[arg-type]
+                RunControl(),
+                age if age is not None else 0.0,
+                resumed=True,
+            )
+            live.extra["claimed"] = claimed
+            live.extra["resumed_from_window"] = claimed.point.next_window_index
+            self._claim_bench(live, self._work)
+        self.hub.publish(live.id, "state", {"state": "queued", "reason": "resume accepted"})
+        assert self._thread is not None
+        self._thread.start()
+        return live
+
+    def resume_claimed(self, claimed: service_resume.Claimed) -> LiveRun:
+        """Continue a run this process has already claimed (from the queue) from its next window.
+
+        :raises BenchBusy: another run holds the bench.
+        """
+        with self._lock:
+            age = claimed.sim_age_days
+            live = LiveRun(
+                claimed.run_id,
                 claimed.unit_serial,
                 claimed.procedure,
                 claimed.kind,  # type: ignore[arg-type]
@@ -212,7 +258,13 @@ class BenchRunner:
         return True
 
     def _observers(self, live: LiveRun) -> list[RunObserver]:
-        return [ServiceParamsObserver(live, self.sessions, self.settings.sim), HubObserver(live, self.hub)]
+        observers: list[RunObserver] = [
+            ServiceParamsObserver(live, self.sessions, self.settings.sim),
+            HubObserver(live, self.hub),
+        ]
+        if self.store_live:
+            observers.append(DbLiveObserver(self.sessions))
+        return observers
 
     def _acquire(self, live: LiveRun) -> RunRecord:
         """Execute (or continue) the run on the bench, to its verdict."""
@@ -261,22 +313,22 @@ class BenchRunner:
             live.error = f"{type(exc).__name__}: {exc}"
             if live.resumed and record is None:  # claimed but not continued: resumable again
                 interrupted = self._release_claim(live)
+            elif record is None:  # a claimed run must not stay live without an owner at work
+                self._end_in_error(live)
         finally:
             if record is not None and not interrupted:
                 self._finalise(live, record)
             live.state = "interrupted" if interrupted else _final_state(record)
             live.progress = 1.0 if live.state == "completed" else live.progress
             hidden = ("dwell_s", "claimed")
-            self.hub.publish(
-                live.id,
-                TERMINAL_EVENT,
-                {
-                    "state": live.state,
-                    "outcome": record.outcome.value if record and record.outcome else None,
-                    "error": live.error,
-                    **{k: v for k, v in live.extra.items() if k not in hidden},
-                },
-            )
+            finished = {
+                "state": live.state,
+                "outcome": record.outcome.value if record and record.outcome else None,
+                "error": live.error,
+                **{k: v for k, v in live.extra.items() if k not in hidden},
+            }
+            self.hub.publish(live.id, TERMINAL_EVENT, finished)
+            self._store_finished(live, finished)
             with self._lock:
                 self._recent[live.id] = live
                 if len(self._recent) > 50:
@@ -295,6 +347,23 @@ class BenchRunner:
                     merge_params(s, live.id, {"certificate_error": f"results not stored: {live.error}"})
         except Exception:
             log.exception("run %s: could not store its final state", live.id)
+
+    def _end_in_error(self, live: LiveRun) -> None:
+        try:
+            with self.sessions.begin() as s:
+                finish_run(s, live.id, DbRunState.ERROR, outcome="ERROR", error=live.error)
+        except Exception:
+            log.exception("run %s: could not store its error", live.id)
+
+    def _store_finished(self, live: LiveRun, finished: dict[str, object]) -> None:
+        """The run's last event, in the run's params (``service_finished``): API processes end
+        their event streams with it (the results and certificate are stored by then)."""
+        try:
+            with self.sessions.begin() as s:
+                if s.get(Run, live.id) is not None:
+                    merge_params(s, live.id, {FINISHED_KEY: finished})
+        except Exception:
+            log.exception("run %s: could not store its final event", live.id)
 
     def _release_claim(self, live: LiveRun) -> bool:
         try:

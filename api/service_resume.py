@@ -29,6 +29,7 @@ from api.settings import Settings
 from bench.records import RunObserver, RunRecord
 from bench.sequencer.control import RunControl
 from db.models import Run, RunState, Unit
+from db.repo.queue import ClaimedRun
 from db.repo.recovery import ResumePoint, claim_for_resume
 from db.types import utc_now
 from drivers.sim.physics import SensorTruth
@@ -130,6 +131,24 @@ def claim(session: Session, run_id: str) -> Claimed:
         run.procedure,
         params,
         point,
+        kind if kind in ("calibration", "drift_check") else "calibration",
+        float(age) if isinstance(age, int | float) else None,
+    )
+
+
+def from_queue(queued: ClaimedRun) -> Claimed:
+    """The :class:`Claimed` of a resume the agent claimed from the queue (``queued.point`` set)."""
+    if queued.point is None:
+        raise ValueError(f"run {queued.run_id} was queued as a fresh run, not a resume")
+    kind = queued.params.get("service_kind")
+    age = queued.params.get(SIM_AGE_KEY)
+    return Claimed(
+        queued.run_id,
+        queued.unit_serial,
+        queued.model,
+        queued.procedure,
+        queued.params,
+        queued.point,
         kind if kind in ("calibration", "drift_check") else "calibration",
         float(age) if isinstance(age, int | float) else None,
     )

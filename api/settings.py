@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import socket
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
@@ -33,6 +33,11 @@ class Settings(BaseSettings):
     :param temp_band_c: allowed sensor temperature band (°C) or ``None``.
     :param public_read: reads need no token (a lab that shows the dashboard on a wall screen).
     :param sim: the service drives a simulated bench (``calbench serve --sim``).
+    :param agent: ``embedded``: the service runs the bench agent in a thread of its own process
+        (one process does everything); ``external``: the agent is another process
+        (``calbench agent``) and the service never touches the bench's devices.
+    :param sim_process: the simulated bench runs in its own process (like hardware, unaffected
+        by how busy the bench's process is); ``False``: threads of the process that drives it.
     :param sim_seed: seed of the simulated bench's noise; each unit's own errors come from its serial.
     :param run_dwell_s: static dwell of runs started over REST (s); ``None``: a noise window decides.
     :param drift_time: local time of the nightly drift check, ``HH:MM``; empty: no scheduler.
@@ -52,7 +57,9 @@ class Settings(BaseSettings):
         the one shipped with calbench (``bench/data/unit_limits.json``).
     :param limits_model: model whose limits judge a run when the unit's registration names
         none (or one the file lacks); empty: no limits, every completed fit PASSes.
-    :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c);
+    :param upload_workers: worker processes that fit and diagnose uploaded recordings
+        (``POST /api/recordings``); 0: a thread of the server (never the event loop).
+        :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c);
         a real (non-simulated) bench issues no certificate while the name or address is empty.
     :param authorized_by: who authorises certificates (7.8.2.1 o); required as the lab identity is.
     :param reference_equipment: the bench's reference standards and their calibration status,
@@ -79,6 +86,8 @@ class Settings(BaseSettings):
     public_read: bool = False
     sim: bool = False
     sim_seed: int = 0
+    sim_process: bool = True
+    agent: Literal["embedded", "external"] = "embedded"
     run_dwell_s: float | None = None
     drift_time: str = "02:00"
     drift_procedure: str = "static-12"
@@ -87,6 +96,7 @@ class Settings(BaseSettings):
     drift_bias_repeatability_m_s2: float = Field(5e-4, ge=0, description="bias run-to-run, m/s2")
     limits_file: Path | None = None
     limits_model: str = "ADXL325"
+    upload_workers: int = Field(1, ge=0, le=32)
     lab_name: str = ""
     lab_address: str = ""
     lab_location: str = "bench room"

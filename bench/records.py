@@ -373,31 +373,31 @@ class RunObserver(Protocol):
 
     def on_start(self, start: RunStart) -> None:
         """A run starts, or a resumed run starts again (``start.resumed_from_window`` set)."""
-        ...
+        return None
 
     def on_state(self, run_id: str, change: StateChange) -> None:
         """The run changed state (pause, suspension, resume)."""
-        ...
+        return None
 
     def on_progress(self, run_id: str, progress: Progress) -> None:
         """Periodic progress (a few times a second at most)."""
-        ...
+        return None
 
     def on_chunk(self, run_id: str, chunk: ChunkRecord) -> None:
         """A chunk of samples is flushed and fsync'ed to the recording."""
-        ...
+        return None
 
     def on_window(self, run_id: str, window: WindowRecord) -> None:
         """A window is complete: samples flushed, segment written to the sidecar."""
-        ...
+        return None
 
     def on_dwell(self, run_id: str, dwell: DwellChoice) -> None:
         """The dwell time was chosen (at the start, or after the noise window)."""
-        ...
+        return None
 
     def on_finish(self, record: RunRecord) -> None:
         """The run ended (any outcome)."""
-        ...
+        return None
 
     # Optional: ``on_gap(run_id: str, gap: GapRecord) -> None`` is called, when an observer
     # defines it, as soon as a sample gap is recorded (before the window is re-measured).
@@ -405,7 +405,7 @@ class RunObserver(Protocol):
 
 class NullObserver(RunObserver):
     """A :class:`RunObserver` that ignores everything (each method is the protocol's own, which
-    does nothing); subclass it and override what you need."""
+    returns at once); subclass it and override what you need."""
 
     def on_gap(self, run_id: str, gap: GapRecord) -> None:
         """Ignored (the optional hook of the module's observers)."""

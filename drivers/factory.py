@@ -25,6 +25,7 @@ from drivers.errors import DriverError
 from drivers.modbus_daq import ModbusDaq
 from drivers.sim.bench import DEFAULT_AXES, SimBench
 from drivers.sim.physics import SensorTruth
+from drivers.sim.process import SimBenchProcess
 from drivers.table import SerialRotaryTable
 
 TableOpener = Callable[[str, float, int], RotaryTable]
@@ -124,7 +125,7 @@ class BenchDevices:
 
     table: RotaryTable
     daq: Daq
-    sim: SimBench | None = None
+    sim: SimBench | SimBenchProcess | None = None
 
     def close(self) -> None:
         """Close the drivers, then stop the simulated bench (idempotent)."""
@@ -150,13 +151,16 @@ def open_bench(
     n_axes: int = 3,
     truth: SensorTruth | None = None,
     sim_geometry: dict[str, Any] | None = None,
+    sim_process: bool = False,
 ) -> BenchDevices:
     """Open the table and the DAQ; ``table_url`` ``sim://...`` starts a :class:`SimBench` first.
 
     With ``sim://`` the DAQ URL must be absent or ``sim://`` too (one simulation feeds
     both); ``truth`` chooses the simulated unit, ``sim_geometry`` the simulated bench's
     ``axes``, ``mount``, ``lever_arm_m`` and ``g_local_m_s2`` (:class:`SimBench` keywords;
-    default: its own, with ``n_axes`` of :data:`DEFAULT_AXES`).
+    default: its own, with ``n_axes`` of :data:`DEFAULT_AXES`); ``sim_process`` runs the
+    simulation in its own process (:class:`SimBenchProcess`: it keeps time like hardware however
+    busy this process is), otherwise in threads of this one (tests that inject faults reach it there).
 
     :raises ValueError: a bad URL or combination.
     """
@@ -167,13 +171,13 @@ def open_bench(
         seed = int(p.get("seed", 0))
         if truth is None:
             truth = SensorTruth.typical(str(p.get("unit", "V")), seed)
-        sim = SimBench(
-            truth,
-            speed=float(p.get("speed", 1.0)),
-            sample_rate_hz=float(p.get("rate", 100.0)),
-            seed=seed,
-            **(sim_geometry or {"axes": DEFAULT_AXES[:n_axes]}),
-        )
+        speed, rate = float(p.get("speed", 1.0)), float(p.get("rate", 100.0))
+        geometry = sim_geometry or {"axes": DEFAULT_AXES[:n_axes]}
+        sim: SimBench | SimBenchProcess
+        if sim_process:
+            sim = SimBenchProcess(truth, speed=speed, sample_rate_hz=rate, seed=seed, **geometry)
+        else:
+            sim = SimBench(truth, speed=speed, sample_rate_hz=rate, seed=seed, **geometry)
         try:
             table = open_table(sim.table_url, timeout_s=timeout_s, n_axes=n_axes)
             try:

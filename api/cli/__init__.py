@@ -26,6 +26,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "runs": ("api.cli.runs", "list runs"),
     "resume": ("api.cli.resume", "resume an interrupted run"),
     "serve": ("api.cli.serve", "start the REST service and dashboard"),
+    "agent": ("api.cli.agent", "run the bench agent: the process that owns the table and DAQ"),
     "db": ("api.cli.db", "database maintenance (upgrade)"),
 }
 

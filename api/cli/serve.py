@@ -1,4 +1,10 @@
-"""``calbench serve [--sim] [--sim-speed N] [--host H] [--port P]``: the REST service and dashboard.
+"""``calbench serve [--sim] [--sim-speed N] [--host H] [--port P] [--agent MODE]``: the REST
+service and dashboard.
+
+The service never drives the bench itself: by default it starts the bench's agent
+(``calbench agent``, :mod:`api.supervisor`) as a child process and keeps it running;
+``--agent external`` leaves that to someone else (docker compose, systemd), ``--agent
+embedded`` runs the agent in a thread of the service (one process, as before).
 
 Settings come from ``CALBENCH_*`` (see ``docs/service.md``). Without ``CALBENCH_TOKENS``
 an admin token is generated and printed once on stderr (it may also create database tokens
@@ -35,6 +41,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the bench's configuration file (calbench-bench/1; default CALBENCH_BENCH_FILE, "
         "else the simulated bench's)",
     )
+    parser.add_argument(
+        "--agent",
+        default="spawn",
+        choices=["spawn", "external", "embedded"],
+        help="spawn (default): start and watch the bench agent process; external: it runs elsewhere; "
+        "embedded: in a thread of this process",
+    )
 
 
 def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
@@ -62,6 +75,7 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
 
     if getattr(args, "bench_file", None) is not None:
         update["bench_file"] = Path(args.bench_file)
+    update["agent"] = "embedded" if getattr(args, "agent", "spawn") == "embedded" else "external"
     generated: dict[str, str] = {}
     if not settings.tokens:
         generated[new_secret()] = "admin"
@@ -93,6 +107,17 @@ def run(args: argparse.Namespace) -> int:
         f"{'simulated bench' if settings.sim else settings.table_url}, http://{args.host}:{args.port}/",
         file=sys.stderr,
     )
-    app = create_app(settings, extra_tokens=generated)
-    uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level)
+    supervisor = None
+    if args.agent == "spawn":
+        from api.supervisor import AgentSupervisor
+
+        supervisor = AgentSupervisor(settings, sim=settings.sim, sim_speed=args.sim_speed)
+        supervisor.start()
+    try:
+        stop_agent = supervisor.stop if supervisor is not None else None
+        app = create_app(settings, extra_tokens=generated, on_shutdown=stop_agent)
+        uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level)
+    finally:  # also when the app never started; stopping twice is harmless
+        if supervisor is not None:
+            supervisor.stop()
     return 0

@@ -13,6 +13,7 @@ import datetime as dt
 import logging
 import threading
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -21,6 +22,9 @@ from api.runner import BenchBusy, BenchRunner
 from api.settings import Settings
 from bench.records import utc_now
 from db.repo.units import get_unit_by_serial
+
+if TYPE_CHECKING:
+    from api.run_queue import RunQueue
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +54,7 @@ class DriftScheduler:
         self,
         settings: Settings,
         sessions: sessionmaker[Session],
-        runner: BenchRunner,
+        runner: BenchRunner | RunQueue,
         clock: Callable[[], dt.datetime] = utc_now,
         poll_s: float = 20.0,
     ) -> None:

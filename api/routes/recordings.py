@@ -1,7 +1,8 @@
 """Upload a recording (CSV + JSON sidecar), get its calibration and diagnosis back.
 
 Nothing is stored: the files go to a temporary directory, are read and validated as
-``calbench-recording/1``, fitted and diagnosed, and deleted.
+``calbench-recording/1``, fitted and diagnosed in a worker (:mod:`api.analysis_worker`: a
+separate process by default, never on the event loop), and deleted.
 """
 
 from __future__ import annotations
@@ -13,11 +14,8 @@ from typing import Annotated
 
 from fastapi import APIRouter, File, HTTPException, UploadFile, status
 
-from api.certificates.issue import DIAGNOSIS_AVAILABLE, diagnose
-from api.deps import OperatorDep
+from api.deps import OperatorDep, ServicesDep
 from api.schemas import RecordingResult
-from bench.calibration import calibrate_recording
-from bench.recording import read_recording
 
 router = APIRouter(prefix="/api", tags=["recordings"])
 MAX_UPLOAD_BYTES = 512 * 1024 * 1024
@@ -46,11 +44,15 @@ async def _save(upload: UploadFile, path: Path, what: str) -> None:
 @router.post(
     "/recordings",
     response_model=RecordingResult,
-    responses={422: {"description": "not a valid recording, or the model cannot be identified"}},
+    responses={
+        422: {"description": "not a valid recording, or the model cannot be identified"},
+        503: {"description": "the analysis worker died; send the request again"},
+    },
 )
 async def upload_recording(
     recording: Annotated[UploadFile, File(description="the recording CSV (calbench-recording/1)")],
     sidecar: Annotated[UploadFile, File(description="its JSON sidecar")],
+    services: ServicesDep,
     _: OperatorDep,
 ) -> RecordingResult:
     """Calibrate and diagnose an uploaded recording (the same objects as
@@ -61,17 +63,9 @@ async def upload_recording(
         await _save(recording, csv_path, "recording")
         await _save(sidecar, csv_path.with_suffix(".json"), "sidecar")
         try:
-            rec = read_recording(csv_path)
-            calibration = calibrate_recording(rec).to_contract()
+            calibration, diagnosis, note = await services.analysis.analyse(csv_path)
         except ValueError as exc:
-            msg = str(exc).replace(str(csv_path.parent) + "/", "")
-            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, msg) from None
-        diagnosis, note = None, None
-        if not DIAGNOSIS_AVAILABLE:
-            note = "the diagnosis module is not installed"
-        else:
-            try:
-                diagnosis = diagnose(rec)
-            except ValueError as exc:
-                note = str(exc).replace(str(csv_path.parent) + "/", "")
+            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
+        except RuntimeError as exc:
+            raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, str(exc)) from None
     return RecordingResult(calibration=calibration, diagnosis=diagnosis, diagnosis_error=note)

@@ -11,11 +11,13 @@ import anyio.to_thread
 import sqlalchemy as sa
 from fastapi import APIRouter, HTTPException, Query, Request, status
 from fastapi.responses import StreamingResponse
+from starlette.concurrency import run_in_threadpool
 
 from api.deps import OperatorDep, RunnerDep, ServicesDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
 from api.progress_hub import CLOSED_EVENT, TERMINAL_EVENT
 from api.routes.views import live_out, run_out
-from api.runner import BenchBusy, NotResumable
+from api.run_events import EVENT_POLL_S, RunSnapshot, SnapshotCache
+from api.run_queue import NotResumable
 from api.schemas import AbortOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
 from db.models import Certificate, RunState
 from db.repo.progress import list_windows
@@ -31,14 +33,13 @@ REAUTH_S = 2.0
     "",
     status_code=status.HTTP_202_ACCEPTED,
     response_model=RunCreated,
-    responses={409: {"description": "the bench is busy with another run"}},
+    responses={422: {"description": "a bad procedure, dwell or serial (named)"}},
 )
 def start_run(body: RunCreate, runner: RunnerDep, _: OperatorDep) -> RunCreated:
-    """Queue a procedure for a unit on this bench; the run starts at once on its worker."""
+    """Queue a procedure for a unit on this bench: the bench's agent starts it as soon as the
+    bench is free (at once when idle; after the runs queued before it when busy)."""
     try:
         live = runner.start(body.unit_serial, body.procedure, dwell_s=body.dwell_s)
-    except BenchBusy as exc:
-        raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
     return RunCreated(id=live.id)
@@ -48,13 +49,12 @@ def start_run(body: RunCreate, runner: RunnerDep, _: OperatorDep) -> RunCreated:
 def runs(
     session: SessionDep,
     runner: RunnerDep,
-    settings: SettingsDep,
     _: ViewerDep,
     unit_serial: Annotated[str | None, Query(max_length=64)] = None,
     state: RunStateName | None = None,
     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
 ) -> list[RunOut]:
-    """Runs, newest first (the run holding the bench first while it has no stored row)."""
+    """Runs, newest first (queued ones included: every run is stored from its request on)."""
     with session.begin():
         rows = list_runs(
             session, unit_serial=unit_serial, states=[RunState(state)] if state else None, limit=limit
@@ -64,16 +64,7 @@ def runs(
             sa.select(Certificate.run_id, Certificate.number).where(Certificate.run_id.in_(ids))
         ).all()
         numbers = dict(found)
-        out = [run_out(r, r.unit.serial, runner.live(r.id), numbers.get(r.id)) for r in rows]
-    cur = runner.current
-    if (
-        cur is not None
-        and all(r.id != cur.id for r in out)
-        and state in (None, "queued")
-        and unit_serial in (None, cur.unit_serial)
-    ):
-        out.insert(0, live_out(cur, settings.bench_name))
-    return out
+        return [run_out(r, r.unit.serial, runner.live(r.id), numbers.get(r.id)) for r in rows]
 
 
 @router.get("/{run_id}", response_model=RunOut, responses={404: {"description": "no such run"}})
@@ -104,9 +95,13 @@ def run(run_id: str, session: SessionDep, runner: RunnerDep, settings: SettingsD
     responses={404: {"description": "no such run"}, 409: {"description": "the run is not live"}},
 )
 def abort(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -> AbortOut:
-    """Abort a live run: the table goes to its safe state, the recording is kept."""
+    """Abort a live run: the table goes to its safe state, the recording is kept. A run still
+    queued ends at once (``state`` ``aborted``); a live one is stopped by the bench's agent."""
     if runner.abort(run_id):
-        return AbortOut(id=run_id, abort_requested=True, state="running")
+        with session.begin():
+            row = get_run(session, run_id)
+            state = row.state.value if row is not None else "running"
+        return AbortOut(id=run_id, abort_requested=True, state=state)  # type: ignore[arg-type]
     raise _not_live(session, run_id, "nothing to abort")
 
 
@@ -141,15 +136,15 @@ def pause(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -
     response_model=RunActionOut,
     responses={
         404: {"description": "no such run"},
-        409: {"description": "the bench is busy with another run, or the run cannot be resumed"},
+        409: {"description": "the run cannot be resumed (its state or recording says why)"},
     },
 )
 def resume(run_id: str, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
     """Continue a run. A paused or suspended run holding the bench goes on (for a suspension,
     the operator's go-ahead: the table is prepared again once the interlock has closed). An
-    ``interrupted`` run (its process died or the service shut down) continues on this bench
-    from the window after its last complete one, with live events on ``/events`` and its
-    certificate issued at the end as for a fresh run."""
+    ``interrupted`` run (its process died or the service shut down) is queued on its bench and
+    continues from the window after its last complete one (after the runs queued before it),
+    with live events on ``/events`` and its certificate issued at the end as for a fresh run."""
     cur = runner.current
     if cur is not None and cur.id == run_id:
         if cur.state not in ("paused", "suspended"):
@@ -162,7 +157,7 @@ def resume(run_id: str, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
         live = runner.resume(run_id)
     except LookupError as exc:
         raise HTTPException(status.HTTP_404_NOT_FOUND, str(exc)) from None
-    except (BenchBusy, NotResumable) as exc:
+    except NotResumable as exc:
         raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
     return RunActionOut(
         id=run_id, action="resume", state="queued", resumed_from_window=live.extra.get("resumed_from_window")
@@ -184,56 +179,63 @@ async def events(
     """Live progress as server-sent events: ``state``, ``progress``, ``window``, and a final
     ``finished`` (state, outcome, error, certificate_number) after which the stream ends; a
     ``shutdown`` event ends it when the service stops (the run is then ``interrupted``) or when
-    the token it was opened with is revoked (checked every few seconds).
-    A run that is not live gets one ``finished`` event with its stored state. A browser opens
-    it with a signed link (``POST /api/links``) or with fetch and the Authorization header."""
-    runner, hub = services.runner, services.hub
-    live = runner.live(run_id)
-    if live is None:
-        with services.read_sessions.begin() as s:
-            row = get_run(s, run_id)
-            if row is None:
-                raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
-            final = {"state": row.state.value, "outcome": row.outcome, "error": row.error}
+    the token it was opened with is revoked (checked every few seconds). A run that is already
+    final gets one ``finished`` event with its stored state. A browser opens it with a signed
+    link (``POST /api/links``) or with fetch and the Authorization header.
 
-        async def once() -> AsyncIterator[str]:
-            yield _sse(TERMINAL_EVENT, final)
-
-        return StreamingResponse(once(), media_type="text/event-stream")
-    sub = hub.subscribe(run_id)
+    The events come from the database, where the bench's agent writes them (whichever
+    process this is, and also after it restarted mid-run): the run is read at most twice per
+    ``EVENT_POLL_S`` for all the streams of this process (:class:`api.run_events.SnapshotCache`),
+    in a worker thread, never on the event loop."""
+    hub, snapshots = services.hub, services.snapshots or SnapshotCache(services.read_sessions)
+    first = await run_in_threadpool(snapshots.get, run_id)
+    if first is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
 
     async def stream() -> AsyncIterator[str]:
-        try:
+        snap: RunSnapshot | None = first
+        state, live = None, None
+        last_window = snap.last_window if snap is not None else None  # a late stream does not replay
+        n_gaps = 0  # every gap is news: the run page counts the lost samples from them
+        quiet_s = 0.0
+        loop = asyncio.get_running_loop()
+        last_check = loop.time()
+        while snap is not None:
             if hub.closed is not None:
                 yield _sse(CLOSED_EVENT, {"reason": hub.closed})
                 return
-            if live.done.is_set() and hub.last(run_id) is None:
-                yield _sse(TERMINAL_EVENT, {"state": live.state, "error": live.error})
-                return
-            loop = asyncio.get_running_loop()
-            last_beat = last_check = loop.time()
-            while True:
-                try:
-                    event, data = await asyncio.wait_for(sub.queue.get(), REAUTH_S)
-                except TimeoutError:
-                    event = ""
-                now = loop.time()
-                if now - last_check >= REAUTH_S:
-                    last_check = now
-                    if not await anyio.to_thread.run_sync(services.auth.is_live, who):
-                        yield _sse(CLOSED_EVENT, {"reason": "the token of this stream has been revoked"})
-                        return
-                if not event:
-                    if await request.is_disconnected():
-                        return
-                    if now - last_beat >= KEEPALIVE_S:
-                        last_beat = now
-                        yield ": keepalive\n\n"
-                    continue
-                yield _sse(event, data)
-                if event in (TERMINAL_EVENT, CLOSED_EVENT):
+            if loop.time() - last_check >= REAUTH_S:
+                last_check = loop.time()
+                if not await anyio.to_thread.run_sync(services.auth.is_live, who):
+                    yield _sse(CLOSED_EVENT, {"reason": "the token of this stream has been revoked"})
                     return
-        finally:
-            hub.unsubscribe(sub)
+            sent = False
+            for gap in snap.gaps[n_gaps:]:
+                yield _sse("gap", gap)
+                sent = True
+            n_gaps = len(snap.gaps)
+            if snap.state != state:
+                state = snap.state
+                yield _sse("state", {"state": state, "reason": snap.error or ""})
+                sent = True
+            for window in snap.windows:
+                if last_window is None or window["index"] > last_window:
+                    yield _sse("window", window)
+                    last_window, sent = window["index"], True
+            if snap.live is not None and snap.live != live and snap.finished is None:
+                live = snap.live
+                yield _sse("progress", live)
+                sent = True
+            if snap.finished is not None:
+                yield _sse(TERMINAL_EVENT, snap.finished)
+                return
+            quiet_s = 0.0 if sent else quiet_s + EVENT_POLL_S
+            if quiet_s >= KEEPALIVE_S:
+                if await request.is_disconnected():
+                    return
+                quiet_s = 0.0
+                yield ": keepalive\n\n"
+            await asyncio.sleep(EVENT_POLL_S)
+            snap = await run_in_threadpool(snapshots.get, run_id)
 
     return StreamingResponse(stream(), media_type="text/event-stream", headers={"Cache-Control": "no-cache"})

@@ -94,7 +94,7 @@ def _scalar_force(rec: Recording, y: np.ndarray, V: np.ndarray, g: float) -> np.
     except ValueError as exc:
         raise ValueError(f"{where(rec)}: orientations unknown and the scalar fit failed: {exc}") from exc
     u = np.linalg.solve(sf.L, (y - sf.bias).T).T
-    return g * u / np.linalg.norm(u, axis=1, keepdims=True)
+    return np.asarray(g * u / np.linalg.norm(u, axis=1, keepdims=True), dtype=float)
 
 
 def _diagnose_moving(rec: Recording) -> Diagnosis:

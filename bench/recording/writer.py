@@ -15,6 +15,7 @@ operation (:func:`bench.recording.rows.format_block`).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import json
@@ -261,6 +262,14 @@ class RecordingWriter:
             self.flush()
             self._file.close()
             self._closed = True
+
+    def abandon(self) -> None:
+        """Close without writing what is still buffered (after a write failed: a full disk);
+        the file keeps what reached it. Safe to call twice."""
+        if not self._closed:
+            self._closed = True
+            with contextlib.suppress(OSError):
+                self._file.close()  # its flush fails again; the file is closed all the same
 
     def __enter__(self) -> RecordingWriter:
         return self

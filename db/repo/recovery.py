@@ -45,7 +45,8 @@ def mark_interrupted_runs(
     stale_after_s: float = DEFAULT_STALE_AFTER_S,
     now: dt.datetime | None = None,
 ) -> list[str]:
-    """Mark active runs with a dead owner ``interrupted``; return their ids.
+    """Mark active runs with a dead owner ``interrupted``; return their ids. A run queued for
+    an agent (``queued``, no owner yet) is waiting, not dead, however long it waits.
 
     :param host: this machine's host name; only its pids are checked with ``is_alive``.
     :param is_alive: ``pid -> bool`` for processes on ``host``.
@@ -55,7 +56,9 @@ def mark_interrupted_runs(
     cutoff = now - dt.timedelta(seconds=stale_after_s)
     candidates = session.execute(
         sa.select(Run.id, Run.owner_pid, Run.owner_host, Run.heartbeat_at, Run.created_at).where(
-            Run.state.in_(list(ACTIVE_STATES))
+            Run.state.in_(list(ACTIVE_STATES)),
+            # a queued run with no owner waits for its bench's agent (db.repo.queue): not dead
+            sa.not_(sa.and_(Run.state == RunState.QUEUED, Run.owner_pid.is_(None))),
         )
     ).all()
     dead: list[tuple[str, str]] = []

@@ -20,7 +20,8 @@ def test_upload_calibrates_and_diagnoses(tmp_path: Path, shared_dir: Path) -> No
     ex = shared_dir / "data" / "examples"
     csv, sidecar = (ex / "example_static12.csv").read_bytes(), (ex / "example_static12.json").read_bytes()
     truth = json.loads((ex / "example_static12.truth.json").read_text())
-    with TestClient(create_app(service_settings(tmp_path), start_scheduler=False)) as client:
+    settings = service_settings(tmp_path, upload_workers=1)  # the service's default: a worker process
+    with TestClient(create_app(settings, start_scheduler=False)) as client:
         files = {"recording": ("example_static12.csv", csv), "sidecar": ("example_static12.json", sidecar)}
         assert client.post("/api/recordings", files=files, headers=VIEW).status_code == 403
         r = client.post("/api/recordings", files=files, headers=OP)

@@ -1,4 +1,4 @@
-"""The REST API through the real app: roles, 409 on a busy bench, 422 with a clear message,
+"""The REST API through the real app: roles, a queue on a busy bench, 422 with a clear message,
 the live event stream, abort, and a run's certificate (JSON hash, PDF)."""
 
 from __future__ import annotations
@@ -13,7 +13,14 @@ from fastapi.testclient import TestClient
 
 from api.main import create_app
 from db.repo.certificates import canonical_sha256
-from tests.support.service_helpers import OP, VIEW, service_settings, signed_link, wait_final
+from tests.support.service_helpers import (
+    OP,
+    VIEW,
+    service_settings,
+    signed_link,
+    wait_final,
+    wait_state,
+)
 
 pytestmark = pytest.mark.timeout(400)
 
@@ -91,19 +98,32 @@ def test_non_json_body_is_422(client: TestClient) -> None:
     assert r.status_code == 422
 
 
-def test_second_start_is_409_and_abort_ends_the_run(client: TestClient) -> None:
+def test_a_start_on_a_busy_bench_queues_and_abort_ends_the_run(client: TestClient) -> None:
     first = client.post("/api/runs", json={"unit_serial": "SN-BUSY", "procedure": "static-12"}, headers=OP)
     assert first.status_code == 202
     run_id = first.json()["id"]
+    wait_state(client, run_id, "running")
     second = client.post("/api/runs", json={"unit_serial": "SN-OTHER", "procedure": "static-12"}, headers=OP)
-    assert second.status_code == 409 and run_id in second.json()["detail"]
-    assert client.get(f"/api/runs/{run_id}", headers=VIEW).json()["state"] in ("queued", "running")
+    third = client.post("/api/runs", json={"unit_serial": "SN-THIRD", "procedure": "static-12"}, headers=OP)
+    assert second.status_code == 202 and third.status_code == 202, (second.text, third.text)
+    second_id, third_id = second.json()["id"], third.json()["id"]
+    # Queued behind the first: an abort of a queued run ends it at once, without the table.
+    assert client.get(f"/api/runs/{second_id}", headers=VIEW).json()["state"] == "queued"
+    r = client.post(f"/api/runs/{second_id}/abort", headers=OP)
+    assert r.status_code == 200 and r.json()["state"] == "aborted", r.text
+    queued_abort = client.get(f"/api/runs/{second_id}", headers=VIEW).json()
+    assert queued_abort["state"] == "aborted" and "before it started" in queued_abort["error"]
+    assert client.get("/api/health").json()["busy_run"] == run_id
     r = client.post(f"/api/runs/{run_id}/abort", headers=OP)
     assert r.status_code == 200 and r.json()["abort_requested"] is True
     body = wait_final(client, run_id)
     assert body["state"] == "aborted"
     assert client.post(f"/api/runs/{run_id}/abort", headers=OP).status_code == 409
     assert client.get(f"/api/runs/{run_id}/certificate", headers=VIEW).status_code == 404
+    # The third run was queued behind both: the agent takes it once the bench is free.
+    wait_state(client, third_id, "running")
+    assert client.post(f"/api/runs/{third_id}/abort", headers=OP).status_code == 200
+    assert wait_final(client, third_id)["state"] == "aborted"
 
 
 def test_unknown_run_is_404(client: TestClient) -> None:

@@ -73,13 +73,11 @@ def test_pause_holds_the_run_and_resume_continues_it(client: TestClient) -> None
         "resumed_from_window": None,
     }
     held = wait_run(client, run_id, lambda r: r["state"] == "paused", "the pause")
-    # While it holds, the run cannot be resumed as if it had died, and a second start is refused.
-    assert (
-        client.post(
-            "/api/runs", json={"unit_serial": "SN-X", "procedure": "static-12"}, headers=OP
-        ).status_code
-        == 409
-    )
+    # While it holds the bench, a second start waits in the queue (and is withdrawn here).
+    second = client.post("/api/runs", json={"unit_serial": "SN-X", "procedure": "static-12"}, headers=OP)
+    assert second.status_code == 202
+    assert client.get(f"/api/runs/{second.json()['id']}", headers=VIEW).json()["state"] == "queued"
+    assert client.post(f"/api/runs/{second.json()['id']}/abort", headers=OP).status_code == 200
     r = client.post(f"/api/runs/{run_id}/resume", headers=OP)
     assert r.status_code == 202 and r.json()["action"] == "continue"
     body = wait_final(client, run_id)

@@ -76,3 +76,57 @@ def test_resume_refuses_a_window_the_files_do_not_hold(tmp_path: Path) -> None:
     rec.close()
     with pytest.raises(ValueError, match="cannot resume at window 3"):
         RunRecorder.resume(path, None, next_window=3, chunk_seq=1)
+
+
+@pytest.mark.parametrize("where", ["flush", "write"])
+def test_a_full_disk_cuts_the_recording_at_the_last_durable_chunk(tmp_path: Path, where: str) -> None:
+    """ENOSPC while a chunk is flushed (the rows reached the file, fsync failed) or while rows
+    are written: the error names the file and what was kept, the CSV ends exactly at the last
+    durable chunk (no torn row), and the recorder refuses to write on."""
+    import errno
+    import os
+
+    path = tmp_path / "r.csv"
+    rec = RunRecorder.create(path, sidecar(), True, {"run_id": "x"}, chunk_s=1.0, min_chunk_wall_s=0.0)
+    block(rec, 0.0, 100, 0)
+    durable = rec.close_window(window(0, 0.0, 0.99, 100))
+    assert durable is not None and durable.end_byte == path.stat().st_size
+    block(rec, 1.0, 60, 1)  # buffered, not yet durable
+
+    def full(*_: object) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    if where == "flush":
+        rec.writer.flush = lambda: (rec.writer._file.flush(), full())  # type: ignore[method-assign]
+        kept = r"No space left on device.*cut at the last durable chunk: 100 samples"
+        with pytest.raises(OSError, match=kept):
+            rec.close_window(window(1, 1.0, 1.59, 60))
+    else:
+        real = rec.writer._file
+
+        class HalfWritten:
+            """Half of the next rows reach the file (a torn row), then the disk is full."""
+
+            def write(self, text: str) -> int:
+                real.write(text[: len(text) // 2])
+                real.flush()
+                full()
+                return 0
+
+            def __getattr__(self, name: str) -> object:
+                return getattr(real, name)
+
+        rec.writer._file = HalfWritten()  # type: ignore[assignment]
+        real.flush()  # the buffered rows reach the file (not fsynced: not durable)
+        assert path.stat().st_size > durable.end_byte  # the buffered rows are on disk, not durable
+        with pytest.raises(OSError, match="No space left on device") as info:
+            block(rec, 1.6, 10, 1)
+        assert info.value.errno == errno.ENOSPC
+    assert path.stat().st_size == durable.end_byte
+    assert rec.n_rows == 100 and rec.failed is not None
+    with pytest.raises(OSError, match="failed earlier.*nothing more is written"):
+        block(rec, 3.0, 10, 1)
+    assert rec.close() is None
+    out = read_recording(path)
+    assert out.n_samples == 100 and out.t_s[-1] == pytest.approx(0.99)
+    assert [s.label for s in out.sidecar.segments or ()] == ["pos01"]

@@ -1,8 +1,10 @@
-"""``calbench serve --sim`` as a real subprocess on loopback, for the service's crash tests."""
+"""``calbench serve --sim`` as a real subprocess on loopback (it starts the bench agent as its own
+process, which starts the simulated bench as another), for the service's crash tests."""
 
 from __future__ import annotations
 
 import os
+import signal
 import socket
 import sqlite3
 import subprocess
@@ -14,9 +16,11 @@ from typing import Any
 
 import httpx
 
+from api.cli.agent import lock_holder
 from tests.e2e.helpers import RATE_HZ
 
 CALBENCH = str(Path(sys.executable).with_name("calbench"))
+BENCH = "bench-service-crash"
 OPERATOR = "operator-crash-0001"
 VIEWER = "viewer-crash-0001"
 OP = {"Authorization": f"Bearer {OPERATOR}"}
@@ -45,7 +49,7 @@ class ServiceProcess:
             "CALBENCH_DATABASE_URL": f"sqlite:///{self.db}",
             "CALBENCH_DATA_DIR": str(tmp_path),
             "CALBENCH_SIM_SAMPLE_RATE_HZ": str(RATE_HZ),
-            "CALBENCH_BENCH_NAME": "bench-service-crash",
+            "CALBENCH_BENCH_NAME": BENCH,
             "CALBENCH_TOKENS": f"operator:{OPERATOR},viewer:{VIEWER}",
             "CALBENCH_DRIFT_TIME": "",
         }
@@ -93,11 +97,20 @@ class ServiceProcess:
         self.proc.send_signal(sig)
         return self.proc.wait(timeout=timeout_s)
 
+    def agent_pid(self) -> int | None:
+        """The pid of the bench's agent process (from its lock file), ``None`` if none runs."""
+        holder = lock_holder(self.tmp_path / f"agent-{BENCH}.lock")
+        return holder if holder is not None and holder > 0 else None
+
     def kill(self) -> None:
-        """End the process if it still runs (test clean-up)."""
+        """End the service and its bench agent if they still run (test clean-up)."""
         if self.proc is not None and self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait(timeout=30)
+        pid = self.agent_pid()
+        if pid is not None:
+            os.kill(pid, signal.SIGKILL)
+            wait_for(lambda: self.agent_pid() is None, 30, f"agent {pid} to end")
 
     def sql(self, query: str, *args: object) -> list[tuple[Any, ...]]:
         """Rows of a query on the service's database (read directly, as an auditor would)."""

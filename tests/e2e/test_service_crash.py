@@ -1,16 +1,24 @@
-"""The service itself stops mid-run and the run is not lost.
+"""The service or its bench agent stops mid-run and the run is not lost.
 
 ``calbench serve --sim`` runs as a real subprocess on loopback with a temporary SQLite
-database. A static-12 run is started over REST; after a few windows the service is killed
-(SIGKILL: a crash) or stopped (SIGTERM: a deploy restart). On the next start the run is
-``interrupted``, its recording holds every durable chunk the database counts, ``POST
-/api/runs/{id}/resume`` finishes it on the same simulated unit, the certificate is issued,
-and the fit agrees with the simulated truth within its uncertainty.
+database; it starts the bench agent as its own process. A static-12 run is started over
+REST; after a few windows:
+
+* the API process is killed (SIGKILL): the agent records on, the restarted API finds it at
+  work, and the run completes as one run with no hole in its recording;
+* the agent is killed (SIGKILL) or the whole service stopped (SIGTERM: a deploy restart):
+  the run is ``interrupted``, its recording holds every durable chunk the database counts,
+  ``POST /api/runs/{id}/resume`` finishes it on the same simulated unit.
+
+Each time the certificate is issued and the fit agrees with the simulated truth within its
+uncertainty.
 """
 
 from __future__ import annotations
 
+import itertools
 import json
+import os
 import signal
 from pathlib import Path
 from typing import Any
@@ -96,18 +104,86 @@ def check_completed(svc: ServiceProcess, run_id: str, run: dict[str, Any], path:
     assert np.max(np.abs(z)) < 4.5, z
 
 
-@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM], ids=["sigkill", "sigterm"])
-def test_service_stopped_mid_run_then_resumed(tmp_path: Path, sig: signal.Signals) -> None:
+def test_api_killed_mid_run_the_run_never_stops_recording(tmp_path: Path) -> None:
+    """The API process dies (SIGKILL) and comes back: the agent records on, the run completes
+    as one uninterrupted run, and its recording has no hole."""
+    svc = ServiceProcess(tmp_path, SIM_SPEED)
+    try:
+        svc.start()
+        run_id = run_until_windows(svc, 3)
+        agent = svc.agent_pid()
+        assert agent is not None and svc.proc is not None and agent != svc.proc.pid
+        assert svc.stop(signal.SIGKILL) == -signal.SIGKILL
+        ((before,),) = svc.sql("SELECT last_complete_window FROM run WHERE id = ?", run_id)
+
+        def recorded_on() -> bool:  # while no API process exists
+            ((now,),) = svc.sql("SELECT last_complete_window FROM run WHERE id = ?", run_id)
+            return now is not None and now > before
+
+        wait_for(recorded_on, wall_budget_s(2 * RUN_SIM_S / 12), "windows recorded while the API was down")
+        svc.start()
+        assert svc.agent_pid() == agent  # the new API found the agent at work and left it alone
+
+        def done() -> dict[str, Any] | None:
+            run = svc.get(f"/api/runs/{run_id}")
+            assert run["state"] in ("running", "completed"), run
+            return run if run["state"] == "completed" and run.get("certificate_number") else None
+
+        run = wait_for(done, wall_budget_s(RUN_SIM_S), f"run {run_id} to complete")
+        ((resumes, error),) = svc.sql("SELECT resume_count, error FROM run WHERE id = ?", run_id)
+        assert resumes == 0 and error is None
+        path = durable_recording(svc, run_id)
+        check_completed(svc, run_id, run, path)
+        rec = read_recording(path)
+        step = np.diff(rec.t_s)
+        assert np.max(step) < 1.5 * np.median(step), "a hole in the recording"
+        chunks = svc.sql(
+            "SELECT first_sample, n_samples FROM sample_chunk WHERE run_id = ? ORDER BY seq", run_id
+        )
+        assert all(a + n == b for (a, n), (b, _) in itertools.pairwise(chunks))
+        assert svc.stop(signal.SIGTERM) == -signal.SIGTERM
+        wait_for(lambda: svc.agent_pid() is None, 120, "the adopted agent to stop with the service")
+    finally:
+        svc.kill()
+
+
+def test_agent_killed_mid_run_then_resumed(tmp_path: Path) -> None:
+    """The agent dies (SIGKILL): the service starts a new one, which marks the run
+    ``interrupted``; a resume over REST finishes it on the same simulated unit."""
     svc = ServiceProcess(tmp_path, SIM_SPEED)
     try:
         svc.start()
         run_id = run_until_windows(svc, 4)
-        code = svc.stop(sig)
-        assert code == -sig, svc.log()
-        if sig is signal.SIGTERM:  # graceful: stored interrupted by the shutdown itself
-            ((state, error),) = svc.sql("SELECT state, error FROM run WHERE id = ?", run_id)
-            assert state.lower() == "interrupted", (state, error, svc.log())
-            assert "shut down" in error
+        agent = svc.agent_pid()
+        assert agent is not None
+        os.kill(agent, signal.SIGKILL)
+        wait_for(lambda: svc.agent_pid() not in (None, agent), 120, "a new agent")
+
+        def interrupted() -> bool:
+            return bool(svc.get(f"/api/runs/{run_id}")["state"] == "interrupted")
+
+        wait_for(interrupted, 60, "the run to be marked interrupted")
+        path = durable_recording(svc, run_id)
+        run = resume_to_completion(svc, run_id)
+        check_completed(svc, run_id, run, path)
+        assert svc.stop(signal.SIGTERM) == -signal.SIGTERM
+    finally:
+        svc.kill()
+
+
+def test_service_stopped_mid_run_then_resumed(tmp_path: Path) -> None:
+    """SIGTERM to the service (a deploy restart): it stops its agent, which leaves the run
+    ``interrupted`` with the table safe; after the restart a resume finishes it."""
+    svc = ServiceProcess(tmp_path, SIM_SPEED)
+    try:
+        svc.start()
+        run_id = run_until_windows(svc, 4)
+        code = svc.stop(signal.SIGTERM)
+        assert code == -signal.SIGTERM, svc.log()
+        assert svc.agent_pid() is None
+        ((state, error),) = svc.sql("SELECT state, error FROM run WHERE id = ?", run_id)
+        assert state.lower() == "interrupted", (state, error, svc.log())
+        assert "shut down" in error
         path = durable_recording(svc, run_id)
 
         svc.start()

@@ -32,6 +32,7 @@ def service_settings(tmp_path: Path, **overrides: Any) -> Settings:
         "run_dwell_s": 3.0,
         "drift_time": "",
         "drift_dwell_s": 3.0,
+        "upload_workers": 0,  # uploads in a thread: no worker process per test app on 2 cores
     }
     values.update(overrides)
     return Settings(**values)
@@ -57,7 +58,8 @@ def wait_final(client: TestClient, run_id: str, timeout_s: float = 240.0) -> dic
     while time.monotonic() < deadline:
         body = client.get(f"/api/runs/{run_id}", headers=VIEW).json()
         final = body.get("state") in ("completed", "failed", "error", "aborted")
-        if final and services.runner.current is None:  # results stored: read them
+        cur = services.runner.current  # the run holding the bench, or still storing its results
+        if final and (cur is None or cur.id != run_id):  # results stored: read them
             return client.get(f"/api/runs/{run_id}", headers=VIEW).json()
         time.sleep(0.2)
     raise AssertionError(f"run {run_id} did not finish within {timeout_s} s: {body}")
@@ -70,3 +72,16 @@ def signed_link(client: TestClient, path: str, headers: dict[str, str] | None = 
     url: str = r.json()["url"]
     assert OPERATOR not in url and VIEWER not in url
     return url
+
+
+def wait_state(client: TestClient, run_id: str, state: str, timeout_s: float = 120.0) -> dict[str, Any]:
+    """Poll ``GET /api/runs/{id}`` until the run is in ``state`` (the bench's agent claims
+    queued runs within a poll interval); the run."""
+    deadline = time.monotonic() + timeout_s
+    body: dict[str, Any] = {}
+    while time.monotonic() < deadline:
+        body = client.get(f"/api/runs/{run_id}", headers=VIEW).json()
+        if body.get("state") == state:
+            return body
+        time.sleep(0.1)
+    raise AssertionError(f"run {run_id} not {state} within {timeout_s} s: {body}")

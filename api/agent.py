@@ -1,0 +1,227 @@
+"""The bench agent: the one process per table that owns the table, the DAQ, the sequencer and
+the recording (``calbench agent``).
+
+API processes never touch hardware: they queue runs and control requests in the database
+(:mod:`db.repo.queue`, :class:`api.run_queue.RunQueue`). The agent of bench
+``CALBENCH_BENCH_NAME`` polls the database every ``poll_s``: while its bench is free it
+claims the oldest queued run of the bench (row locking, so two agents or a restart never
+claim one run twice) and executes it on its :class:`~api.runner.BenchRunner`, fresh or
+resumed from the window after its last complete one; while a run holds the bench it applies
+the abort, pause and continue requests stored for it. Progress, windows, chunks, the final
+state, the fit, the diagnosis and the certificate go to the database as they happen, so any
+number of API processes can show them, and an API process can die or restart while the run
+records. The agent itself can restart: a run it held is then ``interrupted`` and resumes from
+its last complete window when an operator asks (``POST /api/runs/{id}/resume``).
+
+On SIGTERM/SIGINT the agent stops the run it holds with the table safe and the recording
+closed, stored ``interrupted`` (resumable), as the service did before it had an agent.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+import os
+import socket
+import threading
+from collections.abc import Callable
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, sessionmaker
+
+from api import service_resume
+from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
+from api.drift import record_drift_check
+from api.live_run import LiveRun
+from api.progress_hub import ProgressHub
+from api.runner import BenchBusy, BenchRunner
+from api.settings import Settings
+from bench.records import RunRecord, utc_now
+from db.engine import make_session_factory
+from db.migrate import open_database
+from db.models import Run, RunState
+from db.observer import finish_record
+from db.repo.queue import ClaimedRun, claim_next_run, pending_control
+from db.repo.recovery import mark_interrupted_runs
+from db.repo.runs import finish_run, merge_params
+from db.repo.units import get_or_create_bench, get_unit_by_serial
+
+log = logging.getLogger(__name__)
+
+POLL_S = 0.25
+"""How often the agent looks for queued runs and control requests (s)."""
+
+
+def make_finisher(
+    settings: Settings, sessions: sessionmaker[Session], read_sessions: sessionmaker[Session]
+) -> Callable[[LiveRun, RunRecord], None]:
+    """What the runner's worker does after a run: results, certificate or drift comparison.
+
+    The recording is read and diagnosed before the write transaction opens."""
+
+    def finish(live: LiveRun, record: RunRecord) -> None:
+        analysis = None
+        if live.kind == "calibration":
+            with read_sessions.begin() as s:
+                nominal = unit_nominal(get_unit_by_serial(s, live.unit_serial))
+            analysis = analyse_run(record, nominal)
+        with sessions.begin() as s:
+            merge_params(s, record.run_id, {"service_kind": live.kind})
+            # the final state commits in one transaction with the certificate (or drift check):
+            # a run that reads completed has them
+            finish_record(s, record)
+            if live.kind == "calibration":
+                cert = finish_calibration(s, settings, record, analysis)
+                live.extra["certificate_number"] = cert.number if cert is not None else None
+            else:
+                check = record_drift_check(s, settings, live.unit_serial, record)
+                live.extra["drift_flagged"] = check.flagged
+                live.extra["drift_check_id"] = check.id
+
+    return finish
+
+
+class BenchAgent:
+    """Claims the queued runs of one bench and executes them, one at a time.
+
+    :param settings: the bench (``bench_name``, devices or ``sim``) and its database.
+    :param clock: wall clock of the runner (ages simulated units; tests move it).
+    :param poll_s: interval of the queue and control polls (s).
+    """
+
+    def __init__(
+        self, settings: Settings, *, clock: Callable[[], dt.datetime] = utc_now, poll_s: float = POLL_S
+    ) -> None:
+        self.settings, self.poll_s = settings, poll_s
+        self.engine = open_database(settings.effective_database_url)
+        self.sessions = make_session_factory(self.engine)
+        self.read_sessions = make_session_factory(self.engine, read_only=True)
+        with self.sessions.begin() as s:
+            self.bench_id = get_or_create_bench(s, settings.bench_name).id
+        finisher = make_finisher(settings, self.sessions, self.read_sessions)
+        self.runner = BenchRunner(
+            settings, self.sessions, ProgressHub(), finisher, clock=clock, store_live=True
+        )
+        self.pid, self.host = os.getpid(), socket.gethostname()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._applied: tuple[str, int, bool] | None = None  # (run id, control seq, abort sent)
+
+    def recover(self) -> list[str]:
+        """Mark runs left live by a dead owner (a previous agent) ``interrupted``; their ids."""
+        with self.sessions.begin() as s:
+            marked = mark_interrupted_runs(s, self.host) + service_resume.recover_shutdown_aborts(s)
+        if marked:
+            log.warning("runs left live by a dead process, now interrupted: %s", ", ".join(marked))
+        return marked
+
+    def tick(self) -> str | None:
+        """One poll: claim and start the next queued run while the bench is free, or apply the
+        control requests of the run holding it. Returns the id of a run started now."""
+        cur = self.runner.current
+        if cur is not None:
+            self._apply_control(cur)
+            return None
+        self.end_orphans()
+        with self.sessions.begin() as s:
+            claimed = claim_next_run(s, self.bench_id, owner_pid=self.pid, owner_host=self.host)
+        if claimed is None:
+            return None
+        self._start(claimed)
+        return claimed.run_id
+
+    def end_orphans(self) -> list[str]:
+        """End as ERROR the runs this process owns in a live state although its runner is idle
+        (their end could not be stored when they ended: the database refused a write), so no
+        run stays ``running`` for ever; their ids. Call only while the runner holds no run."""
+        with self.sessions.begin() as s:
+            ids = list(
+                s.scalars(
+                    sa.select(Run.id).where(
+                        Run.owner_pid == self.pid,
+                        Run.owner_host == self.host,
+                        Run.state.in_([RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED]),
+                    )
+                )
+            )
+            for run_id in ids:
+                finish_run(
+                    s,
+                    run_id,
+                    RunState.ERROR,
+                    outcome="ERROR",
+                    error="the run ended but its end could not be stored (a database write failed); "
+                    "its recording holds the chunks the database counts",
+                )
+        if ids:
+            log.error("runs whose end could not be stored, now error: %s", ", ".join(ids))
+        return ids
+
+    def _start(self, claimed: ClaimedRun) -> None:
+        self._applied = (claimed.run_id, 0, False)
+        try:
+            if claimed.point is not None:
+                self.runner.resume_claimed(service_resume.from_queue(claimed))
+                return
+            request = claimed.params.get("request") or {}
+            kind = claimed.params.get("service_kind", "calibration")
+            self.runner.start(
+                claimed.unit_serial,
+                claimed.procedure,
+                dwell_s=request.get("dwell_s"),
+                kind="drift_check" if kind == "drift_check" else "calibration",
+                run_id=claimed.run_id,
+            )
+        except (ValueError, BenchBusy) as exc:  # never leave a claimed run live without a worker
+            log.error("run %s could not start: %s", claimed.run_id, exc)
+            with self.sessions.begin() as s:
+                finish_run(
+                    s, claimed.run_id, RunState.ERROR, outcome="ERROR", error=f"could not start: {exc}"
+                )
+
+    def _apply_control(self, live: LiveRun) -> None:
+        with self.read_sessions.begin() as s:
+            pending = pending_control(s, live.id)
+        run_id, seq, aborted = (
+            self._applied if self._applied and self._applied[0] == live.id else (live.id, 0, False)
+        )
+        if pending.abort and not aborted:
+            self.runner.abort(live.id, pending.abort)
+            aborted = True
+        if pending.seq > seq:
+            if pending.action == "pause":
+                self.runner.pause(live.id)
+            elif pending.action == "continue":
+                self.runner.continue_run(live.id)
+            seq = pending.seq
+        self._applied = (run_id, seq, aborted)
+
+    def run_forever(self) -> None:
+        """Poll until :meth:`stop`; a failing poll is logged and the next one tries again."""
+        while not self._stop.is_set():
+            try:
+                self.tick()
+            except Exception:
+                log.exception("bench agent %s: poll failed", self.settings.bench_name)
+            self._stop.wait(self.poll_s)
+
+    def start(self) -> None:
+        """Recover, then poll in a thread of this process."""
+        self.recover()
+        self._thread = threading.Thread(target=self.run_forever, name="bench-agent", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout_s: float = 60.0) -> str | None:
+        """Stop polling and leave the run holding the bench ``interrupted`` (table safe,
+        recording closed, resumable); its id, if any."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=10.0)
+        stopped = self.runner.shutdown(timeout_s)
+        if stopped is not None:
+            log.warning("run %s interrupted by the agent's shutdown; resume it after the restart", stopped)
+        return stopped
+
+    def close(self) -> None:
+        """Release the database."""
+        self.engine.dispose()

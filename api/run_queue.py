@@ -1,0 +1,213 @@
+"""The API's side of the bench: runs and control requests go to the database, never to hardware.
+
+:class:`RunQueue` has the runner's interface (``start``, ``resume``, ``abort``, ``pause``,
+``continue_run``, ``current``, ``wait_idle``), so the routes and the drift scheduler use it
+as they used the in-process runner, but every call is a database write or read
+(:mod:`db.repo.queue`): a start queues a run for this API's bench (``CALBENCH_BENCH_NAME``)
+and answers at once, also while the bench is busy; the bench's agent (:mod:`api.agent`)
+claims it when the bench is free. Any number of API processes can serve one bench, and any
+can restart while a run records.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import socket
+import time
+from collections.abc import Callable
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, sessionmaker
+
+from api import service_resume
+from api.live_run import LiveRun, RunKind
+from api.runner import FINISHED_KEY
+from api.service_resume import NotResumable
+from api.settings import Settings
+from bench.procedures import build_procedure, preview
+from bench.records import new_run_id, utc_now
+from bench.sequencer.control import RunControl, SequencerConfig
+from db.models import ACTIVE_STATES, FINAL_STATES, Run, Unit
+from db.repo.queue import (
+    ControlAction,
+    bench_id_of,
+    holding_run,
+    queue_resume,
+    queue_run,
+    queued_runs,
+    request_control,
+)
+from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs, process_alive
+from db.repo.units import get_or_create_bench, get_or_create_unit, get_unit_by_serial
+
+__all__ = ["NotResumable", "RunQueue"]
+
+
+class RunQueue:
+    """Queue and control the runs of one bench through the database.
+
+    :param settings: this API's bench (``bench_name``) and default dwell.
+    :param sessions: writing sessions; :param read_sessions: read-only sessions.
+    :param clock: wall clock (run ids, unit ages).
+    """
+
+    def __init__(
+        self,
+        settings: Settings,
+        sessions: sessionmaker[Session],
+        read_sessions: sessionmaker[Session],
+        clock: Callable[[], dt.datetime] = utc_now,
+    ) -> None:
+        self.settings, self.sessions, self.read_sessions, self.clock = (
+            settings,
+            sessions,
+            read_sessions,
+            clock,
+        )
+
+    def age_days(self, serial: str) -> float:
+        """Days since the unit was first registered, on this clock (0 for a new unit)."""
+        with self.read_sessions.begin() as s:
+            unit = get_unit_by_serial(s, serial)
+            first = unit.created_at if unit is not None else None
+        return 0.0 if first is None else max(0.0, (self.clock() - first).total_seconds() / 86400.0)
+
+    @property
+    def current(self) -> LiveRun | None:
+        """The run holding the bench (running, paused, suspended), or a run whose agent is still
+        storing its results and certificate; ``None`` when the bench is free."""
+        with self.read_sessions.begin() as s:
+            bench_id = bench_id_of(s, self.settings.bench_name)
+            if bench_id is None:
+                return None
+            run = holding_run(s, bench_id) or self._storing(s, bench_id)
+            if run is None:
+                return None
+            serial = s.scalar(sa.select(Unit.serial).where(Unit.id == run.unit_id)) or "?"
+            return _live_of(run, serial)
+
+    def _storing(self, s: Session, bench_id: int) -> Run | None:
+        cutoff = utc_now() - dt.timedelta(seconds=DEFAULT_STALE_AFTER_S)
+        rows = s.scalars(
+            sa.select(Run)
+            .where(Run.bench_id == bench_id, Run.state.in_(list(FINAL_STATES)), Run.finished_at > cutoff)
+            .order_by(Run.finished_at.desc())
+            .limit(3)
+        )
+        for run in rows:
+            service = run.params.get("service_kind") is not None
+            owner_alive = run.owner_host != socket.gethostname() or (
+                run.owner_pid is not None and process_alive(run.owner_pid)
+            )
+            if service and FINISHED_KEY not in run.params and owner_alive:
+                return run
+        return None
+
+    def live(self, run_id: str) -> LiveRun | None:
+        """Nothing: this process holds no run; stored rows say everything."""
+        return None
+
+    def start(
+        self, unit_serial: str, procedure: str, *, dwell_s: float | None = None, kind: RunKind = "calibration"
+    ) -> LiveRun:
+        """Queue a run for this bench (also while it is busy); the agent starts it when free.
+        A drift check of a unit that has one queued or running already is that one (several API
+        processes each run the nightly scheduler).
+
+        :raises ValueError: unknown procedure or one the table limits refuse.
+        """
+        dwell_s = dwell_s if dwell_s is not None else self.settings.run_dwell_s
+        proc = build_procedure(procedure, dwell_s=dwell_s)
+        pv = preview(proc, SequencerConfig(temp_band_c=self.settings.temp_band_c).limits)
+        if not pv.ok:
+            raise ValueError(f"{procedure}: " + "; ".join(pv.problems))
+        now = self.clock()
+        run_id = new_run_id(unit_serial, now)
+        params = {"service_kind": kind, "request": {"dwell_s": dwell_s}, "bench": self.settings.bench_name}
+        with self.sessions.begin() as s:
+            bench = get_or_create_bench(s, self.settings.bench_name)
+            unit = get_or_create_unit(s, unit_serial, bench_id=bench.id)
+            if kind == "drift_check":  # every API process has a scheduler: one check per unit at a time
+                live = s.scalars(
+                    sa.select(Run).where(Run.unit_id == unit.id, Run.state.in_(list(ACTIVE_STATES)))
+                ).all()
+                for run in live:
+                    if run.params.get("service_kind") == "drift_check":
+                        return _live_of(run, unit_serial)
+            queue_run(s, run_id, unit.id, bench.id, procedure, params)
+        return LiveRun(run_id, unit_serial, procedure, kind, RunControl(), 0.0)
+
+    def resume(self, run_id: str) -> LiveRun:
+        """Queue an ``interrupted`` run to continue from the window after its last complete one.
+
+        :raises LookupError: no such run. :raises NotResumable: its state or recording forbids it.
+        """
+        with self.sessions.begin() as s:
+            mark_interrupted_runs(s, socket.gethostname())  # a run whose owner has died since
+            run = service_resume.check_resumable(s, run_id)
+            try:
+                point = queue_resume(s, run_id)
+            except ValueError as exc:
+                raise NotResumable(str(exc)) from None
+            if point is None:
+                raise NotResumable(f"run {run_id} is no longer interrupted")
+            serial = s.scalar(sa.select(Unit.serial).where(Unit.id == run.unit_id)) or "?"
+            live = _live_of(run, serial)
+        live.extra["resumed_from_window"] = point.next_window_index
+        return live
+
+    def _request(self, run_id: str, action: ControlAction, reason: str = "") -> bool:
+        try:
+            with self.sessions.begin() as s:
+                return request_control(s, run_id, action, reason) is not None
+        except LookupError:
+            return False
+
+    def abort(self, run_id: str, reason: str = "operator abort over REST") -> bool:
+        """Ask the bench's agent to abort the run (a queued one ends at once); False if not live."""
+        return self._request(run_id, "abort", reason)
+
+    def pause(self, run_id: str) -> bool:
+        """Ask the agent to hold the run; False if it is not live."""
+        return self._request(run_id, "pause")
+
+    def continue_run(self, run_id: str) -> bool:
+        """Ask the agent to let a paused or suspended run go on; False if it is not live."""
+        return self._request(run_id, "continue")
+
+    def queued(self) -> list[str]:
+        """Ids of the bench's queued runs, in the order the agent takes them."""
+        with self.read_sessions.begin() as s:
+            bench_id = bench_id_of(s, self.settings.bench_name)
+            return [] if bench_id is None else [r.id for r in queued_runs(s, bench_id)]
+
+    def wait_idle(self, timeout_s: float, poll_s: float = 0.2) -> bool:
+        """Wait until the bench holds no run and none is queued; False on timeout."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.current is None and not self.queued():
+                return True
+            time.sleep(poll_s)
+        return False
+
+    def shutdown(self, timeout_s: float = 60.0) -> None:
+        """Nothing to stop: the bench's agent owns the run."""
+        return None
+
+
+def _live_of(run: Run, serial: str) -> LiveRun:
+    kind = run.params.get("service_kind")
+    live = LiveRun(
+        run.id,
+        serial,
+        run.procedure,
+        kind if kind in ("calibration", "drift_check") else "calibration",
+        RunControl(),
+        0.0,
+        state=run.state.value,
+        progress=run.progress,
+        error=run.error,
+    )
+    if run.created_at is not None:
+        live.created_at = run.created_at
+    return live

@@ -98,7 +98,7 @@ def test_a_full_disk_cuts_the_recording_at_the_last_durable_chunk(tmp_path: Path
 
     if where == "flush":
         rec.writer.flush = lambda: (rec.writer._file.flush(), full())  # type: ignore[method-assign]
-        kept = r"No space left on device.*cut at the last durable chunk: 100 samples"
+        kept = r"No space left on device.*cut at its last durable chunk \(100 rows"
         with pytest.raises(OSError, match=kept):
             rec.close_window(window(1, 1.0, 1.59, 60))
     else:

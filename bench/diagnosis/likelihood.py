@@ -35,6 +35,8 @@ import numpy.typing as npt
 from scipy.linalg import cho_factor, cho_solve
 from scipy.optimize import minimize
 
+from bench.estimation.window_covariance import WindowCovariance, invert_blocks
+
 FloatArray = npt.NDArray[np.float64]
 
 CORRELATION_TIMES_FRACTION = (0.0, 0.3, 1.0, 3.0)
@@ -87,6 +89,34 @@ def correlation(mid_s: FloatArray, corr_time_s: float) -> FloatArray:
     return np.exp(-np.abs(mid_s[:, None] - mid_s[None, :]) / corr_time_s)
 
 
+def window_covariance(
+    V: FloatArray,
+    mid_s: FloatArray,
+    noise: NoiseParams,
+    J_pose: FloatArray | None = None,
+    fixed: FloatArray | None = None,
+) -> WindowCovariance:
+    """C of the module docstring in its O(m) form (``window_covariance.WindowCovariance``).
+
+    :param V: (m, 3, 3) window-mean covariances; :param mid_s: (m,) window times (s).
+    :param J_pose: (m, 3, 2) pose response per window, needed when ``pose_var_rad2 > 0``.
+    :param fixed: (m, 3, 3) fixed extra per window, or ``None``.
+    """
+    blocks = np.array(V, dtype=float, copy=True)
+    if fixed is not None:
+        blocks = blocks + fixed
+    if noise.pose_var_rad2 > 0:
+        if J_pose is None:
+            raise ValueError("a pose-error variance needs the pose response J_pose")
+        blocks = blocks + noise.pose_var_rad2 * np.einsum("wik,wjk->wij", J_pose, J_pose)
+    return WindowCovariance(
+        blocks=blocks,
+        tau2=np.asarray(noise.tau2, dtype=float),
+        corr_time_s=float(noise.corr_time_s),
+        mid_s=np.asarray(mid_s, dtype=float),
+    )
+
+
 def covariance(
     V: FloatArray,
     mid_s: FloatArray,
@@ -94,42 +124,34 @@ def covariance(
     J_pose: FloatArray | None = None,
     fixed: FloatArray | None = None,
 ) -> FloatArray:
-    """(3m, 3m) covariance C of the module docstring.
+    """(3m, 3m) covariance C of the module docstring as a dense matrix (small m, checks).
 
-    :param V: (m, 3, 3) window-mean covariances; :param mid_s: (m,) window times (s).
-    :param J_pose: (m, 3, 2) pose response per window, needed when ``pose_var_rad2 > 0``.
-    :param fixed: (m, 3, 3) fixed extra per window, or ``None``.
+    Arguments as :func:`window_covariance`.
     """
-    m = V.shape[0]
-    blocks = V.copy()
-    if fixed is not None:
-        blocks = blocks + fixed
-    if noise.pose_var_rad2 > 0:
-        if J_pose is None:
-            raise ValueError("a pose-error variance needs the pose response J_pose")
-        blocks = blocks + noise.pose_var_rad2 * np.einsum("wik,wjk->wij", J_pose, J_pose)
-    C = np.zeros((3 * m, 3 * m))
-    for w in range(m):
-        C[3 * w : 3 * w + 3, 3 * w : 3 * w + 3] = blocks[w]
-    P = correlation(mid_s, noise.corr_time_s)
-    for i in range(3):
-        if noise.tau2[i] > 0:
-            C[i::3, i::3] += noise.tau2[i] * P
-    return C
+    return window_covariance(V, mid_s, noise, J_pose, fixed).dense()
 
 
-def gls(X: FloatArray, z: FloatArray, C: FloatArray) -> GlsFit:
+def gls(X: FloatArray, z: FloatArray, C: FloatArray | WindowCovariance) -> GlsFit:
     """Generalised least squares of z on X with covariance C (module docstring).
+
+    ``C`` is a dense (n, n) matrix or a :class:`WindowCovariance` (then every step is O(m)).
 
     :raises ValueError: C not positive definite or X rank-deficient under C.
     """
     n, p = X.shape
-    try:
-        cf = cho_factor(C, lower=True)
-    except np.linalg.LinAlgError as exc:
-        raise ValueError("noise covariance is not positive definite") from exc
-    logdet_c = 2.0 * float(np.sum(np.log(np.diag(cf[0]))))
-    CiX = cho_solve(cf, X)
+    if isinstance(C, WindowCovariance):
+        fac = C.factor()
+        logdet_c = fac.logdet
+        Ci = fac.solve(np.column_stack([X, z]))
+        CiX, Ciz = Ci[:, :p], Ci[:, p]
+    else:
+        try:
+            cf = cho_factor(C, lower=True)
+        except np.linalg.LinAlgError as exc:
+            raise ValueError("noise covariance is not positive definite") from exc
+        logdet_c = 2.0 * float(np.sum(np.log(np.diag(cf[0]))))
+        CiX = cho_solve(cf, X)
+        Ciz = cho_solve(cf, z)
     A = X.T @ CiX
     try:
         af = cho_factor(A, lower=True)
@@ -137,7 +159,7 @@ def gls(X: FloatArray, z: FloatArray, C: FloatArray) -> GlsFit:
         raise ValueError("design is rank-deficient: some parameters cannot be determined") from exc
     theta = cho_solve(af, CiX.T @ z)
     r = z - X @ theta
-    chi2 = float(r @ cho_solve(cf, r))
+    chi2 = float(r @ (Ciz - CiX @ theta))  # rᵀ C⁻¹ r = rᵀ (C⁻¹ z − C⁻¹ X θ̂)
     logdet_a = 2.0 * float(np.sum(np.log(np.diag(af[0]))))
     ml = -0.5 * (chi2 + logdet_c + n * math.log(2 * math.pi))
     reml = -0.5 * (chi2 + logdet_c + logdet_a + (n - p) * math.log(2 * math.pi))
@@ -186,9 +208,19 @@ def fit_noise(
             pv = 0.0 if u[n_tau] <= _LOG_FLOOR + 1e-6 else g_scale * float(np.exp(u[n_tau]))
         return NoiseParams(tau2=tau2, corr_time_s=tc, pose_var_rad2=pv, n_tau=n_tau)
 
+    const: dict[str, object] = {}
+    if not estimate_pose:  # the windows' own blocks do not change: invert them once
+        try:
+            wc0 = window_covariance(V, mid_s, NoiseParams(tau2=np.zeros(3)), J_pose, fixed)
+            inv, logdet = invert_blocks(wc0.blocks)
+            const = {"blocks_inverse": inv, "blocks_logdet": logdet}
+        except ValueError:
+            const = {}
+
     def objective(u: FloatArray, tc: float) -> float:
         try:
-            return -gls(X, z, covariance(V, mid_s, unpack(u, tc), J_pose, fixed)).loglik_reml
+            wc = replace(window_covariance(V, mid_s, unpack(u, tc), J_pose, fixed), **const)
+            return -gls(X, z, wc).loglik_reml
         except ValueError:
             return 1e300
 
@@ -225,7 +257,7 @@ def fit_noise(
                 best = (val, unpack(res.x, tc))
     assert best is not None
     noise = best[1]
-    return noise, gls(X, z, covariance(V, mid_s, noise, J_pose, fixed))
+    return noise, gls(X, z, window_covariance(V, mid_s, noise, J_pose, fixed))
 
 
 def without_pose(noise: NoiseParams) -> NoiseParams:

@@ -33,8 +33,8 @@ from scipy.stats import f as f_dist
 from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
 from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
 from bench.diagnosis.evidence import StaticEvidence
-from bench.diagnosis.likelihood import GlsFit, NoiseParams, covariance, fit_noise, gls
-from bench.diagnosis.wander_cap import slow_noise_cap
+from bench.diagnosis.likelihood import GlsFit, NoiseParams, fit_noise, gls, window_covariance
+from bench.diagnosis.wander_cap import SlowNoiseCap
 
 FALSE_ALARM = 0.01
 """False-alarm probability of one selection step: split evenly (Bonferroni) over the
@@ -84,8 +84,13 @@ def fit_model(
     fixed: FloatArray | None,
     init: NoiseParams | None = None,
     iterations: int = 1,
+    cap: SlowNoiseCap | None = None,
 ) -> tuple[NoiseParams, GlsFit, FloatArray]:
-    """REML noise and GLS fit of a model, the columns evaluated at K0 (then at the fitted K)."""
+    """REML noise and GLS fit of a model, the columns evaluated at K0 (then at the fitted K).
+
+    ``cap`` is the recording's slow-noise bound (``wander_cap``), built here if not given.
+    """
+    cap = SlowNoiseCap(ev) if cap is None else cap
     K = K0
     noise: NoiseParams | None = init
     fit: GlsFit | None = None
@@ -103,7 +108,7 @@ def fit_model(
             estimate_pose=pose,
             init=noise,
             channel_gain=np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
-            tau2_cap=lambda tc: slow_noise_cap(ev, tc),
+            tau2_cap=cap,
         )
         K = scale_matrix(fit)
     assert noise is not None and fit is not None
@@ -118,7 +123,7 @@ def _lr_fixed(
     K: FloatArray,
     fixed: FloatArray | None,
 ) -> float:
-    C = covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed)
+    C = window_covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed)
     return gls(X0, ev.y.reshape(-1), C).chi2 - gls(X1, ev.y.reshape(-1), C).chi2
 
 
@@ -143,7 +148,8 @@ def select(
     state = ModelState()
     X0 = first_order_design(ev.f_m_s2)
     K = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
-    state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2)
+    cap = SlowNoiseCap(ev)
+    state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2, cap=cap)
     notes: dict[str, str] = {}
     for _ in range(MAX_STEPS):
         assert state.noise is not None and state.fit is not None
@@ -169,7 +175,7 @@ def select(
         ranked.sort(key=lambda r: -r[0])
         for _lr0, cand in ranked[:SHORTLIST]:
             q = len(cand.names)
-            model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise)
+            model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise, cap=cap)
             noise1, _fit1, K1 = model1
             X1 = design(ev, K1, [*state.candidates, cand])
             lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
@@ -177,7 +183,7 @@ def select(
             if lr > q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1])) and dbic < 0:
                 admissible.append((dbic, cand, lr, model1))
         if pose_allowed and not state.pose:
-            noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise)
+            noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise, cap=cap)
             if noise1.pose_var_rad2 > 0:
                 lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
                 dbic = -lr + math.log(n)

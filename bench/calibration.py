@@ -283,7 +283,8 @@ def _calibrate(
     g = rec.sidecar.g_local_m_s2
     f = _specific_force(rec, wins)
     if f is not None:
-        fit = fit_static(f, y, V)
+        mid_s = np.array([(rec.t_s[w.start] + rec.t_s[w.stop - 1]) / 2 for w in wins])
+        fit = fit_static(f, y, V, mid_s=mid_s)
         bias, K, cov = fit.bias, fit.K, fit.cov
         bias_sigma, K_sigma = fit.bias_sigma, fit.K_sigma
         resid, norm_resid = fit.residuals, fit.normalized_residuals

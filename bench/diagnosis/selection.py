@@ -43,6 +43,30 @@ SHORTLIST = 4
 MAX_STEPS = 8
 
 
+WANDER_LIKE = ("bias_drift", "temperature_bias")
+"""Effects whose signature a slow bias wander can imitate (a trend in time, or in a temperature
+that follows time). With such an effect in the model, REML can let the wander collapse to
+nothing (a 12-window run holds one or two correlation times of wander, whose trend the
+effect then takes), and the Wald statistic under that noise compares the trend with white
+noise instead of with the wander the recording shows. Such a claim must also pass the full
+likelihood ratio 2 (ℓ_ML,with − ℓ_ML,without) in which each channel's own slow wander
+(level and correlation time, REML) is re-estimated in both models: the wander the recording
+shows without the effect competes with it, and the smaller statistic counts."""
+
+
+def wander_note(effect: str, lr: float, lr_wander: float, gate: float, noise: NoiseParams) -> str:
+    """Why a wander-like effect was not admitted although it fits (``select``)."""
+    tau = ", ".join(f"{np.sqrt(t):.2g}" for t in noise.tau2)
+    corr = "" if noise.corr_time_s <= 0 else f", correlation time {noise.corr_time_s:.0f} s"
+    what = "a drift" if effect == "bias_drift" else "a temperature coefficient"
+    return (
+        f"{what} fits (likelihood ratio {lr:.1f} with the wander it leaves), but the slow wander the "
+        f"recording shows without it (sigma = [{tau}] channel units{corr}) makes such a trend too "
+        f"(likelihood ratio {lr_wander:.1f} with each channel's wander re-estimated, gate {gate:.1f}): "
+        "this recording cannot tell the effect from a wander; longer or repeated runs can"
+    )
+
+
 @dataclass(frozen=True)
 class Step:
     """One admitted candidate: its label, effect, LR statistic, BIC change, dof."""
@@ -85,10 +109,13 @@ def fit_model(
     init: NoiseParams | None = None,
     iterations: int = 1,
     cap: SlowNoiseCap | None = None,
+    own: bool = False,
 ) -> tuple[NoiseParams, GlsFit, FloatArray]:
     """REML noise and GLS fit of a model, the columns evaluated at K0 (then at the fitted K).
 
     ``cap`` is the recording's slow-noise bound (``wander_cap``), built here if not given.
+    The slow noise has one level scaled by the channels' gains, or with ``own`` one level
+    per channel.
     """
     cap = SlowNoiseCap(ev) if cap is None else cap
     K = K0
@@ -107,7 +134,7 @@ def fit_model(
             fixed=fixed,
             estimate_pose=pose,
             init=noise,
-            channel_gain=np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
+            channel_gain=None if own else np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
             tau2_cap=cap,
         )
         K = scale_matrix(fit)
@@ -173,14 +200,30 @@ def select(
                 continue
             ranked.append((_lr_fixed(ev, X, np.hstack([X, cols]), state.noise, K, fixed), cand))
         ranked.sort(key=lambda r: -r[0])
+        null_own: tuple[NoiseParams, GlsFit, FloatArray] | None = None
         for _lr0, cand in ranked[:SHORTLIST]:
             q = len(cand.names)
             model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise, cap=cap)
             noise1, _fit1, K1 = model1
             X1 = design(ev, K1, [*state.candidates, cand])
             lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
+            gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1]))
+            if cand.effect in WANDER_LIKE and lr > gate:
+                # the claim must beat the trend the measured wander makes: the likelihood ratio
+                # with each channel's own slow wander re-estimated in both models
+                if null_own is None:
+                    null_own = fit_model(
+                        ev, state.candidates, state.pose, K, fixed, state.noise, cap=cap, own=True
+                    )
+                ext_own = fit_model(
+                    ev, [*state.candidates, cand], state.pose, K, fixed, null_own[0], cap=cap, own=True
+                )
+                lr_wander = max(0.0, 2.0 * (ext_own[1].loglik_ml - null_own[1].loglik_ml))
+                if lr_wander <= gate:
+                    notes[cand.label] = wander_note(cand.effect, lr, lr_wander, gate, null_own[0])
+                lr = min(lr, lr_wander)
             dbic = -lr + q * math.log(n)
-            if lr > q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1])) and dbic < 0:
+            if lr > gate and dbic < 0:
                 admissible.append((dbic, cand, lr, model1))
         if pose_allowed and not state.pose:
             noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise, cap=cap)

@@ -201,8 +201,10 @@ def _gls(H: FloatArray, y: FloatArray, S: FloatArray) -> tuple[FloatArray, Float
     return theta, 0.5 * (C + C.T), float(np.einsum("wa,wab,wb->", r, W, r))
 
 
-def _variance_components(X: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray) -> FloatArray:
-    """Between-window covariance per window (m, 3, 3): t M_w + diag(τ²), inflated.
+def _variance_components(
+    X: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Between-window covariance per window: the pose part t M_w (m, 3, 3) and diag(τ²) (3,), inflated.
 
     The pose variance t (m/s²)² solves the Paule-Mandel equation pooled over the channels,
     each channel refitted with its marginal variances v_w,i + t M_w,ii (Paule & Mandel,
@@ -230,7 +232,7 @@ def _variance_components(X: FloatArray, y: FloatArray, V: FloatArray, K: FloatAr
 
         t = solve_decreasing(pooled_q, 3 * dof, float(np.median(vd / np.maximum(md, 1e-300))))
     own = own_channel_variance(X, y, vd + t * md)
-    return t * t_factor(3 * dof) * M + (own * t_factor(dof))[None, :, None] * np.eye(3)[None]
+    return t * t_factor(3 * dof) * M, own * t_factor(dof)
 
 
 WANDER_GATE = float(chi2_dist.ppf(0.99, 1))
@@ -242,7 +244,7 @@ errors before the calibration's covariance uses it (the 1 % point of χ²₁).""
 class SlowWander:
     """The correlated between-window model of :func:`fit_static` (``slow_noise``).
 
-    :param noise: REML noise (τ² per channel, T_c, pose variance), inflated by ``t_factor``.
+    :param noise: REML slow noise (τ² per channel, T_c), inflated by ``t_factor``.
     :param lr: 2 Δℓ_REML of the correlated wander over independent window errors.
     """
 
@@ -267,28 +269,16 @@ def correlation_time_grid(mid_s: FloatArray) -> list[float]:
     return grid
 
 
-def pose_angles_response(K: FloatArray, f_m_s2: FloatArray) -> FloatArray:
-    """(m, 3, 2) response of each window mean to two small tilt angles (rad) about axes
-    perpendicular to its specific force: J_w = K |f_w| [u1 u2], so that J_w J_wᵀ =
-    |f_w|² K (I − f̂ f̂ᵀ) Kᵀ (the shape of :func:`window_noise.pose_scatter`)."""
-    f = np.asarray(f_m_s2, dtype=float)
-    fn = np.linalg.norm(f, axis=1, keepdims=True)
-    fh = f / fn
-    e = np.eye(3)[np.argmin(np.abs(fh), axis=1)]
-    u1 = np.cross(e, fh)
-    u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
-    u2 = np.cross(fh, u1)
-    return np.einsum("ik,wkq->wiq", K, fn[:, :, None] * np.stack([u1, u2], axis=2))
-
-
 def _slow_wander(
-    f: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray, mid_s: FloatArray, start: FloatArray
+    f: FloatArray, y: FloatArray, B: FloatArray, mid_s: FloatArray, own: FloatArray
 ) -> SlowWander | None:
-    """REML fit of a per-channel wander correlated between windows (plus the pose scatter).
+    """REML fit of a per-channel wander correlated between windows.
 
-    Returns ``None`` unless the best correlation time beats independent window errors by
-    :data:`WANDER_GATE`. ``start`` (m, 3, 3) is the independent model's between-window
-    covariance, used as the starting point.
+    The windows' own blocks ``B`` (m, 3, 3) (mean noise + the pose scatter of the
+    independent fit) are kept; τ² (3,) and T_c are estimated by REML, T_c on
+    :func:`correlation_time_grid`, against the same τ² with T_c = 0 (independent). Returns
+    ``None`` unless the correlated wander wins by :data:`WANDER_GATE`. ``own`` (3,), the
+    independent fit's excess, is the starting point.
     """
     m = f.shape[0]
     grid = correlation_time_grid(mid_s)
@@ -296,21 +286,14 @@ def _slow_wander(
         return None
     X = design_rows(f).reshape(3 * m, 12)
     z = y.reshape(-1)
-    J = pose_angles_response(K, f)
-    tau0 = np.maximum(np.median(np.diagonal(start, axis1=1, axis2=2), axis=0), 1e-6 * np.median(V))
-    init = NoiseParams(tau2=tau0, pose_var_rad2=1e-8)
-    common = {"J_pose": J, "estimate_pose": True, "init": init}
-    _, f0 = fit_noise(X, z, V, mid_s, corr_times_s=[0.0], **common)  # type: ignore[arg-type]
-    n1, f1 = fit_noise(X, z, V, mid_s, corr_times_s=grid, **common)  # type: ignore[arg-type]
+    floor = 1e-6 * float(np.median(np.diagonal(B, axis1=1, axis2=2)))
+    init = NoiseParams(tau2=np.maximum(own, floor))
+    _, f0 = fit_noise(X, z, B, mid_s, init=init, corr_times_s=[0.0])
+    n1, f1 = fit_noise(X, z, B, mid_s, init=init, corr_times_s=grid)
     lr = 2.0 * (f1.loglik_reml - f0.loglik_reml)
     if lr <= WANDER_GATE or not np.any(n1.tau2 > 0):
         return None
-    dof = m - 4
-    noise = NoiseParams(
-        tau2=n1.tau2 * t_factor(dof),
-        corr_time_s=n1.corr_time_s,
-        pose_var_rad2=n1.pose_var_rad2 * t_factor(3 * dof),
-    )
+    noise = NoiseParams(tau2=n1.tau2 * t_factor(m - 4), corr_time_s=n1.corr_time_s)
     return SlowWander(noise=noise, lr=float(lr))
 
 
@@ -346,9 +329,11 @@ def fit_static(
     V = 0.5 * (V + np.transpose(V, (0, 2, 1)))
     theta, C, _ = _gls(H, y, V)
     excess = np.zeros((m, 3, 3))
+    pose_part, own_part = np.zeros((m, 3, 3)), np.zeros(3)
     if between_window and m > 4:
         for _ in range(3):  # the pose-scatter shape depends on K: two refinements suffice
-            excess = _variance_components(X, y, V, theta[3:].reshape(3, 3))
+            pose_part, own_part = _variance_components(X, y, V, theta[3:].reshape(3, 3))
+            excess = pose_part + own_part[None, :, None] * np.eye(3)[None]
             theta, C, _ = _gls(H, y, V + excess)
     S = V + excess
     slow = None
@@ -356,16 +341,12 @@ def fit_static(
         mid = np.asarray(mid_s, dtype=float).reshape(-1)
         if mid.shape != (m,) or not np.all(np.isfinite(mid)):
             raise ValueError(f"window times must be finite (m,) = ({m},), got shape {mid.shape}")
-        slow = _slow_wander(f, y, V, theta[3:].reshape(3, 3), mid, excess)
+        slow = _slow_wander(f, y, V + pose_part, mid, own_part)
     if slow is not None:
-        J = pose_angles_response(theta[3:].reshape(3, 3), f)
-        own = V + slow.noise.pose_var_rad2 * np.einsum("wik,wjk->wij", J, J)
-        wc = window_covariance(
-            own, mid, NoiseParams(tau2=slow.noise.tau2, corr_time_s=slow.noise.corr_time_s)
-        )
+        wc = window_covariance(V + pose_part, mid, slow.noise)
         g_fit = gls(H.reshape(3 * m, 12), y.reshape(-1), wc)
         theta, C = g_fit.theta, g_fit.cov
-        excess = own - V + slow.noise.tau2[None, :, None] * np.eye(3)[None]
+        excess = pose_part + slow.noise.tau2[None, :, None] * np.eye(3)[None]
         S = V + excess
     resid = y - np.einsum("wai,i->wa", H, theta)
     # Cov(r_w) = S_w − H_w C H_wᵀ for the GLS fit with the true S
@@ -379,7 +360,7 @@ def fit_static(
     if slow is not None:
         model = (
             "window means: batch-means covariance from each window's samples; between windows: "
-            "pose scatter common to the channels + each channel's slow wander, sigma = ["
+            "pose scatter common to the channels (joint fit) + each channel's slow wander, sigma = ["
             + ", ".join(f"{np.sqrt(t):.3g}" for t in slow.noise.tau2)
             + "] channel units, correlated between windows with time constant "
             + f"{slow.noise.corr_time_s:.0f} s "

@@ -4,9 +4,10 @@ A long hand-placed session (a day's worth of static windows) is simulated at the
 the window means, which is what ``static_fit`` sees: a triad with bias b and scale K, m
 windows at random orientations spread over ``hours``, each window's mean
 
-    y_w = b + K (f_w + g δ_w × f̂_w) + K (s(t_w) + c (T(t_w) − T̄)) + e_w,
+    y_w = b + K R(δ_w) f_w + K (s(t_w) + c (T(t_w) − T̄)) + e_w,
 
-with δ_w a hand-placement error (two random angles, ``pose_rad`` rms), s(t) a first-order
+with R(δ_w) a hand-placement error (a rotation by two random angles about axes perpendicular
+to f_w, ``pose_rad`` rms), s(t) a first-order
 Gauss-Markov wander of every channel (``wander_m_s2`` rms, correlation time ``wander_tau_s``),
 T(t) a daily temperature swing (±``temp_amp_c`` over 24 h) reaching the bias through a
 temperature coefficient ``tc_m_s2_per_c``, and e_w the window's own noise with its known
@@ -66,7 +67,8 @@ def simulate(cfg: LongSession, seed: int) -> dict[str, np.ndarray]:
     u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
     u2 = np.cross(fh, u1)
     a = cfg.pose_rad * rng.standard_normal((m, 2))
-    f_true = f + G * (a[:, :1] * u1 + a[:, 1:] * u2)
+    tilted = fh + a[:, :1] * u1 + a[:, 1:] * u2
+    f_true = G * tilted / np.linalg.norm(tilted, axis=1, keepdims=True)  # a rotation: |f| stays g
     # Gauss-Markov wander at the window times (exact discretisation)
     s = np.empty((m, 3))
     s[0] = cfg.wander_m_s2 * rng.standard_normal(3)

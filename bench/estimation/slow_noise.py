@@ -39,7 +39,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import numpy.typing as npt
 from scipy.linalg import cho_factor, cho_solve
-from scipy.optimize import minimize
+from scipy.optimize import minimize, minimize_scalar
 
 from bench.estimation.window_covariance import WindowCovariance, invert_blocks
 
@@ -137,10 +137,15 @@ def covariance(
     return window_covariance(V, mid_s, noise, J_pose, fixed).dense()
 
 
-def gls(X: FloatArray, z: FloatArray, C: FloatArray | WindowCovariance) -> GlsFit:
+def gls(
+    X: FloatArray, z: FloatArray, C: FloatArray | WindowCovariance, binv_xz: FloatArray | None = None
+) -> GlsFit:
     """Generalised least squares of z on X with covariance C (module docstring).
 
-    ``C`` is a dense (n, n) matrix or a :class:`WindowCovariance` (then every step is O(m)).
+    ``C`` is a dense (n, n) matrix or a :class:`WindowCovariance`; then everything comes
+    from the (p+1, p+1) matrix Q = [X z]ᵀ C⁻¹ [X z] in O(m) (θ̂ = Q_XX⁻¹ Q_Xz,
+    χ² = Q_zz − Q_zXᵀ θ̂), and ``binv_xz`` (B⁻¹ [X z], which does not depend on the
+    wander) may be passed to save its product.
 
     :raises ValueError: C not positive definite or X rank-deficient under C.
     """
@@ -148,8 +153,8 @@ def gls(X: FloatArray, z: FloatArray, C: FloatArray | WindowCovariance) -> GlsFi
     if isinstance(C, WindowCovariance):
         fac = C.factor()
         logdet_c = fac.logdet
-        Ci = fac.solve(np.column_stack([X, z]))
-        CiX, Ciz = Ci[:, :p], Ci[:, p]
+        Q = fac.quadratic(np.column_stack([X, z]), binv_xz)
+        A, b, zz = Q[:p, :p], Q[:p, p], float(Q[p, p])
     else:
         try:
             cf = cho_factor(C, lower=True)
@@ -157,15 +162,14 @@ def gls(X: FloatArray, z: FloatArray, C: FloatArray | WindowCovariance) -> GlsFi
             raise ValueError("noise covariance is not positive definite") from exc
         logdet_c = 2.0 * float(np.sum(np.log(np.diag(cf[0]))))
         CiX = cho_solve(cf, X)
-        Ciz = cho_solve(cf, z)
-    A = X.T @ CiX
+        A, b, zz = X.T @ CiX, CiX.T @ z, float(z @ cho_solve(cf, z))
     try:
         af = cho_factor(A, lower=True)
     except np.linalg.LinAlgError as exc:
         raise ValueError("design is rank-deficient: some parameters cannot be determined") from exc
-    theta = cho_solve(af, CiX.T @ z)
+    theta = cho_solve(af, b)
     r = z - X @ theta
-    chi2 = float(r @ (Ciz - CiX @ theta))  # rᵀ C⁻¹ r = rᵀ (C⁻¹ z − C⁻¹ X θ̂)
+    chi2 = max(zz - float(b @ theta), 0.0)  # rᵀ C⁻¹ r = zᵀC⁻¹z − θ̂ᵀ XᵀC⁻¹z
     logdet_a = 2.0 * float(np.sum(np.log(np.diag(af[0]))))
     ml = -0.5 * (chi2 + logdet_c + n * math.log(2 * math.pi))
     reml = -0.5 * (chi2 + logdet_c + logdet_a + (n - p) * math.log(2 * math.pi))
@@ -186,6 +190,7 @@ def fit_noise(
     channel_gain: FloatArray | None = None,
     tau2_cap: Callable[[float], FloatArray | None] | None = None,
     corr_times_s: Sequence[float] | None = None,
+    refine_corr_time: bool = False,
 ) -> tuple[NoiseParams, GlsFit]:
     """REML estimate of the noise parameters for design X; returns them and the GLS fit under them.
 
@@ -194,7 +199,10 @@ def fit_noise(
     model's estimate) gives the starting point; without it two starts are tried.
     ``tau2_cap`` (T_c -> (3,) upper bound of τ² per channel, or ``None``) bounds the slow
     noise by what the windows' own samples allow (``wander_cap``). ``corr_times_s`` replaces
-    the grid of T_c (s; 0 = independent between windows).
+    the grid of T_c (s; 0 = independent between windows). With ``refine_corr_time`` the grid
+    only screens (one common log-scale of τ² per T_c, a 1-D search) and one Powell search
+    over (log τ², log T_c) starts from the best screened point (the cap at the shortest T_c
+    tried, the tightest, bounds τ² there).
     """
     scale = float(np.median(np.diagonal(V, axis1=1, axis2=2)))
     span = float(np.ptp(mid_s)) if mid_s.shape[0] > 1 else 0.0
@@ -217,18 +225,20 @@ def fit_noise(
         return NoiseParams(tau2=tau2, corr_time_s=tc, pose_var_rad2=pv, n_tau=n_tau)
 
     const: dict[str, object] = {}
+    binv_xz: FloatArray | None = None
     if not estimate_pose:  # the windows' own blocks do not change: invert them once
         try:
             wc0 = window_covariance(V, mid_s, NoiseParams(tau2=np.zeros(3)), J_pose, fixed)
             inv, logdet = invert_blocks(wc0.blocks)
             const = {"blocks_inverse": inv, "blocks_logdet": logdet}
+            binv_xz = np.matmul(inv, np.column_stack([X, z]).reshape(inv.shape[0], 3, -1)).reshape(z.size, -1)
         except ValueError:
-            const = {}
+            const, binv_xz = {}, None
 
     def objective(u: FloatArray, tc: float) -> float:
         try:
             wc = replace(window_covariance(V, mid_s, unpack(u, tc), J_pose, fixed), **const)
-            return -gls(X, z, wc).loglik_reml
+            return -gls(X, z, wc, binv_xz if const else None).loglik_reml
         except ValueError:
             return 1e300
 
@@ -253,19 +263,55 @@ def fit_noise(
             upper[:n_tau] = np.clip(u_cap if n_tau == 3 else np.min(u_cap), _LOG_FLOOR + 1e-3, 12.0)
         for u0 in starts:
             u0 = np.minimum(u0, upper)
-            res = minimize(
-                objective,
-                u0,
-                args=(tc,),
-                method="Powell",
-                bounds=list(zip([_LOG_FLOOR] * n_par, upper.tolist(), strict=True)),
-                options={"xtol": 1e-3, "ftol": 1e-6},
-            )
-            val = float(res.fun)
+            if refine_corr_time and len(corr_times_s) > 1:
+                # screening: only a common log-scale shift of the start at this T_c
+                def shifted(a: float, u0: FloatArray = u0, tc: float = tc, up: FloatArray = upper) -> float:
+                    return objective(np.clip(u0 + a, _LOG_FLOOR, up), tc)
+
+                r1 = minimize_scalar(shifted, bounds=(-12.0, 12.0), method="bounded", options={"xatol": 0.05})
+                val, x = float(r1.fun), np.clip(u0 + float(r1.x), _LOG_FLOOR, upper)
+            else:
+                res = minimize(
+                    objective,
+                    u0,
+                    args=(tc,),
+                    method="Powell",
+                    bounds=list(zip([_LOG_FLOOR] * n_par, upper.tolist(), strict=True)),
+                    options={"xtol": 1e-3, "ftol": 1e-6},
+                )
+                val, x = float(res.fun), res.x
             if best is None or val < best[0]:
-                best = (val, unpack(res.x, tc))
+                best = (val, unpack(x, tc))
     assert best is not None
     noise = best[1]
+    if refine_corr_time and noise.corr_time_s > 0 and len(corr_times_s) > 1:
+        # the grid only screened (one common scale per T_c): the full search over
+        # (log τ², log T_c) starts from the best screened point
+        tcs = sorted(t for t in corr_times_s if t > 0)
+        lo, hi = math.log(tcs[0] / 2.0), math.log(tcs[-1] * 2.0)
+        t_best = noise.tau2 / shape if n_tau == 3 else np.array([np.mean(noise.tau2 / shape)])
+        u0 = np.log(np.maximum(t_best, scale * np.exp(_LOG_FLOOR)) / scale)
+        if estimate_pose:
+            u0 = np.append(u0, np.log(max(noise.pose_var_rad2, g_scale * np.exp(_LOG_FLOOR)) / g_scale))
+        u0 = np.append(np.clip(u0, _LOG_FLOOR, 12.0), math.log(noise.corr_time_s))
+        cap_lo = tau2_cap(tcs[0] / 2.0) if tau2_cap is not None else None
+        up = np.full(n_par, 12.0)
+        if cap_lo is not None:  # the cap grows with T_c: the smallest T_c's is the tightest
+            u_cap = np.log(np.maximum(cap_lo, 1e-300) / (scale * shape))
+            up[:n_tau] = np.clip(u_cap if n_tau == 3 else np.min(u_cap), _LOG_FLOOR + 1e-3, 12.0)
+
+        def objective_tc(v: FloatArray) -> float:
+            return objective(v[:-1], float(np.exp(v[-1])))
+
+        res = minimize(
+            objective_tc,
+            np.minimum(u0, np.append(up, hi)),
+            method="Powell",
+            bounds=[*zip([_LOG_FLOOR] * n_par, up.tolist(), strict=True), (lo, hi)],
+            options={"xtol": 1e-3, "ftol": 1e-6},
+        )
+        if float(res.fun) <= best[0]:
+            noise = unpack(res.x[:-1], float(np.exp(res.x[-1])))
     return noise, gls(X, z, window_covariance(V, mid_s, noise, J_pose, fixed))
 
 

@@ -289,7 +289,7 @@ def _slow_wander(
     floor = 1e-6 * float(np.median(np.diagonal(B, axis1=1, axis2=2)))
     init = NoiseParams(tau2=np.maximum(own, floor))
     _, f0 = fit_noise(X, z, B, mid_s, init=init, corr_times_s=[0.0])
-    n1, f1 = fit_noise(X, z, B, mid_s, init=init, corr_times_s=grid)
+    n1, f1 = fit_noise(X, z, B, mid_s, init=init, corr_times_s=grid, refine_corr_time=True)
     lr = 2.0 * (f1.loglik_reml - f0.loglik_reml)
     if lr <= WANDER_GATE or not np.any(n1.tau2 > 0):
         return None

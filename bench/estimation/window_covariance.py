@@ -161,7 +161,7 @@ class CovarianceFactor:
                 for a in range(k):
                     ab[0, k + a :: k] = off[:, a]
             try:
-                self._cb = cholesky_banded(ab, lower=False)
+                self._cb = cholesky_banded(ab, lower=False, check_finite=False)
             except np.linalg.LinAlgError as exc:
                 raise ValueError("noise covariance is not positive definite (slow wander)") from exc
             logdet += logdet_s + 2.0 * float(np.sum(np.log(self._cb[k])))
@@ -180,11 +180,33 @@ class CovarianceFactor:
             assert self._cb is not None
             m, k, q = self.cov.m, self._k, Ys.shape[2]
             G = W[:, self._act, :].reshape(m * k, q)
-            H = cho_solve_banded((self._cb, False), G).reshape(m, k, q)
+            H = cho_solve_banded((self._cb, False), G, check_finite=False).reshape(m, k, q)
             W = W - np.matmul(self._Binv[:, :, self._act], H)
         out = np.empty_like(W)
         out[self._order] = W
         return out.reshape(-1) if vec else out.reshape(3 * self.cov.m, -1)
+
+    def quadratic(self, Y: FloatArray, binv_y: FloatArray | None = None) -> FloatArray:
+        """Yᵀ C⁻¹ Y (q, q) for Y (3m, q), without forming C⁻¹ Y:
+        Yᵀ B⁻¹ Y − Gᵀ M⁻¹ G with G = Aᵀ B⁻¹ Y (module docstring).
+
+        :param binv_y: B⁻¹ Y (3m, q) if already known (it does not depend on the wander).
+        """
+        Yv = np.asarray(Y, dtype=float).reshape(3 * self.cov.m, -1)
+        Ys = self._to_sorted(Yv)
+        if binv_y is None:
+            W = np.matmul(self._Binv, Ys)
+        else:
+            W = self._to_sorted(np.asarray(binv_y, dtype=float).reshape(Yv.shape))
+        m, q = self.cov.m, Ys.shape[2]
+        # skinny Gram products by einsum: no BLAS threads to wake for a (q, q) result
+        Q = np.einsum("nq,nr->qr", Ys.reshape(3 * m, q), W.reshape(3 * m, q), optimize=False)
+        if self._k:
+            assert self._cb is not None
+            G = W[:, self._act, :].reshape(m * self._k, q)
+            H = cho_solve_banded((self._cb, False), G, check_finite=False)
+            Q = Q - np.einsum("nq,nr->qr", G, H, optimize=False)
+        return 0.5 * (Q + Q.T)
 
     def inverse_diagonal_blocks(self) -> FloatArray:
         """(m, 3, 3) diagonal blocks (C⁻¹)_ww in the original window order."""

@@ -203,7 +203,7 @@ def _gls(H: FloatArray, y: FloatArray, S: FloatArray) -> tuple[FloatArray, Float
 
 def _variance_components(
     X: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray
-) -> tuple[FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, float]:
     """Between-window covariance per window: the pose part t M_w (m, 3, 3) and diag(τ²) (3,), inflated.
 
     The pose variance t (m/s²)² solves the Paule-Mandel equation pooled over the channels,
@@ -232,7 +232,7 @@ def _variance_components(
 
         t = solve_decreasing(pooled_q, 3 * dof, float(np.median(vd / np.maximum(md, 1e-300))))
     own = own_channel_variance(X, y, vd + t * md)
-    return t * t_factor(3 * dof) * M, own * t_factor(dof)
+    return t * t_factor(3 * dof) * M, own * t_factor(dof), t
 
 
 WANDER_GATE = float(chi2_dist.ppf(0.99, 1))
@@ -244,12 +244,16 @@ errors before the calibration's covariance uses it (the 1 % point of χ²₁).""
 class SlowWander:
     """The correlated between-window model of :func:`fit_static` (``slow_noise``).
 
-    :param noise: REML slow noise (τ² per channel, T_c), inflated by ``t_factor``.
+    :param noise: REML noise (τ² per channel, T_c, pose variance), inflated by ``t_factor``.
     :param lr: 2 Δℓ_REML of the correlated wander over independent window errors.
+    :param J: (m, 3, 2) response of the window means to the pose angles.
+    :param nugget: (m, 3, 3) independent excess per window kept from the independent fit.
     """
 
     noise: NoiseParams
     lr: float
+    J: FloatArray
+    nugget: FloatArray
 
 
 def correlation_time_grid(mid_s: FloatArray) -> list[float]:
@@ -269,16 +273,30 @@ def correlation_time_grid(mid_s: FloatArray) -> list[float]:
     return grid
 
 
-def _slow_wander(
-    f: FloatArray, y: FloatArray, B: FloatArray, mid_s: FloatArray, own: FloatArray
-) -> SlowWander | None:
-    """REML fit of a per-channel wander correlated between windows.
+def pose_angles_response(K: FloatArray, f_m_s2: FloatArray) -> FloatArray:
+    """(m, 3, 2) response of each window mean to two small tilt angles (rad) about axes
+    perpendicular to its specific force: J_w = K |f_w| [u1 u2], so that J_w J_wᵀ =
+    |f_w|² K (I − f̂ f̂ᵀ) Kᵀ (the shape of ``window_noise.pose_scatter``)."""
+    f = np.asarray(f_m_s2, dtype=float)
+    fn = np.linalg.norm(f, axis=1, keepdims=True)
+    fh = f / fn
+    e = np.eye(3)[np.argmin(np.abs(fh), axis=1)]
+    u1 = np.cross(e, fh)
+    u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
+    u2 = np.cross(fh, u1)
+    return np.einsum("ik,wkq->wiq", K, fn[:, :, None] * np.stack([u1, u2], axis=2))
 
-    The windows' own blocks ``B`` (m, 3, 3) (mean noise + the pose scatter of the
-    independent fit) are kept; τ² (3,) and T_c are estimated by REML, T_c on
-    :func:`correlation_time_grid`, against the same τ² with T_c = 0 (independent). Returns
-    ``None`` unless the correlated wander wins by :data:`WANDER_GATE`. ``own`` (3,), the
-    independent fit's excess, is the starting point.
+
+def _slow_wander(
+    f: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray, mid_s: FloatArray, own: FloatArray, t: float
+) -> SlowWander | None:
+    """REML fit of a per-channel wander correlated between windows, with the pose scatter.
+
+    τ² (3,), T_c and the pose variance are estimated by REML, T_c on
+    :func:`correlation_time_grid` (screened, then refined), against the same model with
+    T_c = 0 (independent). Returns ``None`` unless the correlated wander wins by
+    :data:`WANDER_GATE`. ``own`` (3,) and ``t`` ((m/s²)², the pose variance) of the
+    independent fit are the starting point.
     """
     m = f.shape[0]
     grid = correlation_time_grid(mid_s)
@@ -286,15 +304,23 @@ def _slow_wander(
         return None
     X = design_rows(f).reshape(3 * m, 12)
     z = y.reshape(-1)
-    floor = 1e-6 * float(np.median(np.diagonal(B, axis1=1, axis2=2)))
-    init = NoiseParams(tau2=np.maximum(own, floor))
-    _, f0 = fit_noise(X, z, B, mid_s, init=init, corr_times_s=[0.0])
-    n1, f1 = fit_noise(X, z, B, mid_s, init=init, corr_times_s=grid, refine_corr_time=True)
+    J = pose_angles_response(K, f)
+    floor = 1e-6 * float(np.median(np.diagonal(V, axis1=1, axis2=2)))
+    g2 = float(np.median(np.sum(f * f, axis=1)))
+    init = NoiseParams(tau2=np.maximum(own, floor), pose_var_rad2=max(t / g2, 1e-12))
+    nugget = own[None, :, None] * np.eye(3)[None] * np.ones((m, 1, 1))
+    common = {"J_pose": J, "estimate_pose": True, "init": init, "fixed": nugget}
+    _, f0 = fit_noise(X, z, V, mid_s, corr_times_s=[0.0], **common)  # type: ignore[arg-type]
+    n1, f1 = fit_noise(X, z, V, mid_s, corr_times_s=grid, refine_corr_time=True, **common)  # type: ignore[arg-type]
     lr = 2.0 * (f1.loglik_reml - f0.loglik_reml)
     if lr <= WANDER_GATE or not np.any(n1.tau2 > 0):
         return None
-    noise = NoiseParams(tau2=n1.tau2 * t_factor(m - 4), corr_time_s=n1.corr_time_s)
-    return SlowWander(noise=noise, lr=float(lr))
+    noise = NoiseParams(
+        tau2=n1.tau2 * t_factor(m - 4),
+        corr_time_s=n1.corr_time_s,
+        pose_var_rad2=n1.pose_var_rad2 * t_factor(3 * (m - 4)),
+    )
+    return SlowWander(noise=noise, lr=float(lr), J=J, nugget=nugget)
 
 
 def fit_static(
@@ -329,10 +355,10 @@ def fit_static(
     V = 0.5 * (V + np.transpose(V, (0, 2, 1)))
     theta, C, _ = _gls(H, y, V)
     excess = np.zeros((m, 3, 3))
-    pose_part, own_part = np.zeros((m, 3, 3)), np.zeros(3)
+    pose_part, own_part, pose_t = np.zeros((m, 3, 3)), np.zeros(3), 0.0
     if between_window and m > 4:
         for _ in range(3):  # the pose-scatter shape depends on K: two refinements suffice
-            pose_part, own_part = _variance_components(X, y, V, theta[3:].reshape(3, 3))
+            pose_part, own_part, pose_t = _variance_components(X, y, V, theta[3:].reshape(3, 3))
             excess = pose_part + own_part[None, :, None] * np.eye(3)[None]
             theta, C, _ = _gls(H, y, V + excess)
     S = V + excess
@@ -341,12 +367,12 @@ def fit_static(
         mid = np.asarray(mid_s, dtype=float).reshape(-1)
         if mid.shape != (m,) or not np.all(np.isfinite(mid)):
             raise ValueError(f"window times must be finite (m,) = ({m},), got shape {mid.shape}")
-        slow = _slow_wander(f, y, V + pose_part, mid, own_part)
+        slow = _slow_wander(f, y, V, theta[3:].reshape(3, 3), mid, own_part, pose_t)
     if slow is not None:
-        wc = window_covariance(V + pose_part, mid, slow.noise)
+        wc = window_covariance(V, mid, slow.noise, slow.J, slow.nugget)
         g_fit = gls(H.reshape(3 * m, 12), y.reshape(-1), wc)
         theta, C = g_fit.theta, g_fit.cov
-        excess = pose_part + slow.noise.tau2[None, :, None] * np.eye(3)[None]
+        excess = wc.blocks - V + slow.noise.tau2[None, :, None] * np.eye(3)[None]
         S = V + excess
     resid = y - np.einsum("wai,i->wa", H, theta)
     # Cov(r_w) = S_w − H_w C H_wᵀ for the GLS fit with the true S

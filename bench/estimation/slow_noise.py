@@ -177,6 +177,33 @@ def gls(
     return GlsFit(theta=theta, cov=0.5 * (cov + cov.T), resid=r, chi2=chi2, loglik_ml=ml, loglik_reml=reml)
 
 
+def _search(
+    fun: Callable[[FloatArray], float], u0: FloatArray, bounds: list[tuple[float, float]]
+) -> tuple[float, FloatArray]:
+    """Bounded Powell minimum of ``fun`` from ``u0``.
+
+    scipy's bounded Powell fails (an empty reduction in its extrapolation step) when an
+    iteration leaves the point where it was; the search is then finished by Brent (one
+    parameter) or Nelder-Mead (more), and the better of that and the start is kept.
+    """
+    try:
+        res = minimize(fun, u0, method="Powell", bounds=bounds, options={"xtol": 1e-3, "ftol": 1e-6})
+        return float(res.fun), np.asarray(res.x, dtype=float)
+    except ValueError:
+        pass
+    if u0.size == 1:
+        lo, hi = bounds[0]
+        r = minimize_scalar(
+            lambda a: fun(np.array([a])), bounds=(lo, hi), method="bounded", options={"xatol": 1e-3}
+        )
+        val, x = float(r.fun), np.array([float(r.x)])
+    else:
+        r = minimize(fun, u0, method="Nelder-Mead", bounds=bounds, options={"xatol": 1e-3, "fatol": 1e-6})
+        val, x = float(r.fun), np.asarray(r.x, dtype=float)
+    f0 = fun(u0)
+    return (val, x) if val <= f0 else (f0, np.asarray(u0, dtype=float))
+
+
 def fit_noise(
     X: FloatArray,
     z: FloatArray,
@@ -271,15 +298,11 @@ def fit_noise(
                 r1 = minimize_scalar(shifted, bounds=(-12.0, 12.0), method="bounded", options={"xatol": 0.05})
                 val, x = float(r1.fun), np.clip(u0 + float(r1.x), _LOG_FLOOR, upper)
             else:
-                res = minimize(
-                    objective,
+                val, x = _search(
+                    lambda u, tc=tc: objective(u, tc),
                     u0,
-                    args=(tc,),
-                    method="Powell",
-                    bounds=list(zip([_LOG_FLOOR] * n_par, upper.tolist(), strict=True)),
-                    options={"xtol": 1e-3, "ftol": 1e-6},
+                    list(zip([_LOG_FLOOR] * n_par, upper.tolist(), strict=True)),
                 )
-                val, x = float(res.fun), res.x
             if best is None or val < best[0]:
                 best = (val, unpack(x, tc))
     assert best is not None
@@ -303,15 +326,13 @@ def fit_noise(
         def objective_tc(v: FloatArray) -> float:
             return objective(v[:-1], float(np.exp(v[-1])))
 
-        res = minimize(
+        val, x = _search(
             objective_tc,
             np.minimum(u0, np.append(up, hi)),
-            method="Powell",
-            bounds=[*zip([_LOG_FLOOR] * n_par, up.tolist(), strict=True), (lo, hi)],
-            options={"xtol": 1e-3, "ftol": 1e-6},
+            [*zip([_LOG_FLOOR] * n_par, up.tolist(), strict=True), (lo, hi)],
         )
-        if float(res.fun) <= best[0]:
-            noise = unpack(res.x[:-1], float(np.exp(res.x[-1])))
+        if val <= best[0]:
+            noise = unpack(x[:-1], float(np.exp(x[-1])))
     return noise, gls(X, z, window_covariance(V, mid_s, noise, J_pose, fixed))
 
 

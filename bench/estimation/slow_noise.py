@@ -251,21 +251,23 @@ def fit_noise(
             pv = 0.0 if u[n_tau] <= _LOG_FLOOR + 1e-6 else g_scale * float(np.exp(u[n_tau]))
         return NoiseParams(tau2=tau2, corr_time_s=tc, pose_var_rad2=pv, n_tau=n_tau)
 
-    const: dict[str, object] = {}
+    inv: FloatArray | None = None
+    logdet_b: float | None = None
     binv_xz: FloatArray | None = None
     if not estimate_pose:  # the windows' own blocks do not change: invert them once
         try:
             wc0 = window_covariance(V, mid_s, NoiseParams(tau2=np.zeros(3)), J_pose, fixed)
-            inv, logdet = invert_blocks(wc0.blocks)
-            const = {"blocks_inverse": inv, "blocks_logdet": logdet}
+            inv, logdet_b = invert_blocks(wc0.blocks)
             binv_xz = np.matmul(inv, np.column_stack([X, z]).reshape(inv.shape[0], 3, -1)).reshape(z.size, -1)
         except ValueError:
-            const, binv_xz = {}, None
+            inv, logdet_b, binv_xz = None, None, None
 
     def objective(u: FloatArray, tc: float) -> float:
         try:
-            wc = replace(window_covariance(V, mid_s, unpack(u, tc), J_pose, fixed), **const)
-            return -gls(X, z, wc, binv_xz if const else None).loglik_reml
+            wc = window_covariance(V, mid_s, unpack(u, tc), J_pose, fixed)
+            if inv is not None:
+                wc = replace(wc, blocks_inverse=inv, blocks_logdet=logdet_b)
+            return -gls(X, z, wc, binv_xz).loglik_reml
         except ValueError:
             return 1e300
 
@@ -298,8 +300,12 @@ def fit_noise(
                 r1 = minimize_scalar(shifted, bounds=(-12.0, 12.0), method="bounded", options={"xatol": 0.05})
                 val, x = float(r1.fun), np.clip(u0 + float(r1.x), _LOG_FLOOR, upper)
             else:
+
+                def at_tc(u: FloatArray, tc: float = tc) -> float:
+                    return objective(u, tc)
+
                 val, x = _search(
-                    lambda u, tc=tc: objective(u, tc),
+                    at_tc,
                     u0,
                     list(zip([_LOG_FLOOR] * n_par, upper.tolist(), strict=True)),
                 )

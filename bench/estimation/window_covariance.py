@@ -115,7 +115,7 @@ def invert_blocks(blocks: FloatArray) -> tuple[FloatArray, float]:
             f"noise covariance is not positive definite (own block of window {bad[:1]})"
         ) from exc
     logdet = 2.0 * float(np.sum(np.log(np.diagonal(Lb, axis1=1, axis2=2))))
-    return np.linalg.inv(B), logdet
+    return np.asarray(np.linalg.inv(B), dtype=np.float64), logdet
 
 
 class CovarianceFactor:

@@ -25,6 +25,7 @@ from bench.calibration.result import CalibrationResult, WindowResult, zero_redun
 from bench.calibration.windows import choose_windows, known_specific_force, unused_warning, window_means
 from bench.estimation.g_check import correct, g_check
 from bench.estimation.scalar_fit import fit_scalar
+from bench.estimation.scalar_wander import scalar_wander
 from bench.estimation.static_fit import fit_static
 from bench.recording import G0_M_S2, Recording
 
@@ -66,8 +67,9 @@ def calibrate_static(
     y, V = window_means(rec, wins)
     g = rec.sidecar.g_local_m_s2
     f = known_specific_force(rec, wins)
+    mid_s = np.array([(rec.t_s[w.start] + rec.t_s[w.stop - 1]) / 2 for w in wins])
     if f is not None:
-        fit = fit_static(f, y, V)
+        fit = fit_static(f, y, V, mid_s=mid_s)
         bias, K, cov = fit.bias, fit.K, fit.cov
         bias_sigma, K_sigma = fit.bias_sigma, fit.K_sigma
         resid, norm_resid = fit.residuals, fit.normalized_residuals
@@ -76,7 +78,12 @@ def calibrate_static(
     else:
         sf = fit_scalar(y, V, g)
         bias, K, cov = sf.bias, sf.L, sf.cov
-        bias_sigma, K_sigma = sf.sigma[:3], sf.L_sigma
+        wander = scalar_wander(sf, y, g, mid_s)
+        if wander is not None:  # windows sharing a slow wander: their errors are not independent
+            cov = wander.cov
+        sig = np.sqrt(np.diag(cov))
+        bias_sigma, K_sigma = sig[:3], np.zeros((3, 3))
+        K_sigma[np.tril_indices(3)] = sig[3:]
         fh = correct(y, bias, K)
         dirs = fh / np.linalg.norm(fh, axis=1, keepdims=True)
         resid = (sf.residuals_m_s2[:, None] * dirs) @ K.T
@@ -87,6 +94,11 @@ def calibrate_static(
             "window means: batch-means covariance from each window's samples; "
             f"between windows: additive |g| scatter sigma = {np.sqrt(sf.excess_var_m_s2):.3g} m/s²"
         )
+        if wander is not None:
+            model += (
+                f"; a slow wander shared by the windows, sigma = {wander.omega_m_s2:.3g} m/s² per axis, "
+                f"correlation time {wander.corr_time_s:.0f} s (REML, 2 delta loglik {wander.lr:.1f})"
+            )
     after = g_check(correct(y, bias, K), g)
     f_nominal = nominal_force(rec, y, nominal_scale, nominal_bias)
     before = None if f_nominal is None else g_check(f_nominal, g)

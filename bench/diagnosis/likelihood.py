@@ -1,233 +1,31 @@
-"""Gaussian likelihood of the stacked window means: covariance, GLS, REML noise estimation.
+"""Gaussian likelihood of the stacked window means, as the diagnosis uses it.
 
-Observation vector z = y.reshape(-1) (3m,), window-major. Covariance (channel units²):
-
-    C = blockdiag_w(V_w + F + σ_p² J_w J_wᵀ) + Σ_i τ_i² (P ⊗ e_i e_iᵀ),
-    P_ww' = exp(−|t_w − t_w'| / T_c)   (P = I for T_c = 0)
-
-- V_w: the window mean's covariance from its own samples (batch means; ``window_noise``);
-- τ_i², T_c: slow noise of channel i that a window cannot see in itself (bias wander with
-  correlation time T_c; T_c = 0: independent from window to window);
-- σ_p²: variance of a random pose error per window (two angles, rad²), J_w (3, 2) the
-  response of the window mean to those angles (``pose_error``);
-- F: an optional fixed extra (e.g. free orientation in an orientation-free diagnosis).
-
-For a fixed design X (3m, p), the generalised least-squares estimate and the ML and
-REML log-likelihoods (Harville, JASA 72 (1977) 320, eq. 4.3) are
-
-    θ̂ = (Xᵀ C⁻¹ X)⁻¹ Xᵀ C⁻¹ z,   r = z − X θ̂,   χ² = rᵀ C⁻¹ r,
-    −2 ℓ_ML   = χ² + ln|C| + n ln 2π,
-    −2 ℓ_REML = χ² + ln|C| + ln|Xᵀ C⁻¹ X| + (n − p) ln 2π.
-
-The noise parameters (τ², T_c, σ_p²) are estimated by maximising ℓ_REML, which, unlike
-ℓ_ML, is not biased low by the p fitted parameters (with 36 observations and 12–20
-parameters the difference is large).
+The model, GLS and REML noise estimation live in ``bench.estimation.slow_noise`` (the
+calibration uses them too); this module names them for the diagnosis.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
-from dataclasses import dataclass, replace
+from bench.estimation.slow_noise import (
+    CORRELATION_TIMES_FRACTION,
+    GlsFit,
+    NoiseParams,
+    correlation,
+    covariance,
+    fit_noise,
+    gls,
+    window_covariance,
+    without_pose,
+)
 
-import numpy as np
-import numpy.typing as npt
-from scipy.linalg import cho_factor, cho_solve
-from scipy.optimize import minimize
-
-FloatArray = npt.NDArray[np.float64]
-
-CORRELATION_TIMES_FRACTION = (0.0, 0.3, 1.0, 3.0)
-"""Grid of T_c tried, as fractions of the span of the window times (0 = white between windows)."""
-_LOG_FLOOR = -30.0
-
-
-@dataclass(frozen=True)
-class NoiseParams:
-    """Noise parameters beyond the windows' own scatter.
-
-    :param tau2: (3,) slow-noise variance per channel (channel units²).
-    :param corr_time_s: its correlation time T_c (s); 0 = independent between windows.
-    :param pose_var_rad2: random pose-error variance per angle (rad²); 0 = none.
-    """
-
-    tau2: FloatArray
-    corr_time_s: float = 0.0
-    pose_var_rad2: float = 0.0
-    n_tau: int = 3
-
-    @property
-    def n_free(self) -> int:
-        """Number of estimated noise parameters counted in the BIC."""
-        return self.n_tau + (1 if self.corr_time_s > 0 else 0)
-
-
-@dataclass(frozen=True)
-class GlsFit:
-    """GLS fit of one design under one covariance.
-
-    :param theta: (p,) estimates; :param cov: (p, p) their covariance (Xᵀ C⁻¹ X)⁻¹.
-    :param resid: (3m,) residuals z − X θ̂; :param chi2: rᵀ C⁻¹ r.
-    :param loglik_ml: ℓ_ML; :param loglik_reml: ℓ_REML.
-    """
-
-    theta: FloatArray
-    cov: FloatArray
-    resid: FloatArray
-    chi2: float
-    loglik_ml: float
-    loglik_reml: float
-
-
-def correlation(mid_s: FloatArray, corr_time_s: float) -> FloatArray:
-    """(m, m) P_ww' = exp(−|t_w − t_w'| / T_c); the identity for T_c = 0."""
-    m = mid_s.shape[0]
-    if corr_time_s <= 0:
-        return np.eye(m)
-    return np.exp(-np.abs(mid_s[:, None] - mid_s[None, :]) / corr_time_s)
-
-
-def covariance(
-    V: FloatArray,
-    mid_s: FloatArray,
-    noise: NoiseParams,
-    J_pose: FloatArray | None = None,
-    fixed: FloatArray | None = None,
-) -> FloatArray:
-    """(3m, 3m) covariance C of the module docstring.
-
-    :param V: (m, 3, 3) window-mean covariances; :param mid_s: (m,) window times (s).
-    :param J_pose: (m, 3, 2) pose response per window, needed when ``pose_var_rad2 > 0``.
-    :param fixed: (m, 3, 3) fixed extra per window, or ``None``.
-    """
-    m = V.shape[0]
-    blocks = V.copy()
-    if fixed is not None:
-        blocks = blocks + fixed
-    if noise.pose_var_rad2 > 0:
-        if J_pose is None:
-            raise ValueError("a pose-error variance needs the pose response J_pose")
-        blocks = blocks + noise.pose_var_rad2 * np.einsum("wik,wjk->wij", J_pose, J_pose)
-    C = np.zeros((3 * m, 3 * m))
-    for w in range(m):
-        C[3 * w : 3 * w + 3, 3 * w : 3 * w + 3] = blocks[w]
-    P = correlation(mid_s, noise.corr_time_s)
-    for i in range(3):
-        if noise.tau2[i] > 0:
-            C[i::3, i::3] += noise.tau2[i] * P
-    return C
-
-
-def gls(X: FloatArray, z: FloatArray, C: FloatArray) -> GlsFit:
-    """Generalised least squares of z on X with covariance C (module docstring).
-
-    :raises ValueError: C not positive definite or X rank-deficient under C.
-    """
-    n, p = X.shape
-    try:
-        cf = cho_factor(C, lower=True)
-    except np.linalg.LinAlgError as exc:
-        raise ValueError("noise covariance is not positive definite") from exc
-    logdet_c = 2.0 * float(np.sum(np.log(np.diag(cf[0]))))
-    CiX = cho_solve(cf, X)
-    A = X.T @ CiX
-    try:
-        af = cho_factor(A, lower=True)
-    except np.linalg.LinAlgError as exc:
-        raise ValueError("design is rank-deficient: some parameters cannot be determined") from exc
-    theta = cho_solve(af, CiX.T @ z)
-    r = z - X @ theta
-    chi2 = float(r @ cho_solve(cf, r))
-    logdet_a = 2.0 * float(np.sum(np.log(np.diag(af[0]))))
-    ml = -0.5 * (chi2 + logdet_c + n * math.log(2 * math.pi))
-    reml = -0.5 * (chi2 + logdet_c + logdet_a + (n - p) * math.log(2 * math.pi))
-    cov = cho_solve(af, np.eye(p))
-    return GlsFit(theta=theta, cov=0.5 * (cov + cov.T), resid=r, chi2=chi2, loglik_ml=ml, loglik_reml=reml)
-
-
-def fit_noise(
-    X: FloatArray,
-    z: FloatArray,
-    V: FloatArray,
-    mid_s: FloatArray,
-    *,
-    J_pose: FloatArray | None = None,
-    fixed: FloatArray | None = None,
-    estimate_pose: bool = False,
-    init: NoiseParams | None = None,
-    channel_gain: FloatArray | None = None,
-    tau2_cap: Callable[[float], FloatArray | None] | None = None,
-) -> tuple[NoiseParams, GlsFit]:
-    """REML estimate of the noise parameters for design X; returns them and the GLS fit under them.
-
-    τ² (and σ_p² when ``estimate_pose``) are optimised on a log scale (Powell) for each
-    T_c of ``CORRELATION_TIMES_FRACTION`` × span; the best ℓ_REML wins. ``init`` (a nearby
-    model's estimate) gives the starting point; without it two starts are tried.
-    ``tau2_cap`` (T_c -> (3,) upper bound of τ² per channel, or ``None``) bounds the slow
-    noise by what the windows' own samples allow (``wander_cap``).
-    """
-    scale = float(np.median(np.diagonal(V, axis1=1, axis2=2)))
-    span = float(np.ptp(mid_s)) if mid_s.shape[0] > 1 else 0.0
-    g_scale = 1.0
-    if estimate_pose:
-        if J_pose is None:
-            raise ValueError("estimate_pose needs J_pose")
-        jn = float(np.median(np.sum(J_pose**2, axis=(1, 2))) / 2.0)
-        g_scale = scale / jn if jn > 0 else 1.0
-    n_tau = 3 if channel_gain is None else 1
-    shape = np.ones(3) if channel_gain is None else channel_gain**2 / np.mean(channel_gain**2)
-    n_par = n_tau + (1 if estimate_pose else 0)
-
-    def unpack(u: FloatArray, tc: float) -> NoiseParams:
-        tau2 = scale * np.exp(u[:n_tau]) * shape
-        tau2 = np.where(u[:n_tau] <= _LOG_FLOOR + 1e-6, 0.0, tau2)
-        pv = 0.0
-        if estimate_pose:
-            pv = 0.0 if u[n_tau] <= _LOG_FLOOR + 1e-6 else g_scale * float(np.exp(u[n_tau]))
-        return NoiseParams(tau2=tau2, corr_time_s=tc, pose_var_rad2=pv, n_tau=n_tau)
-
-    def objective(u: FloatArray, tc: float) -> float:
-        try:
-            return -gls(X, z, covariance(V, mid_s, unpack(u, tc), J_pose, fixed)).loglik_reml
-        except ValueError:
-            return 1e300
-
-    best: tuple[float, NoiseParams] | None = None
-    fracs = tuple(f for f in CORRELATION_TIMES_FRACTION if f > 0) if span > 0 else (0.0,)
-    for frac in fracs:
-        tc = frac * span
-        if init is None:
-            starts = [np.full(n_par, -2.0), np.full(n_par, _LOG_FLOOR)]
-        else:
-            t_init = init.tau2 / shape if n_tau == 3 else np.array([np.mean(init.tau2 / shape)])
-            u_init = np.log(np.maximum(t_init, scale * np.exp(_LOG_FLOOR)) / scale)
-            if estimate_pose:
-                pv = init.pose_var_rad2 if init.pose_var_rad2 > 0 else g_scale * np.exp(-2.0)
-                u_init = np.append(u_init, np.log(pv / g_scale))
-            starts = [np.clip(u_init, _LOG_FLOOR, 12.0)]
-        upper = np.full(n_par, 12.0)
-        cap = tau2_cap(tc) if tau2_cap is not None else None
-        if cap is not None:
-            u_cap = np.log(np.maximum(cap, 1e-300) / (scale * shape))
-            upper[:n_tau] = np.clip(u_cap if n_tau == 3 else np.min(u_cap), _LOG_FLOOR + 1e-3, 12.0)
-        for u0 in starts:
-            u0 = np.minimum(u0, upper)
-            res = minimize(
-                objective,
-                u0,
-                args=(tc,),
-                method="Powell",
-                bounds=list(zip([_LOG_FLOOR] * n_par, upper.tolist(), strict=True)),
-                options={"xtol": 1e-3, "ftol": 1e-6},
-            )
-            val = float(res.fun)
-            if best is None or val < best[0]:
-                best = (val, unpack(res.x, tc))
-    assert best is not None
-    noise = best[1]
-    return noise, gls(X, z, covariance(V, mid_s, noise, J_pose, fixed))
-
-
-def without_pose(noise: NoiseParams) -> NoiseParams:
-    """The same noise with the random pose error removed."""
-    return replace(noise, pose_var_rad2=0.0)
+__all__ = [
+    "CORRELATION_TIMES_FRACTION",
+    "GlsFit",
+    "NoiseParams",
+    "correlation",
+    "covariance",
+    "fit_noise",
+    "gls",
+    "window_covariance",
+    "without_pose",
+]

@@ -23,12 +23,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
 
 from bench.diagnosis.effects import Candidate, pose_response
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
-from bench.diagnosis.likelihood import GlsFit, NoiseParams, covariance, gls, without_pose
+from bench.diagnosis.likelihood import GlsFit, NoiseParams, gls, window_covariance, without_pose
 from bench.diagnosis.selection import design
 
 
@@ -66,7 +65,7 @@ def evaluate(
     """GLS of one model under ``noise`` (pose variance kept only if ``pose``)."""
     nz = noise if pose else without_pose(noise)
     J = pose_response(ev, K)
-    C = covariance(ev.V, ev.mid_s, nz, J, fixed)
+    C = window_covariance(ev.V, ev.mid_s, nz, J, fixed)
     X = design(ev, K, cands)
     z = ev.y.reshape(-1)
     fit = gls(X, z, C)
@@ -74,20 +73,18 @@ def evaluate(
     resid = fit.resid.copy()
     angles = angle_sigma = None
     if pose and nz.pose_var_rad2 > 0:
-        cf = cho_factor(C, lower=True)
-        Ci_r = cho_solve(cf, fit.resid)
-        CiX = cho_solve(cf, X)
+        fac = C.factor()
+        Ci_r = fac.solve(fit.resid)
+        CiX = fac.solve(X).reshape(ev.m, 3, p)
         s2 = nz.pose_var_rad2
         angles = np.einsum("wik,wi->wk", J, Ci_r.reshape(-1, 3)) * s2
-        P = cho_solve(cf, np.eye(n)) - CiX @ fit.cov @ CiX.T
-        angle_sigma = np.empty_like(angles)
-        for w in range(ev.m):
-            Pw = P[3 * w : 3 * w + 3, 3 * w : 3 * w + 3]
-            post = s2 * np.eye(2) - s2 * s2 * J[w].T @ Pw @ J[w]
-            angle_sigma[w] = np.sqrt(np.clip(np.diag(post), 0.0, None))
+        # diagonal blocks of P = C⁻¹ − C⁻¹X Cov(θ̂) XᵀC⁻¹, O(m)
+        Pd = fac.inverse_diagonal_blocks() - np.einsum("wia,ab,wjb->wij", CiX, fit.cov, CiX)
+        post = s2 * np.eye(2)[None] - s2 * s2 * np.einsum("wik,wij,wjl->wkl", J, Pd, J)
+        angle_sigma = np.sqrt(np.clip(np.diagonal(post, axis1=1, axis2=2), 0.0, None))
         resid = resid - np.einsum("wik,wk->wi", J, angles).reshape(-1)
-    base = covariance(ev.V, ev.mid_s, without_pose(nz), J, fixed)
-    sigma = np.sqrt(np.diag(base)).reshape(-1, 3)
+    base = window_covariance(ev.V, ev.mid_s, without_pose(nz), J, fixed)
+    sigma = np.sqrt(base.diagonal()).reshape(-1, 3)
     k = p + nz.n_free + (1 if pose else 0)
     bic = -2.0 * fit.loglik_ml + k * math.log(n)
     effects = tuple(dict.fromkeys([c.effect for c in cands] + (["pose_error"] if pose else [])))

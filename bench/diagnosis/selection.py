@@ -33,14 +33,38 @@ from scipy.stats import f as f_dist
 from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
 from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
 from bench.diagnosis.evidence import StaticEvidence
-from bench.diagnosis.likelihood import GlsFit, NoiseParams, covariance, fit_noise, gls
-from bench.diagnosis.wander_cap import slow_noise_cap
+from bench.diagnosis.likelihood import GlsFit, NoiseParams, fit_noise, gls, window_covariance
+from bench.diagnosis.wander_cap import SlowNoiseCap
 
 FALSE_ALARM = 0.01
 """False-alarm probability of one selection step: split evenly (Bonferroni) over the
 candidates tried in that step, so each gate runs at FALSE_ALARM / N."""
 SHORTLIST = 4
 MAX_STEPS = 8
+
+
+WANDER_LIKE = ("bias_drift", "temperature_bias")
+"""Effects whose signature a slow bias wander can imitate (a trend in time, or in a temperature
+that follows time). With such an effect in the model, REML can let the wander collapse to
+nothing (a 12-window run holds one or two correlation times of wander, whose trend the
+effect then takes), and the Wald statistic under that noise compares the trend with white
+noise instead of with the wander the recording shows. Such a claim must also pass the full
+likelihood ratio 2 (ℓ_ML,with − ℓ_ML,without) in which each channel's own slow wander
+(level and correlation time, REML) is re-estimated in both models: the wander the recording
+shows without the effect competes with it, and the smaller statistic counts."""
+
+
+def wander_note(effect: str, lr: float, lr_wander: float, gate: float, noise: NoiseParams) -> str:
+    """Why a wander-like effect was not admitted although it fits (``select``)."""
+    tau = ", ".join(f"{np.sqrt(t):.2g}" for t in noise.tau2)
+    corr = "" if noise.corr_time_s <= 0 else f", correlation time {noise.corr_time_s:.0f} s"
+    what = "a drift" if effect == "bias_drift" else "a temperature coefficient"
+    return (
+        f"{what} fits (likelihood ratio {lr:.1f} with the wander it leaves), but the slow wander the "
+        f"recording shows without it (sigma = [{tau}] channel units{corr}) makes such a trend too "
+        f"(likelihood ratio {lr_wander:.1f} with each channel's wander re-estimated, gate {gate:.1f}): "
+        "this recording cannot tell the effect from a wander; longer or repeated runs can"
+    )
 
 
 @dataclass(frozen=True)
@@ -84,8 +108,16 @@ def fit_model(
     fixed: FloatArray | None,
     init: NoiseParams | None = None,
     iterations: int = 1,
+    cap: SlowNoiseCap | None = None,
+    own: bool = False,
 ) -> tuple[NoiseParams, GlsFit, FloatArray]:
-    """REML noise and GLS fit of a model, the columns evaluated at K0 (then at the fitted K)."""
+    """REML noise and GLS fit of a model, the columns evaluated at K0 (then at the fitted K).
+
+    ``cap`` is the recording's slow-noise bound (``wander_cap``), built here if not given.
+    The slow noise has one level scaled by the channels' gains, or with ``own`` one level
+    per channel.
+    """
+    cap = SlowNoiseCap(ev) if cap is None else cap
     K = K0
     noise: NoiseParams | None = init
     fit: GlsFit | None = None
@@ -102,8 +134,8 @@ def fit_model(
             fixed=fixed,
             estimate_pose=pose,
             init=noise,
-            channel_gain=np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
-            tau2_cap=lambda tc: slow_noise_cap(ev, tc),
+            channel_gain=None if own else np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
+            tau2_cap=cap,
         )
         K = scale_matrix(fit)
     assert noise is not None and fit is not None
@@ -118,7 +150,7 @@ def _lr_fixed(
     K: FloatArray,
     fixed: FloatArray | None,
 ) -> float:
-    C = covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed)
+    C = window_covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed)
     return gls(X0, ev.y.reshape(-1), C).chi2 - gls(X1, ev.y.reshape(-1), C).chi2
 
 
@@ -143,7 +175,8 @@ def select(
     state = ModelState()
     X0 = first_order_design(ev.f_m_s2)
     K = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
-    state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2)
+    cap = SlowNoiseCap(ev)
+    state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2, cap=cap)
     notes: dict[str, str] = {}
     for _ in range(MAX_STEPS):
         assert state.noise is not None and state.fit is not None
@@ -167,17 +200,33 @@ def select(
                 continue
             ranked.append((_lr_fixed(ev, X, np.hstack([X, cols]), state.noise, K, fixed), cand))
         ranked.sort(key=lambda r: -r[0])
+        null_own: tuple[NoiseParams, GlsFit, FloatArray] | None = None
         for _lr0, cand in ranked[:SHORTLIST]:
             q = len(cand.names)
-            model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise)
+            model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise, cap=cap)
             noise1, _fit1, K1 = model1
             X1 = design(ev, K1, [*state.candidates, cand])
             lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
+            gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1]))
+            if cand.effect in WANDER_LIKE and lr > gate:
+                # the claim must beat the trend the measured wander makes: the likelihood ratio
+                # with each channel's own slow wander re-estimated in both models
+                if null_own is None:
+                    null_own = fit_model(
+                        ev, state.candidates, state.pose, K, fixed, state.noise, cap=cap, own=True
+                    )
+                ext_own = fit_model(
+                    ev, [*state.candidates, cand], state.pose, K, fixed, null_own[0], cap=cap, own=True
+                )
+                lr_wander = max(0.0, 2.0 * (ext_own[1].loglik_ml - null_own[1].loglik_ml))
+                if lr_wander <= gate:
+                    notes[cand.label] = wander_note(cand.effect, lr, lr_wander, gate, null_own[0])
+                lr = min(lr, lr_wander)
             dbic = -lr + q * math.log(n)
-            if lr > q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1])) and dbic < 0:
+            if lr > gate and dbic < 0:
                 admissible.append((dbic, cand, lr, model1))
         if pose_allowed and not state.pose:
-            noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise)
+            noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise, cap=cap)
             if noise1.pose_var_rad2 > 0:
                 lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
                 dbic = -lr + math.log(n)

@@ -41,23 +41,45 @@ def half_difference_factor(h_s: FloatArray, corr_time_s: float) -> FloatArray:
     return 2.0 * (var_mean - cov_adj)
 
 
+def half_differences(ev: StaticEvidence) -> tuple[FloatArray, FloatArray] | None:
+    """Squared half-window differences d_w² (m', 3) and half lengths h_w (m',) in s.
+
+    ``None`` when the evidence carries no window samples or fewer than two usable windows.
+    """
+    if ev.window_samples is None or ev.sample_rate_hz is None:
+        return None
+    d2, h = [], []
+    for x in ev.window_samples:
+        n = x.shape[0] // 2
+        if n < 2:
+            continue
+        d = x[n : 2 * n].mean(axis=0) - x[:n].mean(axis=0)
+        d2.append(d * d)
+        h.append(n / ev.sample_rate_hz)
+    if len(d2) < 2:
+        return None
+    return np.array(d2), np.array(h)
+
+
+class SlowNoiseCap:
+    """τ²_max(T_c) of the module docstring for one recording (half differences computed once)."""
+
+    def __init__(self, ev: StaticEvidence) -> None:
+        self._hd = half_differences(ev)
+
+    def __call__(self, corr_time_s: float) -> FloatArray | None:
+        """(3,) upper bound τ²_max per channel (channel units²); ``None`` if it cannot be formed."""
+        if self._hd is None or corr_time_s <= 0:
+            return None
+        d2, h = self._hd
+        D = d2 / half_difference_factor(h, corr_time_s)[:, None]
+        return D.sum(axis=0) / float(chi2_dist.ppf(CAP_ALPHA, D.shape[0]))
+
+
 def slow_noise_cap(ev: StaticEvidence, corr_time_s: float) -> FloatArray | None:
     """(3,) upper bound τ²_max per channel for correlation time ``corr_time_s`` (channel units²).
 
     ``None`` when the evidence carries no window samples (the bound cannot be formed) or
     ``corr_time_s`` ≤ 0.
     """
-    if ev.window_samples is None or ev.sample_rate_hz is None or corr_time_s <= 0:
-        return None
-    D = []
-    for x in ev.window_samples:
-        n = x.shape[0] // 2
-        if n < 2:
-            continue
-        d = x[n : 2 * n].mean(axis=0) - x[:n].mean(axis=0)
-        g = float(half_difference_factor(np.array(n / ev.sample_rate_hz), corr_time_s))
-        D.append(d * d / g)
-    if len(D) < 2:
-        return None
-    a = np.array(D)
-    return a.sum(axis=0) / float(chi2_dist.ppf(CAP_ALPHA, a.shape[0]))
+    return SlowNoiseCap(ev)(corr_time_s)

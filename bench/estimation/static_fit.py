@@ -29,7 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from scipy.stats import chi2 as chi2_dist
 
+from bench.estimation.slow_noise import NoiseParams, fit_noise, gls, window_covariance
 from bench.estimation.window_noise import (
     own_channel_variance,
     pm_statistic,
@@ -199,8 +201,10 @@ def _gls(H: FloatArray, y: FloatArray, S: FloatArray) -> tuple[FloatArray, Float
     return theta, 0.5 * (C + C.T), float(np.einsum("wa,wab,wb->", r, W, r))
 
 
-def _variance_components(X: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray) -> FloatArray:
-    """Between-window covariance per window (m, 3, 3): t M_w + diag(τ²), inflated.
+def _variance_components(
+    X: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray
+) -> tuple[FloatArray, FloatArray, float]:
+    """Between-window covariance per window: the pose part t M_w (m, 3, 3) and diag(τ²) (3,), inflated.
 
     The pose variance t (m/s²)² solves the Paule-Mandel equation pooled over the channels,
     each channel refitted with its marginal variances v_w,i + t M_w,ii (Paule & Mandel,
@@ -228,11 +232,107 @@ def _variance_components(X: FloatArray, y: FloatArray, V: FloatArray, K: FloatAr
 
         t = solve_decreasing(pooled_q, 3 * dof, float(np.median(vd / np.maximum(md, 1e-300))))
     own = own_channel_variance(X, y, vd + t * md)
-    return t * t_factor(3 * dof) * M + (own * t_factor(dof))[None, :, None] * np.eye(3)[None]
+    return t * t_factor(3 * dof) * M, own * t_factor(dof), t
+
+
+WANDER_GATE = float(chi2_dist.ppf(0.95, 1))
+"""2 Δℓ_REML by which a wander correlated between windows must beat independent window
+errors before the calibration's covariance uses it: the 5 % point of χ²₁ (3.84). The
+independent model, when kept, understates the sigmas of a wander it missed (halves of
+simulated day-long sessions with 2Δℓ of 4–6 disagreed by 4.4 sigma under the 1 % point), so
+the gate errs towards the wander."""
+
+
+@dataclass(frozen=True)
+class SlowWander:
+    """The correlated between-window model of :func:`fit_static` (``slow_noise``).
+
+    :param noise: REML noise (τ² per channel, T_c, pose variance), inflated by ``t_factor``.
+    :param lr: 2 Δℓ_REML of the correlated wander over independent window errors.
+    :param J: (m, 3, 2) response of the window means to the pose angles.
+    :param nugget: (m, 3, 3) independent excess per window kept from the independent fit.
+    """
+
+    noise: NoiseParams
+    lr: float
+    J: FloatArray
+    nugget: FloatArray
+
+
+def correlation_time_grid(mid_s: FloatArray) -> list[float]:
+    """T_c (s) tried for the slow wander: 0.3, 1 and 3 times the span of the windows, and
+    shorter ones down to twice the median window spacing, in steps of 4 (long recordings
+    wander on scales much shorter than their span)."""
+    t = np.sort(np.asarray(mid_s, dtype=float))
+    span = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    if span <= 0:
+        return []
+    grid = [0.3 * span, span, 3.0 * span]
+    spacing = float(np.median(np.diff(t)))
+    tc = 0.3 * span / 4.0
+    while tc >= 2.0 * spacing:
+        grid.insert(0, tc)
+        tc /= 4.0
+    return grid
+
+
+def pose_angles_response(K: FloatArray, f_m_s2: FloatArray) -> FloatArray:
+    """(m, 3, 2) response of each window mean to two small tilt angles (rad) about axes
+    perpendicular to its specific force: J_w = K |f_w| [u1 u2], so that J_w J_wᵀ =
+    |f_w|² K (I − f̂ f̂ᵀ) Kᵀ (the shape of ``window_noise.pose_scatter``)."""
+    f = np.asarray(f_m_s2, dtype=float)
+    fn = np.linalg.norm(f, axis=1, keepdims=True)
+    fh = f / fn
+    e = np.eye(3)[np.argmin(np.abs(fh), axis=1)]
+    u1 = np.cross(e, fh)
+    u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
+    u2 = np.cross(fh, u1)
+    return np.einsum("ik,wkq->wiq", K, fn[:, :, None] * np.stack([u1, u2], axis=2))
+
+
+def _slow_wander(
+    f: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray, mid_s: FloatArray, own: FloatArray, t: float
+) -> SlowWander | None:
+    """REML fit of a per-channel wander correlated between windows, with the pose scatter.
+
+    τ² (3,), T_c and the pose variance are estimated by REML, T_c on
+    :func:`correlation_time_grid` (screened, then refined), against the same model with
+    T_c = 0 (independent). Returns ``None`` unless the correlated wander wins by
+    :data:`WANDER_GATE`. ``own`` (3,) and ``t`` ((m/s²)², the pose variance) of the
+    independent fit are the starting point.
+    """
+    m = f.shape[0]
+    grid = correlation_time_grid(mid_s)
+    if m <= 5 or not grid:
+        return None
+    X = design_rows(f).reshape(3 * m, 12)
+    z = y.reshape(-1)
+    J = pose_angles_response(K, f)
+    floor = 1e-6 * float(np.median(np.diagonal(V, axis1=1, axis2=2)))
+    g2 = float(np.median(np.sum(f * f, axis=1)))
+    init = NoiseParams(tau2=np.maximum(own, floor), pose_var_rad2=max(t / g2, 1e-12))
+    nugget = own[None, :, None] * np.eye(3)[None] * np.ones((m, 1, 1))
+    common = {"J_pose": J, "estimate_pose": True, "init": init, "fixed": nugget}
+    _, f0 = fit_noise(X, z, V, mid_s, corr_times_s=[0.0], **common)  # type: ignore[arg-type]
+    n1, f1 = fit_noise(X, z, V, mid_s, corr_times_s=grid, refine_corr_time=True, **common)  # type: ignore[arg-type]
+    lr = 2.0 * (f1.loglik_reml - f0.loglik_reml)
+    if lr <= WANDER_GATE or not np.any(n1.tau2 > 0):
+        return None
+    noise = NoiseParams(
+        tau2=n1.tau2 * t_factor(m - 4),
+        corr_time_s=n1.corr_time_s,
+        pose_var_rad2=n1.pose_var_rad2 * t_factor(3 * (m - 4)),
+    )
+    return SlowWander(noise=noise, lr=float(lr), J=J, nugget=nugget)
 
 
 def fit_static(
-    f_m_s2: FloatArray, y_mean: FloatArray, y_cov: FloatArray, *, between_window: bool = True
+    f_m_s2: FloatArray,
+    y_mean: FloatArray,
+    y_cov: FloatArray,
+    *,
+    between_window: bool = True,
+    mid_s: FloatArray | None = None,
 ) -> StaticFit:
     """Fit bias and full K of a triad to static window means with known specific force.
 
@@ -242,6 +342,11 @@ def fit_static(
     :param y_cov: (m, 3, 3) covariance of each window mean (``window_noise``).
     :param between_window: estimate the additive between-window variance τ² (default);
         ``False`` trusts the within-window covariances alone.
+    :param mid_s: (m,) window times (s). With them, a slow wander correlated between
+        windows (per channel, exponential correlation, REML; ``slow_noise``) replaces the
+        independent excess when it fits the windows better by :data:`WANDER_GATE`: on a long
+        recording the windows share their errors (drift over the day, temperature) and
+        independent errors would understate the sigmas.
     :returns: :class:`StaticFit`.
     :raises ValueError: bad shapes or values, fewer than 4 windows, or an orientation set
         that cannot identify all 12 parameters (the message names them).
@@ -253,11 +358,25 @@ def fit_static(
     V = 0.5 * (V + np.transpose(V, (0, 2, 1)))
     theta, C, _ = _gls(H, y, V)
     excess = np.zeros((m, 3, 3))
+    pose_part, own_part, pose_t = np.zeros((m, 3, 3)), np.zeros(3), 0.0
     if between_window and m > 4:
         for _ in range(3):  # the pose-scatter shape depends on K: two refinements suffice
-            excess = _variance_components(X, y, V, theta[3:].reshape(3, 3))
+            pose_part, own_part, pose_t = _variance_components(X, y, V, theta[3:].reshape(3, 3))
+            excess = pose_part + own_part[None, :, None] * np.eye(3)[None]
             theta, C, _ = _gls(H, y, V + excess)
     S = V + excess
+    slow = None
+    if between_window and mid_s is not None:
+        mid = np.asarray(mid_s, dtype=float).reshape(-1)
+        if mid.shape != (m,) or not np.all(np.isfinite(mid)):
+            raise ValueError(f"window times must be finite (m,) = ({m},), got shape {mid.shape}")
+        slow = _slow_wander(f, y, V, theta[3:].reshape(3, 3), mid, own_part, pose_t)
+    if slow is not None:
+        wc = window_covariance(V, mid, slow.noise, slow.J, slow.nugget)
+        g_fit = gls(H.reshape(3 * m, 12), y.reshape(-1), wc)
+        theta, C = g_fit.theta, g_fit.cov
+        excess = wc.blocks - V + slow.noise.tau2[None, :, None] * np.eye(3)[None]
+        S = V + excess
     resid = y - np.einsum("wai,i->wa", H, theta)
     # Cov(r_w) = S_w − H_w C H_wᵀ for the GLS fit with the true S
     r_var = np.diagonal(S - np.einsum("wai,ij,wbj->wab", H, C, H), axis1=1, axis2=2)
@@ -267,7 +386,16 @@ def fit_static(
     var_within = np.diagonal(V, axis1=1, axis2=2)
     chi2 = float(np.sum(resid**2 / var_within))
     excess_var = np.diagonal(excess, axis1=1, axis2=2).copy()
-    if between_window:
+    if slow is not None:
+        model = (
+            "window means: batch-means covariance from each window's samples; between windows: "
+            "pose scatter common to the channels (joint fit) + each channel's slow wander, sigma = ["
+            + ", ".join(f"{np.sqrt(t):.3g}" for t in slow.noise.tau2)
+            + "] channel units, correlated between windows with time constant "
+            + f"{slow.noise.corr_time_s:.0f} s "
+            f"(REML, 2 delta loglik {slow.lr:.1f} over independent windows)"
+        )
+    elif between_window:
         model = (
             "window means: batch-means covariance from each window's samples; between windows: "
             "pose scatter common to the channels (joint fit) + each channel's own excess, rms sigma = ["

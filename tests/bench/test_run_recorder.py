@@ -124,7 +124,7 @@ def test_a_full_disk_cuts_the_recording_at_the_last_durable_chunk(tmp_path: Path
         assert info.value.errno == errno.ENOSPC
     assert path.stat().st_size == durable.end_byte
     assert rec.n_rows == 100 and rec.failed is not None
-    with pytest.raises(OSError, match="failed earlier.*nothing more is written"):
+    with pytest.raises(OSError, match=r"failed earlier.*nothing more is written"):
         block(rec, 3.0, 10, 1)
     assert rec.close() is None
     out = read_recording(path)

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import f as f_dist
 
+from bench.diagnosis.catch_all import pose_check
 from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
 from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
 from bench.diagnosis.evidence import StaticEvidence
@@ -41,6 +42,13 @@ FALSE_ALARM = 0.01
 candidates tried in that step, so each gate runs at FALSE_ALARM / N."""
 SHORTLIST = 4
 MAX_STEPS = 8
+LIBRARY_SHARE = 0.1
+"""Share of ``false_alarm`` the library's family of terms may spend in one step (split
+evenly over its terms): the catalogue's gates, and so its detection limits, are unchanged."""
+PRESCREEN = 0.25
+"""A library term whose statistic under the current noise is below this fraction of its
+gate is not re-fitted with its own noise (it cannot pass: re-fitting the noise moves the
+statistic by far less than 4×)."""
 
 
 @dataclass(frozen=True)
@@ -63,6 +71,7 @@ class ModelState:
     noise: NoiseParams | None = None
     fit: GlsFit | None = None
     steps: list[Step] = field(default_factory=list)
+    pose_edf: float = 0.0
 
 
 def design(ev: StaticEvidence, K: FloatArray, cands: list[Candidate]) -> FloatArray:
@@ -122,6 +131,94 @@ def _lr_fixed(
     return gls(X0, ev.y.reshape(-1), C).chi2 - gls(X1, ev.y.reshape(-1), C).chi2
 
 
+def _whitened_lr(
+    ev: StaticEvidence,
+    X: FloatArray,
+    cols: FloatArray,
+    noise: NoiseParams,
+    K: FloatArray,
+    fixed: FloatArray | None,
+) -> tuple[FloatArray, FloatArray]:
+    """Δχ² of adding each column of ``cols`` (3m, N) alone to X under the current noise, and the
+    fraction of each whitened column outside the whitened span of X (its leverage)."""
+    C = covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed)
+    L = np.linalg.cholesky(C)
+    Xw = np.linalg.solve(L, X)
+    zw = np.linalg.solve(L, ev.y.reshape(-1))
+    Aw = np.linalg.solve(L, cols)
+    Q, _ = np.linalg.qr(Xw)
+    rw = zw - Q @ (Q.T @ zw)
+    Ap = Aw - Q @ (Q.T @ Aw)
+    na = np.linalg.norm(Ap, axis=0)
+    lev = na / np.maximum(np.linalg.norm(Aw, axis=0), 1e-300)
+    lr = (Ap.T @ rw) ** 2 / np.maximum(na**2, 1e-300)
+    return lr, lev
+
+
+def _structured(
+    ev: StaticEvidence,
+    pool: list[Candidate],
+    state: ModelState,
+    K: FloatArray,
+    fixed: FloatArray | None,
+    alpha: float,
+    notes: dict[str, str],
+    prescreen: float = 0.0,
+    simplicity: dict[str, int] | None = None,
+) -> tuple[float, Candidate, float, tuple[NoiseParams, GlsFit, FloatArray]] | None:
+    """The best admissible fixed-column candidate of ``pool`` (gate at ``alpha`` each), or ``None``.
+
+    ``prescreen`` (a fraction of the gate): candidates whose statistic under the current noise
+    is below it are not re-fitted. ``simplicity`` (label -> degree): among admissible
+    candidates within 2 of the best BIC change (not worth more than a bare mention, Kass &
+    Raftery, JASA 90 (1995) 773) the one of lowest degree enters.
+    """
+    assert state.noise is not None
+    n = ev.n_obs
+    X = design(ev, K, state.candidates)
+    tried = [c for c in pool if c not in state.candidates]
+    if not tried:
+        return None
+    cols = [c.columns(ev, K) for c in tried]
+    lr0, lev = _whitened_lr(ev, X, np.hstack(cols), state.noise, K, fixed)
+    ranked: list[tuple[float, Candidate]] = []
+    col = 0
+    for cand, a in zip(tried, cols, strict=True):
+        q = a.shape[1]
+        lv = leverage(X, a)
+        if np.any(lv < RELATIVE_LEVERAGE_MIN) or np.any(lev[col : col + q] < RELATIVE_LEVERAGE_MIN):
+            notes[cand.label] = (
+                f"cannot be told apart from the model's other terms on this pose set "
+                f"(only {float(np.min(lv)):.1e} of its signature is independent of them)"
+            )
+        elif q == 1:
+            ranked.append((float(lr0[col]), cand))
+        else:
+            ranked.append((_lr_fixed(ev, X, np.hstack([X, a]), state.noise, K, fixed), cand))
+        col += q
+    ranked.sort(key=lambda r: -r[0])
+    admissible = []
+    for lr_now, cand in ranked[:SHORTLIST]:
+        q = len(cand.names)
+        gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X.shape[1] - q))
+        if lr_now < prescreen * gate:
+            continue
+        model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise)
+        noise1, _fit1, K1 = model1
+        X1 = design(ev, K1, [*state.candidates, cand])
+        lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
+        dbic = -lr + q * math.log(n)
+        if lr > q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1])) and dbic < 0:
+            admissible.append((dbic, cand, lr, model1))
+    if not admissible:
+        return None
+    best = min(admissible, key=lambda a: a[0])
+    if simplicity:
+        near = [a for a in admissible if a[0] <= best[0] + 2.0]
+        best = min(near, key=lambda a: (simplicity.get(a[1].label, 0), a[0]))
+    return best
+
+
 def select(
     ev: StaticEvidence,
     pool: list[Candidate],
@@ -129,13 +226,26 @@ def select(
     pose_allowed: bool,
     fixed: FloatArray | None = None,
     false_alarm: float = FALSE_ALARM,
+    library: list[Candidate] | None = None,
+    simplicity: dict[str, int] | None = None,
 ) -> tuple[ModelState, dict[str, str]]:
     """Run the greedy selection.
 
+    Each step tries, in this order, and takes the first group with an admissible candidate:
+    the catalogue's fixed columns (gate at ``false_alarm`` / N, N catalogue candidates plus
+    the pose error); the library's terms (gate at ``LIBRARY_SHARE`` · ``false_alarm`` / N_L,
+    N_L the library's size: a family that large must not spend the catalogue's budget);
+    the pose error, a catch-all, last (its gate as the catalogue's, its BIC charged its
+    effective degrees of freedom, and it must show the scatter its physics implies on every
+    channel, ``catch_all``). A catalogue effect thus enters before a library term that
+    would mimic it, and a structured term before a random effect that could absorb it.
+
     :param ev: the evidence.
-    :param pool: observable candidates (fixed columns).
+    :param pool: observable catalogue candidates (fixed columns).
     :param pose_allowed: try the pose-error variance component.
     :param fixed: fixed extra covariance per window (orientation-free diagnosis).
+    :param library: candidates beyond the catalogue (``library``), or ``None``.
+    :param simplicity: library label -> degree, for ties (``_structured``).
     :returns: the final state and, per candidate label, why it was not admitted when it
         could not be told from the model (``"indistinguishable"`` notes).
     """
@@ -145,52 +255,55 @@ def select(
     K = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
     state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2)
     notes: dict[str, str] = {}
+    library = library or []
     for _ in range(MAX_STEPS):
         assert state.noise is not None and state.fit is not None
-        X = design(ev, K, state.candidates)
-        n_tried = sum(1 for c in pool if c not in state.candidates) + (
+        n_cat = sum(1 for c in pool if c not in state.candidates) + (
             1 if pose_allowed and not state.pose else 0
         )
-        alpha = false_alarm / max(n_tried, 1)
-        admissible: list[tuple[float, Candidate | None, float, tuple[NoiseParams, GlsFit, FloatArray]]] = []
-        ranked: list[tuple[float, Candidate]] = []
-        for cand in pool:
-            if cand in state.candidates:
-                continue
-            cols = cand.columns(ev, K)
-            lev = leverage(X, cols)
-            if np.any(lev < RELATIVE_LEVERAGE_MIN):
-                notes[cand.label] = (
-                    f"cannot be told apart from the model's other terms on this pose set "
-                    f"(only {float(np.min(lev)):.1e} of its signature is independent of them)"
-                )
-                continue
-            ranked.append((_lr_fixed(ev, X, np.hstack([X, cols]), state.noise, K, fixed), cand))
-        ranked.sort(key=lambda r: -r[0])
-        for _lr0, cand in ranked[:SHORTLIST]:
-            q = len(cand.names)
-            model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise)
-            noise1, _fit1, K1 = model1
-            X1 = design(ev, K1, [*state.candidates, cand])
-            lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
-            dbic = -lr + q * math.log(n)
-            if lr > q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1])) and dbic < 0:
-                admissible.append((dbic, cand, lr, model1))
-        if pose_allowed and not state.pose:
-            noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise)
-            if noise1.pose_var_rad2 > 0:
-                lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
-                dbic = -lr + math.log(n)
-                if lr > float(chi2_dist.ppf(1.0 - 2.0 * alpha, 1)) and dbic < 0:
-                    admissible.append((dbic, None, lr, (noise1, fit1, K1)))
-        if not admissible:
-            break
-        dbic, chosen, lr, model1 = min(admissible, key=lambda a: a[0])
-        if chosen is None:
-            state.pose = True
-            state.steps.append(Step("pose_error", "pose_error", lr, dbic, 1))
-        else:
+        alpha = false_alarm / max(n_cat, 1)
+        step = _structured(ev, pool, state, K, fixed, alpha, notes)
+        if step is None and library:
+            n_lib = sum(1 for c in library if c not in state.candidates)
+            alpha_lib = LIBRARY_SHARE * false_alarm / max(n_lib, 1)
+            step = _structured(
+                ev, library, state, K, fixed, alpha_lib, {}, prescreen=PRESCREEN, simplicity=simplicity
+            )
+        if step is not None:
+            dbic, chosen, lr, model1 = step
             state.candidates.append(chosen)
             state.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
-        state.noise, state.fit, K = model1
+            state.noise, state.fit, K = model1
+            continue
+        if not (pose_allowed and not state.pose):
+            break
+        noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise)
+        if noise1.pose_var_rad2 <= 0:
+            break
+        lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
+        if lr <= float(chi2_dist.ppf(1.0 - 2.0 * alpha, 1)):
+            break
+        chk = pose_check(
+            ev.V,
+            ev.mid_s,
+            noise1,
+            pose_response(ev, K1),
+            design(ev, K1, state.candidates),
+            ev.y.reshape(-1),
+            fixed,
+        )
+        dbic = -lr + max(chk.edf, 1.0) * math.log(n)
+        if dbic >= 0:
+            notes["pose_error"] = (
+                f"a random pose error would raise the likelihood by {lr:.1f} (2 dl) but spends "
+                f"{chk.edf:.1f} effective degrees of freedom: BIC change {dbic:+.1f}; not claimed"
+            )
+            break
+        if not chk.consistent:
+            notes["pose_error"] = chk.text()
+            break
+        state.pose = True
+        state.pose_edf = chk.edf
+        state.steps.append(Step("pose_error", "pose_error", lr, dbic, 1))
+        state.noise, state.fit, K = noise1, fit1, K1
     return state, notes

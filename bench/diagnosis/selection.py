@@ -24,7 +24,7 @@ expensive part).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
@@ -45,6 +45,15 @@ MAX_STEPS = 8
 LIBRARY_SHARE = 0.1
 """Share of ``false_alarm`` the library's family of terms may spend in one step (split
 evenly over its terms): the catalogue's gates, and so its detection limits, are unchanged."""
+TIE_CHI2 = 6.0
+"""Library terms whose statistics (or BIC changes) lie within this of the best are a tie,
+which the simplest (lowest degree) wins: a term of higher degree replaces a simpler one
+only on "strong" evidence, a BIC difference above 6 (Kass & Raftery, JASA 90 (1995) 773),
+and only among alike terms (``ALIKE_COSINE``).
+Alike terms (f_y² and |f_y|³ on the 12-pose set, |cos| ≈ 0.98) differ by less than the
+wander between windows makes."""
+ALIKE_COSINE = 0.8
+"""Library terms whose signatures beyond the model have |cos| above this are alike (ties)."""
 PRESCREEN = 0.25
 """A library term whose statistic under the current noise is below this fraction of its
 gate is not re-fitted with its own noise (it cannot pass: re-fitting the noise moves the
@@ -72,6 +81,7 @@ class ModelState:
     fit: GlsFit | None = None
     steps: list[Step] = field(default_factory=list)
     pose_edf: float = 0.0
+    swapped: set[str] = field(default_factory=set)
 
 
 def design(ev: StaticEvidence, K: FloatArray, cands: list[Candidate]) -> FloatArray:
@@ -170,8 +180,9 @@ def _structured(
 
     ``prescreen`` (a fraction of the gate): candidates whose statistic under the current noise
     is below it are not re-fitted. ``simplicity`` (label -> degree): among admissible
-    candidates within 2 of the best BIC change (not worth more than a bare mention, Kass &
-    Raftery, JASA 90 (1995) 773) the one of lowest degree enters.
+    candidates within ``TIE_CHI2`` of the best (statistic under the windows' own scatter for
+    the shortlist, then 2 ℓ_ML of the extended model under its own noise) the one of lowest
+    degree is tried and enters.
     """
     assert state.noise is not None
     n = ev.n_obs
@@ -180,7 +191,12 @@ def _structured(
     if not tried:
         return None
     cols = [c.columns(ev, K) for c in tried]
-    lr0, lev = _whitened_lr(ev, X, np.hstack(cols), state.noise, K, fixed)
+    rank_noise = state.noise
+    if simplicity is not None:
+        # rank the library against the windows' own scatter: a slow noise inflated by the very
+        # mismatch a term would explain makes every term look alike
+        rank_noise = replace(state.noise, tau2=np.zeros(3))
+    lr0, lev = _whitened_lr(ev, X, np.hstack(cols), rank_noise, K, fixed)
     ranked: list[tuple[float, Candidate]] = []
     col = 0
     for cand, a in zip(tried, cols, strict=True):
@@ -197,6 +213,22 @@ def _structured(
             ranked.append((_lr_fixed(ev, X, np.hstack([X, a]), state.noise, K, fixed), cand))
         col += q
     ranked.sort(key=lambda r: -r[0])
+    if simplicity and len(ranked) > SHORTLIST:
+        # the simplest of the terms alike the best (within TIE_CHI2) is re-fitted too
+        Qx, _ = np.linalg.qr(X)
+        pos = {id(c): k for k, c in enumerate(tried)}
+        Ap = np.hstack(cols)
+        Ap = Ap - Qx @ (Qx.T @ Ap)
+        Ap /= np.maximum(np.linalg.norm(Ap, axis=0), 1e-300)
+        s_top = Ap[:, pos[id(ranked[0][1])]]
+        near = [
+            r
+            for r in ranked
+            if r[0] >= ranked[0][0] - TIE_CHI2 and abs(float(Ap[:, pos[id(r[1])]] @ s_top)) > ALIKE_COSINE
+        ]
+        first = min(near, key=lambda r: (simplicity.get(r[1].label, 0), -r[0]))
+        if first not in ranked[:SHORTLIST]:
+            ranked = [*ranked[: SHORTLIST - 1], first]
     admissible = []
     for lr_now, cand in ranked[:SHORTLIST]:
         q = len(cand.names)
@@ -214,9 +246,87 @@ def _structured(
         return None
     best = min(admissible, key=lambda a: a[0])
     if simplicity:
-        near = [a for a in admissible if a[0] <= best[0] + 2.0]
-        best = min(near, key=lambda a: (simplicity.get(a[1].label, 0), a[0]))
+        # one column each: compare the extended models' own likelihoods (ML, each under its noise)
+        top = max(admissible, key=lambda a: a[3][1].loglik_ml)
+        Qx, _ = np.linalg.qr(X)
+
+        def sig(c: Candidate) -> FloatArray:
+            a = c.columns(ev, K)[:, 0]
+            a = a - Qx @ (Qx.T @ a)
+            return a / max(float(np.linalg.norm(a)), 1e-300)
+
+        s_top = sig(top[1])
+        near = [
+            a
+            for a in admissible
+            if 2.0 * (top[3][1].loglik_ml - a[3][1].loglik_ml) <= TIE_CHI2
+            and abs(float(sig(a[1]) @ s_top)) > ALIKE_COSINE
+        ]
+        best = min(near, key=lambda a: (simplicity.get(a[1].label, 0), -a[3][1].loglik_ml))
     return best
+
+
+def _bic(ev: StaticEvidence, state: ModelState) -> float:
+    assert state.fit is not None and state.noise is not None
+    k = state.fit.theta.size + state.noise.n_free + (1 if state.pose else 0)
+    return -2.0 * state.fit.loglik_ml + k * math.log(ev.n_obs)
+
+
+def _swap(
+    ev: StaticEvidence,
+    state: ModelState,
+    K: FloatArray,
+    fixed: FloatArray | None,
+    library: list[Candidate],
+    false_alarm: float,
+    notes: dict[str, str],
+    simplicity: dict[str, int] | None,
+) -> bool:
+    """Replace a catalogue effect of the model by one library term where that lowers the BIC.
+
+    A catalogue effect enters first, so one that only partly mimics a term beyond the
+    catalogue can enter and then bend the library's choice. For each catalogue effect E of
+    the model: remove it, run the library step (its gate as in ``select``); if the model
+    without E and with the term has the lower BIC (−2 ℓ_ML + k ln n, each model under its own
+    noise), the swap is made (E is not tried again).
+    """
+    best: tuple[float, str, ModelState] | None = None
+    current = _bic(ev, state)
+    for effect in dict.fromkeys(c.effect for c in state.candidates):
+        if effect.startswith("discovered:"):
+            continue
+        keep = [c for c in state.candidates if c.effect != effect]
+        noise0, fit0, K0 = fit_model(ev, keep, state.pose, K, fixed, state.noise)
+        trial = ModelState(
+            candidates=keep, pose=state.pose, noise=noise0, fit=fit0,
+            steps=[st for st in state.steps if st.effect != effect], pose_edf=state.pose_edf,
+        )  # fmt: skip
+        n_lib = sum(1 for c in library if c not in keep)
+        step = _structured(
+            ev, library, trial, K0, fixed, LIBRARY_SHARE * false_alarm / max(n_lib, 1), {},
+            prescreen=PRESCREEN, simplicity=simplicity,
+        )  # fmt: skip
+        if step is None:
+            continue
+        dbic, chosen, lr, (noise1, fit1, _K1) = step
+        trial.candidates = [*keep, chosen]
+        trial.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
+        trial.noise, trial.fit = noise1, fit1
+        b = _bic(ev, trial)
+        if b < current and (best is None or b < best[0]):
+            best = (b, effect, trial)
+    if best is None:
+        return False
+    b, effect, trial = best
+    new = trial.candidates[-1].label
+    notes[effect] = (
+        f"entered first but {new} explains the recording better without it "
+        f"(BIC {current:.1f} -> {b:.1f}): replaced"
+    )
+    state.candidates, state.steps = trial.candidates, trial.steps
+    state.noise, state.fit = trial.noise, trial.fit
+    state.swapped.add(effect)
+    return True
 
 
 def select(
@@ -274,6 +384,11 @@ def select(
             state.candidates.append(chosen)
             state.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
             state.noise, state.fit, K = model1
+            continue
+        if library and _swap(ev, state, K, fixed, library, false_alarm, notes, simplicity):
+            assert state.fit is not None
+            K = scale_matrix(state.fit)
+            pool = [c for c in pool if c.effect not in state.swapped]
             continue
         if not (pose_allowed and not state.pose):
             break

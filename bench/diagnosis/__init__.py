@@ -431,8 +431,8 @@ def diagnose(
         text = summary(effect, params, sigma, ev.labels, span)
         if effect == "pose_error":
             text += (
-                f" ({state.pose_edf:.1f} effective degrees of freedom, charged in its BIC change; the "
-                "scatter it implies is on every channel it moves)"
+                f" ({state.pose_edf:.1f} effective degrees of freedom, charged in its BIC change, which is "
+                "the conditional one given the angles; the scatter it implies is on every channel it moves)"
             )
             if ev.table_rad is not None:
                 text += (
@@ -454,7 +454,7 @@ def diagnose(
                 delta_bic=float(
                     seq[k + 1].bic - seq[k].bic
                     if effect != "pose_error"
-                    else seq[k + 1].bic - seq[k].bic + (state.pose_edf - 1.0) * np.log(ev.n_obs)
+                    else next(st.delta_bic for st in state.steps if st.effect == "pose_error")
                 ),
                 lr=float(sum(s.lr for s in state.steps if s.effect == effect)),
                 residual_rms_after=float(np.sqrt(np.mean(seq[k + 1].resid ** 2))),

@@ -9,7 +9,12 @@ The pose error gives every window two free angles, held together only by one var
    whose trace is the effective number of parameters (Hastie & Tibshirani, Generalized
    Additive Models (1990) §3.5; Hodges & Sargent, Biometrika 88 (2001) 367):
 
-       edf = tr(σ_p² G P);
+       edf = tr(σ_p² G P),
+
+   and its BIC change is the conditional one (Vaida & Blanchard, Biometrika 92 (2005) 351):
+   the likelihood of the data given the predicted angles, r_c = z − X θ̂ − J p̂ under C₀,
+   against the model without it, plus edf · ln n (the marginal likelihood with one
+   parameter would let 2m angles in for the price of one);
 
 2. asked for the evidence its physics implies: a pose error turns gravity, so it moves
    the window means on the channels perpendicular to gravity together, by the same angle
@@ -48,6 +53,7 @@ class PoseCheck:
     """
 
     edf: float
+    loglik_conditional: float
     expected: FloatArray
     observed: FloatArray
     p_low: FloatArray
@@ -134,6 +140,10 @@ def pose_check(
     C1iX = cho_solve(f1, X)
     P = cho_solve(f1, np.eye(n)) - C1iX @ np.linalg.solve(X.T @ C1iX, C1iX.T)
     edf = float(noise.pose_var_rad2 * np.trace(G @ P))
+    r_c = z - X @ np.linalg.solve(X.T @ C1iX, C1iX.T @ z) - noise.pose_var_rad2 * G @ (P @ z)
+    f0 = cho_factor(C0, lower=True)
+    logdet0 = 2.0 * float(np.sum(np.log(np.diag(f0[0]))))
+    ll_c = -0.5 * (float(r_c @ cho_solve(f0, r_c)) + logdet0 + n * np.log(2.0 * np.pi))
     q, e, v = channel_forms(C1, C0, X, z)
     p_low, _ = satterthwaite_tails(q, e, v)
-    return PoseCheck(edf=edf, expected=e, observed=q, p_low=p_low)
+    return PoseCheck(edf=edf, loglik_conditional=ll_c, expected=e, observed=q, p_low=p_low)

@@ -407,11 +407,12 @@ def select(
             ev.y.reshape(-1),
             fixed,
         )
-        dbic = -lr + max(chk.edf, 1.0) * math.log(n)
+        gain = 2.0 * (chk.loglik_conditional - state.fit.loglik_ml)
+        dbic = -gain + max(chk.edf, 1.0) * math.log(n)
         if dbic >= 0:
             notes["pose_error"] = (
-                f"a random pose error would raise the likelihood by {lr:.1f} (2 dl) but spends "
-                f"{chk.edf:.1f} effective degrees of freedom: BIC change {dbic:+.1f}; not claimed"
+                f"a random pose error would raise the likelihood given its angles by {gain:.1f} (2 dl) "
+                f"but spends {chk.edf:.1f} effective degrees of freedom: BIC change {dbic:+.1f}; not claimed"
             )
             break
         if not chk.consistent:

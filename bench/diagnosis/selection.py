@@ -266,6 +266,9 @@ def _structured(
     return best
 
 
+LIB = "discovered:"
+
+
 def _bic(ev: StaticEvidence, state: ModelState) -> float:
     assert state.fit is not None and state.noise is not None
     k = state.fit.theta.size + state.noise.n_free + (1 if state.pose else 0)
@@ -286,39 +289,45 @@ def _swap(
 
     A catalogue effect enters first, so one that only partly mimics a term beyond the
     catalogue can enter and then bend the library's choice. For each catalogue effect E of
-    the model: remove it, run the library step (its gate as in ``select``); if the model
-    without E and with the term has the lower BIC (−2 ℓ_ML + k ln n, each model under its own
-    noise), the swap is made (E is not tried again).
+    the model: remove it and the library's terms, run the library's steps again (their gate
+    as in ``select``); if that model has the lower BIC (−2 ℓ_ML + k ln n, each model under
+    its own noise), the swap is made (E is not tried again).
     """
     best: tuple[float, str, ModelState] | None = None
     current = _bic(ev, state)
     for effect in dict.fromkeys(c.effect for c in state.candidates):
-        if effect.startswith("discovered:"):
+        if effect.startswith(LIB):
             continue
-        keep = [c for c in state.candidates if c.effect != effect]
+        keep = [c for c in state.candidates if c.effect != effect and c not in library]
         noise0, fit0, K0 = fit_model(ev, keep, state.pose, K, fixed, state.noise)
         trial = ModelState(
             candidates=keep, pose=state.pose, noise=noise0, fit=fit0,
-            steps=[st for st in state.steps if st.effect != effect], pose_edf=state.pose_edf,
+            steps=[st for st in state.steps if st.effect != effect and not st.effect.startswith(LIB)],
+            pose_edf=state.pose_edf,
         )  # fmt: skip
-        n_lib = sum(1 for c in library if c not in keep)
-        step = _structured(
-            ev, library, trial, K0, fixed, LIBRARY_SHARE * false_alarm / max(n_lib, 1), {},
-            prescreen=PRESCREEN, simplicity=simplicity,
-        )  # fmt: skip
-        if step is None:
+        added = 0
+        while added < MAX_STEPS:
+            n_lib = sum(1 for c in library if c not in trial.candidates)
+            step = _structured(
+                ev, library, trial, K0, fixed, LIBRARY_SHARE * false_alarm / max(n_lib, 1), {},
+                prescreen=PRESCREEN, simplicity=simplicity,
+            )  # fmt: skip
+            if step is None:
+                break
+            dbic, chosen, lr, (noise1, fit1, K0) = step
+            trial.candidates = [*trial.candidates, chosen]
+            trial.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
+            trial.noise, trial.fit = noise1, fit1
+            added += 1
+        if added == 0:
             continue
-        dbic, chosen, lr, (noise1, fit1, _K1) = step
-        trial.candidates = [*keep, chosen]
-        trial.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
-        trial.noise, trial.fit = noise1, fit1
         b = _bic(ev, trial)
         if b < current and (best is None or b < best[0]):
             best = (b, effect, trial)
     if best is None:
         return False
     b, effect, trial = best
-    new = trial.candidates[-1].label
+    new = ", ".join(c.label for c in trial.candidates if c in library)
     notes[effect] = (
         f"entered first but {new} explains the recording better without it "
         f"(BIC {current:.1f} -> {b:.1f}): replaced"

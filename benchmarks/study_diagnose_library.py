@@ -47,8 +47,8 @@ def row(case: LibraryCase, n: int) -> str:
         unexp += s.unexplained
     z = f"{np.median(zs):.1f} / {np.max(zs):.1f}" if zs else "–"
     return (
-        f"| {case.name} | {case.term or '(not expressible)'} on {ch} | {case.coefficient:.2g} | {named}/{n} | "
-        f"{alike}/{n} | {z} | {cat}/{n} | {pose}/{n} | {unexp}/{n} |"
+        f"| {case.name} | {case.term or '(not expressible)'} on {ch} | {case.coefficient:.2g} | "
+        f"{named}/{n} | {alike}/{n} | {z} | {cat}/{n} | {pose}/{n} | {unexp}/{n} |"
     )
 
 
@@ -92,8 +92,8 @@ def main(argv: list[str] | None = None) -> None:
     for path in sorted(EXAMPLES.glob("*.csv")):
         d = diagnose_recording(read_recording(path))
         u = d.unexplained.where if d.unexplained else "none"
-        print(f"{path.stem}: findings {[f.summary for f in d.findings]}, discovered {claims(d)[len(d.findings):]}, "
-              f"unexplained {u}")  # fmt: skip
+        found = [f.summary for f in d.findings]
+        print(f"{path.stem}: findings {found}, discovered {claims(d)[len(found) :]}, unexplained {u}")
     print(f"({time.perf_counter() - t0:.0f} s)")
 
 

@@ -5,10 +5,15 @@ recording goes to :func:`bench.diagnosis.dynamic.diagnose_dynamic` instead):
 
 1. observability of every catalogue effect on this recording (``effects``);
 2. greedy forward selection with an F gate and BIC (``selection``), the
-   noise taken from the recording (window scatter, plus slow noise estimated by REML);
-3. refit with the chosen effects: parameters with sigmas, residuals before/after (``refit``);
-4. where the first-order residuals are largest and what they correlate with
-   (``residuals``, ``regressors``).
+   noise taken from the recording (window scatter, plus slow noise estimated by REML):
+   the catalogue first, then the term library beyond it (``library``), the pose error
+   (a catch-all, ``catch_all``) last;
+3. a catalogue effect a library term made redundant is dropped, and every structured
+   effect must lower the leave-one-window-out prediction error of its channels (``_referee``);
+4. refit with the chosen effects: parameters with sigmas, residuals before/after (``refit``);
+5. where the first-order residuals are largest and what they correlate with
+   (``residuals``, ``regressors``); whether the final model still fails the recording's
+   noise (``unexplained``: χ² whole, per channel, channels against each other).
 """
 
 from __future__ import annotations
@@ -378,7 +383,7 @@ def diagnose(
     if ev.orientation_known and use_library:
         terms, _ = library_terms(ev)
         lib_terms = {f"{EFFECT}:{t.label}": t for t in terms}
-    else:
+    elif not ev.orientation_known:
         unobservable[EFFECT] = (
             "the library's terms need the specific force the recording says each window saw; an "
             "orientation-free diagnosis has only the magnitude of each reading"

@@ -13,12 +13,18 @@ design; the pose error as a variance component). A candidate is admitted only if
    noise level is estimated from the same n observations). The pose variance, a boundary
    parameter: LR = 2 Δℓ_REML against the 50:50 mixture of χ²_0 and χ²_1 (the χ²_1
    quantile at 2α);
-3. its BIC change Δ = −LR + q ln n is negative.
+3. its BIC change Δ = −LR + q ln n is negative (the pose error: the conditional BIC
+   change given its angles, charged its effective degrees of freedom, ``catch_all``).
 
-Among the admissible candidates the one with the lowest BIC change enters; selection stops
-when none is admissible. Candidates are ranked first with the current noise held fixed
-and only the best ``SHORTLIST`` are re-fitted with their own noise (the REML fit is the
-expensive part).
+Each step tries the groups in order and takes the first with an admissible candidate:
+the catalogue's columns; the library's terms beyond the catalogue (``library``; gate at
+``LIBRARY_SHARE`` · α / N_L, ties among alike terms to the simplest); a swap of a catalogue
+effect for library terms where that lowers the BIC (``_swap``); last the pose error, a
+catch-all, which must also show the scatter its physics implies on every channel. Among
+the admissible candidates of a group the one with the lowest BIC change enters; selection
+stops when none is admissible. Candidates are ranked first with the current noise held
+fixed and only the best ``SHORTLIST`` are re-fitted with their own noise (the REML fit is
+the expensive part).
 """
 
 from __future__ import annotations

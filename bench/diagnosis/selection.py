@@ -296,8 +296,9 @@ def _swap(
     A catalogue effect enters first, so one that only partly mimics a term beyond the
     catalogue can enter and then bend the library's choice. For each catalogue effect E of
     the model: remove it and the library's terms, run the library's steps again (their gate
-    as in ``select``); if that model has the lower BIC (−2 ℓ_ML + k ln n, each model under
-    its own noise), the swap is made (E is not tried again).
+    as in ``select``); if that model's BIC (−2 ℓ_ML + k ln n, each model under its own
+    noise) is lower by more than ``TIE_CHI2`` (strong evidence: the catalogue keeps its
+    precedence on anything weaker), the swap is made (E is not tried again).
     """
     best: tuple[float, str, ModelState] | None = None
     current = _bic(ev, state)
@@ -328,7 +329,7 @@ def _swap(
         if added == 0:
             continue
         b = _bic(ev, trial)
-        if b < current and (best is None or b < best[0]):
+        if b < current - TIE_CHI2 and (best is None or b < best[0]):
             best = (b, effect, trial)
     if best is None:
         return False

@@ -281,6 +281,23 @@ def _bic(ev: StaticEvidence, state: ModelState) -> float:
     return -2.0 * state.fit.loglik_ml + k * math.log(ev.n_obs)
 
 
+def _mimics(ev: StaticEvidence, K: FloatArray, effect: list[Candidate], terms: list[Candidate]) -> bool:
+    """Whether the catalogue effect's columns can mimic one of the library terms: beyond the
+    first-order model, the term's signature lies within ``ALIKE_COSINE`` of their span."""
+    X0 = first_order_design(ev.f_m_s2)
+    Q0, _ = np.linalg.qr(X0)
+    E = np.hstack([c.columns(ev, K) for c in effect])
+    E = E - Q0 @ (Q0.T @ E)
+    Qe, _ = np.linalg.qr(E)
+    for t in terms:
+        a = t.columns(ev, K)[:, 0]
+        a = a - Q0 @ (Q0.T @ a)
+        na = float(np.linalg.norm(a))
+        if na > 0 and float(np.linalg.norm(Qe.T @ a)) / na > ALIKE_COSINE:
+            return True
+    return False
+
+
 def _swap(
     ev: StaticEvidence,
     state: ModelState,
@@ -298,7 +315,9 @@ def _swap(
     the model: remove it and the library's terms, run the library's steps again (their gate
     as in ``select``); if that model's BIC (−2 ℓ_ML + k ln n, each model under its own
     noise) is lower by more than ``TIE_CHI2`` (strong evidence: the catalogue keeps its
-    precedence on anything weaker), the swap is made (E is not tried again).
+    precedence on anything weaker) and none of the terms is one E's columns can mimic
+    (``_mimics``: there the catalogue explains the data and keeps it), the swap is made
+    (E is not tried again).
     """
     best: tuple[float, str, ModelState] | None = None
     current = _bic(ev, state)
@@ -327,6 +346,8 @@ def _swap(
             trial.noise, trial.fit = noise1, fit1
             added += 1
         if added == 0:
+            continue
+        if _mimics(ev, K, [c for c in state.candidates if c.effect == effect], trial.candidates[-added:]):
             continue
         b = _bic(ev, trial)
         if b < current - TIE_CHI2 and (best is None or b < best[0]):

@@ -215,6 +215,7 @@ def test_one_channel_delay_on_a_moving_recording_is_unexplained() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(2400)
 def test_false_findings_on_two_hundred_clean_recordings_count_discovered_terms() -> None:
     """200 clean static-12 recordings: the library adds at most 1 % (measured: none), and
     catalogue and library together stay at the catalogue's measured 1.5 % (settling on

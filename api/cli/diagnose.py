@@ -1,7 +1,9 @@
 """``calbench diagnose RECORDING.csv [--json] [--report OUT.html]``: find the physics the model left out.
 
 Human output: the mismatch of the first-order model, each finding with its parameters
-and the BIC change, the final fit, and the effects this recording cannot show.
+and the BIC change, each term found beyond the catalogue (DISCOVERED), the final fit and,
+when it still fails the recording's noise, where (UNEXPLAINED), and the effects this
+recording cannot show.
 ``--json``: the object of ``shared/cli-contract.md``. ``--report``: a self-contained HTML
 page with residual plots. Bad input: exit 2 with one line (raised as ValueError).
 """
@@ -63,8 +65,12 @@ def format_human(d: Diagnosis) -> str:
         f"correlates with: {', '.join(d.correlates_with()) or 'nothing significant'}",
         "",
     ]
-    if not d.findings:
-        lines.append("findings: none - the first-order model explains the recording to its noise")
+    if not d.findings and not d.discovered:
+        lines.append(
+            "findings: none - the first-order model explains the recording to its noise"
+            if d.fits
+            else "findings: none from the catalogue or the library (see UNEXPLAINED below)"
+        )
     for f in d.findings:
         lines += [
             f"FOUND {f.effect}: {f.summary}",
@@ -72,11 +78,25 @@ def format_human(d: Diagnosis) -> str:
             f"    delta BIC {f.delta_bic:.1f}, likelihood ratio {f.lr:.1f}, "
             f"residual rms after {f.residual_rms_after:.3g} {u}",
         ]
+    for x in d.discovered:
+        lines += [
+            f"DISCOVERED {x.term} on {x.channel}: {x.coefficient:.3g} ± {x.sigma:.2g} {x.unit}",
+            f"    why: {x.physics}",
+            f"    delta BIC {x.delta_bic:.1f}, residual rms after {x.residual_rms_after:.3g} {u}",
+        ]
     fin = d.final
     lines += [
         "",
         f"final model {' + '.join(fin.terms)}: residual rms {fin.residual_rms:.3g} {u}, "
         f"chi2/dof {fin.chi2_dof:.3g}, BIC {fin.bic:.1f}",
+    ]
+    if d.unexplained is not None:
+        x = d.unexplained
+        lines += [
+            "UNEXPLAINED: the final model still fails the recording's own noise "
+            f"({x.test}): {x.where}; correlates with {', '.join(x.correlates_with) or 'nothing significant'}",
+        ]
+    lines += [
         "",
         "not observable in this recording:",
     ]

@@ -80,7 +80,26 @@ def render(d: Diagnosis) -> str:
             f"<td>{f.residual_rms_after:.3g}</td><td>{e(f.explanation)}</td></tr>"
             for f in d.findings
         )
-        or '<tr><td colspan="5">none: the first-order model explains the recording to its noise</td></tr>'
+        or '<tr><td colspan="5">none from the catalogue</td></tr>'
+    )
+    disc_rows = "".join(
+        f"<tr><td>{e(x.channel)}</td><td>{e(x.term)}</td><td>{x.coefficient:.3g} ± {x.sigma:.2g} {e(x.unit)}</td>"
+        f"<td>{x.delta_bic:.1f}</td><td>{x.residual_rms_after:.3g}</td><td>{e(x.physics)}</td></tr>"
+        for x in d.discovered
+    )
+    disc = (
+        "<h2>Beyond the catalogue</h2><table><tr><th>channel</th><th>term</th><th>coefficient</th>"
+        f"<th>ΔBIC</th><th>rms after</th><th>physics</th></tr>{disc_rows}</table>"
+        if d.discovered
+        else ""
+    )
+    u = d.unexplained
+    verdict = (
+        f"<h2>Unexplained</h2><p><b>The final model still fails the recording's noise</b> "
+        f"(chi2/dof {u.chi2_dof:.3g}; {e(u.test)}): {e(u.where)}; correlates with "
+        f"{e(', '.join(u.correlates_with) or 'nothing significant')}</p>"
+        if u is not None
+        else "<p>The final model explains the recording to its noise.</p>"
     )
     unobs = "".join(f"<li><b>{e(k)}</b>: {e(v)}</li>" for k, v in d.unobservable.items())
     notes = "".join(f"<li>{e(n)}</li>" for n in d.notes)
@@ -97,5 +116,5 @@ table{{border-collapse:collapse}}</style></head><body>
 {_bars_svg(f.z, d.labels, "residuals after (final model)")}
 <h2>What the residuals correlate with</h2>{_corr_svg(d)}
 <h2>Findings</h2><table><tr><th>effect</th><th>summary</th><th>ΔBIC</th><th>rms after</th><th>physics</th></tr>
-{find_rows}</table>
+{find_rows}</table>{disc}{verdict}
 <h2>Not observable in this recording</h2><ul>{unobs}</ul><h2>Notes</h2><ul>{notes}</ul></body></html>"""

@@ -4,7 +4,8 @@ Regressors per sample (``motion_regressors``): with B = Mᵀ R_inᵀ (Ω̇ + Ω�
 (``dynamic_model``; Ω = [ω]×), the symmetric part of B is the rotated Ω², whose trace is
 −2|ω|², and the antisymmetric part the rotated Ω̇, so ω² = −tr(B)/2 and |ω̇| = |axial(B − Bᵀ)/2|;
 f_i² and |f_i| (quadratic nonlinearity, scale asymmetry) from the final model's specific
-force; time; temperature. Correlation of each
+force; its time derivative fdot_i (g/s: a delay of one channel shows there); time;
+temperature. Correlation of each
 channel's block-mean residual with each regressor's block mean after both are made
 orthogonal to [1, f̄_x, f̄_y, f̄_z] (what bias and K absorb), significant when
 |ρ|√(n_b − 5)/√(1 − ρ²) exceeds Student's t at 0.01 / (2 · 3 · number of regressors).
@@ -39,6 +40,10 @@ class BlockSummary:
     correlations: tuple[Correlation, ...]
     labels: tuple[str, ...]
     mid_s: FloatArray
+    final_ratio: FloatArray | None = None
+    """(3,) the final model's per-channel Σ (r/σ_w)² / (n_used − 4)."""
+    final_correlations: tuple[Correlation, ...] = ()
+    """Regressor correlations of the final model's block residuals."""
 
 
 def motion_regressors(
@@ -56,6 +61,9 @@ def motion_regressors(
         out[f"|f_{a}|"] = np.abs(f[:, i])
     for i, a in enumerate("xyz"):
         out[f"f_{a}"] = f[:, i]
+    fdot = np.gradient(f, m.t_s, axis=0) / 9.80665
+    for i, a in enumerate("xyz"):
+        out[f"fdot_{a}"] = fdot[:, i]
     out["time"] = m.t_s - m.t_s[0]
     if temp_c is not None and np.all(np.isfinite(temp_c)):
         out["temperature"] = np.asarray(temp_c, dtype=float)
@@ -97,9 +105,11 @@ def block_summary(
     cnt = np.bincount(inv[inv >= 0], minlength=nb)
     summaries = []
     resid0 = None
+    resid1 = None
     for fit in (fits[0], fits[-1]):
         model, _ = predict(fit.theta, m, fit.spec, g, lever)
         r = (y - model)[v]
+        resid1 = r
         if resid0 is None:
             resid0 = r
         br = _bmean(r, inv, nb)
@@ -128,12 +138,29 @@ def block_summary(
     )
     breg = {k: _bmean(x[v], inv, nb) for k, x in regs.items() if not k.startswith("f_") or k.endswith("^2")}
     F = np.column_stack([np.ones(nb), *(_bmean(regs[f"f_{a}"][v], inv, nb) for a in "xyz")])
+    assert resid1 is not None
+    return BlockSummary(
+        baseline=base,
+        final=summaries[1],
+        channel_ratio=ratio,
+        where=where,
+        correlations=tuple(_block_correlations(base.resid, breg, F)),
+        labels=tuple(f"t={x:.0f}s" for x in mid),
+        mid_s=mid,
+        final_ratio=np.sum((resid1 / sig_w) ** 2, axis=0) / max(resid1.shape[0] - 4, 1),
+        final_correlations=tuple(_block_correlations(summaries[1].resid, breg, F)),
+    )
+
+
+def _block_correlations(resid: FloatArray, breg: dict[str, FloatArray], F: FloatArray) -> list[Correlation]:
+    """Correlations of (nb, 3) block residuals with each block regressor, after [1, f̄] (module docstring)."""
+    nb = resid.shape[0]
     corr: list[Correlation] = []
     dof = nb - 5
     if dof >= 1:
         crit = float(t_dist.ppf(1.0 - SIGNIFICANCE / (2.0 * 3 * len(breg)), dof))
         Q, _ = np.linalg.qr(F)
-        rr = base.resid - Q @ (Q.T @ base.resid)
+        rr = resid - Q @ (Q.T @ resid)
         for name, x in breg.items():
             xt = x - Q @ (Q.T @ x)
             nx = float(np.linalg.norm(xt))
@@ -147,12 +174,4 @@ def block_summary(
                 tval = abs(rho) * np.sqrt(dof) / np.sqrt(max(1.0 - rho * rho, 1e-12))
                 corr.append(Correlation(name, c, rho, bool(tval > crit)))
     corr.sort(key=lambda c: -abs(c.rho))
-    return BlockSummary(
-        baseline=base,
-        final=summaries[1],
-        channel_ratio=ratio,
-        where=where,
-        correlations=tuple(corr),
-        labels=tuple(f"t={x:.0f}s" for x in mid),
-        mid_s=mid,
-    )
+    return corr

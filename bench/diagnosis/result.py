@@ -76,6 +76,76 @@ class Finding:
 
 
 @dataclass(frozen=True)
+class Discovery:
+    """A term beyond the catalogue that the recording supports (``library``).
+
+    :param channel: ``ax``, ``ay``, ``az`` (or ``all``); :param term: the contract's grammar.
+    :param coefficient: channel units per unit of the term; :param sigma: its one sigma.
+    :param unit: e.g. ``V per g^3``; :param delta_bic: BIC change when it entered.
+    :param residual_rms_after: RMS of the window residuals once it is in.
+    :param physics: the mechanism where the term has a known one, else a plain sentence.
+    :param lr: its statistic when it entered; :param confounded_with: other terms (or
+        catalogue effects) that fit this recording about as well.
+    """
+
+    channel: str
+    term: str
+    coefficient: float
+    sigma: float
+    unit: str
+    delta_bic: float
+    residual_rms_after: float
+    physics: str
+    lr: float = 0.0
+    confounded_with: tuple[str, ...] = ()
+
+    def to_contract(self) -> dict[str, Any]:
+        """One entry of ``discovered``."""
+        out: dict[str, Any] = {
+            "channel": self.channel,
+            "term": self.term,
+            "coefficient": self.coefficient,
+            "sigma": self.sigma,
+            "unit": self.unit,
+            "delta_bic": self.delta_bic,
+            "residual_rms_after": self.residual_rms_after,
+            "physics": self.physics,
+        }
+        if self.confounded_with:
+            out["confounded_with"] = list(self.confounded_with)
+        return out
+
+
+@dataclass(frozen=True)
+class Unexplained:
+    """The final model still fails the recording's own noise.
+
+    :param chi2_dof: the final model's χ²/dof; :param test: the test and its level.
+    :param p_value: the test's p value; :param where: where the remaining mismatch is.
+    :param correlates_with: regressors the remaining residual correlates with.
+    :param channels: per channel, observed χ² over what the noise model expects.
+    """
+
+    chi2_dof: float
+    test: str
+    p_value: float
+    where: str
+    correlates_with: tuple[str, ...]
+    channels: dict[str, float]
+
+    def to_contract(self) -> dict[str, Any]:
+        """The ``unexplained`` object."""
+        return {
+            "chi2_dof": self.chi2_dof,
+            "test": self.test,
+            "p_value": self.p_value,
+            "where": self.where,
+            "correlates_with": list(self.correlates_with),
+            "channels": dict(self.channels),
+        }
+
+
+@dataclass(frozen=True)
 class Diagnosis:
     """Everything ``diagnose`` concluded about one recording.
 
@@ -106,6 +176,13 @@ class Diagnosis:
     bias: FloatArray
     K: FloatArray
     source: str = ""
+    discovered: tuple[Discovery, ...] = ()
+    unexplained: Unexplained | None = None
+
+    @property
+    def fits(self) -> bool:
+        """The final model explains the recording to its noise (no ``unexplained``)."""
+        return self.unexplained is None
 
     def correlates_with(self) -> list[str]:
         """Names of the significant regressors, strongest first, each once."""
@@ -117,7 +194,7 @@ class Diagnosis:
 
     def to_contract(self) -> dict[str, Any]:
         """The ``calbench diagnose --json`` object."""
-        return {
+        out: dict[str, Any] = {
             "unit": self.unit,
             "baseline": self.baseline.to_contract(),
             "mismatch": {
@@ -128,10 +205,14 @@ class Diagnosis:
                 "correlates_with": self.correlates_with(),
             },
             "findings": [f.to_contract() for f in self.findings],
+            "discovered": [d.to_contract() for d in self.discovered],
             "final": self.final.to_contract(),
             "unobservable": dict(self.unobservable),
             "notes": list(self.notes),
         }
+        if self.unexplained is not None:
+            out["unexplained"] = self.unexplained.to_contract()
+        return out
 
 
 def finite_or_none(a: Any) -> Any:

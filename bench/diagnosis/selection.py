@@ -13,23 +13,30 @@ design; the pose error as a variance component). A candidate is admitted only if
    noise level is estimated from the same n observations). The pose variance, a boundary
    parameter: LR = 2 Δℓ_REML against the 50:50 mixture of χ²_0 and χ²_1 (the χ²_1
    quantile at 2α);
-3. its BIC change Δ = −LR + q ln n is negative.
+3. its BIC change Δ = −LR + q ln n is negative (the pose error: the conditional BIC
+   change given its angles, charged its effective degrees of freedom, ``catch_all``).
 
-Among the admissible candidates the one with the lowest BIC change enters; selection stops
-when none is admissible. Candidates are ranked first with the current noise held fixed
-and only the best ``SHORTLIST`` are re-fitted with their own noise (the REML fit is the
-expensive part).
+Each step tries the groups in order and takes the first with an admissible candidate:
+the catalogue's columns; the library's terms beyond the catalogue (``library``; gate at
+``LIBRARY_SHARE`` · α / N_L, ties among alike terms to the simplest); a swap of a catalogue
+effect for library terms where that lowers the BIC (``_swap``); last the pose error, a
+catch-all, which must also show the scatter its physics implies on every channel. Among
+the admissible candidates of a group the one with the lowest BIC change enters; selection
+stops when none is admissible. Candidates are ranked first with the current noise held
+fixed and only the best ``SHORTLIST`` are re-fitted with their own noise (the REML fit is
+the expensive part).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import f as f_dist
 
+from bench.diagnosis.catch_all import pose_check
 from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
 from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
 from bench.diagnosis.evidence import StaticEvidence
@@ -41,6 +48,22 @@ FALSE_ALARM = 0.01
 candidates tried in that step, so each gate runs at FALSE_ALARM / N."""
 SHORTLIST = 4
 MAX_STEPS = 8
+LIBRARY_SHARE = 0.1
+"""Share of ``false_alarm`` the library's family of terms may spend in one step (split
+evenly over its terms): the catalogue's gates, and so its detection limits, are unchanged."""
+TIE_CHI2 = 6.0
+"""Library terms whose statistics (or BIC changes) lie within this of the best are a tie,
+which the simplest (lowest degree) wins: a term of higher degree replaces a simpler one
+only on "strong" evidence, a BIC difference above 6 (Kass & Raftery, JASA 90 (1995) 773),
+and only among alike terms (``ALIKE_COSINE``).
+Alike terms (f_y² and |f_y|³ on the 12-pose set, |cos| ≈ 0.98) differ by less than the
+wander between windows makes."""
+ALIKE_COSINE = 0.8
+"""Library terms whose signatures beyond the model have |cos| above this are alike (ties)."""
+PRESCREEN = 0.25
+"""A library term whose statistic under the current noise is below this fraction of its
+gate is not re-fitted with its own noise (it cannot pass: re-fitting the noise moves the
+statistic by far less than 4×)."""
 
 
 WANDER_LIKE = ("bias_drift", "temperature_bias")
@@ -87,6 +110,8 @@ class ModelState:
     noise: NoiseParams | None = None
     fit: GlsFit | None = None
     steps: list[Step] = field(default_factory=list)
+    pose_edf: float = 0.0
+    swapped: set[str] = field(default_factory=set)
 
 
 def design(ev: StaticEvidence, K: FloatArray, cands: list[Candidate]) -> FloatArray:
@@ -154,6 +179,246 @@ def _lr_fixed(
     return gls(X0, ev.y.reshape(-1), C).chi2 - gls(X1, ev.y.reshape(-1), C).chi2
 
 
+def _whitened_lr(
+    ev: StaticEvidence,
+    X: FloatArray,
+    cols: FloatArray,
+    noise: NoiseParams,
+    K: FloatArray,
+    fixed: FloatArray | None,
+) -> tuple[FloatArray, FloatArray]:
+    """Δχ² of adding each column of ``cols`` (3m, N) alone to X under the current noise, and the
+    fraction of each whitened column outside the whitened span of X (its leverage)."""
+    # GLS with C⁻¹ applied in O(m) (``window_covariance``): for a column a, with P the
+    # residual-maker C⁻¹ − C⁻¹X (XᵀC⁻¹X)⁻¹ XᵀC⁻¹, Δχ² = (aᵀPy)² / aᵀPa and the leverage is
+    # sqrt(aᵀPa / aᵀC⁻¹a) (the whitened column's share outside the whitened span of X).
+    solver = window_covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed).factor()
+    y = ev.y.reshape(-1)
+    Ci_X, Ci_y, Ci_A = solver.solve(X), solver.solve(y), solver.solve(cols)
+    M = X.T @ Ci_X
+    b_y = np.linalg.solve(M, X.T @ Ci_y)
+    XtCiA = X.T @ Ci_A
+    aPy = cols.T @ Ci_y - XtCiA.T @ b_y
+    aCa = np.sum(cols * Ci_A, axis=0)
+    aPa = np.maximum(aCa - np.sum(XtCiA * np.linalg.solve(M, XtCiA), axis=0), 0.0)
+    lev = np.sqrt(aPa / np.maximum(aCa, 1e-300))
+    lr = aPy**2 / np.maximum(aPa, 1e-300)
+    return lr, lev
+
+
+def _structured(
+    ev: StaticEvidence,
+    pool: list[Candidate],
+    state: ModelState,
+    K: FloatArray,
+    fixed: FloatArray | None,
+    alpha: float,
+    notes: dict[str, str],
+    prescreen: float = 0.0,
+    simplicity: dict[str, int] | None = None,
+    cap: SlowNoiseCap | None = None,
+) -> tuple[float, Candidate, float, tuple[NoiseParams, GlsFit, FloatArray]] | None:
+    """The best admissible fixed-column candidate of ``pool`` (gate at ``alpha`` each), or ``None``.
+
+    ``prescreen`` (a fraction of the gate): candidates whose statistic under the current noise
+    is below it are not re-fitted. ``simplicity`` (label -> degree): among admissible
+    candidates within ``TIE_CHI2`` of the best (statistic under the windows' own scatter for
+    the shortlist, then 2 ℓ_ML of the extended model under its own noise) the one of lowest
+    degree is tried and enters. A drift or temperature claim (:data:`WANDER_LIKE`) must also
+    beat the trend the measured wander makes: its statistic is the smaller of the one above and
+    the likelihood ratio with each channel's own slow wander re-estimated in both models.
+    """
+    assert state.noise is not None
+    n = ev.n_obs
+    X = design(ev, K, state.candidates)
+    tried = [c for c in pool if c not in state.candidates]
+    if not tried:
+        return None
+    cols = [c.columns(ev, K) for c in tried]
+    rank_noise = state.noise
+    if simplicity is not None:
+        # rank the library against the windows' own scatter: a slow noise inflated by the very
+        # mismatch a term would explain makes every term look alike
+        rank_noise = replace(state.noise, tau2=np.zeros(3))
+    lr0, lev = _whitened_lr(ev, X, np.hstack(cols), rank_noise, K, fixed)
+    ranked: list[tuple[float, Candidate]] = []
+    col = 0
+    for cand, a in zip(tried, cols, strict=True):
+        q = a.shape[1]
+        lv = leverage(X, a)
+        if np.any(lv < RELATIVE_LEVERAGE_MIN) or np.any(lev[col : col + q] < RELATIVE_LEVERAGE_MIN):
+            notes[cand.label] = (
+                f"cannot be told apart from the model's other terms on this pose set "
+                f"(only {float(np.min(lv)):.1e} of its signature is independent of them)"
+            )
+        elif q == 1:
+            ranked.append((float(lr0[col]), cand))
+        else:
+            ranked.append((_lr_fixed(ev, X, np.hstack([X, a]), state.noise, K, fixed), cand))
+        col += q
+    ranked.sort(key=lambda r: -r[0])
+    if simplicity and len(ranked) > SHORTLIST:
+        # the simplest of the terms alike the best (within TIE_CHI2) is re-fitted too
+        Qx, _ = np.linalg.qr(X)
+        pos = {id(c): k for k, c in enumerate(tried)}
+        Ap = np.hstack(cols)
+        Ap = Ap - Qx @ (Qx.T @ Ap)
+        Ap /= np.maximum(np.linalg.norm(Ap, axis=0), 1e-300)
+        s_top = Ap[:, pos[id(ranked[0][1])]]
+        near = [
+            r
+            for r in ranked
+            if r[0] >= ranked[0][0] - TIE_CHI2 and abs(float(Ap[:, pos[id(r[1])]] @ s_top)) > ALIKE_COSINE
+        ]
+        first = min(near, key=lambda r: (simplicity.get(r[1].label, 0), -r[0]))
+        if first not in ranked[:SHORTLIST]:
+            ranked = [*ranked[: SHORTLIST - 1], first]
+    admissible = []
+    null_own: tuple[NoiseParams, GlsFit, FloatArray] | None = None
+    for lr_now, cand in ranked[:SHORTLIST]:
+        q = len(cand.names)
+        gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X.shape[1] - q))
+        if lr_now < prescreen * gate:
+            continue
+        model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise, cap=cap)
+        noise1, _fit1, K1 = model1
+        X1 = design(ev, K1, [*state.candidates, cand])
+        lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
+        gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1]))
+        if cand.effect in WANDER_LIKE and lr > gate:
+            if null_own is None:
+                null_own = fit_model(
+                    ev, state.candidates, state.pose, K, fixed, state.noise, cap=cap, own=True
+                )
+            ext_own = fit_model(
+                ev, [*state.candidates, cand], state.pose, K, fixed, null_own[0], cap=cap, own=True
+            )
+            lr_wander = max(0.0, 2.0 * (ext_own[1].loglik_ml - null_own[1].loglik_ml))
+            if lr_wander <= gate:
+                notes[cand.label] = wander_note(cand.effect, lr, lr_wander, gate, null_own[0])
+            lr = min(lr, lr_wander)
+        dbic = -lr + q * math.log(n)
+        if lr > gate and dbic < 0:
+            admissible.append((dbic, cand, lr, model1))
+    if not admissible:
+        return None
+    best = min(admissible, key=lambda a: a[0])
+    if simplicity:
+        # one column each: compare the extended models' own likelihoods (ML, each under its noise)
+        top = max(admissible, key=lambda a: a[3][1].loglik_ml)
+        Qx, _ = np.linalg.qr(X)
+
+        def sig(c: Candidate) -> FloatArray:
+            a = c.columns(ev, K)[:, 0]
+            a = a - Qx @ (Qx.T @ a)
+            return a / max(float(np.linalg.norm(a)), 1e-300)
+
+        s_top = sig(top[1])
+        near = [
+            a
+            for a in admissible
+            if 2.0 * (top[3][1].loglik_ml - a[3][1].loglik_ml) <= TIE_CHI2
+            and abs(float(sig(a[1]) @ s_top)) > ALIKE_COSINE
+        ]
+        best = min(near, key=lambda a: (simplicity.get(a[1].label, 0), -a[3][1].loglik_ml))
+    return best
+
+
+LIB = "discovered:"
+
+
+def _bic(ev: StaticEvidence, state: ModelState) -> float:
+    assert state.fit is not None and state.noise is not None
+    k = state.fit.theta.size + state.noise.n_free + (1 if state.pose else 0)
+    return -2.0 * state.fit.loglik_ml + k * math.log(ev.n_obs)
+
+
+def _mimics(ev: StaticEvidence, K: FloatArray, effect: list[Candidate], terms: list[Candidate]) -> bool:
+    """Whether the catalogue effect's columns can mimic one of the library terms: beyond the
+    first-order model, the term's signature lies within ``ALIKE_COSINE`` of their span."""
+    X0 = first_order_design(ev.f_m_s2)
+    Q0, _ = np.linalg.qr(X0)
+    E = np.hstack([c.columns(ev, K) for c in effect])
+    E = E - Q0 @ (Q0.T @ E)
+    Qe, _ = np.linalg.qr(E)
+    for t in terms:
+        a = t.columns(ev, K)[:, 0]
+        a = a - Q0 @ (Q0.T @ a)
+        na = float(np.linalg.norm(a))
+        if na > 0 and float(np.linalg.norm(Qe.T @ a)) / na > ALIKE_COSINE:
+            return True
+    return False
+
+
+def _swap(
+    ev: StaticEvidence,
+    state: ModelState,
+    K: FloatArray,
+    fixed: FloatArray | None,
+    library: list[Candidate],
+    false_alarm: float,
+    notes: dict[str, str],
+    simplicity: dict[str, int] | None,
+) -> bool:
+    """Replace a catalogue effect of the model by one library term where that lowers the BIC.
+
+    A catalogue effect enters first, so one that only partly mimics a term beyond the
+    catalogue can enter and then bend the library's choice. For each catalogue effect E of
+    the model: remove it and the library's terms, run the library's steps again (their gate
+    as in ``select``); if that model's BIC (−2 ℓ_ML + k ln n, each model under its own
+    noise) is lower by more than ``TIE_CHI2`` (strong evidence: the catalogue keeps its
+    precedence on anything weaker) and none of the terms is one E's columns can mimic
+    (``_mimics``: there the catalogue explains the data and keeps it), the swap is made
+    (E is not tried again).
+    """
+    best: tuple[float, str, ModelState] | None = None
+    current = _bic(ev, state)
+    cap = SlowNoiseCap(ev)
+    for effect in dict.fromkeys(c.effect for c in state.candidates):
+        if effect.startswith(LIB):
+            continue
+        keep = [c for c in state.candidates if c.effect != effect and c not in library]
+        noise0, fit0, K0 = fit_model(ev, keep, state.pose, K, fixed, state.noise, cap=cap)
+        trial = ModelState(
+            candidates=keep, pose=state.pose, noise=noise0, fit=fit0,
+            steps=[st for st in state.steps if st.effect != effect and not st.effect.startswith(LIB)],
+            pose_edf=state.pose_edf,
+        )  # fmt: skip
+        added = 0
+        while added < MAX_STEPS:
+            n_lib = sum(1 for c in library if c not in trial.candidates)
+            step = _structured(
+                ev, library, trial, K0, fixed, LIBRARY_SHARE * false_alarm / max(n_lib, 1), {},
+                prescreen=PRESCREEN, simplicity=simplicity, cap=cap,
+            )  # fmt: skip
+            if step is None:
+                break
+            dbic, chosen, lr, (noise1, fit1, K0) = step
+            trial.candidates = [*trial.candidates, chosen]
+            trial.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
+            trial.noise, trial.fit = noise1, fit1
+            added += 1
+        if added == 0:
+            continue
+        if _mimics(ev, K, [c for c in state.candidates if c.effect == effect], trial.candidates[-added:]):
+            continue
+        b = _bic(ev, trial)
+        if b < current - TIE_CHI2 and (best is None or b < best[0]):
+            best = (b, effect, trial)
+    if best is None:
+        return False
+    b, effect, trial = best
+    new = ", ".join(c.label for c in trial.candidates if c in library)
+    notes[effect] = (
+        f"entered first but {new} explains the recording better without it "
+        f"(BIC {current:.1f} -> {b:.1f}): replaced"
+    )
+    state.candidates, state.steps = trial.candidates, trial.steps
+    state.noise, state.fit = trial.noise, trial.fit
+    state.swapped.add(effect)
+    return True
+
+
 def select(
     ev: StaticEvidence,
     pool: list[Candidate],
@@ -161,13 +426,26 @@ def select(
     pose_allowed: bool,
     fixed: FloatArray | None = None,
     false_alarm: float = FALSE_ALARM,
+    library: list[Candidate] | None = None,
+    simplicity: dict[str, int] | None = None,
 ) -> tuple[ModelState, dict[str, str]]:
     """Run the greedy selection.
 
+    Each step tries, in this order, and takes the first group with an admissible candidate:
+    the catalogue's fixed columns (gate at ``false_alarm`` / N, N catalogue candidates plus
+    the pose error); the library's terms (gate at ``LIBRARY_SHARE`` · ``false_alarm`` / N_L,
+    N_L the library's size: a family that large must not spend the catalogue's budget);
+    the pose error, a catch-all, last (its gate as the catalogue's, its BIC charged its
+    effective degrees of freedom, and it must show the scatter its physics implies on every
+    channel, ``catch_all``). A catalogue effect thus enters before a library term that
+    would mimic it, and a structured term before a random effect that could absorb it.
+
     :param ev: the evidence.
-    :param pool: observable candidates (fixed columns).
+    :param pool: observable catalogue candidates (fixed columns).
     :param pose_allowed: try the pose-error variance component.
     :param fixed: fixed extra covariance per window (orientation-free diagnosis).
+    :param library: candidates beyond the catalogue (``library``), or ``None``.
+    :param simplicity: library label -> degree, for ties (``_structured``).
     :returns: the final state and, per candidate label, why it was not admitted when it
         could not be told from the model (``"indistinguishable"`` notes).
     """
@@ -178,68 +456,70 @@ def select(
     cap = SlowNoiseCap(ev)
     state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2, cap=cap)
     notes: dict[str, str] = {}
+    library = library or []
     for _ in range(MAX_STEPS):
         assert state.noise is not None and state.fit is not None
-        X = design(ev, K, state.candidates)
-        n_tried = sum(1 for c in pool if c not in state.candidates) + (
+        n_cat = sum(1 for c in pool if c not in state.candidates) + (
             1 if pose_allowed and not state.pose else 0
         )
-        alpha = false_alarm / max(n_tried, 1)
-        admissible: list[tuple[float, Candidate | None, float, tuple[NoiseParams, GlsFit, FloatArray]]] = []
-        ranked: list[tuple[float, Candidate]] = []
-        for cand in pool:
-            if cand in state.candidates:
-                continue
-            cols = cand.columns(ev, K)
-            lev = leverage(X, cols)
-            if np.any(lev < RELATIVE_LEVERAGE_MIN):
-                notes[cand.label] = (
-                    f"cannot be told apart from the model's other terms on this pose set "
-                    f"(only {float(np.min(lev)):.1e} of its signature is independent of them)"
-                )
-                continue
-            ranked.append((_lr_fixed(ev, X, np.hstack([X, cols]), state.noise, K, fixed), cand))
-        ranked.sort(key=lambda r: -r[0])
-        null_own: tuple[NoiseParams, GlsFit, FloatArray] | None = None
-        for _lr0, cand in ranked[:SHORTLIST]:
-            q = len(cand.names)
-            model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise, cap=cap)
-            noise1, _fit1, K1 = model1
-            X1 = design(ev, K1, [*state.candidates, cand])
-            lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
-            gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1]))
-            if cand.effect in WANDER_LIKE and lr > gate:
-                # the claim must beat the trend the measured wander makes: the likelihood ratio
-                # with each channel's own slow wander re-estimated in both models
-                if null_own is None:
-                    null_own = fit_model(
-                        ev, state.candidates, state.pose, K, fixed, state.noise, cap=cap, own=True
-                    )
-                ext_own = fit_model(
-                    ev, [*state.candidates, cand], state.pose, K, fixed, null_own[0], cap=cap, own=True
-                )
-                lr_wander = max(0.0, 2.0 * (ext_own[1].loglik_ml - null_own[1].loglik_ml))
-                if lr_wander <= gate:
-                    notes[cand.label] = wander_note(cand.effect, lr, lr_wander, gate, null_own[0])
-                lr = min(lr, lr_wander)
-            dbic = -lr + q * math.log(n)
-            if lr > gate and dbic < 0:
-                admissible.append((dbic, cand, lr, model1))
-        if pose_allowed and not state.pose:
-            noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise, cap=cap)
-            if noise1.pose_var_rad2 > 0:
-                lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
-                dbic = -lr + math.log(n)
-                if lr > float(chi2_dist.ppf(1.0 - 2.0 * alpha, 1)) and dbic < 0:
-                    admissible.append((dbic, None, lr, (noise1, fit1, K1)))
-        if not admissible:
-            break
-        dbic, chosen, lr, model1 = min(admissible, key=lambda a: a[0])
-        if chosen is None:
-            state.pose = True
-            state.steps.append(Step("pose_error", "pose_error", lr, dbic, 1))
-        else:
+        alpha = false_alarm / max(n_cat, 1)
+        step = _structured(ev, pool, state, K, fixed, alpha, notes, cap=cap)
+        if step is None and library:
+            n_lib = sum(1 for c in library if c not in state.candidates)
+            alpha_lib = LIBRARY_SHARE * false_alarm / max(n_lib, 1)
+            step = _structured(
+                ev,
+                library,
+                state,
+                K,
+                fixed,
+                alpha_lib,
+                {},
+                prescreen=PRESCREEN,
+                simplicity=simplicity,
+                cap=cap,
+            )
+        if step is not None:
+            dbic, chosen, lr, model1 = step
             state.candidates.append(chosen)
             state.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
-        state.noise, state.fit, K = model1
+            state.noise, state.fit, K = model1
+            continue
+        if library and _swap(ev, state, K, fixed, library, false_alarm, notes, simplicity):
+            assert state.fit is not None
+            K = scale_matrix(state.fit)
+            pool = [c for c in pool if c.effect not in state.swapped]
+            continue
+        if not (pose_allowed and not state.pose):
+            break
+        noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise, cap=cap)
+        if noise1.pose_var_rad2 <= 0:
+            break
+        lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
+        if lr <= float(chi2_dist.ppf(1.0 - 2.0 * alpha, 1)):
+            break
+        chk = pose_check(
+            ev.V,
+            ev.mid_s,
+            noise1,
+            pose_response(ev, K1),
+            design(ev, K1, state.candidates),
+            ev.y.reshape(-1),
+            fixed,
+        )
+        gain = 2.0 * (chk.loglik_conditional - state.fit.loglik_ml)
+        dbic = -gain + max(chk.edf, 1.0) * math.log(n)
+        if dbic >= 0:
+            notes["pose_error"] = (
+                f"a random pose error would raise the likelihood given its angles by {gain:.1f} (2 dl) "
+                f"but spends {chk.edf:.1f} effective degrees of freedom: BIC change {dbic:+.1f}; not claimed"
+            )
+            break
+        if not chk.consistent:
+            notes["pose_error"] = chk.text()
+            break
+        state.pose = True
+        state.pose_edf = chk.edf
+        state.steps.append(Step("pose_error", "pose_error", lr, dbic, 1))
+        state.noise, state.fit, K = noise1, fit1, K1
     return state, notes

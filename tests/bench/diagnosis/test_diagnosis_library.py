@@ -1,0 +1,235 @@
+"""The term library beyond the catalogue, ``unexplained``, and the pose error as a catch-all.
+
+Fast tests on synthetic static evidence (an ideal triad at 18 directions, white noise): the
+library's terms against their definitions, an injected out-of-catalogue term recovered
+within its sigma, a one-channel random pattern that neither the library nor a pose error
+may claim, the catch-all's effective dof against a finite-difference derivative, and the
+per-channel χ² accounts against Monte Carlo. Slow tests: the concealed out-of-catalogue
+scenarios of ``benchmarks/library_cases.py`` on simulated static-12 recordings, a per-channel
+delay on a moving recording, and the false-finding rate over 200 clean recordings.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from api.cli.diagnose import format_human
+from bench.diagnosis import StaticEvidence, diagnose
+from bench.diagnosis.catch_all import channel_forms, pose_check
+from bench.diagnosis.effects import first_order_design, pose_response
+from bench.diagnosis.evidence import G0_M_S2
+from bench.diagnosis.library import library_terms, term_name, term_unit
+from bench.diagnosis.likelihood import NoiseParams, covariance
+
+G = 9.81
+DIRS = np.array(
+    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1],
+     [1, 1, 0], [1, 0, 1], [0, 1, 1], [-1, 1, 0], [-1, 0, -1], [0, -1, 1],
+     [1, 1, 1], [-1, -1, 1], [1, -1, -1], [-1, 1, -1], [1, 0, -1], [0, 1, -1]],
+    dtype=float,
+)  # fmt: skip
+SIGMA = 1e-5
+
+
+def _evidence(
+    rng: np.random.Generator, extra: np.ndarray | None = None, dirs: np.ndarray = DIRS
+) -> StaticEvidence:
+    """Window means of an ideal triad, white noise SIGMA, plus ``extra`` (m, 3) on the raw channels."""
+    f = G * dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    K = np.diag([0.0177, 0.0175, 0.0178]) + 1e-5
+    y = np.array([1.5, 1.49, 1.51]) + f @ K.T + rng.normal(0, SIGMA, f.shape)
+    if extra is not None:
+        y = y + extra
+    m = f.shape[0]
+    V = np.broadcast_to(np.eye(3) * SIGMA**2, (m, 3, 3)).copy()
+    return StaticEvidence(
+        y=y, V=V, f_m_s2=f, mid_s=np.arange(m) * 40.0, labels=tuple(f"w{i}" for i in range(m)), g_local_m_s2=G
+    )
+
+
+def test_library_holds_no_catalogue_term_and_names_in_the_grammar() -> None:
+    ev = _evidence(np.random.default_rng(0))
+    terms, _ = library_terms(ev)
+    by = {(t.channel, t.term) for t in terms}
+    # catalogue regressors on their own channel are not library terms
+    assert (0, "f_x^2") not in by and (0, "abs(f_x)") not in by and (1, "f_x*f_z") not in by
+    assert not any(t.term in ("t", "temp", "f_x", "f_y", "f_z") for t in terms)
+    # the same quantity on another channel is
+    assert (0, "f_y^2") in by and (2, "abs(f_x)") in by and (0, "f_x^3") in by
+    t = next(t for t in terms if t.term == "f_y^2" and t.channel == 0)
+    np.testing.assert_allclose(t.values, (ev.f_m_s2[:, 1] / G0_M_S2) ** 2)
+    assert t.unit == "g^2" and t.degree == 2
+
+
+def test_term_name_and_unit_group_powers() -> None:
+    from bench.diagnosis.library import Base
+
+    fx, fz, tmp = Base("f_x", "g", 0, "f"), Base("f_z", "g", 2, "f"), Base("temp", "°C", -1, "temp")
+    assert term_name((fx, fx, fz)) == "f_x^2*f_z" and term_unit((fx, fx, fz)) == "g^3"
+    assert term_name((fx, tmp)) == "f_x*temp" and term_unit((fx, tmp)) == "g·°C"
+
+
+def test_on_six_axis_poses_a_cube_is_its_own_input_and_is_not_a_candidate() -> None:
+    """On ±g along each axis f_x³ = f_x: the pose set cannot tell it from the first-order model."""
+    six = DIRS[:6]
+    six = np.vstack([six, six])  # 12 windows, the six poses twice
+    terms, dropped = library_terms(_evidence(np.random.default_rng(1), dirs=six))
+    assert not any(t.term == "f_x^3" for t in terms) and dropped > 0
+
+
+def test_injected_alignment_creep_is_named_on_its_channel_within_its_sigma() -> None:
+    """2e-7 V per g·s of f_z·t on ax (the mount creeping; ~8 sigma of its estimate): discovered
+    on ax, coefficient within 3 sigma, no catalogue claim, the final model fits."""
+    ev0 = _evidence(np.random.default_rng(3))
+    c = 2e-7
+    extra = np.zeros_like(ev0.y)
+    extra[:, 0] = c * (ev0.f_m_s2[:, 2] / G0_M_S2) * ev0.mid_s
+    d = diagnose(_evidence(np.random.default_rng(3), extra))
+    assert d.findings == ()
+    assert [(x.channel, x.term) for x in d.discovered] == [("ax", "f_z*t")]
+    x = d.discovered[0]
+    assert abs(x.coefficient - c) < 3 * x.sigma and x.sigma < c / 5
+    assert x.delta_bic < 0 and "drifts during the run" in x.physics and x.unit == "channel unit per g·s"
+    assert d.unexplained is None and d.final.chi2_dof < 2
+    doc = d.to_contract()
+    assert doc["discovered"][0]["term"] == "f_z*t" and "unexplained" not in doc
+    assert "DISCOVERED f_z*t on ax" in format_human(d)
+
+
+def test_clean_synthetic_has_nothing_discovered_and_no_unexplained() -> None:
+    for seed in range(4):
+        d = diagnose(_evidence(np.random.default_rng(10 + seed)))
+        assert d.findings == () and d.discovered == () and d.unexplained is None
+        assert d.to_contract()["discovered"] == []
+
+
+def test_one_channel_random_offsets_are_not_a_pose_error_and_are_unexplained() -> None:
+    """Offsets on ax alone, different in every window (30 sigma rms): nothing the library holds,
+    and a pose error would move two channels: no claim, and ``unexplained`` names ax."""
+    rng = np.random.default_rng(5)
+    ev0 = _evidence(rng)
+    extra = np.zeros_like(ev0.y)
+    extra[:, 0] = 30 * SIGMA * np.random.default_rng(6).standard_normal(ev0.m)
+    d = diagnose(_evidence(np.random.default_rng(5), extra))
+    assert "pose_error" not in [f.effect for f in d.findings]
+    assert d.unexplained is not None and d.unexplained.where.startswith("ax")
+    assert d.unexplained.channels["ax"] > 5 * max(d.unexplained.channels["ay"], d.unexplained.channels["az"])
+    assert "UNEXPLAINED" in format_human(d) and "unexplained" in d.to_contract()
+
+
+def test_pose_edf_is_the_trace_of_the_smoother_by_finite_differences() -> None:
+    """edf = tr(∂(J p̂)/∂z): the BLUP offsets differentiated column by column."""
+    ev = _evidence(np.random.default_rng(7))
+    K = np.diag([0.0177, 0.0175, 0.0178])
+    J = pose_response(ev, K)
+    X = first_order_design(ev.f_m_s2)
+    noise = NoiseParams(tau2=np.zeros(3), pose_var_rad2=(2 * SIGMA / (G * 0.0177)) ** 2)
+    chk = pose_check(ev.V, ev.mid_s, noise, J, X, ev.y.reshape(-1))
+    C = covariance(ev.V, ev.mid_s, noise, J)
+    Ci = np.linalg.inv(C)
+    n = ev.n_obs
+    Gm = np.zeros((n, n))
+    for w in range(ev.m):
+        Gm[3 * w : 3 * w + 3, 3 * w : 3 * w + 3] = J[w] @ J[w].T
+
+    def offsets(z: np.ndarray) -> np.ndarray:
+        th = np.linalg.solve(X.T @ Ci @ X, X.T @ Ci @ z)
+        return noise.pose_var_rad2 * Gm @ Ci @ (z - X @ th)
+
+    z0 = ev.y.reshape(-1)
+    base = offsets(z0)
+    h = 1e-6
+    trace = sum((offsets(z0 + h * np.eye(n)[k]) - base)[k] / h for k in range(n))
+    assert chk.edf == pytest.approx(trace, rel=1e-5)
+    assert 1.0 < chk.edf < 2 * ev.m
+
+
+def test_channel_forms_mean_matches_monte_carlo() -> None:
+    """E[q_i] = tr(D_i M) against 400 draws of z with covariance C (slow noise correlated in time)."""
+    rng = np.random.default_rng(8)
+    ev = _evidence(rng)
+    noise = NoiseParams(tau2=np.array([4.0, 1.0, 2.0]) * SIGMA**2, corr_time_s=200.0)
+    C = covariance(ev.V, ev.mid_s, noise)
+    X = first_order_design(ev.f_m_s2)
+    L = np.linalg.cholesky(C)
+    qs = np.array([channel_forms(C, C, X, L @ rng.standard_normal(ev.n_obs))[0] for _ in range(400)])
+    _, e, v = channel_forms(C, C, X, ev.y.reshape(-1))
+    np.testing.assert_allclose(qs.mean(axis=0), e, atol=4 * np.sqrt(v / 400).max())
+    np.testing.assert_allclose(qs.var(axis=0), v, rtol=0.35)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["scale_temperature", "fixture_temperature", "mount_creep", "cross_square"])
+def test_concealed_term_is_named_or_its_alike_twin(name: str) -> None:
+    """Out-of-catalogue term at the study's size: named on its channel within 3 sigma of the
+    truth (or, for f_y² on the 12-pose set, a term it cannot be told from, which lists it), and
+    no catalogue effect claimed."""
+    from bench.calibration.diagnose import diagnose_recording
+    from benchmarks.library_cases import CASES, score
+
+    case = CASES[name]
+    d = diagnose_recording(case.recording(11))
+    s = score(case, d)
+    assert s.catalogue == (), s
+    if s.named:
+        assert abs(s.z) < 3.0, s
+    else:
+        ch = ("ax", "ay", "az")[case.channel]
+        twin = [x for x in d.discovered if x.channel == ch and case.term in x.confounded_with]
+        assert twin, s
+
+
+@pytest.mark.slow
+def test_loose_connector_is_never_a_pose_error_and_mostly_unexplained_on_ax() -> None:
+    """Random per-window offsets on ax (study seeds 100-105): never a pose error; ``unexplained``
+    names ax in at least 3 of 6 (measured 3 of 6; in the others catalogue columns follow the
+    pattern or the shared slow noise absorbs it, docs/diagnose.md)."""
+    from bench.calibration.diagnose import diagnose_recording
+    from benchmarks.library_cases import CASES
+
+    flagged = 0
+    for seed in range(100, 106):
+        d = diagnose_recording(CASES["loose_connector"].recording(seed))
+        assert "pose_error" not in [f.effect for f in d.findings], seed
+        flagged += d.unexplained is not None and d.unexplained.where.startswith("ax")
+    assert flagged >= 3
+
+
+@pytest.mark.slow
+def test_one_channel_delay_on_a_moving_recording_is_unexplained() -> None:
+    """ax delayed 5 ms behind ay, az (a per-channel timing defect the catalogue's common
+    time_skew cannot express): the final model must say ax still fails its noise."""
+    from dataclasses import replace
+
+    from bench.calibration.diagnose import diagnose_recording
+    from tests.support.diagnose_dynamic_cases import moving_recording
+
+    rec = moving_recording({}, 7)
+    raw = rec.accel_raw.copy()
+    raw[:, 0] = np.interp(rec.t_s - 0.005, rec.t_s, raw[:, 0])
+    d = diagnose_recording(replace(rec, accel_raw=raw))
+    assert d.unexplained is not None and d.unexplained.where.startswith("ax")
+    assert "fdot_x on ax" in d.unexplained.correlates_with
+    assert diagnose_recording(rec).unexplained is None
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(2400)
+def test_false_findings_on_two_hundred_clean_recordings_count_discovered_terms() -> None:
+    """200 clean static-12 recordings: the library adds at most 1 % (measured: none), and
+    catalogue and library together stay at the catalogue's measured 1.5 % (settling on
+    1036 and 1176 at p = 0.0009, temperature_bias on 1114, docs/diagnose.md)."""
+    from bench.calibration.diagnose import diagnose_recording
+    from tests.support.diagnose_cases import static_recording
+
+    false, discovered = {}, {}
+    for seed in range(1000, 1200):
+        d = diagnose_recording(static_recording({}, seed=seed))
+        claims = [f.effect for f in d.findings] + [f"{x.term}[{x.channel}]" for x in d.discovered]
+        if claims:
+            false[seed] = claims
+        if d.discovered:
+            discovered[seed] = claims
+    assert len(discovered) <= 2, discovered
+    assert len(false) <= 3, false

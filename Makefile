@@ -15,13 +15,14 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# Debian's chromium for the dashboard tests (Playwright drives it through executablePath).
+# Debian's chromium for the dashboard tests (Playwright drives it through executablePath) and
+# poppler-utils (pdftotext, pdftoppm) for the tests that read the certificate PDF page by page.
 browser:
-	@if [ ! -x /usr/bin/chromium ]; then \
+	@if [ ! -x /usr/bin/chromium ] || ! command -v pdftoppm >/dev/null; then \
 	  if command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ]; then \
-	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
-	      || echo "chromium could not be installed: browser tests will be skipped"; \
-	  else echo "no root/apt-get: browser tests will be skipped"; fi; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium poppler-utils >/dev/null) \
+	      || echo "chromium or poppler-utils could not be installed: those tests will be skipped"; \
+	  else echo "no root/apt-get: browser and PDF-page tests will be skipped"; fi; \
 	fi
 
 run: install

@@ -134,21 +134,30 @@ def check_devices(devices: BenchDevices, config: BenchConfig) -> None:
     :raises ValueError: they differ (the file named).
     """
     if devices.table.n_axes != len(config.axes):
-        raise ValueError(f"{config.path}: table.axes lists {len(config.axes)} axes, the table has "
-                         f"{devices.table.n_axes}")
+        raise ValueError(
+            f"{config.path}: table.axes lists {len(config.axes)} axes, the table has {devices.table.n_axes}"
+        )
     if devices.sim is not None:
         geo = devices.sim.geometry
-        same = (np.allclose(geo.axes, [a.axis for a in config.axes], atol=1e-9)
-                and np.allclose(geo.mount_rotation, config.mount_rotation, atol=1e-9)
-                and np.allclose(geo.lever_arm_m, config.lever_arm_m, atol=1e-12)
-                and abs(devices.sim.g_local_m_s2 - config.gravity.g_local_m_s2) < 1e-9)
+        same = (
+            np.allclose(geo.axes, [a.axis for a in config.axes], atol=1e-9)
+            and np.allclose(geo.mount_rotation, config.mount_rotation, atol=1e-9)
+            and np.allclose(geo.lever_arm_m, config.lever_arm_m, atol=1e-12)
+            and abs(devices.sim.g_local_m_s2 - config.gravity.g_local_m_s2) < 1e-9
+        )
         if not same:
-            raise ValueError(f"{config.path}: the simulated bench's axes, mount, lever arm or g differ "
-                             "from the bench file")
+            raise ValueError(
+                f"{config.path}: the simulated bench's axes, mount, lever arm or g differ from the bench file"
+            )
 
 
-def bench_sidecar(devices: BenchDevices, unit_serial: str, procedure: str, config: BenchConfig,
-                  g_local_m_s2: float | None = None) -> Sidecar:
+def bench_sidecar(
+    devices: BenchDevices,
+    unit_serial: str,
+    procedure: str,
+    config: BenchConfig,
+    g_local_m_s2: float | None = None,
+) -> Sidecar:
     """The sidecar: units and rate from the DAQ, table geometry and local g from the bench file
     (``g_local_m_s2`` overrides the file's g).
 
@@ -246,8 +255,9 @@ class RunNotStored(RuntimeError):
     """A run ended but an observer (the database) could not store its end; names both."""
 
 
-def finish_observers(observers: Sequence[RunObserver], record: RunRecord, retry_s: float = 30.0,
-                     wait_s: float = 0.5) -> None:
+def finish_observers(
+    observers: Sequence[RunObserver], record: RunRecord, retry_s: float = 30.0, wait_s: float = 0.5
+) -> None:
     """Tell every observer the run ended; a failing one (a database write refused: disk full,
     connection lost) is retried with growing waits for ``retry_s``, so a transient failure
     still stores the outcome instead of leaving the run ``running``.
@@ -270,8 +280,10 @@ def finish_observers(observers: Sequence[RunObserver], record: RunRecord, retry_
                 pause = min(2 * pause, 5.0)
     if problems:
         outcome = record.outcome.value if record.outcome else record.state.value
-        raise RunNotStored(f"run {record.run_id} ended {outcome} but its end could not be stored "
-                           f"(retried {retry_s:g} s): " + "; ".join(problems))
+        raise RunNotStored(
+            f"run {record.run_id} ended {outcome} but its end could not be stored "
+            f"(retried {retry_s:g} s): " + "; ".join(problems)
+        )
 
 
 def _execute(
@@ -370,8 +382,11 @@ def start_run(
         # devices opened here are already checked and mapped (open_devices); the caller's are not
         daq = devices.daq if owned else apply_to_daq(bench_config, devices.daq)
         with sessions.begin() as s:
-            urls = {} if bench_config.simulated else {"table_url": bench_config.table_url,
-                                                      "daq_url": bench_config.daq_url}
+            urls = (
+                {}
+                if bench_config.simulated
+                else {"table_url": bench_config.table_url, "daq_url": bench_config.daq_url}
+            )
             bench = get_or_create_bench(s, settings.bench_name, **urls)
             unit = get_or_create_unit(s, unit_serial, channel_unit=sidecar.channel_unit, bench_id=bench.id)
             if limits == "settings":  # before the run exists: a bad limits file refuses the run

@@ -37,8 +37,12 @@ def tau_at_floor_s(allan: AllanResult) -> tuple[float, bool]:
     return float(allan.taus_s[worst]), worst < allan.taus_s.size - 1
 
 
-def choose_dwell(allan: AllanResult, source: str, min_dwell_s: float = DEFAULT_MIN_DWELL_S,
-                 max_dwell_s: float = DEFAULT_MAX_DWELL_S) -> DwellChoice:
+def choose_dwell(
+    allan: AllanResult,
+    source: str,
+    min_dwell_s: float = DEFAULT_MIN_DWELL_S,
+    max_dwell_s: float = DEFAULT_MAX_DWELL_S,
+) -> DwellChoice:
     """The dwell from an Allan curve.
 
     :param allan: overlapping Allan deviation of the three accelerometer channels.
@@ -53,15 +57,24 @@ def choose_dwell(allan: AllanResult, source: str, min_dwell_s: float = DEFAULT_M
     origin = "the unit's last Allan characterisation" if source == "allan" else "this run's noise window"
     sigma_min = float(np.max(np.min(allan.adev, axis=0)))
     return DwellChoice(
-        dwell_s=float(clipped), source=source, reason=f"dwell {clipped:.3g} s from {origin}: {why}",
-        details={"tau_floor_s": tau_s, "floor_reached": "yes" if reached else "no",
-                 "adev_floor": sigma_min, "n_samples": float(allan.n_samples)},
+        dwell_s=float(clipped),
+        source=source,
+        reason=f"dwell {clipped:.3g} s from {origin}: {why}",
+        details={
+            "tau_floor_s": tau_s,
+            "floor_reached": "yes" if reached else "no",
+            "adev_floor": sigma_min,
+            "n_samples": float(allan.n_samples),
+        },
     )
 
 
-def dwell_from_noise_window(accel: npt.ArrayLike, sample_rate_hz: float,
-                            min_dwell_s: float = DEFAULT_MIN_DWELL_S,
-                            max_dwell_s: float = DEFAULT_MAX_DWELL_S) -> DwellChoice:
+def dwell_from_noise_window(
+    accel: npt.ArrayLike,
+    sample_rate_hz: float,
+    min_dwell_s: float = DEFAULT_MIN_DWELL_S,
+    max_dwell_s: float = DEFAULT_MAX_DWELL_S,
+) -> DwellChoice:
     """The dwell from a static noise window of raw samples.
 
     :param accel: (n, 3) raw accelerometer samples of one static window.
@@ -70,8 +83,10 @@ def dwell_from_noise_window(accel: npt.ArrayLike, sample_rate_hz: float,
     """
     a = np.asarray(accel, dtype=float)
     if a.ndim != 2 or a.shape[0] < max(100, int(10 * sample_rate_hz)):
-        raise ValueError(f"noise window too short for an Allan curve: {a.shape[0]} samples at "
-                         f"{sample_rate_hz:g} Hz (need >= 10 s and >= 100 samples)")
+        raise ValueError(
+            f"noise window too short for an Allan curve: {a.shape[0]} samples at "
+            f"{sample_rate_hz:g} Hz (need >= 10 s and >= 100 samples)"
+        )
     allan = overlapping_allan(a, sample_rate_hz, "octave")
     return choose_dwell(allan, "noise_window", min_dwell_s, max_dwell_s)
 

@@ -57,6 +57,7 @@ def gap_from_json(d: dict[str, Any]) -> GapRecord:
 
     :raises KeyError, TypeError, ValueError: a required key is missing or not a number.
     """
+
     def opt_int(v: object) -> int | None:
         return None if v is None else int(v)  # type: ignore[call-overload]
 
@@ -64,10 +65,15 @@ def gap_from_json(d: dict[str, Any]) -> GapRecord:
         return None if v is None else float(v)  # type: ignore[arg-type]
 
     return GapRecord(
-        first_lost_seq=opt_int(d.get("first_lost_seq")), n_lost=opt_int(d.get("n_lost")),
-        cause=str(d["cause"]), after_row=int(d["after_row"]), t_last_s=opt_float(d.get("t_last_s")),
-        t_resume_s=float(d["t_resume_s"]), window_index=opt_int(d.get("window_index")),
-        window_label=str(d.get("window_label", "")), action=str(d.get("action", "")),
+        first_lost_seq=opt_int(d.get("first_lost_seq")),
+        n_lost=opt_int(d.get("n_lost")),
+        cause=str(d["cause"]),
+        after_row=int(d["after_row"]),
+        t_last_s=opt_float(d.get("t_last_s")),
+        t_resume_s=float(d["t_resume_s"]),
+        window_index=opt_int(d.get("window_index")),
+        window_label=str(d.get("window_label", "")),
+        action=str(d.get("action", "")),
         daq_epoch=int(d.get("daq_epoch", 0)),
     )
 
@@ -80,10 +86,17 @@ def _window_to_json(w: WindowRecord) -> dict[str, object]:
 
 def _window_from_json(d: dict[str, Any], seg: Segment) -> WindowRecord:
     return WindowRecord(
-        index=int(d["index"]), label=seg.label, kind=WindowKind(d["kind"]), start_s=seg.start_s,
-        end_s=seg.end_s, n_samples=int(d["n_samples"]), pose_deg=tuple(d["pose_deg"]),
-        mean_table_deg=tuple(d["mean_table_deg"]), temp_c_mean=float(d["temp_c_mean"]),
-        step_index=int(d["step_index"]), means=dict(d.get("means", {})),
+        index=int(d["index"]),
+        label=seg.label,
+        kind=WindowKind(d["kind"]),
+        start_s=seg.start_s,
+        end_s=seg.end_s,
+        n_samples=int(d["n_samples"]),
+        pose_deg=tuple(d["pose_deg"]),
+        mean_table_deg=tuple(d["mean_table_deg"]),
+        temp_c_mean=float(d["temp_c_mean"]),
+        step_index=int(d["step_index"]),
+        means=dict(d.get("means", {})),
     )
 
 
@@ -97,8 +110,16 @@ class RunRecorder:
         simulation does not turn every block into an fsync and a database write.
     """
 
-    def __init__(self, writer: RecordingWriter, n_rows: int, last_t_s: float | None, chunk_seq: int,
-                 windows: list[WindowRecord], chunk_s: float = 1.0, min_chunk_wall_s: float = 0.2) -> None:
+    def __init__(
+        self,
+        writer: RecordingWriter,
+        n_rows: int,
+        last_t_s: float | None,
+        chunk_seq: int,
+        windows: list[WindowRecord],
+        chunk_s: float = 1.0,
+        min_chunk_wall_s: float = 0.2,
+    ) -> None:
         self.writer = writer
         self.csv_path = Path(writer.csv_path)
         self.n_rows = n_rows
@@ -126,8 +147,9 @@ class RunRecorder:
     # -- construction --------------------------------------------------------------------
 
     @classmethod
-    def create(cls, csv_path: str | Path, sidecar: Sidecar, has_temp: bool, run_meta: dict[str, object],
-               **kw: float) -> RunRecorder:
+    def create(
+        cls, csv_path: str | Path, sidecar: Sidecar, has_temp: bool, run_meta: dict[str, object], **kw: float
+    ) -> RunRecorder:
         """Start a new recording (refuses to overwrite one)."""
         n_axes = len(sidecar.table.axes) if sidecar.table is not None else 0
         extra = {**sidecar.extra, RUN_KEY: run_meta, WINDOWS_KEY: [], GAPS_KEY: []}
@@ -137,8 +159,9 @@ class RunRecorder:
         return cls(writer, 0, None, 0, [], **kw)
 
     @classmethod
-    def resume(cls, csv_path: str | Path, keep_end_byte: int | None, next_window: int, chunk_seq: int,
-               **kw: float) -> RunRecorder:
+    def resume(
+        cls, csv_path: str | Path, keep_end_byte: int | None, next_window: int, chunk_seq: int, **kw: float
+    ) -> RunRecorder:
         """Reopen after a crash: cut the CSV at ``keep_end_byte``, keep windows ``< next_window``.
 
         :param keep_end_byte: the last durable chunk's end (bytes); ``None`` keeps every
@@ -158,12 +181,15 @@ class RunRecorder:
         segs = list(writer.sidecar.segments or ())
         meta = list(writer.sidecar.extra.get(WINDOWS_KEY, []))  # type: ignore[call-overload]
         if len(segs) < next_window or len(meta) < next_window:
-            raise ValueError(f"{path}: the sidecar holds {len(segs)} windows, "
-                             f"cannot resume at window {next_window}")
+            raise ValueError(
+                f"{path}: the sidecar holds {len(segs)} windows, cannot resume at window {next_window}"
+            )
         windows = [_window_from_json(meta[i], segs[i]) for i in range(next_window)]
         if state.last_t_s is not None and windows and windows[-1].end_s > state.last_t_s:
-            raise ValueError(f"{path}: window {next_window - 1} ends at {windows[-1].end_s} s "
-                             f"but the kept rows end at {state.last_t_s} s")
+            raise ValueError(
+                f"{path}: window {next_window - 1} ends at {windows[-1].end_s} s "
+                f"but the kept rows end at {state.last_t_s} s"
+            )
         rec = cls(writer, state.n_rows, state.last_t_s, chunk_seq, windows, **kw)
         rec._set_sidecar_windows(segs[:next_window], windows)
         return rec
@@ -176,8 +202,9 @@ class RunRecorder:
     def update_run_meta(self, **values: object) -> None:
         """Merge values into the sidecar's ``calbench_run`` entry (rewritten atomically)."""
         meta = {**self.run_meta, **values}
-        self.writer.sidecar = dataclasses.replace(self.writer.sidecar,
-                                                  extra={**self.writer.sidecar.extra, RUN_KEY: meta})
+        self.writer.sidecar = dataclasses.replace(
+            self.writer.sidecar, extra={**self.writer.sidecar.extra, RUN_KEY: meta}
+        )
         self._io("writing the sidecar", self.writer.set_segments, self.writer.sidecar.segments or ())
 
     def record_dwell(self, dwell: DwellChoice) -> None:
@@ -206,9 +233,18 @@ class RunRecorder:
             return self.last_t_s + 1.0 / self.writer.sidecar.sample_rate_hz
         return self._t_offset
 
-    def record_gap(self, *, first_lost_seq: int | None, n_lost: int | None, cause: str,
-                   window_index: int | None, window_label: str, action: str, daq_epoch: int,
-                   restart: bool = False) -> GapRecord:
+    def record_gap(
+        self,
+        *,
+        first_lost_seq: int | None,
+        n_lost: int | None,
+        cause: str,
+        window_index: int | None,
+        window_label: str,
+        action: str,
+        daq_epoch: int,
+        restart: bool = False,
+    ) -> GapRecord:
         """Record a gap where it happens (sidecar rewritten atomically) and return it.
 
         Call it when the gap is met in the stream, before the first block after it. The
@@ -226,9 +262,18 @@ class RunRecorder:
             self._t_daq0 = first_lost_seq / fs
             self._t_offset = t_expected
         t_resume = t_expected + lost / fs
-        gap = GapRecord(first_lost_seq=first_lost_seq, n_lost=n_lost, cause=cause, after_row=self.n_rows,
-                        t_last_s=self.last_t_s, t_resume_s=t_resume, window_index=window_index,
-                        window_label=window_label, action=action, daq_epoch=daq_epoch)
+        gap = GapRecord(
+            first_lost_seq=first_lost_seq,
+            n_lost=n_lost,
+            cause=cause,
+            after_row=self.n_rows,
+            t_last_s=self.last_t_s,
+            t_resume_s=t_resume,
+            window_index=window_index,
+            window_label=window_label,
+            action=action,
+            daq_epoch=daq_epoch,
+        )
         self.gaps.append(gap)
         if restart:
             self.rebase(lost)
@@ -241,8 +286,14 @@ class RunRecorder:
         self.writer.sidecar = dataclasses.replace(self.writer.sidecar, extra=extra)
         self._io("writing the sidecar", self.writer.set_segments, self.writer.sidecar.segments or ())
 
-    def append(self, t_s: np.ndarray, accel: np.ndarray, table_deg: np.ndarray | None,
-               temp_c: np.ndarray | None, window_index: int | None) -> ChunkRecord | None:
+    def append(
+        self,
+        t_s: np.ndarray,
+        accel: np.ndarray,
+        table_deg: np.ndarray | None,
+        temp_c: np.ndarray | None,
+        window_index: int | None,
+    ) -> ChunkRecord | None:
         """Append samples (``t_s`` already on the recording clock); return a chunk if one became durable."""
         if t_s.size == 0:
             return None
@@ -264,9 +315,14 @@ class RunRecorder:
         self._io("flushing a chunk", self.writer.flush)
         end_byte = Path(self.writer.csv_path).stat().st_size
         self.durable_end_byte, self.durable_rows, self._durable_t_s = end_byte, self.n_rows, self.last_t_s
-        chunk = ChunkRecord(seq=self.chunk_seq, first_sample=self._chunk_first,
-                            n_samples=self.n_rows - self._chunk_first, last_t_s=self.last_t_s,
-                            end_byte=end_byte, window_index=window_index)
+        chunk = ChunkRecord(
+            seq=self.chunk_seq,
+            first_sample=self._chunk_first,
+            n_samples=self.n_rows - self._chunk_first,
+            last_t_s=self.last_t_s,
+            end_byte=end_byte,
+            window_index=window_index,
+        )
         self.chunk_seq += 1
         self._chunk_first = self.n_rows
         self._chunk_t0 = None
@@ -307,16 +363,21 @@ class RunRecorder:
         durable chunk and is raised again, naming the file, what failed and where it was cut."""
         if self.failed is not None:
             why = self.failed.strerror or self.failed
-            raise OSError(self.failed.errno, f"{self.csv_path}: the recording failed earlier ({why}); "
-                                             "nothing more is written")
+            raise OSError(
+                self.failed.errno,
+                f"{self.csv_path}: the recording failed earlier ({why}); nothing more is written",
+            )
         try:
             fn(*args)
         except OSError as exc:
             self.failed = exc
             self._cut_to_durable()
-            raise OSError(exc.errno, f"{self.csv_path}: {what} failed ({exc.strerror or exc}); the recording "
-                                     f"is cut at its last durable chunk ({self.durable_rows} rows, "
-                                     f"{self.durable_end_byte} bytes)") from exc
+            raise OSError(
+                exc.errno,
+                f"{self.csv_path}: {what} failed ({exc.strerror or exc}); the recording "
+                f"is cut at its last durable chunk ({self.durable_rows} rows, "
+                f"{self.durable_end_byte} bytes)",
+            ) from exc
 
     def _cut_to_durable(self) -> None:
         """Close the CSV and truncate it to the last durable chunk (a torn row never stays)."""

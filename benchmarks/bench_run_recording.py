@@ -115,8 +115,13 @@ class PacedDaq:
             n = 0
         seq = self.next_seq + np.arange(n)
         self.next_seq += n
-        return SampleBlock(int(seq[0]) if n else self.next_seq, seq / self.rate_hz,
-                           1.5 + 1e-3 * self.rng.standard_normal((n, 3)), np.full(n, 25.0), np.zeros((n, 3)))
+        return SampleBlock(
+            int(seq[0]) if n else self.next_seq,
+            seq / self.rate_hz,
+            1.5 + 1e-3 * self.rng.standard_normal((n, 3)),
+            np.full(n, 25.0),
+            np.zeros((n, 3)),
+        )
 
     def stop(self) -> None:
         pass
@@ -137,8 +142,11 @@ class CountChunks(NullObserver):
 
 
 def sidecar() -> Sidecar:
-    axes = (TableAxis("outer", (0.0, 0.0, 1.0)), TableAxis("middle", (1.0, 0.0, 0.0)),
-            TableAxis("inner", (0.0, 0.0, 1.0)))
+    axes = (
+        TableAxis("outer", (0.0, 0.0, 1.0)),
+        TableAxis("middle", (1.0, 0.0, 0.0)),
+        TableAxis("inner", (0.0, 0.0, 1.0)),
+    )
     return Sidecar("SN-BENCH", "V", RATE_HZ, 9.81, table=TableGeometry(axes))
 
 
@@ -149,8 +157,12 @@ def writer_baseline(tmp: Path, n: int) -> float:
     t0 = time.perf_counter()
     for start in range(0, n, 4096):
         k = min(4096, n - start)
-        w.append((start + np.arange(k)) / RATE_HZ, 1.5 + 1e-3 * rng.standard_normal((k, 3)), np.zeros((k, 3)),
-                 np.full(k, 25.0))
+        w.append(
+            (start + np.arange(k)) / RATE_HZ,
+            1.5 + 1e-3 * rng.standard_normal((k, 3)),
+            np.zeros((k, 3)),
+            np.full(k, 25.0),
+        )
         if (start // 4096) % 25 == 0:
             w.flush()
     w.close()
@@ -163,13 +175,22 @@ def pipeline(tmp: Path, speed: float, min_chunk_wall_s: float, data_s: float = D
     sessions = make_session_factory(engine)
     run_id = "bench-run"
     proc = Procedure("bench", (MoveTo((0.0, 0.0, 0.0), "p", settle_s=0.0), Dwell("hold", data_s)), {})
-    recorder = RunRecorder.create(tmp / "run.csv", sidecar(), True, {"run_id": run_id}, chunk_s=1.0,
-                                  min_chunk_wall_s=min_chunk_wall_s)
+    recorder = RunRecorder.create(
+        tmp / "run.csv", sidecar(), True, {"run_id": run_id}, chunk_s=1.0, min_chunk_wall_s=min_chunk_wall_s
+    )
     daq = PacedDaq(RATE_HZ, speed)
     count = CountChunks()
     start = RunStart(run_id, "SN-BENCH", "bench", "bench", str(tmp / "run.csv"), RATE_HZ, 3, 1, data_s)
-    seq = Sequencer(StillTable(), daq, proc, recorder, start, [DbRunObserver(sessions), count], None,
-                    SequencerConfig(block_max_samples=8192))
+    seq = Sequencer(
+        StillTable(),
+        daq,
+        proc,
+        recorder,
+        start,
+        [DbRunObserver(sessions), count],
+        None,
+        SequencerConfig(block_max_samples=8192),
+    )
     t0 = time.perf_counter()
     acq = seq.run()
     wall = time.perf_counter() - t0
@@ -177,25 +198,34 @@ def pipeline(tmp: Path, speed: float, min_chunk_wall_s: float, data_s: float = D
     recorded_s = acq.n_samples / RATE_HZ
     sustained = recorded_s / wall
     outcome = acq.outcome.value if acq.outcome else "completed"
-    print(f"  DAQ paced at x{speed:g}, chunks every >= {min_chunk_wall_s:g} s wall: {acq.n_samples} samples "
-          f"({recorded_s:.0f} s of data) in {wall:.2f} s wall = x{sustained:.1f} real time "
-          f"(sustained/required {sustained / speed:.2f}); DAQ gaps {daq.gaps}; outcome {outcome}")
-    print(f"    database: {count.chunks} chunk rows + 1 window = {count.chunks / wall:.1f} writes per "
-          f"wall s, {count.chunks / recorded_s:.2f} per data s")
+    print(
+        f"  DAQ paced at x{speed:g}, chunks every >= {min_chunk_wall_s:g} s wall: {acq.n_samples} samples "
+        f"({recorded_s:.0f} s of data) in {wall:.2f} s wall = x{sustained:.1f} real time "
+        f"(sustained/required {sustained / speed:.2f}); DAQ gaps {daq.gaps}; outcome {outcome}"
+    )
+    print(
+        f"    database: {count.chunks} chunk rows + 1 window = {count.chunks / wall:.1f} writes per "
+        f"wall s, {count.chunks / recorded_s:.2f} per data s"
+    )
     return sustained, daq.gaps
 
 
 def formatting(n_rows: int = 200_000) -> None:
     """CSV text of the benchmark's rows: the csv module against format_block (same bytes)."""
     rng = np.random.default_rng(2)
-    block = np.column_stack([np.arange(n_rows) / RATE_HZ, 1.5 + 1e-3 * rng.standard_normal((n_rows, 3)),
-                             rng.uniform(-180.0, 180.0, (n_rows, 3)),
-                             25.0 + 0.01 * rng.standard_normal(n_rows)])
+    block = np.column_stack(
+        [
+            np.arange(n_rows) / RATE_HZ,
+            1.5 + 1e-3 * rng.standard_normal((n_rows, 3)),
+            rng.uniform(-180.0, 180.0, (n_rows, 3)),
+            25.0 + 0.01 * rng.standard_normal(n_rows),
+        ]
+    )
     times = {}
     for name in ("csv module", "format_block"):
         t0 = time.perf_counter()
         for i in range(0, n_rows, 4096):
-            part = block[i:i + 4096]
+            part = block[i : i + 4096]
             if name == "csv module":
                 buf = io.StringIO()
                 csv.writer(buf, lineterminator="\n").writerows(part.tolist())
@@ -206,8 +236,10 @@ def formatting(n_rows: int = 200_000) -> None:
     assert text == format_block(part)
     base = times["csv module"]
     for name, dt in times.items():
-        print(f"  {name}: {n_rows / dt / 1e3:.0f} k rows/s (8 full-precision floats per row) = "
-              f"x{n_rows / RATE_HZ / dt:.0f} real time at 1 kHz; {base / dt:.2f} x the csv module")
+        print(
+            f"  {name}: {n_rows / dt / 1e3:.0f} k rows/s (8 full-precision floats per row) = "
+            f"x{n_rows / RATE_HZ / dt:.0f} real time at 1 kHz; {base / dt:.2f} x the csv module"
+        )
 
 
 def real_drivers(tmp: Path) -> None:
@@ -226,8 +258,10 @@ def real_drivers(tmp: Path) -> None:
             wall = time.perf_counter() - t0
             outcome = acq.outcome.value if acq.outcome else "completed"
             why = f" ({acq.error})" if acq.error else ""
-            print(f"  simulation x{speed:g}: x{acq.n_samples / RATE_HZ / wall:.1f} real time sustained over "
-                  f"{wall:.1f} s, gaps {seq._gaps} (one per ring overflow), outcome {outcome}{why}")
+            print(
+                f"  simulation x{speed:g}: x{acq.n_samples / RATE_HZ / wall:.1f} real time sustained over "
+                f"{wall:.1f} s, gaps {seq._gaps} (one per ring overflow), outcome {outcome}{why}"
+            )
         finally:
             devices.close()
 
@@ -244,15 +278,19 @@ def main() -> None:
         else:
             capacity = sustained
     # Wall time includes start-up; the paced ring (2 s of wall time) turns any lasting lag into gaps.
-    print(f"  x{SPEED:g} sustained with zero gaps: {'yes' if ok else 'NO'}; most the pipeline takes: "
-          f"x{capacity:.0f} = {capacity / SPEED:.1f} x the requirement")
+    print(
+        f"  x{SPEED:g} sustained with zero gaps: {'yes' if ok else 'NO'}; most the pipeline takes: "
+        f"x{capacity:.0f} = {capacity / SPEED:.1f} x the requirement"
+    )
     with tempfile.TemporaryDirectory() as d:
         base = writer_baseline(Path(d), 400_000)
     print(f"  RecordingWriter.append alone (4096-row blocks, flush every 25): x{400 / base:.0f} real time")
     print("CSV formatting of a block:")
     formatting()
-    print("real drivers (simulated bench over Modbus TCP; the register map caps a reader near "
-          "20 000 samples/s, x20 at 1 kHz):")
+    print(
+        "real drivers (simulated bench over Modbus TCP; the register map caps a reader near "
+        "20 000 samples/s, x20 at 1 kHz):"
+    )
     with tempfile.TemporaryDirectory() as d:
         real_drivers(Path(d))
 

@@ -57,8 +57,7 @@ def study(case: Case, n: int) -> str:
     sig = _sigma(case, 100, 10 * case.limit)
     implied = gate_sigmas() * sig if case.effect != "settling" else float("nan")
     return (
-        f"| {case.effect} | {case.limit:.2g} {case.unit} | {' | '.join(cells)} | "
-        f"{sig:.2g} | {implied:.2g} |"
+        f"| {case.effect} | {case.limit:.2g} {case.unit} | {' | '.join(cells)} | {sig:.2g} | {implied:.2g} |"
     )
 
 
@@ -68,8 +67,10 @@ def main(argv: list[str] | None = None) -> None:
     n = int(args[0]) if args and args[0].isdigit() else 10
     names = [a for a in args if not a.isdigit()] or list(CASES)
     print(f"gate: {gate_sigmas():.2f} sigma (q = 1, n = 36)")
-    print("| effect | limit | found at 3x | abs z at 3x (median / max) | found at 10x | abs z at 10x "
-          "(median / max) | sigma of estimate | sqrt(gate)·sigma |")
+    print(
+        "| effect | limit | found at 3x | abs z at 3x (median / max) | found at 10x | abs z at 10x "
+        "(median / max) | sigma of estimate | sqrt(gate)·sigma |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     t0 = time.perf_counter()
     for name in names:

@@ -58,8 +58,10 @@ def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else argv
     n = int(args[0]) if args and args[0].isdigit() else 6
     names = [a for a in args if not a.isdigit()] or list(DYNAMIC_CASES)
-    print("| effect (recording) | limit | found at 3x | max abs z at 3x (median / max) | found at 10x | "
-          "max abs z at 10x (median / max) | sigma (largest element) | other findings |")
+    print(
+        "| effect (recording) | limit | found at 3x | max abs z at 3x (median / max) | found at 10x | "
+        "max abs z at 10x (median / max) | sigma (largest element) | other findings |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     t0 = time.perf_counter()
     for name in names:

@@ -83,8 +83,14 @@ def main(n_seeds: int = 4) -> None:
             st = np.sqrt(np.mean([o[3] ** 2 for o in out], axis=0)) if kind == "static" else None
             rows.append((kind, x, dur, sig, err, st))
             extra = "" if st is None else "   window fit err " + " ".join(f"{v:8.1f}" for v in st)
-            print(f"{kind:12s} {x:6.0f} s -> {dur / 60:6.2f} min  sigma " + " ".join(f"{v:8.1f}" for v in sig)
-                  + "   err " + " ".join(f"{v:8.1f}" for v in err) + extra, flush=True)
+            print(
+                f"{kind:12s} {x:6.0f} s -> {dur / 60:6.2f} min  sigma "
+                + " ".join(f"{v:8.1f}" for v in sig)
+                + "   err "
+                + " ".join(f"{v:8.1f}" for v in err)
+                + extra,
+                flush=True,
+            )
     st_rows = [r for r in rows if r[0] == "static"]
     ref = st_rows[-1]
     osc = [r for r in rows if r[0] == "oscillation"]
@@ -95,8 +101,10 @@ def main(n_seeds: int = 4) -> None:
         target = math.log(ref[3][j])
         slope, icpt = np.polyfit(d, s, 1)
         if target < s.min():
-            when = (f"beyond {math.exp(d[-1]) / 60:.1f} min; power law sigma ∝ T^{slope:.2f} "
-                    f"extrapolates to {math.exp((target - icpt) / slope) / 60:.0f} min")
+            when = (
+                f"beyond {math.exp(d[-1]) / 60:.1f} min; power law sigma ∝ T^{slope:.2f} "
+                f"extrapolates to {math.exp((target - icpt) / slope) / 60:.0f} min"
+            )
         elif target > s.max():
             when = f"below {math.exp(d[0]) / 60:.1f} min"
         else:

@@ -66,13 +66,17 @@ def main(argv: list[str] | None = None) -> None:
             if found:
                 findings[seed] = found
     pf, pc = np.array(p_f), np.array(p_chi2)
-    print(f"{n} clean static-12 recordings (seeds 1000-{999 + n}); settling test dof 2n = {st.dof}, "
-          f"3 d_ref = {st.ref_dof} at its frequency")
+    print(
+        f"{n} clean static-12 recordings (seeds 1000-{999 + n}); settling test dof 2n = {st.dof}, "
+        f"3 d_ref = {st.ref_dof} at its frequency"
+    )
     print("| nominal level | F(2n, 3 d_ref) (now) | χ²_2n, reference exact (before) |")
     print("|---|---|---|")
     for level in LEVELS:
-        print(f"| {level:g} | {np.sum(pf < level)} ({np.mean(pf < level):.1%}) | "
-              f"{np.sum(pc < level)} ({np.mean(pc < level):.1%}) |")
+        print(
+            f"| {level:g} | {np.sum(pf < level)} ({np.mean(pf < level):.1%}) | "
+            f"{np.sum(pc < level)} ({np.mean(pc < level):.1%}) |"
+        )
     print(monte_carlo_tail(st.dof // 6, st.ref_dof // 3, 88))
     if full:
         print(f"full diagnosis: {len(findings)} of {n} with a finding ({len(findings) / n:.1%}): {findings}")

@@ -39,8 +39,6 @@ word   type    content
 assert RECORD_DTYPE.itemsize == 2 * reg.RECORD_WORDS
 
 
-
-
 def encode_records(
     seq: npt.NDArray[np.int64],
     accel: npt.NDArray[np.float64],

@@ -79,6 +79,7 @@ ENCODER_SCALE_DEG = 1e-6
 
 SEQ_MODULUS = 1 << 32
 
+
 class ChannelStatus(enum.IntFlag):
     """Per-channel status bits of HR 100-115 (ADAM-6017 AI status)."""
 

@@ -124,8 +124,10 @@ def report(record: RunRecord, as_json: bool) -> int:
         return 0 if record.outcome is Outcome.PASS else 1
     outcome = record.outcome.value if record.outcome else "?"
     print(f"run {record.run_id}: {outcome}" + (f" ({record.error})" if record.error else ""))
-    print(f"recording: {record.start.recording_path} ({record.n_samples} samples, "
-          f"{len(record.windows)} windows)")
+    print(
+        f"recording: {record.start.recording_path} ({record.n_samples} samples, "
+        f"{len(record.windows)} windows)"
+    )
     if record.dwell is not None:
         print(f"dwell: {record.dwell.reason}")
     cal: dict[str, Any] | None = record.calibration
@@ -140,8 +142,10 @@ def report(record: RunRecord, as_json: bool) -> int:
             print(f"{name:12s} {g['mean_error_m_s2']:18.3e} {g['std_m_s2']:12.3e}")
     if record.limit_checks:
         bad = [c for c in record.limit_checks if not c.passed]
-        print(f"limits: {len(record.limit_checks) - len(bad)}/{len(record.limit_checks)} within"
-              + "".join(f"\n  OUT {describe(c)}" for c in bad))
+        print(
+            f"limits: {len(record.limit_checks) - len(bad)}/{len(record.limit_checks)} within"
+            + "".join(f"\n  OUT {describe(c)}" for c in bad)
+        )
     return 0 if record.outcome is Outcome.PASS else 1
 
 

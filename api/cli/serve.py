@@ -37,7 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--port", type=int, default=8000, help="port (default 8000)")
     parser.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"])
     parser.add_argument(
-        "--bench-file", default=None, metavar="PATH",
+        "--bench-file",
+        default=None,
+        metavar="PATH",
         help="the bench's configuration file (calbench-bench/1; default CALBENCH_BENCH_FILE, "
         "else the simulated bench's)",
     )

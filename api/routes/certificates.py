@@ -70,8 +70,11 @@ def certificate_pdf(run_id: str, session: SessionDep, _: ViewerLinkDep) -> Respo
     "/api/runs/{run_id}/certificate",
     status_code=status.HTTP_201_CREATED,
     response_model=CertificateOut,
-    responses={404: {"description": "no such run"}, 409: {"description": "already issued"},
-               422: {"description": "the run has no fit"}},
+    responses={
+        404: {"description": "no such run"},
+        409: {"description": "already issued"},
+        422: {"description": "the run has no fit"},
+    },
 )
 def issue(run_id: str, session: SessionDep, settings: SettingsDep, _: OperatorDep) -> CertificateOut:
     """Issue the certificate of a completed run that has none (e.g. one run from the CLI); a run
@@ -95,7 +98,10 @@ def issue(run_id: str, session: SessionDep, settings: SettingsDep, _: OperatorDe
                 store_diagnosis(session, run_id, analysis)
         try:
             cert = issue_for_run(
-                session, settings, run_id, rec=analysis.rec if analysis else None,
+                session,
+                settings,
+                run_id,
+                rec=analysis.rec if analysis else None,
                 diagnosis_note=analysis.note if analysis else "",
             )
         except ValueError as exc:

@@ -28,4 +28,3 @@ def index() -> FileResponse:
     if not INDEX.is_file():
         raise HTTPException(status.HTTP_500_INTERNAL_SERVER_ERROR, f"dashboard page missing: {INDEX}")
     return FileResponse(INDEX, media_type="text/html", headers={"Cache-Control": "no-cache"})
-

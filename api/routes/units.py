@@ -29,14 +29,24 @@ def _unit_out(session: SessionDep, unit: Unit) -> UnitOut:
         sa.select(DriftCheck.flagged).where(DriftCheck.unit_id == unit.id).order_by(DriftCheck.id.desc())
     )
     return UnitOut(
-        serial=unit.serial, model=unit.model, channel_unit=unit.channel_unit, bench=bench,
-        n_runs=int(n_runs), last_certificate=last_cert, last_drift_flagged=last_drift,
+        serial=unit.serial,
+        model=unit.model,
+        channel_unit=unit.channel_unit,
+        bench=bench,
+        n_runs=int(n_runs),
+        last_certificate=last_cert,
+        last_drift_flagged=last_drift,
         **{name: getattr(unit, name) for name in REGISTRATION_FIELDS},
     )
 
 
 REGISTRATION_FIELDS = (
-    "description", "customer_name", "customer_address", "received_on", "nominal_scale", "nominal_bias",
+    "description",
+    "customer_name",
+    "customer_address",
+    "received_on",
+    "nominal_scale",
+    "nominal_bias",
     "condition",
 )
 

@@ -35,6 +35,17 @@ def build_procedure(name: str, dwell_s: float | None = None, **parameters: objec
 
 
 __all__ = [
-    "DEFAULT_TABLE_LIMITS", "PROCEDURES", "Dwell", "MoveTo", "NoiseWindow", "Oscillate", "Preview",
-    "Procedure", "Rotate", "Step", "TableLimits", "build_procedure", "preview",
+    "DEFAULT_TABLE_LIMITS",
+    "PROCEDURES",
+    "Dwell",
+    "MoveTo",
+    "NoiseWindow",
+    "Oscillate",
+    "Preview",
+    "Procedure",
+    "Rotate",
+    "Step",
+    "TableLimits",
+    "build_procedure",
+    "preview",
 ]

@@ -25,8 +25,12 @@ AMPLITUDE_MIDDLE_DEG = 90.0
 CENTRE_DEG = (0.0, 90.0, 0.0)
 
 
-def oscillation_2axis(dwell_s: float | None = None, duration_s: float = 90.0,
-                      noise_window_s: float = 60.0, settle_s: float = 2.0) -> Procedure:
+def oscillation_2axis(
+    dwell_s: float | None = None,
+    duration_s: float = 90.0,
+    noise_window_s: float = 60.0,
+    settle_s: float = 2.0,
+) -> Procedure:
     """Build the oscillation-2axis procedure.
 
     :param dwell_s: static reference windows (s); ``None``: noise window first, dwell policy.
@@ -42,13 +46,21 @@ def oscillation_2axis(dwell_s: float | None = None, duration_s: float = 90.0,
         MoveTo((0.0, 180.0, 0.0), label="down", settle_s=settle_s),
         Dwell("down-static", duration_s=dwell_s),
         MoveTo(CENTRE_DEG, label="centre", settle_s=settle_s),
-        Oscillate(axes=(3, 2), amplitudes_deg=(AMPLITUDE_INNER_DEG, AMPLITUDE_MIDDLE_DEG),
-                  periods_s=(T1_S, T2_S), duration_s=duration_s, label="oscillation"),
+        Oscillate(
+            axes=(3, 2),
+            amplitudes_deg=(AMPLITUDE_INNER_DEG, AMPLITUDE_MIDDLE_DEG),
+            periods_s=(T1_S, T2_S),
+            duration_s=duration_s,
+            label="oscillation",
+        ),
         MoveTo(CENTRE_DEG, label="centre", settle_s=settle_s),
     ]
     params: dict[str, object] = {
-        "dwell_s": dwell_s, "duration_s": duration_s, "periods_s": [T1_S, T2_S],
-        "amplitudes_deg": [AMPLITUDE_INNER_DEG, AMPLITUDE_MIDDLE_DEG], "settle_s": settle_s,
+        "dwell_s": dwell_s,
+        "duration_s": duration_s,
+        "periods_s": [T1_S, T2_S],
+        "amplitudes_deg": [AMPLITUDE_INNER_DEG, AMPLITUDE_MIDDLE_DEG],
+        "settle_s": settle_s,
         "noise_window_s": noise_window_s if dwell_s is None else None,
     }
     return Procedure(NAME, tuple(steps), params, n_axes=3)

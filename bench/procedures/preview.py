@@ -104,8 +104,12 @@ def _axis_distance(frm: float, to: float, continuous: bool) -> float:
     return abs(to - frm)
 
 
-def preview(proc: Procedure, limits: TableLimits = DEFAULT_TABLE_LIMITS,
-            provisional_dwell_s: float = 60.0, start_deg: tuple[float, ...] | None = None) -> Preview:
+def preview(
+    proc: Procedure,
+    limits: TableLimits = DEFAULT_TABLE_LIMITS,
+    provisional_dwell_s: float = 60.0,
+    start_deg: tuple[float, ...] | None = None,
+) -> Preview:
     """Walk ``proc`` against ``limits``: duration, poses, windows and limit problems.
 
     :param proc: the procedure.
@@ -138,9 +142,16 @@ def preview(proc: Procedure, limits: TableLimits = DEFAULT_TABLE_LIMITS,
                 if not limits.continuous[ax] and not limits.pos_lo_deg[ax] <= ang <= limits.pos_hi_deg[ax]:
                     problems.append(
                         f"step {i} (MoveTo {step.label}): axis {ax + 1} angle {ang:g} deg outside "
-                        f"[{limits.pos_lo_deg[ax]:g}, {limits.pos_hi_deg[ax]:g}] deg")
-            t += max(move_time_s(_axis_distance(pos[ax], step.angles_deg[ax], limits.continuous[ax]),
-                                 limits.max_rate_deg_s[ax], limits.max_acc_deg_s2[ax]) for ax in range(n))
+                        f"[{limits.pos_lo_deg[ax]:g}, {limits.pos_hi_deg[ax]:g}] deg"
+                    )
+            t += max(
+                move_time_s(
+                    _axis_distance(pos[ax], step.angles_deg[ax], limits.continuous[ax]),
+                    limits.max_rate_deg_s[ax],
+                    limits.max_acc_deg_s2[ax],
+                )
+                for ax in range(n)
+            )
             t += step.settle_s
             pos = list(step.angles_deg)
             poses.append(tuple(pos))
@@ -158,15 +169,23 @@ def preview(proc: Procedure, limits: TableLimits = DEFAULT_TABLE_LIMITS,
                 continue
             ax = step.axis - 1
             if abs(step.rate_deg_s) > limits.max_rate_deg_s[ax]:
-                problems.append(f"step {i} (Rotate {step.label}): rate {step.rate_deg_s:g} deg/s exceeds "
-                                f"the axis {step.axis} limit {limits.max_rate_deg_s[ax]:g} deg/s")
+                problems.append(
+                    f"step {i} (Rotate {step.label}): rate {step.rate_deg_s:g} deg/s exceeds "
+                    f"the axis {step.axis} limit {limits.max_rate_deg_s[ax]:g} deg/s"
+                )
             turned = step.rate_deg_s * (step.spinup_s + step.duration_s)
             if not limits.continuous[ax] and not (
-                    limits.pos_lo_deg[ax] <= pos[ax] + turned <= limits.pos_hi_deg[ax]):
-                problems.append(f"step {i} (Rotate {step.label}): axis {step.axis} has no slip ring and "
-                                f"would turn {turned:g} deg past its travel")
-            windows.append(PreviewWindow(len(windows), step.label, step.kind, t + step.spinup_s,
-                                         step.duration_s, tuple(pos)))
+                limits.pos_lo_deg[ax] <= pos[ax] + turned <= limits.pos_hi_deg[ax]
+            ):
+                problems.append(
+                    f"step {i} (Rotate {step.label}): axis {step.axis} has no slip ring and "
+                    f"would turn {turned:g} deg past its travel"
+                )
+            windows.append(
+                PreviewWindow(
+                    len(windows), step.label, step.kind, t + step.spinup_s, step.duration_s, tuple(pos)
+                )
+            )
             t += step.spinup_s + step.duration_s + abs(step.rate_deg_s) / limits.max_acc_deg_s2[ax]
             pos[ax] = (pos[ax] + turned + 180.0) % 360.0 - 180.0
         elif isinstance(step, Oscillate):
@@ -176,14 +195,18 @@ def preview(proc: Procedure, limits: TableLimits = DEFAULT_TABLE_LIMITS,
             for a, amp, peak in zip(step.axes, step.amplitudes_deg, step.peak_rate_deg_s(), strict=True):
                 ax = a - 1
                 if peak > limits.max_rate_deg_s[ax]:
-                    problems.append(f"step {i} (Oscillate {step.label}): axis {a} peak rate {peak:.1f} deg/s "
-                                    f"exceeds {limits.max_rate_deg_s[ax]:g} deg/s")
+                    problems.append(
+                        f"step {i} (Oscillate {step.label}): axis {a} peak rate {peak:.1f} deg/s "
+                        f"exceeds {limits.max_rate_deg_s[ax]:g} deg/s"
+                    )
                 lo, hi = pos[ax] - abs(amp), pos[ax] + abs(amp)
                 inside = limits.pos_lo_deg[ax] <= lo and hi <= limits.pos_hi_deg[ax]
                 if not limits.continuous[ax] and not inside:
-                    problems.append(f"step {i} (Oscillate {step.label}): axis {a} would swing "
-                                    f"{pos[ax] - abs(amp):g}..{pos[ax] + abs(amp):g} deg, outside "
-                                    f"[{limits.pos_lo_deg[ax]:g}, {limits.pos_hi_deg[ax]:g}] deg")
+                    problems.append(
+                        f"step {i} (Oscillate {step.label}): axis {a} would swing "
+                        f"{pos[ax] - abs(amp):g}..{pos[ax] + abs(amp):g} deg, outside "
+                        f"[{limits.pos_lo_deg[ax]:g}, {limits.pos_hi_deg[ax]:g}] deg"
+                    )
             windows.append(PreviewWindow(len(windows), step.label, step.kind, t, step.duration_s, tuple(pos)))
             t += step.duration_s
     if not problems and n == 3 and any(isinstance(s, Rotate | Oscillate) for s in proc.steps):

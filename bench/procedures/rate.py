@@ -26,10 +26,16 @@ DEFAULT_POSES_DEG = ((0.0, 0.0), (180.0, 0.0), (90.0, 90.0), (90.0, -90.0), (90.
 RATE_AXIS = 1
 
 
-def rate_1axis(dwell_s: float | None = None, rates_deg_s: tuple[float, ...] = DEFAULT_RATES_DEG_S,
-               window_s: float = 10.0, poses_deg: tuple[tuple[float, float], ...] = DEFAULT_POSES_DEG,
-               tilted_deg: float = 0.0, noise_window_s: float = 60.0,
-               spinup_s: float = 3.0, settle_s: float = 2.0) -> Procedure:
+def rate_1axis(
+    dwell_s: float | None = None,
+    rates_deg_s: tuple[float, ...] = DEFAULT_RATES_DEG_S,
+    window_s: float = 10.0,
+    poses_deg: tuple[tuple[float, float], ...] = DEFAULT_POSES_DEG,
+    tilted_deg: float = 0.0,
+    noise_window_s: float = 60.0,
+    spinup_s: float = 3.0,
+    settle_s: float = 2.0,
+) -> Procedure:
     """Build the rate-1axis procedure.
 
     :param dwell_s: static reference window per pose (s); ``None``: a noise window first and
@@ -56,12 +62,18 @@ def rate_1axis(dwell_s: float | None = None, rates_deg_s: tuple[float, ...] = DE
             steps.append(NoiseWindow(noise_window_s))
         steps.append(Dwell(f"{pose_label}-static", duration_s=dwell_s))
         for rate in rates_deg_s:
-            steps.append(Rotate(RATE_AXIS, rate, window_s, label=f"{pose_label}-rate{rate:+g}",
-                                spinup_s=spinup_s))
+            steps.append(
+                Rotate(RATE_AXIS, rate, window_s, label=f"{pose_label}-rate{rate:+g}", spinup_s=spinup_s)
+            )
             steps.append(MoveTo((0.0, middle, inner), label=pose_label, settle_s=settle_s))
     params: dict[str, object] = {
-        "dwell_s": dwell_s, "rates_deg_s": list(rates_deg_s), "window_s": window_s,
-        "poses_deg": [list(p) for p in poses], "tilted_deg": tilted_deg, "spinup_s": spinup_s,
-        "settle_s": settle_s, "noise_window_s": noise_window_s if dwell_s is None else None,
+        "dwell_s": dwell_s,
+        "rates_deg_s": list(rates_deg_s),
+        "window_s": window_s,
+        "poses_deg": [list(p) for p in poses],
+        "tilted_deg": tilted_deg,
+        "spinup_s": spinup_s,
+        "settle_s": settle_s,
+        "noise_window_s": noise_window_s if dwell_s is None else None,
     }
     return Procedure(NAME, tuple(steps), params, n_axes=3)

@@ -41,8 +41,13 @@ def icosahedron_up_directions() -> np.ndarray:
     for ring_polar, az0 in ((polar, 0.0), (math.pi - polar, 36.0)):
         for k in range(5):
             az = math.radians(az0 + 72.0 * k)
-            dirs.append((math.sin(ring_polar) * math.sin(az), math.sin(ring_polar) * math.cos(az),
-                         math.cos(ring_polar)))
+            dirs.append(
+                (
+                    math.sin(ring_polar) * math.sin(az),
+                    math.sin(ring_polar) * math.cos(az),
+                    math.cos(ring_polar),
+                )
+            )
     dirs.append((0.0, 0.0, -1.0))
     return np.array(dirs)
 
@@ -64,8 +69,9 @@ def static_12_poses_deg() -> list[tuple[float, float, float]]:
     return [pose_for_up(d, OUTER_ANGLES_DEG[i % len(OUTER_ANGLES_DEG)]) for i, d in enumerate(dirs)]
 
 
-def static_12(dwell_s: float | None = None, noise_window_s: float = DEFAULT_NOISE_WINDOW_S,
-              settle_s: float = 2.0) -> Procedure:
+def static_12(
+    dwell_s: float | None = None, noise_window_s: float = DEFAULT_NOISE_WINDOW_S, settle_s: float = 2.0
+) -> Procedure:
     """Build the static-12 procedure.
 
     :param dwell_s: static dwell per pose (s). ``None``: the procedure first records a noise
@@ -82,6 +88,9 @@ def static_12(dwell_s: float | None = None, noise_window_s: float = DEFAULT_NOIS
         if i == 0 and dwell_s is None:
             steps.append(NoiseWindow(noise_window_s))
         steps.append(Dwell(label, duration_s=dwell_s))
-    params: dict[str, object] = {"dwell_s": dwell_s, "settle_s": settle_s,
-                                 "noise_window_s": noise_window_s if dwell_s is None else None}
+    params: dict[str, object] = {
+        "dwell_s": dwell_s,
+        "settle_s": settle_s,
+        "noise_window_s": noise_window_s if dwell_s is None else None,
+    }
     return Procedure(NAME, tuple(steps), params, n_axes=3)

@@ -79,8 +79,15 @@ class DaqPump:
         the data rate. Keep it far below the time the DAQ's ring takes to fill.
     """
 
-    def __init__(self, daq: Daq, max_samples: int, read_timeout_s: float,
-                 restart_after_gaps: int = 3, idle_wait_s: float = 0.0, max_read_failures: int = 3) -> None:
+    def __init__(
+        self,
+        daq: Daq,
+        max_samples: int,
+        read_timeout_s: float,
+        restart_after_gaps: int = 3,
+        idle_wait_s: float = 0.0,
+        max_read_failures: int = 3,
+    ) -> None:
         self.daq = daq
         self.max_samples = max_samples
         self.read_timeout_s = read_timeout_s

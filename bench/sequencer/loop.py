@@ -86,10 +86,19 @@ class Sequencer:
         the interrupted run); otherwise a noise window of the procedure decides it.
     """
 
-    def __init__(self, table: RotaryTable, daq: Daq, procedure: Procedure, recorder: RunRecorder,
-                 start: RunStart, observers: Sequence[RunObserver] = (), control: RunControl | None = None,
-                 config: SequencerConfig | None = None, dwell: DwellChoice | None = None,
-                 start_window: int = 0) -> None:
+    def __init__(
+        self,
+        table: RotaryTable,
+        daq: Daq,
+        procedure: Procedure,
+        recorder: RunRecorder,
+        start: RunStart,
+        observers: Sequence[RunObserver] = (),
+        control: RunControl | None = None,
+        config: SequencerConfig | None = None,
+        dwell: DwellChoice | None = None,
+        start_window: int = 0,
+    ) -> None:
         self.table, self.daq, self.procedure, self.recorder = table, daq, procedure, recorder
         self.start, self.observers = start, list(observers)
         self.control = control or RunControl()
@@ -104,8 +113,12 @@ class Sequencer:
         self.where = "start"
         self.last_temp_c = float("nan")
         self.positions_deg: tuple[float, ...] = (0.0,) * table.n_axes
-        self._pump = DaqPump(daq, self.config.block_max_samples, self.config.read_timeout_s,
-                             idle_wait_s=self.config.daq_idle_wait_s)
+        self._pump = DaqPump(
+            daq,
+            self.config.block_max_samples,
+            self.config.read_timeout_s,
+            idle_wait_s=self.config.daq_idle_wait_s,
+        )
         self._last_sample_wall = time.monotonic()
         self._last_status_wall = 0.0
         self._last_progress_wall = 0.0
@@ -123,8 +136,9 @@ class Sequencer:
             try:
                 getattr(obs, method)(*args)
             except Exception as exc:
-                raise ObserverError(f"observer {type(obs).__name__}.{method} failed: "
-                                    f"{type(exc).__name__}: {exc}") from exc
+                raise ObserverError(
+                    f"observer {type(obs).__name__}.{method} failed: {type(exc).__name__}: {exc}"
+                ) from exc
 
     def set_state(self, state: RunState, reason: str = "") -> None:
         """Change state and tell the observers."""
@@ -142,10 +156,21 @@ class Sequencer:
         # The preview's duration is an estimate; never let the bar reach its end early.
         left = (n_win - self.next_window) * self.start.expected_duration_s / n_win
         expected = max(self.start.expected_duration_s, self.now_s + left)
-        self.notify("on_progress", self.start.run_id, Progress(
-            self.step_index, len(self.procedure.steps), getattr(step, "label", ""),
-            self.window.index if self.window else None, self.procedure.n_windows, self.now_s,
-            expected, self.positions_deg, self.state))
+        self.notify(
+            "on_progress",
+            self.start.run_id,
+            Progress(
+                self.step_index,
+                len(self.procedure.steps),
+                getattr(step, "label", ""),
+                self.window.index if self.window else None,
+                self.procedure.n_windows,
+                self.now_s,
+                expected,
+                self.positions_deg,
+                self.state,
+            ),
+        )
 
     # -- the sample loop -----------------------------------------------------------------
 
@@ -168,8 +193,10 @@ class Sequencer:
             self._record_gap(item.error)
         elif item is not None:
             self._handle_block(item)
-        if not (self._in_call or self._holding) and \
-                time.monotonic() - self._last_status_wall > self.config.status_poll_s:
+        if (
+            not (self._in_call or self._holding)
+            and time.monotonic() - self._last_status_wall > self.config.status_poll_s
+        ):
             self.check_table()
         self.progress()
 
@@ -177,9 +204,14 @@ class Sequencer:
         """Record the gap where it happened; a window it falls in is spoiled (re-measured)."""
         w = self.window
         gap = self.recorder.record_gap(
-            first_lost_seq=err.expected_seq, n_lost=err.n_lost, cause=err.cause or "unknown",
-            window_index=w.index if w else None, window_label=w.label if w else "",
-            action="window re-measured" if w else "between windows", daq_epoch=self._daq_epoch)
+            first_lost_seq=err.expected_seq,
+            n_lost=err.n_lost,
+            cause=err.cause or "unknown",
+            window_index=w.index if w else None,
+            window_label=w.label if w else "",
+            action="window re-measured" if w else "between windows",
+            daq_epoch=self._daq_epoch,
+        )
         self._notify_gap(gap)
         if w is not None:
             raise WindowSpoiled(str(err))
@@ -187,9 +219,15 @@ class Sequencer:
     def _record_restart(self, item: Restarted) -> None:
         """The DAQ was restarted: record the samples it left unread and re-base the clock."""
         gap = self.recorder.record_gap(
-            first_lost_seq=item.next_seq, n_lost=item.unread,
-            cause="restart", window_index=None, window_label="", action="between windows",
-            daq_epoch=self._daq_epoch, restart=True)
+            first_lost_seq=item.next_seq,
+            n_lost=item.unread,
+            cause="restart",
+            window_index=None,
+            window_label="",
+            action="between windows",
+            daq_epoch=self._daq_epoch,
+            restart=True,
+        )
         self._daq_epoch += 1
         self._notify_gap(gap)
 
@@ -201,8 +239,9 @@ class Sequencer:
             try:
                 hook(self.start.run_id, gap)
             except Exception as exc:
-                raise ObserverError(f"observer {type(obs).__name__}.on_gap failed: "
-                                    f"{type(exc).__name__}: {exc}") from exc
+                raise ObserverError(
+                    f"observer {type(obs).__name__}.on_gap failed: {type(exc).__name__}: {exc}"
+                ) from exc
 
     def _handle_block(self, block: SampleBlock) -> None:
         self._last_sample_wall = time.monotonic()
@@ -214,8 +253,13 @@ class Sequencer:
         else:
             table = np.tile(np.asarray(self.positions_deg, dtype=float), (block.n, 1))
         temp = np.asarray(block.temp_c, dtype=float)
-        chunk = self.recorder.append(t, block.accel, table, temp if self.recorder.writer.has_temp else None,
-                                     self.window.index if self.window else None)
+        chunk = self.recorder.append(
+            t,
+            block.accel,
+            table,
+            temp if self.recorder.writer.has_temp else None,
+            self.window.index if self.window else None,
+        )
         if chunk is not None:
             self.notify("on_chunk", self.start.run_id, chunk)
         self.now_s = float(t[-1])
@@ -337,8 +381,10 @@ class Sequencer:
             prepare_table(self)
             self._pump.start()
             self._last_sample_wall = time.monotonic()
-            self.set_state(RunState.RUNNING, "resumed from window " + str(self.start_window)
-                           if self.start_window else "started")
+            self.set_state(
+                RunState.RUNNING,
+                "resumed from window " + str(self.start_window) if self.start_window else "started",
+            )
             execute_steps(self)
         except AbortRequested as exc:
             outcome, error = Outcome.ABORTED, f"aborted at {self.where}: {exc}"
@@ -349,5 +395,11 @@ class Sequencer:
         if problems:
             error = "; ".join([error or "completed", *problems])
             outcome = outcome or Outcome.ERROR
-        return Acquisition(outcome, error, tuple(self.recorder.windows), self.dwell, self.recorder.n_rows,
-                           tuple(self.recorder.gaps))
+        return Acquisition(
+            outcome,
+            error,
+            tuple(self.recorder.windows),
+            self.dwell,
+            self.recorder.n_rows,
+            tuple(self.recorder.gaps),
+        )

@@ -42,11 +42,17 @@ def execute_steps(seq: RunContext) -> None:
                 retries += 1
                 if retries > seq.config.max_window_retries:
                     limit = seq.config.max_window_retries
-                    raise DeviceError(f"window rejected: DAQ lost samples in the same window {retries} times "
-                                      f"(re-measured at most {limit} times): {exc}") from exc
+                    raise DeviceError(
+                        f"window rejected: DAQ lost samples in the same window {retries} times "
+                        f"(re-measured at most {limit} times): {exc}"
+                    ) from exc
             else:
-                hold(seq, exc if isinstance(exc, Interruption)
-                     else Interruption(RunState.SUSPENDED, f"interlock open: {exc}"))
+                hold(
+                    seq,
+                    exc
+                    if isinstance(exc, Interruption)
+                    else Interruption(RunState.SUSPENDED, f"interlock open: {exc}"),
+                )
             i, pending_move = restart_point(seq, i)
     seq.step_index = len(proc.steps) - 1
     seq.progress(force=True)
@@ -118,8 +124,9 @@ def run_step(seq: RunContext, i: int) -> None:
     index = seq.next_window
     pose = seq.positions_deg
     if isinstance(step, NoiseWindow):
-        col = WindowCollector(index, step.label, step.kind, round(step.duration_s * fs), pose, i,
-                              keep_samples=True)
+        col = WindowCollector(
+            index, step.label, step.kind, round(step.duration_s * fs), pose, i, keep_samples=True
+        )
         seq.record_window(col)
         choice = dwell_from_noise_window(col.samples(), fs)
         seq.dwell = choice
@@ -133,15 +140,19 @@ def run_step(seq: RunContext, i: int) -> None:
             duration = seq.dwell.dwell_s
         seq.record_window(WindowCollector(index, step.label, step.kind, round(duration * fs), pose, i))
     elif isinstance(step, Rotate):
-        seq.call(lambda: seq.table.start_rate(step.axis, step.rate_deg_s), seq.config.stop_timeout_s,
-                 "start_rate")
+        seq.call(
+            lambda: seq.table.start_rate(step.axis, step.rate_deg_s), seq.config.stop_timeout_s, "start_rate"
+        )
         seq.wait_data(step.spinup_s)
         seq.record_window(WindowCollector(index, step.label, step.kind, round(step.duration_s * fs), pose, i))
         _stop_and_settle(seq)
     elif isinstance(step, Oscillate):
         for axis, amp, period in zip(step.axes, step.amplitudes_deg, step.periods_s, strict=True):
-            seq.call(lambda a=axis, m=amp, p=period: seq.table.start_oscillation(a, m, p),  # type: ignore[misc]
-                     seq.config.stop_timeout_s, "start_oscillation")
+            seq.call(
+                lambda a=axis, m=amp, p=period: seq.table.start_oscillation(a, m, p),  # type: ignore[misc]
+                seq.config.stop_timeout_s,
+                "start_oscillation",
+            )
         seq.record_window(WindowCollector(index, step.label, step.kind, round(step.duration_s * fs), pose, i))
         _stop_and_settle(seq)
 
@@ -149,12 +160,21 @@ def run_step(seq: RunContext, i: int) -> None:
 def _move(seq: RunContext, step: MoveTo) -> None:
     lim = seq.config.limits
     here = seq.positions_deg
-    est = max((move_time_s(abs(((b - a + 180.0) % 360.0) - 180.0) if lim.continuous[k] else abs(b - a),
-                           lim.max_rate_deg_s[k], lim.max_acc_deg_s2[k])
-               for k, (a, b) in enumerate(zip(here, step.angles_deg, strict=False))), default=0.0)
+    est = max(
+        (
+            move_time_s(
+                abs(((b - a + 180.0) % 360.0) - 180.0) if lim.continuous[k] else abs(b - a),
+                lim.max_rate_deg_s[k],
+                lim.max_acc_deg_s2[k],
+            )
+            for k, (a, b) in enumerate(zip(here, step.angles_deg, strict=False))
+        ),
+        default=0.0,
+    )
     timeout = seq.config.move_timeout_factor * est + seq.config.move_timeout_margin_s
-    seq.call(lambda: seq.table.move_to(step.angles_deg, timeout), timeout + seq.config.stop_timeout_s,
-             "move_to")
+    seq.call(
+        lambda: seq.table.move_to(step.angles_deg, timeout), timeout + seq.config.stop_timeout_s, "move_to"
+    )
     seq.check_table()
     _wait_until_at(seq, step.angles_deg, timeout)
     seq.wait_data(step.settle_s)
@@ -168,14 +188,17 @@ def _wait_until_at(seq: RunContext, target_deg: tuple[float, ...], timeout_s: fl
     """
     tol = seq.config.in_position_tol_deg
     end = time.monotonic() + timeout_s
+
     def off_deg() -> float:
         pairs = zip(seq.positions_deg, target_deg, strict=False)
         return max((abs((p - t + 180.0) % 360.0 - 180.0) for p, t in pairs), default=0.0)
 
     while off_deg() > tol:
         if time.monotonic() > end:
-            raise DeviceTimeout(f"table reported in position but the encoders read {seq.positions_deg} deg, "
-                                f"not {target_deg} deg")
+            raise DeviceTimeout(
+                f"table reported in position but the encoders read {seq.positions_deg} deg, "
+                f"not {target_deg} deg"
+            )
         seq.pump_once()
 
 

@@ -27,8 +27,16 @@ class WindowCollector:
     :param keep_samples: keep the accelerometer samples (noise window).
     """
 
-    def __init__(self, index: int, label: str, kind: WindowKind, n_needed: int, pose_deg: tuple[float, ...],
-                 step_index: int, keep_samples: bool = False) -> None:
+    def __init__(
+        self,
+        index: int,
+        label: str,
+        kind: WindowKind,
+        n_needed: int,
+        pose_deg: tuple[float, ...],
+        step_index: int,
+        keep_samples: bool = False,
+    ) -> None:
         self.index = index
         self.label = label
         self.kind = kind
@@ -83,7 +91,16 @@ class WindowCollector:
         means = {"ax": float(mean_accel[0]), "ay": float(mean_accel[1]), "az": float(mean_accel[2])}
         if self._n_temp:
             means["temp"] = temp
-        return WindowRecord(index=self.index, label=self.label, kind=self.kind, start_s=self.start_s,
-                            end_s=self.end_s, n_samples=self.n, pose_deg=tuple(self.pose_deg),
-                            mean_table_deg=mean_table, temp_c_mean=temp, step_index=self.step_index,
-                            means=means)
+        return WindowRecord(
+            index=self.index,
+            label=self.label,
+            kind=self.kind,
+            start_s=self.start_s,
+            end_s=self.end_s,
+            n_samples=self.n,
+            pose_deg=tuple(self.pose_deg),
+            mean_table_deg=mean_table,
+            temp_c_mean=temp,
+            step_index=self.step_index,
+            means=means,
+        )

@@ -110,8 +110,12 @@ def test_unit_registration_updates_given_fields_and_refuses_bad_ones(client: Tes
     body = client.put("/api/units/SN-REG", json=change, headers=OP).json()
     assert body["customer_name"] is None and body["customer_address"] == "1 Road"
     assert body["nominal_scale"] == 0.0177
-    for bad, field in (({"nominal_scale": 0}, "nominal_scale"), ({"received_on": "yesterday"}, "received_on"),
-                       ({"colour": "red"}, "colour"), ({"channel_unit": "mV"}, "channel_unit")):
+    for bad, field in (
+        ({"nominal_scale": 0}, "nominal_scale"),
+        ({"received_on": "yesterday"}, "received_on"),
+        ({"colour": "red"}, "colour"),
+        ({"channel_unit": "mV"}, "channel_unit"),
+    ):
         r = client.put("/api/units/SN-REG", json=bad, headers=OP)
         assert r.status_code == 422 and field in r.text, (bad, r.text)
     assert client.put("/api/units/bad%20serial", json={}, headers=OP).status_code == 422

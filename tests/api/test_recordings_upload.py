@@ -13,7 +13,8 @@ from fastapi.testclient import TestClient
 from api.main import create_app
 from tests.support.service_helpers import OP, VIEW, service_settings
 
-pytestmark = pytest.mark.timeout(300)
+# calibration and diagnosis of uploaded recordings in a worker process
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
 
 
 def test_upload_calibrates_and_diagnoses(tmp_path: Path, shared_dir: Path) -> None:

@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from api.main import create_app
 from tests.support.service_helpers import OP, service_settings
 
-pytestmark = pytest.mark.timeout(600)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]  # the whole API fuzzed from its OpenAPI schema
 
 
 @pytest.fixture(scope="module")

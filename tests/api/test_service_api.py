@@ -22,7 +22,7 @@ from tests.support.service_helpers import (
     wait_state,
 )
 
-pytestmark = pytest.mark.timeout(400)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(400)]  # whole simulated runs through the service
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ from fastapi.testclient import TestClient
 from api.main import create_app
 from tests.support.service_helpers import OP, VIEW, service_settings, signed_link, wait_final
 
-pytestmark = pytest.mark.timeout(400)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(400)]  # whole simulated runs through the service
 
 
 @pytest.fixture(scope="module")

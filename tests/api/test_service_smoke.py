@@ -12,14 +12,19 @@ from api.certificates.issue import findings_of
 from api.main import create_app
 from tests.support.service_helpers import OP, VIEW, service_settings, wait_final
 
-pytestmark = pytest.mark.timeout(300)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]  # a whole simulated run to its certificate
 NOMINAL_SCALE = 0.174 / 9.80665  # V/(m/s2): the simulated unit's 174 mV/g
 
 
 def test_run_to_certificate(tmp_path: Path) -> None:
     with TestClient(create_app(service_settings(tmp_path), start_scheduler=False)) as client:
-        reg = {"customer_name": "Acme Robotics", "received_on": "2025-03-04", "model": "ADXL325",
-               "nominal_scale": NOMINAL_SCALE, "nominal_bias": 1.5}
+        reg = {
+            "customer_name": "Acme Robotics",
+            "received_on": "2025-03-04",
+            "model": "ADXL325",
+            "nominal_scale": NOMINAL_SCALE,
+            "nominal_bias": 1.5,
+        }
         r = client.put("/api/units/SN-SMOKE", json=reg, headers=OP)
         assert r.status_code == 200 and r.json()["customer_address"] is None, r.text
         r = client.post("/api/runs", json={"unit_serial": "SN-SMOKE", "procedure": "static-12"}, headers=OP)
@@ -42,8 +47,11 @@ def test_run_to_certificate(tmp_path: Path) -> None:
         assert certified["performed"] is True
         assert [f["effect"] for f in certified["findings"]] == [f["effect"] for f in diag["findings"]]
         content = cert.json()["content"]
-        assert content["customer"] == {"name": "Acme Robotics", "address": "not stated",
-                                       "source": "unit registration"}
+        assert content["customer"] == {
+            "name": "Acme Robotics",
+            "address": "not stated",
+            "source": "unit registration",
+        }
         assert content["dates"]["received"] == "2025-03-04" and content["item"]["model"] == "ADXL325"
         before, after = content["g_check"]["before"], content["g_check"]["after"]
         # the nominal 174 mV/g, 1.5 V model of a unit with ~1 % scale and ~25 mg zero-g errors

@@ -11,9 +11,15 @@ import pytest
 from bench.limits import Limit, load_limits, verdict
 from bench.records import Outcome
 
-SPEC = {"channel_unit": "V", "nominal_bias": [1.5, 1.5, 1.5], "bias_tolerance": 0.05,
-        "nominal_scale": [0.02, 0.02, 0.02], "scale_tolerance_rel": 0.01, "cross_axis_max": 0.005,
-        "g_error_after_max_m_s2": 0.004}
+SPEC = {
+    "channel_unit": "V",
+    "nominal_bias": [1.5, 1.5, 1.5],
+    "bias_tolerance": 0.05,
+    "nominal_scale": [0.02, 0.02, 0.02],
+    "scale_tolerance_rel": 0.01,
+    "cross_axis_max": 0.005,
+    "g_error_after_max_m_s2": 0.004,
+}
 
 
 def write(tmp_path: Path, models: object, fmt: str = "calbench-unit-limits/1") -> Path:
@@ -23,8 +29,12 @@ def write(tmp_path: Path, models: object, fmt: str = "calbench-unit-limits/1") -
 
 
 def contract(bias: list[float], K: list[list[float]], g_err: float = 0.001) -> dict[str, object]:
-    return {"channel_unit": "V", "bias": bias, "scale_matrix": K,
-            "g_check": {"after": {"mean_error_m_s2": g_err, "std_m_s2": 0.001}}}
+    return {
+        "channel_unit": "V",
+        "bias": bias,
+        "scale_matrix": K,
+        "g_check": {"after": {"mean_error_m_s2": g_err, "std_m_s2": 0.001}},
+    }
 
 
 def test_a_fit_inside_every_interval_passes_and_each_excursion_is_named(tmp_path: Path) -> None:
@@ -37,7 +47,13 @@ def test_a_fit_inside_every_interval_passes_and_each_excursion_is_named(tmp_path
     assert outcome is Outcome.FAIL
     # bias 1.56 > 1.55 and 1.449 < 1.45; K_xx = 1.5 % high; K_zz 1.05 % low; K_xy/K_xx = 0.006
     assert [c.name for c in checks if not c.passed] == [
-        "bias_x", "bias_z", "scale_x", "scale_z", "cross_axis_xy", "g_error_after"]
+        "bias_x",
+        "bias_z",
+        "scale_x",
+        "scale_z",
+        "cross_axis_xy",
+        "g_error_after",
+    ]
     scale_x = next(c for c in checks if c.name == "scale_x")
     assert scale_x.low == pytest.approx(0.0198) and scale_x.high == pytest.approx(0.0202)
     assert scale_x.unit == "V/(m/s2)"
@@ -56,14 +72,26 @@ def test_the_shipped_file_loads_and_a_fit_in_other_units_is_refused() -> None:
         verdict({**contract([0.0] * 3, [[1, 0, 0], [0, 1, 0], [0, 0, 1]]), "channel_unit": "g"}, lim)
 
 
-@pytest.mark.parametrize("models,fmt,what", [
-    ({"M": {k: v for k, v in SPEC.items() if k != "bias_tolerance"}}, None, "model 'M' lacks bias_tolerance"),
-    ({"M": {**SPEC, "scale_tolerance_rel": -0.01}}, None, "scale_tolerance_rel must be a finite number > 0"),
-    ({"M": {**SPEC, "nominal_bias": [1.5, 1.5]}}, None, "nominal_bias must be 3 finite numbers"),
-    ({"M": SPEC}, "other/1", "expected an object with format"),
-])
-def test_malformed_files_name_the_file_and_key(tmp_path: Path, models: object, fmt: str | None,
-                                               what: str) -> None:
+@pytest.mark.parametrize(
+    "models,fmt,what",
+    [
+        (
+            {"M": {k: v for k, v in SPEC.items() if k != "bias_tolerance"}},
+            None,
+            "model 'M' lacks bias_tolerance",
+        ),
+        (
+            {"M": {**SPEC, "scale_tolerance_rel": -0.01}},
+            None,
+            "scale_tolerance_rel must be a finite number > 0",
+        ),
+        ({"M": {**SPEC, "nominal_bias": [1.5, 1.5]}}, None, "nominal_bias must be 3 finite numbers"),
+        ({"M": SPEC}, "other/1", "expected an object with format"),
+    ],
+)
+def test_malformed_files_name_the_file_and_key(
+    tmp_path: Path, models: object, fmt: str | None, what: str
+) -> None:
     path = write(tmp_path, models, fmt or "calbench-unit-limits/1")
     with pytest.raises(ValueError, match=what) as info:
         load_limits(path)

@@ -16,8 +16,11 @@ FS = 100.0
 
 
 def sidecar() -> Sidecar:
-    axes = (TableAxis("outer", (0.0, 0.0, 1.0)), TableAxis("middle", (1.0, 0.0, 0.0)),
-            TableAxis("inner", (0.0, 0.0, 1.0)))
+    axes = (
+        TableAxis("outer", (0.0, 0.0, 1.0)),
+        TableAxis("middle", (1.0, 0.0, 0.0)),
+        TableAxis("inner", (0.0, 0.0, 1.0)),
+    )
     return Sidecar("SN-R", "V", FS, 9.81, procedure="static-12", table=TableGeometry(axes))
 
 
@@ -27,13 +30,25 @@ def block(rec: RunRecorder, t0: float, n: int, window: int | None) -> object:
 
 
 def window(index: int, start_s: float, end_s: float, n: int) -> WindowRecord:
-    return WindowRecord(index, f"pos{index + 1:02d}", WindowKind.STATIC, start_s, end_s, n, (0.0, 0.0, 0.0),
-                        (0.0, 0.0, 0.0), 25.0, 2 * index + 1, {"ax": 1.5})
+    return WindowRecord(
+        index,
+        f"pos{index + 1:02d}",
+        WindowKind.STATIC,
+        start_s,
+        end_s,
+        n,
+        (0.0, 0.0, 0.0),
+        (0.0, 0.0, 0.0),
+        25.0,
+        2 * index + 1,
+        {"ax": 1.5},
+    )
 
 
 def test_chunks_tile_the_file_and_windows_become_segments(tmp_path: Path) -> None:
-    rec = RunRecorder.create(tmp_path / "r.csv", sidecar(), True, {"run_id": "x"}, chunk_s=1.0,
-                             min_chunk_wall_s=0.0)
+    rec = RunRecorder.create(
+        tmp_path / "r.csv", sidecar(), True, {"run_id": "x"}, chunk_s=1.0, min_chunk_wall_s=0.0
+    )
     chunks = [c for i in range(5) if (c := block(rec, i * 0.5, 50, 0)) is not None]
     # A chunk closes once it spans a second of data: after the third block (t 0 .. 1.49 s).
     assert [(c.seq, c.first_sample, c.n_samples) for c in chunks] == [(0, 0, 150)]

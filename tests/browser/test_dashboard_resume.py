@@ -52,8 +52,12 @@ def page_as(browser: Any, token: str) -> tuple[Any, Any, ConsoleWatch]:
 def test_resume_pause_and_continue_from_the_run_page(tmp_path: Path, browser: Any) -> None:
     settings = service_settings(tmp_path, sim_speed=20.0, bench_name="bench-ui-resume")
     with live_service(settings) as base:
-        r = httpx.post(f"{base}/api/runs", json={"unit_serial": "SN-UI-RES", "procedure": "static-12"},
-                       headers=OP, timeout=30)
+        r = httpx.post(
+            f"{base}/api/runs",
+            json={"unit_serial": "SN-UI-RES", "procedure": "static-12"},
+            headers=OP,
+            timeout=30,
+        )
         run_id = r.json()["id"]
         poll(base, run_id, lambda b: (b.get("last_complete_window") or -1) >= 2, "three windows")
     with live_service(settings) as base:
@@ -78,8 +82,12 @@ def test_resume_pause_and_continue_from_the_run_page(tmp_path: Path, browser: An
         assert page.inner_text("#certificate strong") == body["certificate_number"]
         shot(page, "desk-run-resumed")
 
-        r = httpx.post(f"{base}/api/runs", json={"unit_serial": "SN-UI-PAUSE", "procedure": "static-12"},
-                       headers=OP, timeout=30)
+        r = httpx.post(
+            f"{base}/api/runs",
+            json={"unit_serial": "SN-UI-PAUSE", "procedure": "static-12"},
+            headers=OP,
+            timeout=30,
+        )
         second = r.json()["id"]
         page.goto(f"{base}/#/runs/{second}")
         page.wait_for_selector("#pause-run:visible:not([disabled])")

@@ -10,10 +10,13 @@ from __future__ import annotations
 import multiprocessing as mp
 from concurrent.futures import ProcessPoolExecutor
 
+import pytest
 import sqlalchemy as sa
 
 from db.models import Bench, Certificate, Run, RunState, RunWindow, SampleChunk, Unit
 from tests.db._bench_worker import SHARED_SERIALS, bench_worker
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]  # two benches writing whole runs at once
 
 N_RUNS = 12
 N_WINDOWS = 4

@@ -141,4 +141,3 @@ def test_connection_refused_is_link_lost_at_open() -> None:
 def test_bad_url_is_rejected(url: str) -> None:
     with pytest.raises(ValueError, match="DAQ URL"):
         ModbusDaq(url)
-

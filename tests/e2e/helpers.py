@@ -24,8 +24,12 @@ def wall_budget_s(sim_s: float, speed: float = SIM_SPEED) -> float:
 
 def settings_for(tmp_path: Path, database_url: str | None = None, bench_name: str = "bench-e2e") -> Settings:
     """Settings writing into ``tmp_path`` (SQLite there unless ``database_url``)."""
-    return Settings(data_dir=tmp_path, database_url=database_url or f"sqlite:///{tmp_path / 'calbench.db'}",
-                    sim_sample_rate_hz=RATE_HZ, bench_name=bench_name)
+    return Settings(
+        data_dir=tmp_path,
+        database_url=database_url or f"sqlite:///{tmp_path / 'calbench.db'}",
+        sim_sample_rate_hz=RATE_HZ,
+        bench_name=bench_name,
+    )
 
 
 def z_scores(calibration: dict[str, object], truth: SensorTruth) -> np.ndarray:

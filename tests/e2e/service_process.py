@@ -62,8 +62,19 @@ class ServiceProcess:
         port = free_port()
         self.n_starts += 1
         log = (self.tmp_path / f"serve-{self.n_starts}.log").open("wb")
-        cmd = [CALBENCH, "serve", "--sim", "--sim-speed", str(self.sim_speed), "--host", "127.0.0.1",
-               "--port", str(port), "--log-level", "warning"]
+        cmd = [
+            CALBENCH,
+            "serve",
+            "--sim",
+            "--sim-speed",
+            str(self.sim_speed),
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--log-level",
+            "warning",
+        ]
         self.proc = subprocess.Popen(cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT)
         log.close()
         self.base = f"http://127.0.0.1:{port}"

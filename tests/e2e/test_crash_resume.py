@@ -35,10 +35,12 @@ RUN_SIM_S = 12 * (8.0 + 15.0)
 """Simulated duration of the run: twelve 8 s windows with their moves and settling (bounded)."""
 
 
-def calbench(*args: str, env: dict[str, str], timeout_s: float = wall_budget_s(RUN_SIM_S)
-             ) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([CALBENCH, *args], env=env, capture_output=True, text=True,
-                          timeout=timeout_s, check=False)
+def calbench(
+    *args: str, env: dict[str, str], timeout_s: float = wall_budget_s(RUN_SIM_S)
+) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [CALBENCH, *args], env=env, capture_output=True, text=True, timeout=timeout_s, check=False
+    )
 
 
 def wait_for_windows(db: Path, n: int, proc: subprocess.Popen[str]) -> str:
@@ -60,10 +62,28 @@ def wait_for_windows(db: Path, n: int, proc: subprocess.Popen[str]) -> str:
 
 def test_sigkill_mid_window_then_resume(tmp_path: Path) -> None:
     db = tmp_path / "calbench.db"
-    env = {**os.environ, "CALBENCH_DATABASE_URL": f"sqlite:///{db}", "CALBENCH_DATA_DIR": str(tmp_path),
-           "CALBENCH_SIM_SAMPLE_RATE_HZ": str(RATE_HZ), "CALBENCH_BENCH_NAME": "bench-crash"}
-    cmd = [CALBENCH, "run", "static-12", "--unit", "SN-CRASH", "--sim",
-           "--sim-speed", str(SIM_SPEED), "--seed", str(SEED), "--dwell-s", "8", "--json"]
+    env = {
+        **os.environ,
+        "CALBENCH_DATABASE_URL": f"sqlite:///{db}",
+        "CALBENCH_DATA_DIR": str(tmp_path),
+        "CALBENCH_SIM_SAMPLE_RATE_HZ": str(RATE_HZ),
+        "CALBENCH_BENCH_NAME": "bench-crash",
+    }
+    cmd = [
+        CALBENCH,
+        "run",
+        "static-12",
+        "--unit",
+        "SN-CRASH",
+        "--sim",
+        "--sim-speed",
+        str(SIM_SPEED),
+        "--seed",
+        str(SEED),
+        "--dwell-s",
+        "8",
+        "--json",
+    ]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         run_id = wait_for_windows(db, 5, proc)
@@ -81,7 +101,8 @@ def test_sigkill_mid_window_then_resume(tmp_path: Path) -> None:
     with sqlite3.connect(db) as conn:
         last_window, path = conn.execute("SELECT last_complete_window, recording_path FROM run").fetchone()
         durable_rows, durable_bytes = conn.execute(
-            "SELECT max(first_sample + n_samples), max(end_byte) FROM sample_chunk").fetchone()
+            "SELECT max(first_sample + n_samples), max(end_byte) FROM sample_chunk"
+        ).fetchone()
     assert last_window >= 4
     # Nothing before the last durable chunk is lost: the file holds at least those rows and bytes.
     assert Path(path).stat().st_size >= durable_bytes
@@ -106,8 +127,15 @@ def test_sigkill_mid_window_then_resume(tmp_path: Path) -> None:
 
     # An uninterrupted run of the same unit: the two fits agree within their uncertainty,
     # and both agree with the truth.
-    clean = start_run(settings_for(tmp_path / "clean"), "static-12", "SN-CRASH", sim=True,
-                      sim_speed=SIM_SPEED, seed=SEED, dwell_s=8.0)
+    clean = start_run(
+        settings_for(tmp_path / "clean"),
+        "static-12",
+        "SN-CRASH",
+        sim=True,
+        sim_speed=SIM_SPEED,
+        seed=SEED,
+        dwell_s=8.0,
+    )
     assert clean.outcome is Outcome.PASS and clean.calibration is not None
     dz = difference_z(out["calibration"], clean.calibration)
     assert np.max(np.abs(dz)) < 4.5, dz

@@ -18,19 +18,32 @@ from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores
 pytestmark = pytest.mark.slow
 
 
-@pytest.mark.parametrize(("procedure", "kw", "moving", "n_windows"), [
-    ("rate-1axis", {"rates_deg_s": (100.0, -100.0, 200.0, -200.0), "window_s": 5.0}, WindowKind.RATE, 30),
-    ("oscillation-2axis", {"duration_s": 60.0}, WindowKind.OSCILLATION, 3),
-])
+@pytest.mark.parametrize(
+    ("procedure", "kw", "moving", "n_windows"),
+    [
+        ("rate-1axis", {"rates_deg_s": (100.0, -100.0, 200.0, -200.0), "window_s": 5.0}, WindowKind.RATE, 30),
+        ("oscillation-2axis", {"duration_s": 60.0}, WindowKind.OSCILLATION, 3),
+    ],
+)
 def test_moving_table_procedure_is_calibrated_by_the_dynamic_model(
-        tmp_path: Path, procedure: str, kw: dict[str, Any], moving: WindowKind, n_windows: int) -> None:
+    tmp_path: Path, procedure: str, kw: dict[str, Any], moving: WindowKind, n_windows: int
+) -> None:
     seed = 4
-    record = start_run(settings_for(tmp_path), procedure, "SN-DYN", sim=True, sim_speed=SIM_SPEED, seed=seed,
-                       dwell_s=5.0, procedure_kw=kw)
+    record = start_run(
+        settings_for(tmp_path),
+        procedure,
+        "SN-DYN",
+        sim=True,
+        sim_speed=SIM_SPEED,
+        seed=seed,
+        dwell_s=5.0,
+        procedure_kw=kw,
+    )
     assert record.outcome is Outcome.PASS, record.error
     assert len(record.windows) == n_windows
-    assert sum(w.kind is moving for w in record.windows) == n_windows - (6 if moving is WindowKind.RATE
-                                                                          else 2)
+    assert sum(w.kind is moving for w in record.windows) == n_windows - (
+        6 if moving is WindowKind.RATE else 2
+    )
     cal = record.calibration
     assert cal is not None and cal["method"] == "dynamic-batch"
     assert "lever_arm" in cal["terms"]  # a moving table determines the lever arm

@@ -24,8 +24,9 @@ from tests.e2e.helpers import SIM_SPEED, settings_for
 
 pytestmark = pytest.mark.slow
 
-FAST_FAIL = SequencerConfig(stall_timeout_s=5.0, stop_timeout_s=5.0, move_timeout_margin_s=10.0,
-                            suspend_timeout_s=3.0)
+FAST_FAIL = SequencerConfig(
+    stall_timeout_s=5.0, stop_timeout_s=5.0, move_timeout_margin_s=10.0, suspend_timeout_s=3.0
+)
 
 
 class InjectAfter(NullObserver):
@@ -42,14 +43,24 @@ class InjectAfter(NullObserver):
         self.states.append(change)
 
 
-def run_with_fault(tmp_path: Path, inject: Callable[[BenchDevices], None]) -> tuple[RunRecord, BenchDevices,
-                                                                                      InjectAfter]:
+def run_with_fault(
+    tmp_path: Path, inject: Callable[[BenchDevices], None]
+) -> tuple[RunRecord, BenchDevices, InjectAfter]:
     settings = settings_for(tmp_path)
     devices = open_bench(sim_url(settings, SIM_SPEED, 7))
     obs = InjectAfter(1, lambda: inject(devices))
     try:
-        record = start_run(settings, "static-12", "SN-FAULT", sim=True, seed=7, dwell_s=5.0, observers=[obs],
-                           devices=devices, config=FAST_FAIL)
+        record = start_run(
+            settings,
+            "static-12",
+            "SN-FAULT",
+            sim=True,
+            seed=7,
+            dwell_s=5.0,
+            observers=[obs],
+            devices=devices,
+            config=FAST_FAIL,
+        )
     except BaseException:
         devices.close()
         raise
@@ -68,11 +79,14 @@ def assert_table_safe(devices: BenchDevices) -> None:
     assert not st.interlock_ok  # the shutdown order ends with the interlock open
 
 
-@pytest.mark.parametrize(("fault", "params", "expect"), [
-    ("no_reply", {}, "Timeout"),
-    ("garbled", {"probability": 1.0}, "Error"),
-    ("stalled_axis", {"axis": 2, "trip_s": 0.5}, "step"),
-])
+@pytest.mark.parametrize(
+    ("fault", "params", "expect"),
+    [
+        ("no_reply", {}, "Timeout"),
+        ("garbled", {"probability": 1.0}, "Error"),
+        ("stalled_axis", {"axis": 2, "trip_s": 0.5}, "step"),
+    ],
+)
 def test_table_faults_end_as_error(tmp_path: Path, fault: str, params: dict[str, Any], expect: str) -> None:
     def inject(d: BenchDevices) -> None:
         d.sim.controller.inject(fault, **params)  # type: ignore[union-attr]
@@ -92,7 +106,8 @@ def test_table_faults_end_as_error(tmp_path: Path, fault: str, params: dict[str,
 
 def test_interlock_trip_suspends_then_errors_when_it_stays_open(tmp_path: Path) -> None:
     record, devices, obs = run_with_fault(
-        tmp_path, lambda d: d.sim.controller.inject("interlock_trip", after_s=0.0))  # type: ignore[union-attr]
+        tmp_path, lambda d: d.sim.controller.inject("interlock_trip", after_s=0.0)
+    )  # type: ignore[union-attr]
     try:
         assert [s.state for s in obs.states][:2] == [RunState.RUNNING, RunState.SUSPENDED]
         assert "interlock" in obs.states[1].reason

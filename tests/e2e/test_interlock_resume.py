@@ -42,9 +42,18 @@ def test_operator_resume_after_an_interlock_trip_completes_the_run(tmp_path: Pat
     control = RunControl()
     operator = Operator(devices, control)
     try:
-        record = start_run(settings, "static-12", "SN-ILK", sim=True, seed=8, dwell_s=5.0,
-                           observers=[operator], control=control, devices=devices,
-                           config=SequencerConfig(suspend_timeout_s=120.0))
+        record = start_run(
+            settings,
+            "static-12",
+            "SN-ILK",
+            sim=True,
+            seed=8,
+            dwell_s=5.0,
+            observers=[operator],
+            control=control,
+            devices=devices,
+            config=SequencerConfig(suspend_timeout_s=120.0),
+        )
         assert record.outcome is Outcome.PASS, record.error
         states = [s.state for s in operator.states]
         assert states[:3] == [RunState.RUNNING, RunState.SUSPENDED, RunState.RUNNING], operator.states

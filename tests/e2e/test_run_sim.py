@@ -40,8 +40,16 @@ class Collect(NullObserver):
 def test_static12_on_the_simulated_bench_recovers_the_unit(tmp_path: Path) -> None:
     settings = settings_for(tmp_path)
     seen = Collect()
-    record = start_run(settings, "static-12", "SN-E2E-1", sim=True, sim_speed=SIM_SPEED, seed=3, dwell_s=8.0,
-                       observers=[seen])
+    record = start_run(
+        settings,
+        "static-12",
+        "SN-E2E-1",
+        sim=True,
+        sim_speed=SIM_SPEED,
+        seed=3,
+        dwell_s=8.0,
+        observers=[seen],
+    )
     assert record.outcome is Outcome.PASS, record.error
     assert len(record.windows) == 12 and all(w.kind is WindowKind.STATIC for w in record.windows)
     assert seen.finished == [record]
@@ -56,16 +64,21 @@ def test_static12_on_the_simulated_bench_recovers_the_unit(tmp_path: Path) -> No
     assert rec.sidecar.extra["calbench_run"]["dwell"]["source"] == "fixed"  # type: ignore[index]
     engine = sa.create_engine(settings.effective_database_url)
     with engine.connect() as conn:
-        state, outcome, last, n_rows = conn.execute(sa.text(
-            "SELECT state, outcome, last_complete_window, n_samples FROM run WHERE id = :i"),
-            {"i": record.run_id}).one()
-        n_windows = conn.execute(sa.text("SELECT count(*) FROM run_window WHERE run_id = :i"),
-                                 {"i": record.run_id}).scalar()
-        samples = conn.execute(sa.text("SELECT sum(n_samples) FROM sample_chunk WHERE run_id = :i"),
-                               {"i": record.run_id}).scalar()
+        state, outcome, last, n_rows = conn.execute(
+            sa.text("SELECT state, outcome, last_complete_window, n_samples FROM run WHERE id = :i"),
+            {"i": record.run_id},
+        ).one()
+        n_windows = conn.execute(
+            sa.text("SELECT count(*) FROM run_window WHERE run_id = :i"), {"i": record.run_id}
+        ).scalar()
+        samples = conn.execute(
+            sa.text("SELECT sum(n_samples) FROM sample_chunk WHERE run_id = :i"), {"i": record.run_id}
+        ).scalar()
     with make_session_factory(engine).begin() as s:
-        fits = [(f.kind.value, np.asarray(f.covariance), list(f.param_names), f.contract)
-                for f in list_fits(s, record.run_id)]
+        fits = [
+            (f.kind.value, np.asarray(f.covariance), list(f.param_names), f.contract)
+            for f in list_fits(s, record.run_id)
+        ]
         checks = s.get(Run, record.run_id).limit_checks  # type: ignore[union-attr]
     engine.dispose()
     assert (state, outcome, last, n_windows) == ("completed", "PASS", 11, 12)

@@ -29,8 +29,9 @@ def test_two_simulated_benches_share_one_postgresql_database(tmp_path: Path) -> 
         def bench(name: str, seed: int) -> None:
             try:
                 settings = settings_for(tmp_path / name, database_url=url, bench_name=name)
-                results[name] = start_run(settings, "static-12", f"SN-{name}", sim=True, sim_speed=SIM_SPEED,
-                                          seed=seed, dwell_s=5.0)
+                results[name] = start_run(
+                    settings, "static-12", f"SN-{name}", sim=True, sim_speed=SIM_SPEED, seed=seed, dwell_s=5.0
+                )
             except BaseException as exc:
                 errors.append(exc)
 
@@ -48,10 +49,13 @@ def test_two_simulated_benches_share_one_postgresql_database(tmp_path: Path) -> 
         engine = sa.create_engine(url)
         try:
             with engine.connect() as conn:
-                rows = conn.execute(sa.text(
-                    "SELECT b.name, r.state, r.last_complete_window, "
-                    "(SELECT count(*) FROM run_window w WHERE w.run_id = r.id) "
-                    "FROM run r JOIN bench b ON b.id = r.bench_id ORDER BY b.name")).all()
+                rows = conn.execute(
+                    sa.text(
+                        "SELECT b.name, r.state, r.last_complete_window, "
+                        "(SELECT count(*) FROM run_window w WHERE w.run_id = r.id) "
+                        "FROM run r JOIN bench b ON b.id = r.bench_id ORDER BY b.name"
+                    )
+                ).all()
         finally:
             engine.dispose()
         expected = [("bench-a", "completed", 11, 12), ("bench-b", "completed", 11, 12)]

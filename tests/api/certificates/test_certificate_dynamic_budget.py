@@ -21,6 +21,9 @@ from bench.calibration.dynamic import calibrate_dynamic
 from bench.recording import Recording
 from tests.support.dynamic_sim import oscillation
 
+# the dynamic budget refits a moving recording once per Type B input
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(900)]
+
 ZERO = TypeBSettings(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 

@@ -22,8 +22,9 @@ def bench_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 @pytest.mark.slow
 def test_run_prints_the_fit_and_the_g_table(bench_env: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code = main(["run", "static-12", "--unit", "SN-CLI", "--sim", "--sim-speed", str(SIM_SPEED),
-                 "--dwell-s", "5"])
+    code = main(
+        ["run", "static-12", "--unit", "SN-CLI", "--sim", "--sim-speed", str(SIM_SPEED), "--dwell-s", "5"]
+    )
     out = capsys.readouterr()
     assert code == 0, out.err
     assert ": PASS" in out.out and "bias:" in out.out and "scale matrix K" in out.out

@@ -18,7 +18,7 @@ from api.main import create_app
 from api.runner import simulated_unit
 from tests.support.service_helpers import OP, VIEW, MovableClock, service_settings, wait_final
 
-pytestmark = pytest.mark.timeout(600)
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]  # whole simulated drift-check runs
 
 SERIAL = "SN-AGE-195"
 """A simulated unit whose bias walks far in 30 days: truth shift of the z bias ≈ -1.0e-4 V."""
@@ -67,8 +67,12 @@ def _cert(value: list[float], u_expanded: list[float]) -> dict[str, object]:
 
 def test_compare_uses_both_uncertainties() -> None:
     cert = _cert([1.0, 1.0, 1.0], [2e-5, 2e-5, 2e-5])  # u_cert = 1e-5
-    check = {"bias": [1.0 + 4.9e-5, 1.0 - 5.1e-5, 1.0], "bias_sigma": [1e-5] * 3,
-             "scale_matrix": np.eye(3).tolist(), "scale_matrix_sigma": np.full((3, 3), 1e-6).tolist()}
+    check = {
+        "bias": [1.0 + 4.9e-5, 1.0 - 5.1e-5, 1.0],
+        "bias_sigma": [1e-5] * 3,
+        "scale_matrix": np.eye(3).tolist(),
+        "scale_matrix_sigma": np.full((3, 3), 1e-6).tolist(),
+    }
     out = compare(cert, check, k=3.0)  # limit = 3·sqrt(2)·1e-5 = 4.243e-5
     rows = {r["name"]: r for r in out["coefficients"]}
     assert rows["bias[0]"]["limit"] == pytest.approx(3 * np.sqrt(2) * 1e-5)

@@ -73,9 +73,16 @@ def _unexplained_tilt_fraction(poses: list[tuple[float, ...]], tilt_rad: tuple[f
     d = np.concatenate([gravity_in_sensor(p, tilt_rad) - gravity_in_sensor(p) for p in poses])
     rotation_cols = np.vstack([np.cross(np.eye(3), fi).T for fi in f])
     h_deg = 1e-4
-    offset_cols = [np.concatenate([(gravity_in_sensor(tuple(np.add(p, np.eye(3)[k] * h_deg)))
-                                    - gravity_in_sensor(p)) / math.radians(h_deg) for p in poses])
-                   for k in (1, 2)]
+    offset_cols = [
+        np.concatenate(
+            [
+                (gravity_in_sensor(tuple(np.add(p, np.eye(3)[k] * h_deg))) - gravity_in_sensor(p))
+                / math.radians(h_deg)
+                for p in poses
+            ]
+        )
+        for k in (1, 2)
+    ]
     a = np.column_stack([rotation_cols, *offset_cols])
     coef, *_ = np.linalg.lstsq(a, d, rcond=None)
     return float(np.linalg.norm(d - a @ coef) / np.linalg.norm(d))
@@ -139,8 +146,12 @@ def test_move_time_trapezoid_and_triangle() -> None:
 
 def test_preview_duration_of_a_small_procedure() -> None:
     limits = TableLimits((-180.0,) * 2, (180.0,) * 2, (10.0, 20.0), (5.0, 5.0), (False, False))
-    proc = Procedure("t", (MoveTo((100.0, 20.0), "a", settle_s=1.0), Dwell("a", 7.0),
-                           Rotate(2, 10.0, 4.0, "r", spinup_s=0.5)), {}, n_axes=2)
+    proc = Procedure(
+        "t",
+        (MoveTo((100.0, 20.0), "a", settle_s=1.0), Dwell("a", 7.0), Rotate(2, 10.0, 4.0, "r", spinup_s=0.5)),
+        {},
+        n_axes=2,
+    )
     pv = preview(proc, limits)
     # move: axis 1 12 s, axis 2 (v=20, a=5): 20 < 80 -> 2*sqrt(4) = 4 s; +1 settle; dwell 7;
     # rotate 0.5 + 4 + 10/5 decel.
@@ -153,14 +164,19 @@ def test_preview_duration_of_a_small_procedure() -> None:
 
 def test_preview_flags_every_kind_of_limit_violation() -> None:
     limits = DEFAULT_TABLE_LIMITS
-    proc = Procedure("bad", (
-        MoveTo((0.0, 190.0, 0.0), "far"),
-        MoveTo((0.0, 90.0, 0.0), "ok"),
-        Rotate(1, 400.0, 5.0, "fast"),
-        Rotate(4, 10.0, 5.0, "noaxis"),
-        Oscillate((2,), (120.0,), (1.0,), 10.0, "wild"),
-        Rotate(2, 100.0, 5.0, "wrap"),
-    ), {}, n_axes=3)
+    proc = Procedure(
+        "bad",
+        (
+            MoveTo((0.0, 190.0, 0.0), "far"),
+            MoveTo((0.0, 90.0, 0.0), "ok"),
+            Rotate(1, 400.0, 5.0, "fast"),
+            Rotate(4, 10.0, 5.0, "noaxis"),
+            Oscillate((2,), (120.0,), (1.0,), 10.0, "wild"),
+            Rotate(2, 100.0, 5.0, "wrap"),
+        ),
+        {},
+        n_axes=3,
+    )
     pv = preview(proc, limits)
     text = "\n".join(pv.problems)
     assert "axis 2 angle 190 deg outside" in text
@@ -210,7 +226,11 @@ def test_unknown_procedure_and_bad_steps_are_rejected() -> None:
 
 
 def test_step_kinds_are_distinct() -> None:
-    kinds = {NoiseWindow(1.0).kind, Dwell("d").kind, Rotate(1, 1.0, 1.0).kind,
-             Oscillate((1,), (1.0,), (1.0,), 1.0).kind}
+    kinds = {
+        NoiseWindow(1.0).kind,
+        Dwell("d").kind,
+        Rotate(1, 1.0, 1.0).kind,
+        Oscillate((1,), (1.0,), (1.0,), 1.0).kind,
+    }
     assert len(kinds) == 4
     assert all(a != b for a, b in itertools.combinations(kinds, 2))

@@ -56,7 +56,7 @@ def test_extremes_and_negative_zero() -> None:
 
 def test_extra_columns_are_quoted_by_the_csv_module() -> None:
     block = np.array([[1.0, np.nan], [2.5, 3.0]])
-    text = format_rows_with_extras(block, ["note"], {"note": ['a,b', 'say "hi"']})
+    text = format_rows_with_extras(block, ["note"], {"note": ["a,b", 'say "hi"']})
     assert text == '1.0,,"a,b"\n2.5,3.0,"say ""hi"""\n'
 
 
@@ -72,7 +72,7 @@ def test_writer_blocks_round_trip_bit_exact_with_missing_temperatures(tmp_path: 
     temp[rng.random(n) < 0.1] = np.nan
     with RecordingWriter(tmp_path / "r.csv", sc, 2, True) as w:
         for i in range(0, n, 777):  # blocks that do not divide n
-            w.append(t[i:i + 777], accel[i:i + 777], table[i:i + 777], temp[i:i + 777])
+            w.append(t[i : i + 777], accel[i : i + 777], table[i : i + 777], temp[i : i + 777])
     rec = read_recording(tmp_path / "r.csv")
     np.testing.assert_array_equal(rec.t_s, t)
     np.testing.assert_array_equal(rec.accel_raw, accel)

@@ -99,8 +99,9 @@ class FakeTable:
         self.rate = [0.0, 0.0, 0.0]
 
     def status(self) -> TableStatus:
-        axes = tuple(AxisStatus(p, r, AxisMode.POSITION, True)
-                     for p, r in zip(self.pos, self.rate, strict=True))
+        axes = tuple(
+            AxisStatus(p, r, AxisMode.POSITION, True) for p, r in zip(self.pos, self.rate, strict=True)
+        )
         return TableStatus(axes, self.interlock_ok, False)
 
     def close(self) -> None:
@@ -196,21 +197,35 @@ def sidecar() -> Sidecar:
     return Sidecar("SN-T1", "m/s2", FS, G, procedure="static-12", table=geom)
 
 
-FAST = SequencerConfig(status_poll_s=0.01, progress_interval_s=0.01, stall_timeout_s=2.0, stop_timeout_s=2.0,
-                       move_timeout_margin_s=2.0, chunk_s=1.0, min_chunk_wall_s=0.0)
+FAST = SequencerConfig(
+    status_poll_s=0.01,
+    progress_interval_s=0.01,
+    stall_timeout_s=2.0,
+    stop_timeout_s=2.0,
+    move_timeout_margin_s=2.0,
+    chunk_s=1.0,
+    min_chunk_wall_s=0.0,
+)
 
 
-def make(tmp_path: Path, proc: Procedure, table: FakeTable | None = None, daq: FakeDaq | None = None,
-         config: SequencerConfig = FAST, dwell: DwellChoice | None = None,
-         ) -> tuple[Sequencer, FakeTable, FakeDaq, Recorder, RunControl]:
+def make(
+    tmp_path: Path,
+    proc: Procedure,
+    table: FakeTable | None = None,
+    daq: FakeDaq | None = None,
+    config: SequencerConfig = FAST,
+    dwell: DwellChoice | None = None,
+) -> tuple[Sequencer, FakeTable, FakeDaq, Recorder, RunControl]:
     table = table or FakeTable()
     daq = daq or FakeDaq(table)
     obs = Recorder()
     ctl = RunControl()
-    start = RunStart("run-1", "SN-T1", proc.name, "bench-a", str(tmp_path / "run.csv"), FS, 3,
-                     proc.n_windows, 100.0)
-    rec = RunRecorder.create(tmp_path / "run.csv", sidecar(), True, {"run_id": "run-1"}, chunk_s=1.0,
-                             min_chunk_wall_s=0.0)
+    start = RunStart(
+        "run-1", "SN-T1", proc.name, "bench-a", str(tmp_path / "run.csv"), FS, 3, proc.n_windows, 100.0
+    )
+    rec = RunRecorder.create(
+        tmp_path / "run.csv", sidecar(), True, {"run_id": "run-1"}, chunk_s=1.0, min_chunk_wall_s=0.0
+    )
     seq = Sequencer(table, daq, proc, rec, start, [obs], ctl, config, dwell=dwell)
     return seq, table, daq, obs, ctl
 
@@ -251,7 +266,7 @@ def test_full_static12_run_records_twelve_windows_that_recover_the_truth(tmp_pat
 
 
 def test_noise_window_decides_the_dwell_and_it_is_stored(tmp_path: Path) -> None:
-    seq, *_ , obs, _ = make(tmp_path, quick_static(dwell_s=None))
+    seq, *_, obs, _ = make(tmp_path, quick_static(dwell_s=None))
     acq = seq.run()
     assert acq.outcome is None, acq.error
     assert acq.windows[0].kind is WindowKind.NOISE and len(acq.windows) == 13
@@ -301,8 +316,9 @@ def test_daq_stall_is_a_timeout_not_a_hang(tmp_path: Path) -> None:
 
 
 def test_hanging_move_hits_its_deadline(tmp_path: Path) -> None:
-    cfg = SequencerConfig(**{**FAST.__dict__, "move_timeout_factor": 0.2, "move_timeout_margin_s": 0.5,
-                             "stop_timeout_s": 0.5})
+    cfg = SequencerConfig(
+        **{**FAST.__dict__, "move_timeout_factor": 0.2, "move_timeout_margin_s": 0.5, "stop_timeout_s": 0.5}
+    )
     seq, table, _, obs, _ = make(tmp_path, quick_static(), config=cfg)
     obs.hook = lambda w: setattr(table, "hang_move", True) if w.index == 0 else None
     acq = seq.run()
@@ -365,11 +381,22 @@ def test_resume_after_an_interrupted_run_completes_the_windows(tmp_path: Path) -
     rec = RunRecorder.resume(tmp_path / "run.csv", last_chunk.end_byte, 7, last_chunk.seq + 1)
     table2 = FakeTable()
     proc = quick_static()
-    start = RunStart("run-1", "SN-T1", proc.name, "bench-a", str(tmp_path / "run.csv"), FS, 3, 12, 100.0,
-                     resumed_from_window=7)
+    start = RunStart(
+        "run-1",
+        "SN-T1",
+        proc.name,
+        "bench-a",
+        str(tmp_path / "run.csv"),
+        FS,
+        3,
+        12,
+        100.0,
+        resumed_from_window=7,
+    )
     obs2 = Recorder()
-    acq = Sequencer(table2, FakeDaq(table2, seed=2), proc, rec, start, [obs2], RunControl(), FAST,
-                    start_window=7).run()
+    acq = Sequencer(
+        table2, FakeDaq(table2, seed=2), proc, rec, start, [obs2], RunControl(), FAST, start_window=7
+    ).run()
     assert acq.outcome is None, acq.error
     assert [w.index for w in acq.windows] == list(range(12))
     assert [w.index for w in obs2.windows] == [7, 8, 9, 10, 11]

@@ -11,8 +11,14 @@ from drivers.errors import DataGap
 
 def block(first: int, n: int, flags: tuple[str, ...] = (), table: bool = True) -> SampleBlock:
     seq = first + np.arange(n)
-    return SampleBlock(first, seq / 100.0, np.column_stack([seq, seq + 0.5, seq + 0.25]).astype(float),
-                       20.0 + seq / 1e3, np.column_stack([seq, -seq]).astype(float) if table else None, flags)
+    return SampleBlock(
+        first,
+        seq / 100.0,
+        np.column_stack([seq, seq + 0.5, seq + 0.25]).astype(float),
+        20.0 + seq / 1e3,
+        np.column_stack([seq, -seq]).astype(float) if table else None,
+        flags,
+    )
 
 
 def pump_with(*items: object) -> DaqPump:
@@ -24,8 +30,16 @@ def pump_with(*items: object) -> DaqPump:
 
 def test_consecutive_blocks_are_joined_up_to_the_limit_and_stop_at_a_gap() -> None:
     gap = Gap(DataGap(30, 40))
-    pump = pump_with(block(0, 10), block(10, 10, ("over_range:ax",)), block(20, 10), block(30, 5), gap,
-                     block(40, 7), Restarted(3), block(0, 4))
+    pump = pump_with(
+        block(0, 10),
+        block(10, 10, ("over_range:ax",)),
+        block(20, 10),
+        block(30, 5),
+        gap,
+        block(40, 7),
+        Restarted(3),
+        block(0, 4),
+    )
     first = pump.next_item(0.0, 25)
     assert isinstance(first, SampleBlock)
     assert first.first_seq == 0 and first.n == 20  # a third block would exceed 25

@@ -91,10 +91,11 @@ def format_human(d: Diagnosis) -> str:
         f"chi2/dof {fin.chi2_dof:.3g}, BIC {fin.bic:.1f}",
     ]
     if d.unexplained is not None:
-        x = d.unexplained
+        ux = d.unexplained
         lines += [
             "UNEXPLAINED: the final model still fails the recording's own noise "
-            f"({x.test}): {x.where}; correlates with {', '.join(x.correlates_with) or 'nothing significant'}",
+            f"({ux.test}): {ux.where}; correlates with "
+            f"{', '.join(ux.correlates_with) or 'nothing significant'}",
         ]
     lines += [
         "",

@@ -314,13 +314,13 @@ def _structured(
             return a / max(float(np.linalg.norm(a)), 1e-300)
 
         s_top = sig(top[1])
-        near = [
+        alike = [
             a
             for a in admissible
             if 2.0 * (top[3][1].loglik_ml - a[3][1].loglik_ml) <= TIE_CHI2
             and abs(float(sig(a[1]) @ s_top)) > ALIKE_COSINE
         ]
-        best = min(near, key=lambda a: (simplicity.get(a[1].label, 0), -a[3][1].loglik_ml))
+        best = min(alike, key=lambda a: (simplicity.get(a[1].label, 0), -a[3][1].loglik_ml))
     return best
 
 

@@ -73,7 +73,7 @@ class SlowNoiseCap:
             return None
         d2, h = self._hd
         D = d2 / half_difference_factor(h, corr_time_s)[:, None]
-        return D.sum(axis=0) / float(chi2_dist.ppf(CAP_ALPHA, D.shape[0]))
+        return np.asarray(D.sum(axis=0) / float(chi2_dist.ppf(CAP_ALPHA, D.shape[0])), dtype=float)
 
 
 def slow_noise_cap(ev: StaticEvidence, corr_time_s: float) -> FloatArray | None:

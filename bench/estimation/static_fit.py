@@ -287,7 +287,7 @@ def pose_angles_response(K: FloatArray, f_m_s2: FloatArray) -> FloatArray:
     u1 = np.cross(e, fh)
     u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
     u2 = np.cross(fh, u1)
-    return np.einsum("ik,wkq->wiq", K, fn[:, :, None] * np.stack([u1, u2], axis=2))
+    return np.asarray(np.einsum("ik,wkq->wiq", K, fn[:, :, None] * np.stack([u1, u2], axis=2)), dtype=float)
 
 
 def _slow_wander(

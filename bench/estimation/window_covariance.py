@@ -184,7 +184,7 @@ class CovarianceFactor:
             W = W - np.matmul(self._Binv[:, :, self._act], H)
         out = np.empty_like(W)
         out[self._order] = W
-        return out.reshape(-1) if vec else out.reshape(3 * self.cov.m, -1)
+        return np.asarray(out.reshape(-1) if vec else out.reshape(3 * self.cov.m, -1), dtype=float)
 
     def quadratic(self, Y: FloatArray, binv_y: FloatArray | None = None) -> FloatArray:
         """Yᵀ C⁻¹ Y (q, q) for Y (3m, q), without forming C⁻¹ Y:
@@ -206,7 +206,7 @@ class CovarianceFactor:
             G = W[:, self._act, :].reshape(m * self._k, q)
             H = cho_solve_banded((self._cb, False), G, check_finite=False)
             Q = Q - np.einsum("nq,nr->qr", G, H, optimize=False)
-        return 0.5 * (Q + Q.T)
+        return np.asarray(0.5 * (Q + Q.T), dtype=float)
 
     def inverse_diagonal_blocks(self) -> FloatArray:
         """(m, 3, 3) diagonal blocks (C⁻¹)_ww in the original window order."""

@@ -185,7 +185,7 @@ def pose_scatter(K: FloatArray, f_m_s2: FloatArray) -> FloatArray:
     f = np.asarray(f_m_s2, dtype=float)
     fh = f / np.linalg.norm(f, axis=1, keepdims=True)
     P = np.eye(3)[None] - fh[:, :, None] * fh[:, None, :]
-    return np.einsum("ia,wab,jb->wij", K, P, K)
+    return np.asarray(np.einsum("ia,wab,jb->wij", K, P, K), dtype=float)
 
 
 def own_channel_variance(X: FloatArray, y: FloatArray, base: FloatArray) -> FloatArray:

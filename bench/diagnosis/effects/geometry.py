@@ -33,7 +33,7 @@ _STEP_DEG = 1e-3
 def _per_window(K: FloatArray, R: FloatArray, base_vectors: FloatArray) -> FloatArray:
     """(m, 3, q): K · R_wᵀ · v for each base vector v (q, 3)."""
     d = np.einsum("wji,qj->wiq", R, base_vectors)  # R_wᵀ v
-    return np.einsum("ik,wkq->wiq", K, d)
+    return np.asarray(np.einsum("ik,wkq->wiq", K, d), dtype=float)
 
 
 def _stack(J: FloatArray) -> FloatArray:
@@ -154,7 +154,7 @@ def pose_response(ev: StaticEvidence, K: FloatArray) -> FloatArray:
     u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
     u2 = np.cross(fh, u1)
     d = g * np.stack([u1, u2], axis=2)  # (m, 3, 2)
-    return np.einsum("ik,wkq->wiq", K, d)
+    return np.asarray(np.einsum("ik,wkq->wiq", K, d), dtype=float)
 
 
 @dataclass(frozen=True)

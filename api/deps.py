@@ -20,13 +20,13 @@ from sqlalchemy.orm import Session, sessionmaker
 from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, AuthError, Principal, Role
 from api.drift import DriftScheduler
-from api.progress_hub import ProgressHub
-from api.run_queue import RunQueue
+from api.runs.hub import ProgressHub
+from api.runs.queue import RunQueue
 from api.settings import Settings
 
 if TYPE_CHECKING:
-    from api.agent import BenchAgent
-    from api.run_events import SnapshotCache
+    from api.agent.bench_agent import BenchAgent
+    from api.runs.events import SnapshotCache
 
 
 @dataclass

@@ -1,7 +1,7 @@
 """The service: ``create_app(settings)`` wires database, run queue, drift scheduler, auth, routes.
 
 The API never drives the bench itself: runs and control requests go to the database
-(:class:`api.run_queue.RunQueue`) and the bench's agent (:mod:`api.agent`) executes them.
+(:class:`api.runs.queue.RunQueue`) and the bench's agent (:mod:`api.agent.bench_agent`) executes them.
 With ``settings.agent == "external"`` the agent is another process (``calbench agent``,
 started by ``calbench serve`` or by docker compose); with ``"embedded"`` (the default of
 ``create_app``: tests, a one-process set-up) the lifespan runs one in a thread of this process,
@@ -10,7 +10,7 @@ recording closed, resumable with ``POST /api/runs/{id}/resume`` after the restar
 
 The lifespan opens (creates and migrates) the database, marks runs left live by a dead
 process ``interrupted`` (and runs a previous shutdown stopped, see
-:mod:`api.service_resume`) and starts the drift scheduler's thread. On SIGTERM/SIGINT
+:mod:`api.runs.resume`) and starts the drift scheduler's thread. On SIGTERM/SIGINT
 the open event streams end first, so the server does not wait for them before stopping.
 Nothing is read from the environment here: the caller builds ``Settings`` (``calbench
 serve`` does, from ``CALBENCH_*``).
@@ -36,17 +36,17 @@ from pathlib import Path
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
-from api.agent import BenchAgent
+from api.agent.bench_agent import BenchAgent
 from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, Role, parse_tokens
 from api.deps import Services
 from api.drift import DriftScheduler
 from api.guard import RequestGuard, install_error_handlers, install_log_redaction
-from api.progress_hub import ProgressHub
 from api.routes import api_router
-from api.run_events import SnapshotCache
-from api.run_queue import RunQueue
-from api.service_resume import recover_shutdown_aborts
+from api.runs.events import SnapshotCache
+from api.runs.hub import ProgressHub
+from api.runs.queue import RunQueue
+from api.runs.resume import recover_shutdown_aborts
 from api.settings import Settings
 from api.startup_check import check_configuration
 from bench.records import utc_now

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from api.bench_session import sim_url
+from api.agent.session import sim_url
 from api.settings import Settings
 from bench.procedures.steps import Dwell, MoveTo, Procedure
 from bench.recording.model import Sidecar, TableAxis, TableGeometry

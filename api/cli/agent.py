@@ -97,7 +97,7 @@ def lock_holder(path: Path) -> int | None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``calbench agent``."""
-    from api.agent import BenchAgent
+    from api.agent.bench_agent import BenchAgent
 
     settings = agent_settings(args)
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(levelname)s %(message)s")

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from api.bench_session import resume_run
+from api.agent.session import resume_run
 from api.cli.run import ProgressBar, add_device_arguments, install_abort_handler, report, settings_for
 from bench.sequencer.control import RunControl
 

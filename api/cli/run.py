@@ -17,7 +17,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, TextIO
 
-from api.bench_session import start_run
+from api.agent.session import start_run
 from api.cli import decimal_arg
 from api.settings import Settings
 from bench.limits import describe

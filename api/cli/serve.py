@@ -2,7 +2,7 @@
 service and dashboard.
 
 The service never drives the bench itself: by default it starts the bench's agent
-(``calbench agent``, :mod:`api.supervisor`) as a child process and keeps it running;
+(``calbench agent``, :mod:`api.agent.supervisor`) as a child process and keeps it running;
 ``--agent external`` leaves that to someone else (docker compose, systemd), ``--agent
 embedded`` runs the agent in a thread of the service (one process, as before).
 
@@ -73,7 +73,7 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         if not args.sim_speed > 0:
             raise BadInput(f"--sim-speed {args.sim_speed}: expected a positive number")
         update["sim_speed"] = args.sim_speed
-    from api.bench_session import bench_config_for
+    from api.agent.session import bench_config_for
 
     if getattr(args, "bench_file", None) is not None:
         update["bench_file"] = Path(args.bench_file)
@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     )
     supervisor = None
     if args.agent == "spawn":
-        from api.supervisor import AgentSupervisor
+        from api.agent.supervisor import AgentSupervisor
 
         supervisor = AgentSupervisor(settings, sim=settings.sim, sim_speed=args.sim_speed)
         supervisor.start()

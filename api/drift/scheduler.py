@@ -18,13 +18,13 @@ from typing import TYPE_CHECKING
 from sqlalchemy.orm import Session, sessionmaker
 
 from api.drift.record import units_due
-from api.runner import BenchBusy, BenchRunner
+from api.runs.runner import BenchBusy, BenchRunner
 from api.settings import Settings
 from bench.records import utc_now
 from db.repo.units import get_unit_by_serial
 
 if TYPE_CHECKING:
-    from api.run_queue import RunQueue
+    from api.runs.queue import RunQueue
 
 log = logging.getLogger(__name__)
 

@@ -14,10 +14,10 @@ from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
 from api.deps import OperatorDep, RunnerDep, ServicesDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
-from api.progress_hub import CLOSED_EVENT, TERMINAL_EVENT
 from api.routes.views import live_out, run_out
-from api.run_events import EVENT_POLL_S, RunSnapshot, SnapshotCache
-from api.run_queue import NotResumable
+from api.runs.events import EVENT_POLL_S, RunSnapshot, SnapshotCache
+from api.runs.hub import CLOSED_EVENT, TERMINAL_EVENT
+from api.runs.queue import NotResumable
 from api.schemas import AbortOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
 from db.models import Certificate, RunState
 from db.repo.progress import list_windows
@@ -185,7 +185,7 @@ async def events(
 
     The events come from the database, where the bench's agent writes them (whichever
     process this is, and also after it restarted mid-run): the run is read at most twice per
-    ``EVENT_POLL_S`` for all the streams of this process (:class:`api.run_events.SnapshotCache`),
+    ``EVENT_POLL_S`` for all the streams of this process (:class:`api.runs.events.SnapshotCache`),
     in a worker thread, never on the event loop."""
     hub, snapshots = services.hub, services.snapshots or SnapshotCache(services.read_sessions)
     first = await run_in_threadpool(snapshots.get, run_id)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from api.runner import LiveRun
+from api.runs.runner import LiveRun
 from api.schemas import CertificateOut, DriftCheckOut, LimitCheckOut, RunOut, SampleGapOut, WindowOut
 from bench.limits import DECISION_RULES
 from db.models import Certificate, DriftCheck, Run, RunWindow

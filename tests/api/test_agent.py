@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from api.agent import BenchAgent
+from api.agent.bench_agent import BenchAgent
 from api.cli import main
 from api.cli.agent import ALREADY_RUNNING, lock_holder, take_lock
-from api.run_queue import RunQueue
+from api.runs.queue import RunQueue
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Run, RunState

@@ -8,7 +8,7 @@ import sqlite3
 
 import pytest
 
-from api.bench_session import RunNotStored, finish_observers
+from api.agent.session import RunNotStored, finish_observers
 from bench.records import NullObserver, Outcome, RunRecord, RunStart, RunState
 
 START = RunStart("run-x", "SN-X", "static-12", "bench-a", "/tmp/r.csv", 100.0, 3, 12, 100.0)

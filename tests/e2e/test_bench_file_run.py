@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.bench_session import bench_config_for, open_devices, start_run
+from api.agent.session import bench_config_for, open_devices, start_run
 from api.certificates.certificate import bench_configuration
 from bench.bench_config import SIM_BENCH_FILE, load_bench_config
 from bench.recording.reader import read_recording

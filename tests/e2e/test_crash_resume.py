@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.bench_session import start_run
+from api.agent.session import start_run
 from bench.recording.reader import read_recording
 from bench.records import Outcome
 from drivers.sim.physics import SensorTruth

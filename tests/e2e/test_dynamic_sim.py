@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from api.bench_session import start_run
+from api.agent.session import start_run
 from bench.recording.reader import read_recording
 from bench.records import Outcome, WindowKind
 from drivers.sim.physics import SensorTruth

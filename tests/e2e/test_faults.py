@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from api.bench_session import sim_url, start_run
+from api.agent.session import sim_url, start_run
 from bench.recording.reader import read_recording
 from bench.records import NullObserver, Outcome, RunRecord, RunState, StateChange, WindowRecord
 from bench.sequencer.control import SequencerConfig

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.bench_session import sim_url, start_run
+from api.agent.session import sim_url, start_run
 from bench.recording.reader import read_recording
 from bench.records import NullObserver, Outcome, RunState, StateChange, WindowRecord
 from bench.sequencer.control import RunControl, SequencerConfig

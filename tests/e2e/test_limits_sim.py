@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.bench_session import start_run
+from api.agent.session import start_run
 from api.certificates.issue import issue_for_run
 from bench.limits import load_limits
 from bench.records import Outcome

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
-from api.bench_session import start_run
+from api.agent.session import start_run
 from bench.estimation.static_fit import PARAMETER_NAMES as STATIC_NAMES
 from bench.recording.reader import read_recording
 from bench.records import NullObserver, Outcome, Progress, RunRecord, WindowKind

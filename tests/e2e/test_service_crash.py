@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from api.runner import simulated_unit
+from api.runs.runner import simulated_unit
 from bench.recording.reader import read_recording
 from tests.e2e.helpers import SIM_SPEED, wall_budget_s, z_scores
 from tests.e2e.service_process import ServiceProcess, wait_for

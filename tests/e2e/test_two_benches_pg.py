@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
-from api.bench_session import start_run
+from api.agent.session import start_run
 from bench.records import Outcome, RunRecord
 from drivers.sim.physics import SensorTruth
 from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores

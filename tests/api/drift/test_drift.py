@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 
 from api.drift import DriftScheduler, compare, parse_time_of_day
 from api.main import create_app
-from api.runner import simulated_unit
+from api.runs.runner import simulated_unit
 from tests.support.service_helpers import OP, VIEW, MovableClock, service_settings, wait_final
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]  # whole simulated drift-check runs

@@ -1,10 +1,10 @@
 """The bench's runner: one worker thread at a time owns the bench and its sequencer.
 
 :meth:`BenchRunner.start` validates the request, allocates the run id, and starts a worker
-thread that calls :func:`api.bench_session.start_run` with a :class:`HubObserver` (progress
+thread that calls :func:`api.agent.session.start_run` with a :class:`HubObserver` (progress
 to the event streams) and then the finisher (fit, diagnosis, certificate or drift
 comparison, in the database). :meth:`BenchRunner.resume` claims an ``interrupted`` run and
-continues it from its next window in the same way (:mod:`api.service_resume`);
+continues it from its next window in the same way (:mod:`api.runs.resume`);
 :meth:`~BenchRunner.pause` and :meth:`~BenchRunner.continue_run` hold and release the live
 run. A second start while a run holds the bench raises :class:`BenchBusy` (HTTP 409).
 :meth:`~BenchRunner.shutdown` leaves the live run ``interrupted`` (table safe, recording
@@ -26,11 +26,11 @@ from collections.abc import Callable
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from api import service_resume
-from api.bench_session import start_run
-from api.live_run import DbLiveObserver, HubObserver, LiveRun, RunKind, ServiceParamsObserver
-from api.progress_hub import TERMINAL_EVENT, ProgressHub
-from api.service_resume import SHUTDOWN_REASON, NotResumable
+from api.agent.session import start_run
+from api.runs import resume as service_resume
+from api.runs.hub import TERMINAL_EVENT, ProgressHub
+from api.runs.live import DbLiveObserver, HubObserver, LiveRun, RunKind, ServiceParamsObserver
+from api.runs.resume import SHUTDOWN_REASON, NotResumable
 from api.settings import Settings
 from bench.procedures import build_procedure, preview
 from bench.records import Outcome, RunObserver, RunRecord, RunState, new_run_id, utc_now
@@ -82,7 +82,7 @@ class BenchRunner:
         exceptions are logged and reported on the stream, the run's state stays as stored.
     :param clock: wall clock (UTC), replaceable in tests to age simulated units.
     :param store_live: also store each run's latest progress in the database
-        (:class:`~api.live_run.DbLiveObserver`), for API processes that do not hold the bench.
+        (:class:`~api.runs.live.DbLiveObserver`), for API processes that do not hold the bench.
     """
 
     def __init__(

@@ -4,7 +4,7 @@
 ``continue_run``, ``current``, ``wait_idle``), so the routes and the drift scheduler use it
 as they used the in-process runner, but every call is a database write or read
 (:mod:`db.repo.queue`): a start queues a run for this API's bench (``CALBENCH_BENCH_NAME``)
-and answers at once, also while the bench is busy; the bench's agent (:mod:`api.agent`)
+and answers at once, also while the bench is busy; the bench's agent (:mod:`api.agent.bench_agent`)
 claims it when the bench is free. Any number of API processes can serve one bench, and any
 can restart while a run records.
 """
@@ -19,10 +19,10 @@ from collections.abc import Callable
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
-from api import service_resume
-from api.live_run import LiveRun, RunKind
-from api.runner import FINISHED_KEY
-from api.service_resume import NotResumable
+from api.runs import resume as service_resume
+from api.runs.live import LiveRun, RunKind
+from api.runs.resume import NotResumable
+from api.runs.runner import FINISHED_KEY
 from api.settings import Settings
 from bench.procedures import build_procedure, preview
 from bench.records import new_run_id, utc_now

@@ -2,10 +2,10 @@
 the recording (``calbench agent``).
 
 API processes never touch hardware: they queue runs and control requests in the database
-(:mod:`db.repo.queue`, :class:`api.run_queue.RunQueue`). The agent of bench
+(:mod:`db.repo.queue`, :class:`api.runs.queue.RunQueue`). The agent of bench
 ``CALBENCH_BENCH_NAME`` polls the database every ``poll_s``: while its bench is free it
 claims the oldest queued run of the bench (row locking, so two agents or a restart never
-claim one run twice) and executes it on its :class:`~api.runner.BenchRunner`, fresh or
+claim one run twice) and executes it on its :class:`~api.runs.runner.BenchRunner`, fresh or
 resumed from the window after its last complete one; while a run holds the bench it applies
 the abort, pause and continue requests stored for it. Progress, windows, chunks, the final
 state, the fit, the diagnosis and the certificate go to the database as they happen, so any
@@ -29,12 +29,12 @@ from collections.abc import Callable
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
-from api import service_resume
 from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
 from api.drift import record_drift_check
-from api.live_run import LiveRun
-from api.progress_hub import ProgressHub
-from api.runner import BenchBusy, BenchRunner
+from api.runs import resume as service_resume
+from api.runs.hub import ProgressHub
+from api.runs.live import LiveRun
+from api.runs.runner import BenchBusy, BenchRunner
 from api.settings import Settings
 from bench.records import RunRecord, utc_now
 from db.engine import make_session_factory

@@ -1,7 +1,7 @@
 """A run's live events as the database holds them, for the event streams of any API process.
 
 The bench's agent writes a run's state, its latest progress (``params["live"]``,
-:class:`api.live_run.DbLiveObserver`), each complete window (``run_window``) and, once the
+:class:`api.runs.live.DbLiveObserver`), each complete window (``run_window``) and, once the
 results and certificate are stored, its final event (``params["service_finished"]``).
 :func:`run_snapshot` reads them in one short read-only transaction; the stream of
 ``GET /api/runs/{id}/events`` turns the differences between two snapshots into events. No
@@ -20,8 +20,8 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
-from api.live_run import LIVE_KEY
-from api.runner import FINISHED_KEY
+from api.runs.live import LIVE_KEY
+from api.runs.runner import FINISHED_KEY
 from db.models import FINAL_STATES, Run, RunState, RunWindow
 from db.repo.recovery import DEFAULT_STALE_AFTER_S
 from db.types import utc_now

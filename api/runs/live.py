@@ -18,8 +18,8 @@ from typing import Any, Literal
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from api.progress_hub import ProgressHub
-from api.service_resume import SIM_AGE_KEY
+from api.runs.hub import ProgressHub
+from api.runs.resume import SIM_AGE_KEY
 from bench.records import (
     GapRecord,
     NullObserver,

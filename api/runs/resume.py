@@ -24,7 +24,7 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from api.bench_session import continue_run
+from api.agent.session import continue_run
 from api.settings import Settings
 from bench.records import RunObserver, RunRecord
 from bench.sequencer.control import RunControl

@@ -1,0 +1,4 @@
+"""Runs as the service sees them: queued in the database (``queue``), executed by a runner
+(``runner``) with their live state (``live``), progress events published in the process
+(``hub``) and read back from the database by every API process (``events``), and the resume
+of an interrupted run (``resume``)."""

@@ -22,14 +22,14 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import f as f_dist
 
-from bench.diagnosis.catch_all import channel_forms, satterthwaite_tails
+from bench.diagnosis.catch_all import gls_channel_forms, satterthwaite_tails
 from bench.diagnosis.effects import CATALOGUE, NEEDS_TABLE, Candidate, pose_response
 from bench.diagnosis.effects.base import FloatArray, first_order_design
 from bench.diagnosis.effects.settling import settling_duration, settling_test
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.library import EFFECT, LibraryTerm, library_terms, physics
 from bench.diagnosis.library import candidate as library_candidate
-from bench.diagnosis.likelihood import NoiseParams, covariance, gls, without_pose
+from bench.diagnosis.likelihood import NoiseParams, covariance, gls, window_covariance, without_pose
 from bench.diagnosis.refit import ModelFit, effect_parameters, model_sequence
 from bench.diagnosis.regressors import correlations
 from bench.diagnosis.residuals import CHANNELS, summarise, where
@@ -294,10 +294,10 @@ def _unexplained(
     """
     assert state.noise is not None
     noise = state.noise if final.pose else without_pose(state.noise)
-    C = covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed)
+    cov = window_covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed)
     X = design(ev, K, list(final.candidates))
     n, p = X.shape
-    q, e, v = channel_forms(C, C, X, ev.y.reshape(-1))
+    q, e, v = gls_channel_forms(cov, X, ev.y.reshape(-1))
     lo, up = satterthwaite_tails(q, e, v)
     p_ch = np.minimum(1.0, 2.0 * np.minimum(lo, up))
     p_all = float(chi2_dist.sf(final.fit.chi2, max(n - p, 1)))

@@ -37,6 +37,7 @@ from scipy.stats import chi2 as chi2_dist
 
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.likelihood import NoiseParams, covariance, without_pose
+from bench.estimation.window_covariance import WindowCovariance
 
 PHYSICS_ALPHA = 1e-3
 """Lower-tail level at which a channel is said not to show the pose error's implied scatter."""
@@ -99,6 +100,35 @@ def channel_forms(
         Di[i::3] = d[i::3]
         DM = Di[:, None] * M
         q[i] = float(np.sum(Di * r * r))
+        e[i] = float(np.trace(DM))
+        v[i] = 2.0 * float(np.sum(DM * DM.T))
+    return q, e, v
+
+
+def gls_channel_forms(
+    cov: WindowCovariance, X: FloatArray, z: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`channel_forms` for a model fitted under its own covariance (``C_true = C_fit = C``),
+    without an n × n solve: the residual comes from the O(m) factor of ``cov``, and the residual
+    covariance is M = C − X (XᵀC⁻¹X)⁻¹ Xᵀ (GLS), needed only within each channel (m × m).
+
+    :param cov: C in its O(m) form; :param X: (3m, p) design; :param z: (3m,) window means.
+    :returns: (observed q (3,), expected (3,), variance (3,)) as :func:`channel_forms`.
+    """
+    fac = cov.factor()
+    CiX = fac.solve(X)
+    A = X.T @ CiX
+    r = z - X @ np.linalg.solve(A, CiX.T @ z)
+    A_inv = np.linalg.inv(A)
+    d = 1.0 / cov.diagonal()
+    C = cov.dense()
+    q, e, v = np.zeros(3), np.zeros(3), np.zeros(3)
+    for i in range(3):
+        Xi = X[i::3]
+        Mi = C[i::3, i::3] - Xi @ A_inv @ Xi.T
+        di = d[i::3]
+        DM = di[:, None] * Mi
+        q[i] = float(np.sum(di * r[i::3] ** 2))
         e[i] = float(np.trace(DM))
         v[i] = 2.0 * float(np.sum(DM * DM.T))
     return q, e, v

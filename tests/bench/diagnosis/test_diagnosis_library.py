@@ -233,3 +233,23 @@ def test_false_findings_on_two_hundred_clean_recordings_count_discovered_terms()
             discovered[seed] = claims
     assert len(discovered) <= 2, discovered
     assert len(false) <= 3, false
+
+
+def test_gls_channel_forms_equal_the_dense_formulas() -> None:
+    """The O(m) channel forms (residual from the factor, M = C − X(XᵀC⁻¹X)⁻¹Xᵀ per channel) agree
+    with the general n × n ones (M = R C Rᵀ) when the model is fitted under its own covariance."""
+    from bench.diagnosis.catch_all import channel_forms, gls_channel_forms
+    from bench.diagnosis.likelihood import NoiseParams, window_covariance
+
+    rng = np.random.default_rng(3)
+    m = 20
+    A = rng.normal(size=(m, 3, 3)) * 1e-3
+    V = np.einsum("wij,wkj->wik", A, A) + 1e-6 * np.eye(3)
+    mid_s = np.sort(rng.uniform(0.0, 600.0, m))
+    noise = NoiseParams(tau2=np.array([2e-6, 5e-7, 1e-6]), corr_time_s=200.0, pose_var_rad2=0.0)
+    cov = window_covariance(V, mid_s, noise)
+    X = rng.normal(size=(3 * m, 12))
+    z = rng.normal(size=3 * m) * 1e-3
+    C = cov.dense()
+    for fast, dense in zip(gls_channel_forms(cov, X, z), channel_forms(C, C, X, z), strict=True):
+        np.testing.assert_allclose(fast, dense, rtol=1e-8)

@@ -24,7 +24,7 @@ RunStateName = Literal[
 SERIAL_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"
 MIN_DWELL_S = 0.5
 """Shortest static dwell a run may ask for (s): shorter windows hold too few samples to fit."""
-LINK_PATH_PATTERN = r"^/api/runs/[A-Za-z0-9._~%-]{1,200}/(events|certificate\.pdf)$"
+LINK_PATH_PATTERN = r"^/api/runs/[A-Za-z0-9._~%-]{1,200}/(events|certificate\.pdf|export/[a-z-]{1,20})$"
 
 
 def _stored_text(value: str | None, *, multiline: bool = False) -> str | None:
@@ -405,7 +405,7 @@ class LinkRequest(BaseModel):
     path: str = Field(
         pattern=LINK_PATH_PATTERN,
         max_length=300,
-        description="/api/runs/{id}/certificate.pdf or /api/runs/{id}/events",
+        description="/api/runs/{id}/certificate.pdf, /api/runs/{id}/events or /api/runs/{id}/export/{format}",
         examples=["/api/runs/R-20250101-0001/certificate.pdf"],
     )
 

@@ -9,12 +9,14 @@ every page. Over the API, a run that reads ``completed`` already has its certifi
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterator
 from typing import Any
 
 import httpx
 import pytest
+from playwright.sync_api import expect
 
 from bench.procedures import build_procedure, preview
 from tests.browser.conftest import CHROMIUM
@@ -47,7 +49,8 @@ def _operator_page(browser: Any, service: str) -> tuple[Any, Any, ConsoleWatch]:
     page = ctx.new_page()
     console = ConsoleWatch(page)
     page.goto(f"{service}/")
-    page.wait_for_function("document.querySelector('#role').textContent === 'operator'")
+    # locator waits, not wait_for_function: its polling evaluates a string, which the CSP forbids
+    expect(page.locator("#role")).to_have_text("operator")
     return ctx, page, console
 
 
@@ -57,7 +60,7 @@ def test_run_page_ends_with_the_verdict_and_a_reload_keeps_the_windows(service: 
     page.wait_for_selector("#config-notice:not([hidden])")
     assert "CALBENCH_LAB_ADDRESS" in page.inner_text("#config-notice")
     # before Start: poses, windows, dwell and duration of the chosen procedure
-    page.wait_for_function("document.querySelector('#start-preview').textContent.includes('poses')")
+    expect(page.locator("#start-preview")).to_contain_text("poses")
     text = page.inner_text("#start-preview")
     assert f"{N_POSES} poses" in text and "dwell 3 s per pose (service setting)" in text, text
     assert "about" in text, text
@@ -83,7 +86,10 @@ def test_run_page_ends_with_the_verdict_and_a_reload_keeps_the_windows(service: 
         "#allan"
     )
     # the correction leaves the building from the certificate card
-    href = page.get_attribute("#exports a[data-format='c-header']", "href")
+    # the link is signed for the page (POST /api/links): the token never goes into the URL
+    link = page.locator("#exports a[data-format='c-header']")
+    expect(link).to_have_attribute("href", re.compile(r"\?link="))
+    href = link.get_attribute("href")
     assert href is not None
     header = page.request.get(f"{service}/{href.lstrip('/')}")
     assert header.status == 200 and "calbench_correct" in header.text()
@@ -158,7 +164,7 @@ def test_a_unit_registered_from_the_page_is_stated_on_its_certificate(service: s
     page.fill("#reg-zero", "1.5")
     page.fill("#reg-condition", "no visible damage")
     page.click("#reg-save")
-    page.wait_for_function("document.querySelector('#reg-status')?.textContent.startsWith('Saved')")
+    expect(page.locator("#reg-status")).to_contain_text("Saved")
     unit = httpx.get(f"{service}/api/units", headers=VIEW).json()
     got = next(u for u in unit if u["serial"] == "SN-RP-3")
     assert got["customer_name"] == "Acme Sensors Ltd" and got["received_on"] == "2026-11-02"
@@ -200,9 +206,7 @@ def test_drift_check_started_from_the_unit_page_shows_its_deltas(service: str, b
     assert page.locator("#trends .spark-axis").count() == page.locator("#trends figure").count() > 0
     assert " … " in page.inner_text("#trends .spark-axis >> nth=0")
     page.click("#drift-run")
-    page.wait_for_function(
-        "document.querySelector('#drift-status').textContent.startsWith('Drift check queued')"
-    )
+    expect(page.locator("#drift-status")).to_contain_text("Drift check queued")
     deadline = time.monotonic() + RUN_TIMEOUT_S
     checks: list[Any] = []
     while not checks and time.monotonic() < deadline:

@@ -38,7 +38,10 @@ def bench_file(tmp_path: Path) -> Path:
 
 
 def test_the_simulated_bench_is_built_to_the_file(tmp_path: Path) -> None:
-    settings = settings_for(tmp_path).model_copy(update={"bench_file": bench_file(tmp_path)})
+    # in this process (sim_process off), so that the simulation's physics can be inspected
+    settings = settings_for(tmp_path).model_copy(
+        update={"bench_file": bench_file(tmp_path), "sim_process": False}
+    )
     config = bench_config_for(settings, sim=True)
     with open_devices(settings, True, SIM_SPEED, 3, config=config) as devices:
         assert devices.sim is not None

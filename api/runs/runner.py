@@ -185,23 +185,8 @@ class BenchRunner:
                 raise BenchBusy(self._current.id)
             with self.sessions.begin() as s:
                 claimed = service_resume.claim(s, run_id)
-            age = claimed.sim_age_days
-            live = LiveRun(
-                run_id,
-                claimed.unit_serial,
-                claimed.procedure,
-                claimed.kind,  # type: ignore[arg-type]
-                RunControl(),
-                age if age is not None else 0.0,
-                resumed=True,
-            )
-            live.extra["claimed"] = claimed
-            live.extra["resumed_from_window"] = claimed.point.next_window_index
-            self._claim_bench(live, self._work)
-        self.hub.publish(live.id, "state", {"state": "queued", "reason": "resume accepted"})
-        assert self._thread is not None
-        self._thread.start()
-        return live
+            live = self._hold_claimed(claimed)
+        return self._launch_resumed(live)
 
     def resume_claimed(self, claimed: service_resume.Claimed) -> LiveRun:
         """Continue a run this process has already claimed (from the queue) from its next window.
@@ -209,19 +194,27 @@ class BenchRunner:
         :raises BenchBusy: another run holds the bench.
         """
         with self._lock:
-            age = claimed.sim_age_days
-            live = LiveRun(
-                claimed.run_id,
-                claimed.unit_serial,
-                claimed.procedure,
-                claimed.kind,  # type: ignore[arg-type]
-                RunControl(),
-                age if age is not None else 0.0,
-                resumed=True,
-            )
-            live.extra["claimed"] = claimed
-            live.extra["resumed_from_window"] = claimed.point.next_window_index
-            self._claim_bench(live, self._work)
+            live = self._hold_claimed(claimed)
+        return self._launch_resumed(live)
+
+    def _hold_claimed(self, claimed: service_resume.Claimed) -> LiveRun:
+        """The live run of a claimed resume, holding the bench (call with ``_lock`` held)."""
+        age = claimed.sim_age_days
+        live = LiveRun(
+            claimed.run_id,
+            claimed.unit_serial,
+            claimed.procedure,
+            claimed.kind,  # type: ignore[arg-type]
+            RunControl(),
+            age if age is not None else 0.0,
+            resumed=True,
+        )
+        live.extra["claimed"] = claimed
+        live.extra["resumed_from_window"] = claimed.point.next_window_index
+        self._claim_bench(live, self._work)
+        return live
+
+    def _launch_resumed(self, live: LiveRun) -> LiveRun:
         self.hub.publish(live.id, "state", {"state": "queued", "reason": "resume accepted"})
         assert self._thread is not None
         self._thread.start()

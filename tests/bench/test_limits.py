@@ -10,16 +10,7 @@ import pytest
 
 from bench.limits import Limit, load_limits, verdict
 from bench.records import Outcome
-
-SPEC = {
-    "channel_unit": "V",
-    "nominal_bias": [1.5, 1.5, 1.5],
-    "bias_tolerance": 0.05,
-    "nominal_scale": [0.02, 0.02, 0.02],
-    "scale_tolerance_rel": 0.01,
-    "cross_axis_max": 0.005,
-    "g_error_after_max_m_s2": 0.004,
-}
+from tests.support.limits import SPEC
 
 
 def write(tmp_path: Path, models: object, fmt: str = "calbench-unit-limits/1") -> Path:

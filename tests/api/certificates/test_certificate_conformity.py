@@ -20,16 +20,8 @@ from api.certificates.pdf import certificate_lines, conformity_line, render_pdf
 from bench.limits import load_limits, verdict
 from bench.records import Outcome
 from db.repo.certificates import canonical_sha256
+from tests.support.limits import SPEC
 
-SPEC = {
-    "channel_unit": "V",
-    "nominal_bias": [1.5, 1.5, 1.5],
-    "bias_tolerance": 0.05,
-    "nominal_scale": [0.02, 0.02, 0.02],
-    "scale_tolerance_rel": 0.01,
-    "cross_axis_max": 0.005,
-    "g_error_after_max_m_s2": 0.004,
-}
 K = [[0.0201, 0.0201 * 0.004, 0.0], [0.0, 0.0199, -0.0199 * 0.004], [0.0, 0.0, 0.02]]
 CAL = {
     "channel_unit": "V",

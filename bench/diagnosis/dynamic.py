@@ -19,6 +19,10 @@ change, 3 n_used Σ_c ln(σ̂²_c,1 / σ̂²_c,0) / 3 + q ln(3 n_used), is negat
 same signature as a delay of τ; at the procedures' rates (ωτ < 0.01) the two cannot be
 told apart, so a delay found is reported as ``time_skew`` confounded with ``sensor_lowpass``.
 
+After the catalogue, the moving term library (``library_motion``, searched by
+``library_motion_search``, reported in ``discovered``); where a discovered term makes the
+catalogue's later steps redundant, the catalogue path is cut back (``library_motion_swap``).
+
 Residuals and correlates: 1 s block means of the baseline residuals (the "windows" of the
 report) against ω² = −tr(B_sym)/2, |ω̇| (from the antisymmetric part of B), f_i², |f_i|, time
 and temperature, by ``regressors.block_correlations``.
@@ -34,6 +38,13 @@ from scipy.stats import chi2 as chi2_dist
 
 from bench.diagnosis.dynamic_summary import BlockSummary, block_summary, motion_regressors
 from bench.diagnosis.effects import CATALOGUE
+from bench.diagnosis.library_motion_search import (
+    MotionLibraryResult,
+    discovery,
+    refit_terms,
+    search_motion_library,
+)
+from bench.diagnosis.library_motion_swap import cut_catalogue, fit_bic
 from bench.diagnosis.result import Diagnosis, Finding, Unexplained
 from bench.diagnosis.selection import FALSE_ALARM
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
@@ -239,12 +250,14 @@ def diagnose_dynamic(
     channel_unit: str = "",
     source: str = "",
     false_alarm: float = FALSE_ALARM,
+    library: bool = True,
 ) -> Diagnosis:
     """Diagnose a moving-table recording (module docstring).
 
     :param m: the motion (``dynamic_model.prepare_motion``); :param y: (n, 3) raw samples.
     :param lever_arm_m: (3,) the lever arm the recording believes (m).
     :param temp_c: (n,) temperature (°C) or ``None``.
+    :param library: search the moving library after the catalogue (``library_motion``).
     :raises ValueError: a motion that cannot determine bias and K.
     """
     lever = np.asarray(lever_arm_m, dtype=float).reshape(3)
@@ -252,8 +265,22 @@ def diagnose_dynamic(
     sel = select_terms(m, y, g_m_s2, lever, false_alarm=false_alarm)
     unobservable = {**STATIC_ONLY, **sel.unobservable}
     n_obs = 3 * int(m.valid.sum())
-    fits = list(sel.fits)
-    steps = list(sel.steps)
+
+    def search(k: int) -> tuple[MotionLibraryResult, dict[str, FloatArray]]:
+        span = _catalogue_span(sel, lever, k)
+        return search_motion_library(m, y, g_m_s2, lever, sel.fits[k], temp_c, span, false_alarm=false_alarm)
+
+    def rescore(k: int, full: MotionLibraryResult, vals: dict[str, FloatArray]) -> float:
+        coef = np.array([i.coefficient for i in full.included])
+        terms = [i.term for i in full.included]
+        return fit_bic(refit_terms(m, y, g_m_s2, lever, sel.fits[k], terms, coef, vals)[0], len(terms))
+
+    if library:
+        k_cut, lib, vals, cut_note = cut_catalogue(search, rescore, len(sel.steps), sel.chosen)
+    else:
+        k_cut, lib, vals, cut_note = len(sel.steps), MotionLibraryResult((), sel.fits[-1:], 0, ()), {}, None
+    fits = [*sel.fits[: k_cut + 1], *lib.fits[1:]]
+    steps = list(sel.steps[:k_cut])
     final = fits[-1]
     findings = []
     for k, (t, dbic, w) in enumerate(steps):
@@ -278,13 +305,20 @@ def diagnose_dynamic(
                 confounded_with=conf,
             )
         )
+    discovered = tuple(discovery(inc, final, channel_unit) for inc in lib.included)
     regs = motion_regressors(m, y, final, g_m_s2, lever, temp_c)
-    bs = block_summary(m, y, fits, g_m_s2, lever, sig_w, regs, n_obs)
+    bs = block_summary(
+        m, y, fits, g_m_s2, lever, sig_w, regs, n_obs,
+        library=lib.adjustment(vals) if lib.included else None,
+        library_terms=tuple(i.term.label for i in lib.included),
+    )  # fmt: skip
     notes = (
         "sensor_lowpass: a low-pass of time constant τ looks like a delay of τ at these rates; "
         "a delay found is reported as time_skew",
         f"noise: white sigma from the samples' second differences [{', '.join(f'{v:.3g}' for v in sig_w)}] "
         "channel units; parameter sigmas from the batch fit's sandwich covariance (coloured noise included)",
+        *lib.notes,
+        *((cut_note,) if cut_note else ()),
     )
     unexplained = _unexplained(bs, final)
     return Diagnosis(
@@ -305,8 +339,21 @@ def diagnose_dynamic(
         bias=final.theta[:3].copy(),
         K=final.theta[3:12].reshape(3, 3).copy(),
         source=source,
+        discovered=discovered,
         unexplained=unexplained,
     )
+
+
+def _catalogue_span(sel: TermSelection, lever: FloatArray, k: int) -> tuple[ModelSpec, FloatArray] | None:
+    """The catalogue's observable terms together at the fit after its first k steps (the others at
+    their null): a library term inside their span beyond the model is the catalogue's
+    (``library_motion``)."""
+    final = sel.fits[k]
+    kept = sel.chosen[:k]
+    spec = ModelSpec((*kept, *(t for t in sel.candidates if t not in kept)))
+    if spec.terms == final.spec.terms:
+        return None
+    return spec, _warm_start(final, spec, lever)
 
 
 def _unexplained(bs: BlockSummary, final: DynamicFit) -> Unexplained | None:

@@ -52,8 +52,8 @@ def motion_regressors(
     """Name -> (n,) regressor per sample (module docstring)."""
     B = m.B
     out = {"omega^2": -0.5 * np.trace(B, axis1=1, axis2=2)}
-    A = 0.5 * (B - np.transpose(B, (0, 2, 1)))
-    out["|omega_dot|"] = np.sqrt(A[:, 2, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 0] ** 2)
+    a_zy, a_xz, a_yx = (0.5 * (B[:, i, j] - B[:, j, i]) for i, j in ((2, 1), (0, 2), (1, 0)))
+    out["|omega_dot|"] = np.sqrt(a_zy**2 + a_xz**2 + a_yx**2)  # the antisymmetric part of B is [ω̇]×
     f = specific_force(fit.theta, m, fit.spec, g, lever)
     for i, a in enumerate("xyz"):
         out[f"f_{a}^2"] = f[:, i] ** 2
@@ -97,8 +97,15 @@ def block_summary(
     sig_w: FloatArray,
     regs: dict[str, FloatArray],
     n_obs: int,
+    *,
+    library: FloatArray | None = None,
+    library_terms: tuple[str, ...] = (),
 ) -> BlockSummary:
-    """Baseline and final model summaries, mismatch and correlates (module docstring)."""
+    """Baseline and final model summaries, mismatch and correlates (module docstring).
+
+    :param library: (n, 3) the discovered terms' contribution Σ c_k x_k (channel units), part
+        of the final model only; :param library_terms: their labels, ``term[channel]``.
+    """
     v = m.valid
     ids, inv = _blocks(m.t_s[v], np.ones(int(v.sum()), dtype=bool))
     nb = ids.size
@@ -106,18 +113,21 @@ def block_summary(
     summaries = []
     resid0 = None
     resid1 = None
-    for fit in (fits[0], fits[-1]):
+    for k, fit in enumerate((fits[0], fits[-1])):
         model, _ = predict(fit.theta, m, fit.spec, g, lever)
+        extra = library_terms if k == 1 else ()
+        if k == 1 and library is not None:
+            model = model + library
         r = (y - model)[v]
         resid1 = r
         if resid0 is None:
             resid0 = r
         br = _bmean(r, inv, nb)
         z = br / (sig_w[None, :] / np.sqrt(cnt)[:, None])
-        p = fit.spec.n_params
+        p = fit.spec.n_params + len(extra)
         summaries.append(
             ModelSummary(
-                terms=("bias", "scale_matrix", *fit.spec.terms),
+                terms=("bias", "scale_matrix", *fit.spec.terms, *extra),
                 residual_rms=float(fit.residual_rms),
                 chi2_dof=float(np.sum((r / sig_w) ** 2) / (n_obs - p)),
                 bic=float(fit.n_used * np.sum(np.log(fit.noise_sigma**2)) + p * np.log(n_obs)),

@@ -62,8 +62,28 @@ class Base:
     kind: str  # "f", "abs", "temp", "t"
 
 
+class NamedTerm:
+    """What every library term is named by: its term in the contract's grammar on one channel.
+
+    A mixin of the term dataclasses (their fields ``term``, ``channel``, ``factors``)."""
+
+    term: str
+    channel: int
+    factors: tuple[Base, ...]
+
+    @property
+    def degree(self) -> int:
+        """Number of factors."""
+        return len(self.factors)
+
+    @property
+    def label(self) -> str:
+        """``term[channel]``."""
+        return f"{self.term}[{CHANNELS[self.channel]}]"
+
+
 @dataclass(frozen=True)
-class LibraryTerm:
+class LibraryTerm(NamedTerm):
     """A monomial on one channel.
 
     :param term: the contract's grammar, e.g. ``f_x^2*f_z``.
@@ -82,16 +102,6 @@ class LibraryTerm:
     values: FloatArray
     scale: float
     aliases: tuple[str, ...] = field(default=())
-
-    @property
-    def degree(self) -> int:
-        """Number of factors."""
-        return len(self.factors)
-
-    @property
-    def label(self) -> str:
-        """``term[channel]``."""
-        return f"{self.term}[{CHANNELS[self.channel]}]"
 
 
 def bases(ev: StaticEvidence) -> tuple[Base, ...]:
@@ -143,7 +153,8 @@ def term_unit(factors: tuple[Base, ...]) -> str:
     return _power_string(_grouped(factors, "unit"), "·")
 
 
-def _in_catalogue(factors: tuple[Base, ...], channel: int) -> bool:
+def in_catalogue(factors: tuple[Base, ...], channel: int) -> bool:
+    """The catalogue's own regressors on ``channel`` (module docstring): temp, t, abs(f_i) on i, f_j·f_k."""
     kinds = [b.kind for b in factors]
     if len(factors) == 1:
         return kinds[0] in ("temp", "t") or (kinds[0] == "abs" and factors[0].axis == channel)
@@ -153,7 +164,8 @@ def _in_catalogue(factors: tuple[Base, ...], channel: int) -> bool:
     return False
 
 
-def _admissible(factors: tuple[Base, ...]) -> bool:
+def admissible(factors: tuple[Base, ...]) -> bool:
+    """Not the first-order model's own column, and no abs(·) of one axis twice (abs(f)² = f²)."""
     if len(factors) == 1 and factors[0].kind == "f":
         return False  # the first-order model's own column
     abs_axes = [b.axis for b in factors if b.kind == "abs"]
@@ -174,7 +186,7 @@ def library_terms(ev: StaticEvidence) -> tuple[list[LibraryTerm], int]:
     for degree in range(1, MAX_DEGREE + 1):
         for combo in combinations_with_replacement(range(len(bs)), degree):
             factors = tuple(bs[k] for k in combo)
-            if not _admissible(factors):
+            if not admissible(factors):
                 continue
             x = np.prod([vals[b] for b in factors], axis=0)
             nrm = float(np.linalg.norm(x))
@@ -182,7 +194,7 @@ def library_terms(ev: StaticEvidence) -> tuple[list[LibraryTerm], int]:
             rn = float(np.linalg.norm(resid))
             name = term_name(factors)
             for ch in range(3):
-                if _in_catalogue(factors, ch):
+                if in_catalogue(factors, ch):
                     continue
                 if nrm == 0 or rn < RELATIVE_LEVERAGE_MIN * nrm:
                     dropped += 1

@@ -28,7 +28,7 @@ from bench.diagnosis.effects import Candidate, pose_response
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import GlsFit, NoiseParams, gls, window_covariance, without_pose
-from bench.diagnosis.selection import design
+from bench.diagnosis.model_state import design
 
 
 @dataclass(frozen=True)

@@ -30,18 +30,37 @@ the expensive part).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import f as f_dist
 
 from bench.diagnosis.catch_all import pose_check
+from bench.diagnosis.confounding import mimics
 from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
 from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
 from bench.diagnosis.evidence import StaticEvidence
-from bench.diagnosis.likelihood import GlsFit, NoiseParams, fit_noise, gls, window_covariance
+from bench.diagnosis.likelihood import GlsFit, NoiseParams, window_covariance
+from bench.diagnosis.model_state import (
+    ModelState,
+    Step,
+    bic,
+    design,
+    fit_model,
+    lr_fixed,
+    scale_matrix,
+    whitened_lr,
+)
 from bench.diagnosis.wander_cap import SlowNoiseCap
+from bench.diagnosis.wander_modes import (
+    WANDER_LIKE,
+    follows_time,
+    modulated_lr,
+    modulated_note,
+    pose_modulated,
+    wander_note,
+)
 
 FALSE_ALARM = 0.01
 """False-alarm probability of one selection step: split evenly (Bonferroni) over the
@@ -66,144 +85,8 @@ gate is not re-fitted with its own noise (it cannot pass: re-fitting the noise m
 statistic by far less than 4×)."""
 
 
-WANDER_LIKE = ("bias_drift", "temperature_bias")
-"""Effects whose signature a slow bias wander can imitate (a trend in time, or in a temperature
-that follows time). With such an effect in the model, REML can let the wander collapse to
-nothing (a 12-window run holds one or two correlation times of wander, whose trend the
-effect then takes), and the Wald statistic under that noise compares the trend with white
-noise instead of with the wander the recording shows. Such a claim must also pass the full
-likelihood ratio 2 (ℓ_ML,with − ℓ_ML,without) in which each channel's own slow wander
-(level and correlation time, REML) is re-estimated in both models: the wander the recording
-shows without the effect competes with it, and the smaller statistic counts."""
-
-
-def wander_note(effect: str, lr: float, lr_wander: float, gate: float, noise: NoiseParams) -> str:
-    """Why a wander-like effect was not admitted although it fits (``select``)."""
-    tau = ", ".join(f"{np.sqrt(t):.2g}" for t in noise.tau2)
-    corr = "" if noise.corr_time_s <= 0 else f", correlation time {noise.corr_time_s:.0f} s"
-    what = "a drift" if effect == "bias_drift" else "a temperature coefficient"
-    return (
-        f"{what} fits (likelihood ratio {lr:.1f} with the wander it leaves), but the slow wander the "
-        f"recording shows without it (sigma = [{tau}] channel units{corr}) makes such a trend too "
-        f"(likelihood ratio {lr_wander:.1f} with each channel's wander re-estimated, gate {gate:.1f}): "
-        "this recording cannot tell the effect from a wander; longer or repeated runs can"
-    )
-
-
-@dataclass(frozen=True)
-class Step:
-    """One admitted candidate: its label, effect, LR statistic, BIC change, dof."""
-
-    label: str
-    effect: str
-    lr: float
-    delta_bic: float
-    q: int
-
-
-@dataclass
-class ModelState:
-    """The current model during selection."""
-
-    candidates: list[Candidate] = field(default_factory=list)
-    pose: bool = False
-    noise: NoiseParams | None = None
-    fit: GlsFit | None = None
-    steps: list[Step] = field(default_factory=list)
-    pose_edf: float = 0.0
-    swapped: set[str] = field(default_factory=set)
-
-
-def design(ev: StaticEvidence, K: FloatArray, cands: list[Candidate]) -> FloatArray:
-    """(3m, 12 + Σq) first-order design with the candidates' columns appended."""
-    X = first_order_design(ev.f_m_s2)
-    return np.hstack([X] + [c.columns(ev, K) for c in cands]) if cands else X
-
-
-def scale_matrix(fit: GlsFit) -> FloatArray:
-    """K (3, 3) from the first 12 coefficients."""
-    return fit.theta[3:12].reshape(3, 3)
-
-
-def fit_model(
-    ev: StaticEvidence,
-    cands: list[Candidate],
-    pose: bool,
-    K0: FloatArray,
-    fixed: FloatArray | None,
-    init: NoiseParams | None = None,
-    iterations: int = 1,
-    cap: SlowNoiseCap | None = None,
-    own: bool = False,
-) -> tuple[NoiseParams, GlsFit, FloatArray]:
-    """REML noise and GLS fit of a model, the columns evaluated at K0 (then at the fitted K).
-
-    ``cap`` is the recording's slow-noise bound (``wander_cap``), built here if not given.
-    The slow noise has one level scaled by the channels' gains, or with ``own`` one level
-    per channel.
-    """
-    cap = SlowNoiseCap(ev) if cap is None else cap
-    K = K0
-    noise: NoiseParams | None = init
-    fit: GlsFit | None = None
-    z = ev.y.reshape(-1)
-    for _ in range(iterations):
-        X = design(ev, K, cands)
-        J = pose_response(ev, K)
-        noise, fit = fit_noise(
-            X,
-            z,
-            ev.V,
-            ev.mid_s,
-            J_pose=J,
-            fixed=fixed,
-            estimate_pose=pose,
-            init=noise,
-            channel_gain=None if own else np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
-            tau2_cap=cap,
-        )
-        K = scale_matrix(fit)
-    assert noise is not None and fit is not None
-    return noise, fit, K
-
-
-def _lr_fixed(
-    ev: StaticEvidence,
-    X0: FloatArray,
-    X1: FloatArray,
-    noise: NoiseParams,
-    K: FloatArray,
-    fixed: FloatArray | None,
-) -> float:
-    C = window_covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed)
-    return gls(X0, ev.y.reshape(-1), C).chi2 - gls(X1, ev.y.reshape(-1), C).chi2
-
-
-def _whitened_lr(
-    ev: StaticEvidence,
-    X: FloatArray,
-    cols: FloatArray,
-    noise: NoiseParams,
-    K: FloatArray,
-    fixed: FloatArray | None,
-) -> tuple[FloatArray, FloatArray]:
-    """Δχ² of adding each column of ``cols`` (3m, N) alone to X under the current noise, and the
-    fraction of each whitened column outside the whitened span of X (its leverage)."""
-    # GLS with C⁻¹ applied in O(m) (``window_covariance``): for a column a, with P the
-    # residual-maker C⁻¹ − C⁻¹X (XᵀC⁻¹X)⁻¹ XᵀC⁻¹, Δχ² = (aᵀPy)² / aᵀPa and the leverage is
-    # sqrt(aᵀPa / aᵀC⁻¹a) (the whitened column's share outside the whitened span of X).
-    solver = window_covariance(ev.V, ev.mid_s, noise, pose_response(ev, K), fixed).factor()
-    y = ev.y.reshape(-1)
-    Ci_X, Ci_y, Ci_A = solver.solve(X), solver.solve(y), solver.solve(cols)
-    M = X.T @ Ci_X
-    b_y = np.linalg.solve(M, X.T @ Ci_y)
-    XtCiA = X.T @ Ci_A
-    aPy = cols.T @ Ci_y - XtCiA.T @ b_y
-    aCa = np.sum(cols * Ci_A, axis=0)
-    aPa = np.maximum(aCa - np.sum(XtCiA * np.linalg.solve(M, XtCiA), axis=0), 0.0)
-    lev = np.sqrt(aPa / np.maximum(aCa, 1e-300))
-    lr = aPy**2 / np.maximum(aPa, 1e-300)
-    return lr, lev
+LIB = "discovered:"
+"""Effect prefix of the library's terms (``library.EFFECT``)."""
 
 
 def _structured(
@@ -217,6 +100,7 @@ def _structured(
     prescreen: float = 0.0,
     simplicity: dict[str, int] | None = None,
     cap: SlowNoiseCap | None = None,
+    wander_notes: dict[str, str] | None = None,
 ) -> tuple[float, Candidate, float, tuple[NoiseParams, GlsFit, FloatArray]] | None:
     """The best admissible fixed-column candidate of ``pool`` (gate at ``alpha`` each), or ``None``.
 
@@ -226,9 +110,14 @@ def _structured(
     the shortlist, then 2 ℓ_ML of the extended model under its own noise) the one of lowest
     degree is tried and enters. A drift or temperature claim (:data:`WANDER_LIKE`) must also
     beat the trend the measured wander makes: its statistic is the smaller of the one above and
-    the likelihood ratio with each channel's own slow wander re-estimated in both models.
+    the likelihood ratio with each channel's own slow wander re-estimated in both models; so
+    must a library term in time or temperature alone, and a pose-modulated library term in
+    time or temperature must also pass the gate with the wander's leading mode (a trend) on
+    its channel in the model (``wander_modes.modulated_lr``). Why such a claim was refused
+    goes to ``notes`` (``wander_notes`` when given, the library's leverage notes being many).
     """
     assert state.noise is not None
+    wander_notes = notes if wander_notes is None else wander_notes
     n = ev.n_obs
     X = design(ev, K, state.candidates)
     tried = [c for c in pool if c not in state.candidates]
@@ -240,7 +129,7 @@ def _structured(
         # rank the library against the windows' own scatter: a slow noise inflated by the very
         # mismatch a term would explain makes every term look alike
         rank_noise = replace(state.noise, tau2=np.zeros(3))
-    lr0, lev = _whitened_lr(ev, X, np.hstack(cols), rank_noise, K, fixed)
+    lr0, lev = whitened_lr(ev, X, np.hstack(cols), rank_noise, K, fixed)
     ranked: list[tuple[float, Candidate]] = []
     col = 0
     for cand, a in zip(tried, cols, strict=True):
@@ -254,7 +143,7 @@ def _structured(
         elif q == 1:
             ranked.append((float(lr0[col]), cand))
         else:
-            ranked.append((_lr_fixed(ev, X, np.hstack([X, a]), state.noise, K, fixed), cand))
+            ranked.append((lr_fixed(ev, X, np.hstack([X, a]), state.noise, K, fixed), cand))
         col += q
     ranked.sort(key=lambda r: -r[0])
     if simplicity and len(ranked) > SHORTLIST:
@@ -283,9 +172,18 @@ def _structured(
         model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise, cap=cap)
         noise1, _fit1, K1 = model1
         X1 = design(ev, K1, [*state.candidates, cand])
-        lr = _lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
+        lr = lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
         gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1]))
-        if cand.effect in WANDER_LIKE and lr > gate:
+        term = cand.names[0] if cand.effect.startswith(LIB) else ""
+        wander_like = cand.effect in WANDER_LIKE or (follows_time(term) and not pose_modulated(term))
+        if term and follows_time(term) and pose_modulated(term) and lr > gate:
+            C1 = window_covariance(ev.V, ev.mid_s, noise1, pose_response(ev, K1), fixed)
+            lr_mod, b = modulated_lr(ev, X1[:, : X.shape[1]], X1[:, X.shape[1] :], cand.channels[0], C1)
+            gate_mod = q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1] - b))
+            if lr_mod <= gate_mod:
+                wander_notes[cand.label] = modulated_note(cand.label, lr, lr_mod, gate_mod)
+                continue
+        if wander_like and lr > gate:
             if null_own is None:
                 null_own = fit_model(
                     ev, state.candidates, state.pose, K, fixed, state.noise, cap=cap, own=True
@@ -295,7 +193,7 @@ def _structured(
             )
             lr_wander = max(0.0, 2.0 * (ext_own[1].loglik_ml - null_own[1].loglik_ml))
             if lr_wander <= gate:
-                notes[cand.label] = wander_note(cand.effect, lr, lr_wander, gate, null_own[0])
+                wander_notes[cand.label] = wander_note(cand.effect, lr, lr_wander, gate, null_own[0])
             lr = min(lr, lr_wander)
         dbic = -lr + q * math.log(n)
         if lr > gate and dbic < 0:
@@ -324,32 +222,6 @@ def _structured(
     return best
 
 
-LIB = "discovered:"
-
-
-def _bic(ev: StaticEvidence, state: ModelState) -> float:
-    assert state.fit is not None and state.noise is not None
-    k = state.fit.theta.size + state.noise.n_free + (1 if state.pose else 0)
-    return -2.0 * state.fit.loglik_ml + k * math.log(ev.n_obs)
-
-
-def _mimics(ev: StaticEvidence, K: FloatArray, effect: list[Candidate], terms: list[Candidate]) -> bool:
-    """Whether the catalogue effect's columns can mimic one of the library terms: beyond the
-    first-order model, the term's signature lies within ``ALIKE_COSINE`` of their span."""
-    X0 = first_order_design(ev.f_m_s2)
-    Q0, _ = np.linalg.qr(X0)
-    E = np.hstack([c.columns(ev, K) for c in effect])
-    E = E - Q0 @ (Q0.T @ E)
-    Qe, _ = np.linalg.qr(E)
-    for t in terms:
-        a = t.columns(ev, K)[:, 0]
-        a = a - Q0 @ (Q0.T @ a)
-        na = float(np.linalg.norm(a))
-        if na > 0 and float(np.linalg.norm(Qe.T @ a)) / na > ALIKE_COSINE:
-            return True
-    return False
-
-
 def _swap(
     ev: StaticEvidence,
     state: ModelState,
@@ -367,12 +239,16 @@ def _swap(
     the model: remove it and the library's terms, run the library's steps again (their gate
     as in ``select``); if that model's BIC (−2 ℓ_ML + k ln n, each model under its own
     noise) is lower by more than ``TIE_CHI2`` (strong evidence: the catalogue keeps its
-    precedence on anything weaker) and none of the terms is one E's columns can mimic
-    (``_mimics``: there the catalogue explains the data and keeps it), the swap is made
-    (E is not tried again).
+    precedence on anything weaker), the swap is made
+    (E is not tried again). Where E's columns can mimic one of the terms (``confounding.mimics``), a
+    catalogue effect that explains the data alone keeps it (a concealed cross-coupling is not
+    given to an alike product that fits as well with fewer parameters); E and the terms then
+    compete head to head only when the model needed library terms beside E on its channels,
+    and the swap needs, besides that BIC, a model with no more parameters than the one it
+    replaces (a cube taken for cross-coupling, with a term for what the cross-coupling left).
     """
     best: tuple[float, str, ModelState] | None = None
-    current = _bic(ev, state)
+    current = bic(ev, state)
     cap = SlowNoiseCap(ev)
     for effect in dict.fromkeys(c.effect for c in state.candidates):
         if effect.startswith(LIB):
@@ -400,9 +276,15 @@ def _swap(
             added += 1
         if added == 0:
             continue
-        if _mimics(ev, K, [c for c in state.candidates if c.effect == effect], trial.candidates[-added:]):
+        b = bic(ev, trial)
+        assert trial.fit is not None and state.fit is not None
+        mine = [c for c in state.candidates if c.effect == effect]
+        chans = {i for c in mine for i in c.channels}
+        helped = any(c in library and chans & set(c.channels) for c in state.candidates)
+        if mimics(ev, K, mine, trial.candidates[-added:], ALIKE_COSINE) and (
+            not helped or trial.fit.theta.size > state.fit.theta.size
+        ):
             continue
-        b = _bic(ev, trial)
         if b < current - TIE_CHI2 and (best is None or b < best[0]):
             best = (b, effect, trial)
     if best is None:
@@ -478,6 +360,7 @@ def select(
                 prescreen=PRESCREEN,
                 simplicity=simplicity,
                 cap=cap,
+                wander_notes=notes,
             )
         if step is not None:
             dbic, chosen, lr, model1 = step

@@ -12,6 +12,7 @@ Also the slow-noise cap (``bench.diagnosis.wander_cap``) against its two closed-
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -90,3 +91,21 @@ def test_xsens_orientation_free_session(real: Path, tmp_path: Path) -> None:
     d = diagnose_recording(read_recording(path))
     assert d.method == "orientation-free" and "pose_error" in d.unobservable
     assert d.findings == () and d.final.chi2_dof < 2
+    assert d.unexplained is None  # only magnitudes are tested without known orientations
+
+
+def test_independent_example_with_no_effect_gives_no_finding(shared_dir: Path) -> None:
+    """example_static12 (independent simulator, truth: no effect, its .truth.json): no catalogue
+    finding and no library term. Its z channel's trend once passed as ``abs(f_y)*t`` on az
+    (likelihood ratio 39.5 with the slow noise collapsed to 1.6e-10 V); beside the trend a
+    wander makes on az its pose-modulated part is noise, and the note says so."""
+    ex = shared_dir / "data/examples"
+    truth = json.loads((ex / "example_static12.truth.json").read_text())
+    assert truth["effects"] == []
+    d = diagnose_recording(read_recording(ex / "example_static12.csv"))
+    assert d.findings == () and d.discovered == () and d.unexplained is None
+    note = next(n for n in d.notes if n.startswith("abs(f_y)*t[az]:"))
+    assert "cannot tell abs(f_y)*t[az] from a wander" in note
+    # the final model's slow noise is the wander the recording shows, not a collapsed one
+    tau = d.noise_text.split("sigma = [")[1].split("]")[0].split(", ")
+    assert min(float(x) for x in tau) > 1e-6

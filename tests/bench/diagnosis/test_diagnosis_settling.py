@@ -14,9 +14,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from scipy.stats import chi2 as chi2_dist
 
-from bench.diagnosis.effects.settling import frequency_p_values, settling_test
+from bench.diagnosis.effects.settling import (
+    SEGMENT_S,
+    _segment_spectra,
+    detrended_response,
+    frequency_p_values,
+    settling_test,
+)
 
 RATE_HZ = 100.0
 N_SETS = 200
@@ -59,3 +66,17 @@ def test_a_decaying_ring_is_found_at_its_frequency() -> None:
     assert st.p_value < 1e-6
     assert st.frequency_hz == 7.0
     assert st.early_power_ratio > 1.2
+
+
+def test_detrended_response_is_the_mean_periodogram_of_detrended_white_noise() -> None:
+    """h_j against 4000 detrended 2 s segments of unit white noise (three channels each): the
+    lowest bins lose the share the closed form 1 − 3/(π² j²) (slope, large n) gives."""
+    n_seg = round(SEGMENT_S * RATE_HZ)
+    h = detrended_response(n_seg)
+    x = np.random.default_rng(11).standard_normal((4000 * n_seg, 3))
+    mean = _segment_spectra(x, n_seg).mean(axis=(0, 2))
+    se = 1.0 / np.sqrt(4000 * 3)  # a periodogram ordinate of unit white noise is χ²₂/2
+    assert np.all(np.abs(mean[1:-1] - h[1:-1]) < 5 * se)
+    for j in (2, 3, 5):
+        assert h[j] == pytest.approx(1.0 - 3.0 / (math.pi**2 * j**2), abs=2e-3)
+    assert h[2] < 0.93 and h[20] > 0.999

@@ -1,0 +1,126 @@
+"""Referees of a selected model: a catalogue effect a library term made redundant is dropped
+(``prune_catalogue``), and every structured effect must lower the leave-one-window-out
+prediction error of its channels (``referee``, ``loo_scores``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import f as f_dist
+
+from bench.diagnosis.effects import Candidate, pose_response
+from bench.diagnosis.effects.base import FloatArray
+from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.library import EFFECT
+from bench.diagnosis.likelihood import covariance, gls
+from bench.diagnosis.model_state import ModelState, design, fit_model, scale_matrix
+
+
+def prune_catalogue(
+    ev: StaticEvidence,
+    state: ModelState,
+    pool: list[Candidate],
+    fixed: FloatArray | None,
+    false_alarm: float,
+    notes: dict[str, str],
+) -> list[str]:
+    """Drop catalogue effects that entered before a library term and are not needed once it is in.
+
+    Each catalogue effect of the model is removed in turn (weakest first) and its Wald
+    statistic, under the model's noise, judged against the gate it passed to enter; one
+    that fails it is dropped and the model refitted (a library term that mimics the
+    catalogue never enters in the first place: it is tried after the catalogue).
+    """
+    assert state.noise is not None and state.fit is not None
+    dropped: list[str] = []
+    if not any(c.effect.startswith(EFFECT + ":") for c in state.candidates):
+        return dropped
+    n_cat = len(pool)
+    while True:
+        K = scale_matrix(state.fit)
+        X = design(ev, K, state.candidates)
+        C = covariance(ev.V, ev.mid_s, state.noise, pose_response(ev, K), fixed)
+        z = ev.y.reshape(-1)
+        full = gls(X, z, C).chi2
+        weakest: tuple[float, str, float] | None = None
+        for effect in dict.fromkeys(c.effect for c in state.candidates):
+            if effect.startswith(EFFECT + ":"):
+                continue
+            keep = [c for c in state.candidates if c.effect != effect]
+            q = sum(len(c.names) for c in state.candidates if c.effect == effect)
+            lr = gls(design(ev, K, keep), z, C).chi2 - full
+            gate = q * float(f_dist.ppf(1.0 - false_alarm / max(n_cat, 1), q, ev.n_obs - X.shape[1]))
+            if lr < gate and (weakest is None or lr / gate < weakest[0]):
+                weakest = (lr / gate, effect, lr)
+        if weakest is None:
+            return dropped
+        _, effect, lr = weakest
+        dropped.append(effect)
+        state.candidates = [c for c in state.candidates if c.effect != effect]
+        state.steps = [s for s in state.steps if s.effect != effect]
+        terms = ", ".join(c.label for c in state.candidates if c.effect.startswith(EFFECT + ":"))
+        notes[effect] = (
+            f"entered before the library's {terms} and is not needed once it is in "
+            f"(its statistic falls to {lr:.1f}, below its gate): dropped"
+        )
+        state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise)
+
+
+def loo_scores(ev: StaticEvidence, X: FloatArray, C: FloatArray) -> FloatArray:
+    """(3,) leave-one-window-out prediction error per channel: Σ_w r_wi² / C_ww,ii with
+    r_w = y_w − X_w θ̂₋w, θ̂₋w the GLS estimate without window w's three rows (C's submatrix)."""
+    z = ev.y.reshape(-1)
+    out = np.zeros(3)
+    for w in range(ev.m):
+        keep = np.ones(ev.n_obs, dtype=bool)
+        keep[3 * w : 3 * w + 3] = False
+        try:
+            th = gls(X[keep], z[keep], C[np.ix_(keep, keep)]).theta
+        except ValueError:
+            return np.full(3, np.inf)
+        r = z[3 * w : 3 * w + 3] - X[3 * w : 3 * w + 3] @ th
+        out += r * r / np.diag(C)[3 * w : 3 * w + 3]
+    return out
+
+
+def referee(
+    ev: StaticEvidence, state: ModelState, fixed: FloatArray | None, notes: dict[str, str]
+) -> list[str]:
+    """Out-of-sample referee of the structured effects (catalogue and library).
+
+    Each effect in the model must lower the leave-one-window-out prediction error
+    (``loo_scores``) of the channels it acts on, under the model's noise; a term that only
+    bends the fit towards the windows it was fitted to (a random pattern that a few columns
+    happen to follow) predicts a left-out window no better than the model without it. The
+    worst offender is dropped and the model refitted, until every effect earns its place.
+    Returns the effects dropped.
+    """
+    dropped: list[str] = []
+    while True:
+        assert state.noise is not None and state.fit is not None
+        K = scale_matrix(state.fit)
+        effects = list(dict.fromkeys(c.effect for c in state.candidates))
+        if not effects:
+            return dropped
+        C = covariance(ev.V, ev.mid_s, state.noise, pose_response(ev, K), fixed)
+        full = loo_scores(ev, design(ev, K, state.candidates), C)
+        worst: tuple[float, str, float, float] | None = None
+        for effect in effects:
+            mine = [c for c in state.candidates if c.effect == effect]
+            chans = sorted({i for c in mine for i in c.channels})
+            keep = [c for c in state.candidates if c.effect != effect]
+            without = loo_scores(ev, design(ev, K, keep), C)
+            gain = float(np.sum(without[chans]) - np.sum(full[chans]))
+            if gain <= 0 and (worst is None or gain < worst[0]):
+                worst = (gain, effect, float(np.sum(without[chans])), float(np.sum(full[chans])))
+        if worst is None:
+            return dropped
+        gain, effect, before, after = worst
+        dropped.append(effect)
+        state.candidates = [c for c in state.candidates if c.effect != effect]
+        state.steps = [s for s in state.steps if s.effect != effect]
+        notes[effect.removeprefix(EFFECT + ":")] = (
+            "passed its gate but does not predict a left-out window better than the model without it "
+            f"(leave-one-window-out chi2 {after:.1f} with it, {before:.1f} without): a pattern the "
+            "windows happen to follow, not claimed"
+        )
+        state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise)

@@ -3,7 +3,7 @@ YAML, a C header and a plain JSON for firmware.
 
 Every export carries the correction of the first-order model raw = b + K·f (``calbench
 calibrate --json``): f = M·(raw − b) with M = K⁻¹, f the specific force in m/s², raw in the
-channel unit. Pure: a contract dict in, text out.
+channel unit. Pure: a :class:`bench.fitted_model.FittedModel` in, text out.
 
 * ``imucal``: imucal's ``FerrarisCalibrationInfo`` JSON (format 2.0.0). imucal applies
   acc = R_a⁻¹·K_a⁻¹·(raw − b_a), so K = K_a·R_a with K_a = diag(|K_i|) (the norm of each row
@@ -21,10 +21,11 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
+from bench.fitted_model import FittedModel
 
 FORMATS = ("imucal", "kalibr", "c-header", "json")
 """Export formats, by name."""
@@ -33,60 +34,57 @@ MEDIA_TYPES = {"imucal": "application/json", "kalibr": "application/yaml", "c-he
 SUFFIX = {"imucal": ".imucal.json", "kalibr": ".kalibr.yaml", "c-header": ".h", "json": ".correction.json"}
 
 
-def _model(contract: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, str]:
-    try:
-        b = np.asarray(contract["bias"], dtype=float)
-        K = np.asarray(contract["scale_matrix"], dtype=float)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ValueError(f"the fit lacks bias or scale_matrix: {exc!r}") from exc
+def _model(fit: FittedModel) -> tuple[np.ndarray, np.ndarray, str]:
+    b = np.asarray(fit.bias, dtype=float)
+    K = np.asarray(fit.K, dtype=float)
     if b.shape != (3,) or K.shape != (3, 3) or not (np.all(np.isfinite(b)) and np.all(np.isfinite(K))):
         raise ValueError(f"bias must be 3 and scale_matrix 3x3 finite numbers, got {b.shape} and {K.shape}")
     if abs(np.linalg.det(K)) < 1e-12 * np.linalg.norm(K) ** 3:
         raise ValueError(f"scale_matrix is singular: {K.tolist()}")
-    return b, K, str(contract.get("channel_unit", ""))
+    return b, K, fit.channel_unit
 
 
-def correction(contract: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+def correction(fit: FittedModel) -> tuple[np.ndarray, np.ndarray]:
     """(b (3,), M = K⁻¹ (3, 3)): f = M·(raw − b) in m/s².
 
-    :raises ValueError: a missing, non-finite or singular model.
+    :raises ValueError: a non-finite or singular model.
     """
-    b, K, _ = _model(contract)
+    b, K, _ = _model(fit)
     return b, np.linalg.inv(K)
 
 
-def _serial(contract: Mapping[str, Any]) -> str:
-    return str(contract.get("unit") or "unknown")
+def _serial(fit: FittedModel) -> str:
+    return fit.unit_serial or "unknown"
 
 
-def to_json(contract: Mapping[str, Any], source: str = "") -> str:
+def to_json(fit: FittedModel, source: str = "") -> str:
     """The plain correction JSON (``calbench-correction/1``)."""
-    b, M = correction(contract)
+    b, M = correction(fit)
     return json.dumps(
         {
             "format": "calbench-correction/1",
-            "unit_serial": _serial(contract),
+            "unit_serial": _serial(fit),
             "source": source,
-            "channel_unit": str(contract.get("channel_unit", "")),
+            "channel_unit": fit.channel_unit,
             "equation": "f_m_s2 = correction_matrix @ (raw - bias)",
             "bias": b.tolist(),
             "correction_matrix": M.tolist(),
-            "scale_matrix": np.asarray(contract["scale_matrix"], float).tolist(),
+            "scale_matrix": np.asarray(fit.K, float).tolist(),
         },
         indent=2,
     )
 
 
-def to_imucal(contract: Mapping[str, Any], source: str = "") -> str:
+def to_imucal(fit: FittedModel, source: str = "") -> str:
     """imucal's ``FerrarisCalibrationInfo`` JSON (accelerometer; gyroscope terms identity)."""
-    b, K, unit = _model(contract)
+    b, K, unit = _model(fit)
     norms = np.linalg.norm(K, axis=1)
     doc = {
         "acc_unit": "m/s^2",
         "gyr_unit": "deg/s",
         "from_acc_unit": unit or "a.u.",
         "from_gyr_unit": "deg/s",
-        "comment": f"calbench calibration of unit {_serial(contract)} {source}".strip()
+        "comment": f"calbench calibration of unit {_serial(fit)} {source}".strip()
         + ": accelerometer only; the gyroscope terms are the identity (no gyroscope was calibrated)",
         "K_a": np.diag(norms).tolist(),
         "R_a": (K / norms[:, None]).tolist(),
@@ -106,7 +104,7 @@ def _yaml_list(values: Any) -> str:
 
 
 def to_kalibr(
-    contract: Mapping[str, Any],
+    fit: FittedModel,
     *,
     sample_rate_hz: float,
     noise_density_m_s2_sqrt_hz: float,
@@ -125,11 +123,11 @@ def to_kalibr(
             raise ValueError(f"kalibr export: accelerometer {name} must be a finite number >= 0, got {v!r}")
     if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
         raise ValueError(f"kalibr export: sample rate must be > 0 Hz, got {sample_rate_hz!r}")
-    b, M = correction(contract)
-    unit = str(contract.get("channel_unit", ""))
+    b, M = correction(fit)
+    unit = fit.channel_unit
     rows = "\n".join(f"      - {_yaml_list(r)}" for r in M)
     return (
-        f"# calbench calibration of unit {_serial(contract)} {source}\n".replace(" \n", "\n")
+        f"# calbench calibration of unit {_serial(fit)} {source}\n".replace(" \n", "\n")
         + "# Kalibr IMU layout; the gyroscope was not calibrated (its noise values are 0: not measured)\n"
         "imu0:\n"
         f"  rostopic: {rostopic}\n"
@@ -153,17 +151,17 @@ def _c_name(serial: str) -> str:
     return re.sub(r"[^A-Za-z0-9]", "_", serial).upper()
 
 
-def to_c_header(contract: Mapping[str, Any], source: str = "") -> str:
+def to_c_header(fit: FittedModel, source: str = "") -> str:
     """A C99 header: the bias, the correction matrix and ``calbench_correct(raw, f_m_s2)``."""
-    b, M = correction(contract)
-    serial = _serial(contract)
+    b, M = correction(fit)
+    serial = _serial(fit)
     guard = f"CALBENCH_CAL_{_c_name(serial)}_H"
 
     def num(v: float) -> str:
         return f"{float(v):.17g}"
 
     rows = ",\n    ".join("{" + ", ".join(num(v) for v in r) + "}" for r in M)
-    unit = str(contract.get("channel_unit", "")).replace("*/", "")
+    unit = fit.channel_unit.replace("*/", "")
     comment = f"calbench calibration of unit {serial} {source}".strip().replace("*/", "")
     return f"""/* {comment}
  * f [m/s^2] = CALBENCH_CORRECTION * (raw - CALBENCH_BIAS), raw in {unit} */

@@ -10,7 +10,7 @@ format ``calbench-unit-limits/1``) give, per model:
 * ``cross_axis_max``: each off-diagonal ratio K_ij / K_ii (the sensitivity of channel i to
   axis j relative to its own, ≈ the misalignment angle in rad) within ``±cross_axis_max``;
 * ``g_error_after_max_m_s2``: the |g| check after correction (mean of |f̂| − g over the
-  poses, ``g_check.after.mean_error_m_s2`` of the contract) within ``±`` this.
+  poses, ``g_check.after.mean_error_m_s2`` of ``calibrate --json``) within ``±`` this.
 
 Decision rule (ILAC-G8:09/2019 §4.2), chosen per model by the optional key ``decision_rule``:
 
@@ -30,7 +30,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bench.records import LimitCheck, Outcome
+from bench.fitted_model import FittedModel
+from bench.limit_check import LimitCheck
+from bench.records import Outcome
 
 DEFAULT_LIMITS_FILE = Path(__file__).with_name("data") / "unit_limits.json"
 FORMAT = "calbench-unit-limits/1"
@@ -175,54 +177,51 @@ def load_limits(path: str | Path | None = None) -> dict[str, UnitLimits]:
     return {name: UnitLimits.from_spec(name, spec, str(path)) for name, spec in doc["models"].items()}
 
 
-def checked_values(contract: Mapping[str, Any]) -> dict[str, float]:
-    """The values the limits check, by limit name, from a ``calibrate --json`` object.
-
-    :raises ValueError: the contract lacks a checked value.
-    """
-    try:
-        b = [float(v) for v in contract["bias"]]
-        K = [[float(v) for v in row] for row in contract["scale_matrix"]]
-        g_after = float(contract["g_check"]["after"]["mean_error_m_s2"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ValueError(f"the fit lacks a value the limits check: {exc!r}") from exc
-    values = {f"bias_{a}": b[i] for i, a in enumerate(AXES)}
-    values.update({f"scale_{a}": K[i][i] for i, a in enumerate(AXES)})
+def checked_values(fit: FittedModel) -> dict[str, float]:
+    """The values the limits check, by limit name: b_i, K_ii, K_ij / K_ii and the mean |g|
+    error after correction (m/s²)."""
+    b, K = fit.bias, fit.K
+    values = {f"bias_{a}": float(b[i]) for i, a in enumerate(AXES)}
+    values.update({f"scale_{a}": float(K[i, i]) for i, a in enumerate(AXES)})
     values.update(
-        {f"cross_axis_{AXES[i]}{AXES[j]}": K[i][j] / K[i][i] for i in range(3) for j in range(3) if i != j}
+        {
+            f"cross_axis_{AXES[i]}{AXES[j]}": float(K[i, j] / K[i, i])
+            for i in range(3)
+            for j in range(3)
+            if i != j
+        }
     )
-    values["g_error_after"] = g_after
+    values["g_error_after"] = fit.g_after.mean_error_m_s2
     return values
 
 
 def evaluate(
-    contract: Mapping[str, Any], limits: UnitLimits, uncertainties: Mapping[str, float] | None = None
+    fit: FittedModel, limits: UnitLimits, uncertainties: Mapping[str, float] | None = None
 ) -> tuple[LimitCheck, ...]:
-    """Check a ``calibrate --json`` object against a model's limits (order of ``limits.limits``)
-    under the model's decision rule.
+    """Check a fit against a model's limits (order of ``limits.limits``) under the model's
+    decision rule.
 
     :param uncertainties: expanded uncertainty U of each checked value by limit name
         (:func:`checked_values` names); required by guarded acceptance, stated otherwise.
-    :raises ValueError: the channel units differ, the contract lacks a checked value, or
-        guarded acceptance lacks a U.
+    :raises ValueError: the channel units differ, or guarded acceptance lacks a U.
     """
-    if contract.get("channel_unit") != limits.channel_unit:
+    if fit.channel_unit != limits.channel_unit:
         raise ValueError(
             f"limits of {limits.model} are for {limits.channel_unit} outputs, the fit is in "
-            f"{contract.get('channel_unit')!r}"
+            f"{fit.channel_unit!r}"
         )
-    values = checked_values(contract)
+    values = checked_values(fit)
     us = uncertainties or {}
     return tuple(lim.check(values[lim.name], us.get(lim.name), limits.decision_rule) for lim in limits.limits)
 
 
 def verdict(
-    contract: Mapping[str, Any], limits: UnitLimits | None, uncertainties: Mapping[str, float] | None = None
+    fit: FittedModel, limits: UnitLimits | None, uncertainties: Mapping[str, float] | None = None
 ) -> tuple[Outcome, tuple[LimitCheck, ...]]:
     """PASS when every check passes (or no limits apply), else FAIL; with the checks."""
     if limits is None:
         return Outcome.PASS, ()
-    checks = evaluate(contract, limits, uncertainties)
+    checks = evaluate(fit, limits, uncertainties)
     return (Outcome.PASS if all(c.passed for c in checks) else Outcome.FAIL), checks
 
 

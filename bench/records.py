@@ -1,11 +1,12 @@
-"""What a bench run produces, as plain frozen data, and the observer protocol that receives it.
+"""What a bench run produces, as plain frozen data.
 
 A run is executed by :mod:`bench.sequencer`; everything that wants to know about it (the
-database, the REST service, a progress bar) implements :class:`RunObserver` and is handed
-these records as the run goes (openhtf's ``TestRecord`` + output callbacks). The samples
-themselves go to the recording (``bench.run_recorder``), not through observers: an observer
-learns *that* a chunk of samples is safely on disk (:class:`ChunkRecord`) and *that* a window
-is complete (:class:`WindowRecord`), which is what a restart needs to resume.
+database, the REST service, a progress bar) implements
+:class:`bench.run_observer.RunObserver` and is handed these records as the run goes
+(openhtf's ``TestRecord`` + output callbacks). The samples themselves go to the recording
+(``bench.run_recorder``), not through observers: an observer learns *that* a chunk of
+samples is safely on disk (:class:`ChunkRecord`) and *that* a window is complete
+(:class:`WindowRecord`), which is what a restart needs to resume.
 
 Life of a run (:class:`RunState`)::
 
@@ -31,7 +32,12 @@ import secrets
 import socket
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING
+
+from bench.limit_check import LimitCheck
+
+if TYPE_CHECKING:
+    from bench.calibration.result import CalibrationResult
 
 
 class RunState(enum.Enum):
@@ -292,35 +298,6 @@ class Progress:
 
 
 @dataclass(frozen=True)
-class LimitCheck:
-    """One fitted value checked against its tolerance.
-
-    :param name: what was checked, e.g. ``"bias_x"``.
-    :param unit: unit of ``value``, ``low``, ``high``.
-    :param value: the fitted value.
-    :param low: lower limit (``None``: unbounded).
-    :param high: upper limit (``None``: unbounded).
-    :param passed: the decision rule's verdict: ``acceptance_low <= value <= acceptance_high``.
-    :param expanded_uncertainty: U of ``value`` (k ≈ 2, the certificate's), ``None`` when not known.
-    :param acceptance_low: lower acceptance limit: ``low`` (simple acceptance) or ``low + U``
-        (guarded acceptance, guard band w = U); ``None``: unbounded.
-    :param acceptance_high: upper acceptance limit: ``high`` or ``high - U``.
-    :param rule: the decision rule (``bench.limits.DECISION_RULES`` key).
-    """
-
-    name: str
-    unit: str
-    value: float
-    low: float | None
-    high: float | None
-    passed: bool
-    expanded_uncertainty: float | None = None
-    acceptance_low: float | None = None
-    acceptance_high: float | None = None
-    rule: str = "simple-acceptance"
-
-
-@dataclass(frozen=True)
 class RunRecord:
     """The finished run (or the state it was left in), handed to every observer at the end.
 
@@ -330,8 +307,9 @@ class RunRecord:
     :param windows: every completed window, including those recorded before a resume.
     :param ended_at: wall-clock end (UTC).
     :param error: for ERROR: what broke and where (one line), else ``None``.
-    :param calibration: the fit as the ``calbench calibrate --json`` contract object, or
-        ``None`` when no fit was made (ERROR, ABORTED, too few windows).
+    :param calibration: the fit (an observer that stores it writes its
+        ``calbench calibrate --json`` object), or ``None`` when no fit was made (ERROR,
+        ABORTED, too few windows).
     :param limit_checks: the unit's limits evaluated on the fit (empty: no limits given).
     :param n_samples: samples in the recording.
     :param dwell: the dwell choice actually used.
@@ -346,7 +324,7 @@ class RunRecord:
     windows: tuple[WindowRecord, ...]
     ended_at: datetime = field(default_factory=utc_now)
     error: str | None = None
-    calibration: dict[str, object] | None = None
+    calibration: CalibrationResult | None = None
     limit_checks: tuple[LimitCheck, ...] = ()
     n_samples: int = 0
     dwell: DwellChoice | None = None
@@ -358,54 +336,3 @@ class RunRecord:
     def run_id(self) -> str:
         """The run's id."""
         return self.start.run_id
-
-
-@runtime_checkable
-class RunObserver(Protocol):
-    """Receives a run's records as they happen (the database, the service, a progress bar).
-
-    Calls come from the sequencer's thread, in order: ``on_start``, then any number of
-    ``on_state`` / ``on_progress`` / ``on_chunk`` / ``on_window``, then ``on_finish``
-    exactly once (also after an error or an abort). An observer must not block for long
-    (the DAQ buffer is being drained between calls) and should not raise; an exception
-    from an observer ends the run as ERROR with the observer named.
-    """
-
-    def on_start(self, start: RunStart) -> None:
-        """A run starts, or a resumed run starts again (``start.resumed_from_window`` set)."""
-        return None
-
-    def on_state(self, run_id: str, change: StateChange) -> None:
-        """The run changed state (pause, suspension, resume)."""
-        return None
-
-    def on_progress(self, run_id: str, progress: Progress) -> None:
-        """Periodic progress (a few times a second at most)."""
-        return None
-
-    def on_chunk(self, run_id: str, chunk: ChunkRecord) -> None:
-        """A chunk of samples is flushed and fsync'ed to the recording."""
-        return None
-
-    def on_window(self, run_id: str, window: WindowRecord) -> None:
-        """A window is complete: samples flushed, segment written to the sidecar."""
-        return None
-
-    def on_dwell(self, run_id: str, dwell: DwellChoice) -> None:
-        """The dwell time was chosen (at the start, or after the noise window)."""
-        return None
-
-    def on_finish(self, record: RunRecord) -> None:
-        """The run ended (any outcome)."""
-        return None
-
-    # Optional: ``on_gap(run_id: str, gap: GapRecord) -> None`` is called, when an observer
-    # defines it, as soon as a sample gap is recorded (before the window is re-measured).
-
-
-class NullObserver(RunObserver):
-    """A :class:`RunObserver` that ignores everything (each method is the protocol's own, which
-    returns at once); subclass it and override what you need."""
-
-    def on_gap(self, run_id: str, gap: GapRecord) -> None:
-        """Ignored (the optional hook of the module's observers)."""

@@ -67,7 +67,7 @@ def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
         axes, mount = table.axis_vectors, table.mount_matrix
         qu = rec.table_rad_unwrapped()
         assert qu is not None
-        peak = float(np.max(np.abs(np.diff(qu, axis=0)) / np.diff(t)[:, None])) if t.size > 1 else 0.0
+        peak = _peak_rate_rad_s(qu, t)
     known = known_f is not None
     f = known_f if known_f is not None else _scalar_force(rec, y, V, g)
     return StaticEvidence(
@@ -86,6 +86,22 @@ def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
         window_samples=tuple(rec.accel_raw[w.slice] for w in wins),
         sample_rate_hz=rec.sidecar.sample_rate_hz,
     )
+
+
+PEAK_RATE_CHUNK = 1 << 16
+
+
+def _peak_rate_rad_s(q_rad: np.ndarray, t_s: np.ndarray) -> float:
+    """max over samples and axes of |q[i+1] − q[i]| / (t[i+1] − t[i]) (rad/s), 0 for one sample.
+
+    :param q_rad: (n, k) unwrapped encoder angles; :param t_s: (n,) time (s). Taken
+    :data:`PEAK_RATE_CHUNK` steps at a time, so the temporaries stay small.
+    """
+    peak = 0.0
+    for a in range(0, t_s.size - 1, PEAK_RATE_CHUNK):
+        b = min(t_s.size, a + PEAK_RATE_CHUNK + 1)
+        peak = max(peak, float(np.max(np.abs(np.diff(q_rad[a:b], axis=0)) / np.diff(t_s[a:b])[:, None])))
+    return peak
 
 
 def _scalar_force(rec: Recording, y: np.ndarray, V: np.ndarray, g: float) -> np.ndarray:

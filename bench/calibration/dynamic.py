@@ -28,7 +28,7 @@ centripetal and tangential acceleration, |f̂| − g averaged over blocks of 1 s
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -46,10 +46,12 @@ from bench.estimation.dynamic_model import (
     initial_theta,
     positions,
     predict,
+    sample_chunks,
 )
 from bench.estimation.g_check import GCheck
 from bench.estimation.observability import USEFUL_SIGMA, fisher_information, information_report
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
+from bench.fitted_model import DYNAMIC_BATCH, FittedModel
 from bench.recording import Recording
 
 FloatArray = npt.NDArray[np.float64]
@@ -106,6 +108,10 @@ class DynamicCalibrationResult(CalibrationResult):
         """bias, scale_matrix and the fitted extra terms (contract effect ids)."""
         return ["bias", "scale_matrix", *self.extra]
 
+    def fitted_model(self) -> FittedModel:
+        """The fitted model with the extra terms and the method (``dynamic-batch``)."""
+        return replace(super().fitted_model(), extra=self.extra, method=DYNAMIC_BATCH)
+
     def to_contract(self) -> dict[str, Any]:
         """The contract object; adds ``extra_sigma``, ``not_fitted``, ``method``, ``kalman_check``
         and ``model_selection``."""
@@ -113,7 +119,7 @@ class DynamicCalibrationResult(CalibrationResult):
         out["extra"] = self.extra
         out["extra_sigma"] = self.extra_sigma
         out["not_fitted"] = self.not_fitted
-        out["method"] = "dynamic-batch"
+        out["method"] = DYNAMIC_BATCH
         out["kalman_check"] = self.kalman
         out["model_selection"] = self.model_selection
         return out
@@ -186,11 +192,13 @@ def _corrected_gravity(fit: DynamicFit, m: MotionData, y: FloatArray, lever: Flo
     spec, th = fit.spec, fit.theta
     b, K = th[:3], th[3:12].reshape(3, 3)
     Q = positions(th, spec, lever)
-    Be = m.B
-    if "time_skew" in spec.terms:
-        d = th[spec.index("time_skew")][0]
-        Be = m.B - d * m.B_dot + 0.5 * d * d * m.B_ddot
-    f_motion = np.einsum("nic,ic->ni", Be, Q)
+    f_motion = np.empty((m.n, 3))
+    for s in sample_chunks(m.n):  # B_δ per sample: chunks bound the (chunk, 3, 3) temporaries
+        Be = m.B[s]
+        if "time_skew" in spec.terms:
+            d = th[spec.index("time_skew")][0]
+            Be = m.B[s] - d * m.B_dot[s] + 0.5 * d * d * m.B_ddot[s]
+        f_motion[s] = np.einsum("nic,ic->ni", Be, Q)
     fhat = np.linalg.solve(K, (y - b).T).T
     if "nonlinearity_quadratic" in spec.terms:  # one fixed-point step removes the k2 f² term
         k2 = th[spec.index("nonlinearity_quadratic")]

@@ -1,6 +1,7 @@
 """Typed results of a calibration: one window (:class:`WindowResult`) and one fit
 (:class:`CalibrationResult`), turned into the ``calbench calibrate --json`` object of
-``shared/cli-contract.md`` only by :meth:`CalibrationResult.to_contract`.
+``shared/cli-contract.md`` only by :meth:`CalibrationResult.to_contract`; what limits,
+certificates and exports read of it is :meth:`CalibrationResult.fitted_model`.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import numpy.typing as npt
 
 from bench.calibration.windows import UnusedWindow
 from bench.estimation.g_check import GCheck
+from bench.fitted_model import FittedModel, GCheckSummary
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -58,7 +60,7 @@ class CalibrationResult:
         :class:`bench.calibration.dynamic.DynamicCalibrationResult`).
     :param bias: (3,) channel units.
     :param K: (3, 3) channel unit per m/s² (lower-triangular L for ``"scalar"``).
-    :param cov: (12, 12) for ``"static"`` in ``static_fit.PARAMETER_NAMES`` order,
+    :param cov: (12, 12) for ``"static"`` in ``static_design.PARAMETER_NAMES`` order,
         (9, 9) for ``"scalar"`` in ``scalar_fit.PARAMETER_NAMES`` order, or (p, p) for
         ``"dynamic"`` in ``fit.names`` order (bias and K first, then the extra terms).
     :param bias_sigma: (3,); :param K_sigma: (3, 3) one-sigma (Type A) uncertainties.
@@ -105,6 +107,23 @@ class CalibrationResult:
             return ["bias", "scale_matrix_lower_triangular"]
         return ["bias", "scale_matrix"]
 
+    def fitted_model(self) -> FittedModel:
+        """The fitted model as limits, certificates and exports read it (the values of
+        :meth:`to_contract`, typed)."""
+        return FittedModel(
+            unit_serial=self.unit_serial,
+            channel_unit=self.channel_unit,
+            procedure=self.procedure,
+            bias=self.bias,
+            bias_sigma=self.bias_sigma,
+            K=self.K,
+            K_sigma=self.K_sigma,
+            terms=tuple(self.terms),
+            residual_rms=self.residual_rms,
+            g_after=_g_summary(self.g_after),
+            g_before=None if self.g_before is None else _g_summary(self.g_before),
+        )
+
     def to_contract(self) -> dict[str, Any]:
         """The ``calbench calibrate --json`` object (shared/cli-contract.md)."""
         g_check_out: dict[str, Any] = {}
@@ -128,6 +147,10 @@ class CalibrationResult:
             "unused_windows": [u.to_contract() for u in self.unused_windows],
             "warnings": list(self.warnings),
         }
+
+
+def _g_summary(g: GCheck) -> GCheckSummary:
+    return GCheckSummary(g.mean_error_m_s2, g.std_m_s2)
 
 
 def _g_dict(g: GCheck) -> dict[str, float]:

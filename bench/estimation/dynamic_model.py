@@ -59,6 +59,13 @@ are taken on each stretch between gaps, and a stretch shorter than the window is
 CORNER_JERK_RAD_S3 = 2.0
 """|d³θ/dt³| above this marks a corner of the rate profile (rad/s³); a smooth oscillation
 of the procedures stays below 0.3 rad/s³."""
+KINEMATICS_CHUNK = 1 << 15
+"""Samples whose attitude, rate and acceleration are formed at once in :func:`prepare_motion`:
+the partial rotation products and skew matrices are (chunk, 3, 3) temporaries, not (n, 3, 3)."""
+PREDICT_CHUNK = 1 << 15
+"""Samples whose prediction or specific force :func:`predict` and :func:`specific_force` form at
+once: with ``time_skew`` the corrected regressors G_δ, B_δ and their δ-derivatives are
+(chunk, 3, 3) temporaries, not (n, 3, 3)."""
 TERM_ORDER = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", "table_tilt", "time_skew")
 _AX = "xyz"
 
@@ -179,6 +186,11 @@ def _skew(v: FloatArray) -> FloatArray:
     )
 
 
+def sample_chunks(n: int) -> list[slice]:
+    """Consecutive slices of at most :data:`PREDICT_CHUNK` samples covering ``range(n)``."""
+    return [slice(a, min(a + PREDICT_CHUNK, n)) for a in range(0, n, PREDICT_CHUNK)]
+
+
 def window_samples(sample_rate_hz: float, window_s: float = DERIVATIVE_WINDOW_S) -> int:
     """Odd Savitzky–Golay window length spanning ``window_s``, at least 7 samples."""
     w = max(MIN_WINDOW_SAMPLES, round(window_s * sample_rate_hz))
@@ -228,6 +240,10 @@ def prepare_motion(
 
     def sg(x: FloatArray, deriv: int) -> FloatArray:
         """Savitzky–Golay derivative of x along time, run by run between gaps (zero outside runs)."""
+        if runs == [(0, x.shape[0])]:  # one run without gaps: the filter's own output, no zeroed copy
+            return np.asarray(
+                savgol_filter(x, w, 3, deriv=deriv, delta=h, axis=0, mode="interp"), dtype=float
+            )
         out = np.zeros_like(x)
         for a, b in runs:
             out[a:b] = savgol_filter(x[a:b], w, 3, deriv=deriv, delta=h, axis=0, mode="interp")
@@ -235,16 +251,24 @@ def prepare_motion(
 
     rates, accels, jerk = sg(q, 1), sg(q, 2), sg(q, 3)
     corner = np.any(np.abs(jerk) > CORNER_JERK_RAD_S3, axis=1)
+    del jerk
     if corner.any():
         corner = np.convolve(corner.astype(float), np.ones(w), mode="same") > 0
     corner |= ~usable
-    R_in = inner_attitude(axis_vectors, q)
     M = np.asarray(mount, dtype=float).reshape(3, 3)
-    G = np.einsum("ji,njk->nik", M, np.transpose(R_in, (0, 2, 1)))
-    omega = angular_velocity(axis_vectors, q, rates)
-    W = _skew(omega)
-    A = _skew(angular_acceleration(axis_vectors, q, rates, accels)) + W @ W
-    B = G @ A @ R_in
+    n = t.shape[0]
+    G, B = np.empty((n, 3, 3)), np.empty((n, 3, 3))
+    peak_rate = 0.0
+    for a in range(0, n, KINEMATICS_CHUNK):  # sample by sample: chunks only bound the temporaries
+        s = slice(a, a + KINEMATICS_CHUNK)
+        R_in = inner_attitude(axis_vectors, q[s])
+        G[s] = np.einsum("ji,njk->nik", M, np.transpose(R_in, (0, 2, 1)))
+        omega = angular_velocity(axis_vectors, q[s], rates[s])
+        W = _skew(omega)
+        A = _skew(angular_acceleration(axis_vectors, q[s], rates[s], accels[s])) + W @ W
+        B[s] = G[s] @ A @ R_in
+        peak_rate = max(peak_rate, float(np.max(np.linalg.norm(omega, axis=1))))
+    del rates, accels
     return MotionData(
         t_s=t,
         G=G,
@@ -254,7 +278,7 @@ def prepare_motion(
         G_ddot=sg(G, 2),
         B_ddot=sg(B, 2),
         valid=~corner,
-        peak_rate_rad_s=float(np.max(np.linalg.norm(omega, axis=1))),
+        peak_rate_rad_s=peak_rate,
     )
 
 
@@ -297,8 +321,15 @@ def _forces(
 def specific_force(
     theta: FloatArray, m: MotionData, spec: ModelSpec, g_m_s2: float, lever_arm_m: FloatArray
 ) -> FloatArray:
-    """(n, 3) specific force f_δ each axis feels (m/s²), lever arm, tilt and skew included."""
-    return _forces(theta, m, spec, g_m_s2, lever_arm_m)[0]
+    """(n, 3) specific force f_δ each axis feels (m/s²), lever arm, tilt and skew included.
+
+    Formed :data:`PREDICT_CHUNK` samples at a time: each sample's force depends on that sample
+    alone, so the chunks bound the (chunk, 3, 3) skew-corrected regressors without changing a bit.
+    """
+    out = np.empty((m.n, 3))
+    for s in sample_chunks(m.n):
+        out[s] = _forces(theta, m.take(s), spec, g_m_s2, lever_arm_m)[0]
+    return out
 
 
 def predict(
@@ -312,9 +343,32 @@ def predict(
 ) -> tuple[FloatArray, FloatArray | None]:
     """Model raw output (n, 3) and, if asked, ∂raw/∂θ (n, 3, p).
 
+    Without the Jacobian the output is formed :data:`PREDICT_CHUNK` samples at a time (each
+    sample's prediction depends on that sample alone), so a whole recording's prediction holds
+    only (chunk, 3, 3) temporaries; with it, the caller chooses the samples (the Jacobian is
+    itself (n, 3, p)).
+
     :param theta: (p,) parameters in ``spec.names`` order.
     :param lever_arm_m: (3,) lever arm used when the model does not fit it (m).
     """
+    if not jacobian:
+        out = np.empty((m.n, 3))
+        for s in sample_chunks(m.n):
+            out[s] = _predict_samples(theta, m.take(s), spec, g_m_s2, lever_arm_m, jacobian=False)[0]
+        return out, None
+    return _predict_samples(theta, m, spec, g_m_s2, lever_arm_m, jacobian=True)
+
+
+def _predict_samples(
+    theta: FloatArray,
+    m: MotionData,
+    spec: ModelSpec,
+    g_m_s2: float,
+    lever_arm_m: FloatArray,
+    *,
+    jacobian: bool,
+) -> tuple[FloatArray, FloatArray | None]:
+    """:func:`predict` on all of ``m``'s samples at once."""
     b, K = theta[:3], theta[3:12].reshape(3, 3)
     f, df_dd, Ge, Be = _forces(theta, m, spec, g_m_s2, lever_arm_m)
     dK = np.diag(K)

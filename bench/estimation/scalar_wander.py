@@ -13,7 +13,7 @@ the 1 × 3 loading n_wᵀ, and C⁻¹, ln|C| come from a banded Cholesky factor 
 M = S⁻¹ + Σ_w n_w n_wᵀ / b_w (Woodbury, determinant lemma). ω² and T_c are estimated by
 REML on the linearised fit (design J, the Jacobian of r at the solution; REML does not
 depend on where along J the residuals sit) and used only when they beat ω² = 0 by
-``static_fit.WANDER_GATE``; then Cov(θ) = (Jᵀ C⁻¹ J)⁻¹ with ω² inflated by ν/(ν − 2).
+``static_wander.WANDER_GATE``; then Cov(θ) = (Jᵀ C⁻¹ J)⁻¹ with ω² inflated by ν/(ν − 2).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from scipy.linalg import cho_solve_banded, cholesky_banded
 from scipy.optimize import minimize, minimize_scalar
 
 from bench.estimation.scalar_fit import _TRIL, FloatArray, ScalarFit, _residual_and_jacobian
-from bench.estimation.static_fit import WANDER_GATE, correlation_time_grid
+from bench.estimation.static_wander import WANDER_GATE, correlation_time_grid
 from bench.estimation.window_noise import t_factor
 
 

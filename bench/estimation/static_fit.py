@@ -21,6 +21,9 @@ Parameter order of ``StaticFit.cov`` (12, 12), SI/channel units:
 
 Cov(θ) = (Σ_w H_wᵀ S_w⁻¹ H_w)⁻¹. For white noise and no pose error the estimator reaches the
 Cramér-Rao bound σ²/L · (XᵀX)⁻¹ per channel (research-peers.md §4).
+
+The parameter order, the rows H_w and the identifiability check are in ``static_design``;
+the slow wander correlated between windows in ``static_wander``.
 """
 
 from __future__ import annotations
@@ -29,9 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.stats import chi2 as chi2_dist
 
-from bench.estimation.slow_noise import NoiseParams, fit_noise, gls, window_covariance
+from bench.estimation.slow_noise import gls, window_covariance
+from bench.estimation.static_design import check_design, design_rows
+from bench.estimation.static_wander import fit_slow_wander
 from bench.estimation.window_noise import (
     own_channel_variance,
     pm_statistic,
@@ -42,14 +46,6 @@ from bench.estimation.window_noise import (
 
 FloatArray = npt.NDArray[np.float64]
 
-PARAMETER_NAMES: tuple[str, ...] = (
-    "b_x", "b_y", "b_z",
-    "K_xx", "K_xy", "K_xz",
-    "K_yx", "K_yy", "K_yz",
-    "K_zx", "K_zy", "K_zz",
-)  # fmt: skip
-"""Names of the 12 parameters in the order of ``StaticFit.cov``."""
-
 
 @dataclass(frozen=True)
 class StaticFit:
@@ -57,7 +53,7 @@ class StaticFit:
 
     :param bias: (3,) b in channel units.
     :param K: (3, 3) scale/misalignment, channel unit per m/s²: raw = b + K f.
-    :param cov: (12, 12) covariance in the order of :data:`PARAMETER_NAMES`.
+    :param cov: (12, 12) covariance in the order of :data:`~.static_design.PARAMETER_NAMES`.
     :param residuals: (m, 3) y − b − K f per window, channel units.
     :param normalized_residuals: (m, 3) residuals over their own standard deviation
         √((S_w − H_w Cov(θ) H_wᵀ)_ii) under the full noise model (≈ N(0, 1) when the model holds).
@@ -81,12 +77,12 @@ class StaticFit:
 
     @property
     def params(self) -> FloatArray:
-        """(12,) parameter vector in the order of :data:`PARAMETER_NAMES`."""
+        """(12,) parameter vector in the order of :data:`~.static_design.PARAMETER_NAMES`."""
         return np.concatenate([self.bias, self.K.ravel()])
 
     @property
     def sigma(self) -> FloatArray:
-        """(12,) one-sigma uncertainties in the order of :data:`PARAMETER_NAMES`."""
+        """(12,) one-sigma uncertainties in the order of :data:`~.static_design.PARAMETER_NAMES`."""
         return np.sqrt(np.diag(self.cov))
 
     @property
@@ -98,65 +94,6 @@ class StaticFit:
     def K_sigma(self) -> FloatArray:
         """(3, 3) one-sigma uncertainty of K."""
         return self.sigma[3:].reshape(3, 3)
-
-
-_COLUMN_NAMES = ("bias", "K[:,0] (response to f_x)", "K[:,1] (response to f_y)", "K[:,2] (response to f_z)")
-RCOND_LIMIT = 1e-6
-"""Smallest singular value of the normalised design [1 f/|f|] relative to the largest."""
-
-
-def _relation_text(v: FloatArray, f_scale: float) -> str:
-    """Describe the null vector v of [1 f/f_scale] as the relation every window satisfies."""
-    coef = v[1:] / f_scale
-    k = int(np.argmax(np.abs(coef)))
-    coef, const = coef / coef[k], -v[0] / coef[k]
-    const = 0.0 if abs(const) < 1e-9 * f_scale else float(const)
-    axes = ("f_x", "f_y", "f_z")
-    terms = [
-        f"{c:+.3g}·{axes[j]}" if j != k else axes[j] for j, c in enumerate(coef) if abs(c) > 1e-6 or j == k
-    ]
-    lhs = " ".join(terms) if len(terms) > 1 else terms[0]
-    rhs = "0" if const == 0.0 else f"{const:+.4g} m/s²"
-    return f"{lhs.replace('+1·', '+').replace('-1·', '-')} = {rhs}"
-
-
-def check_design(f_m_s2: FloatArray) -> FloatArray:
-    """Design matrix X = [1 f_x f_y f_z] (m, 4), refused if it cannot identify the parameters.
-
-    The 12 parameters are identifiable iff X has full column rank 4, i.e. the specific
-    forces do not all lie on one plane (a constant component is a plane too). The null
-    space of the column-normalised X names the confounded parameters and the relation
-    the orientations share.
-
-    :param f_m_s2: (m, 3) specific force per window (m/s²).
-    :returns: (m, 4) design matrix.
-    :raises ValueError: fewer than 4 windows, or rank/conditioning too low; the message
-        names the parameters that cannot be determined.
-    """
-    f = np.asarray(f_m_s2, dtype=float)
-    m = f.shape[0]
-    if m < 4:
-        raise ValueError(f"at least 4 static windows with well-spread orientations are needed, got {m}")
-    X = np.column_stack([np.ones(m), f])
-    f_scale = float(np.median(np.linalg.norm(f, axis=1)))
-    if not f_scale > 0:
-        raise ValueError("specific force is zero in most windows: no gravity reference to calibrate against")
-    Xn = np.column_stack([np.ones(m), f / f_scale])
-    _, s, Vt = np.linalg.svd(Xn, full_matrices=False)
-    null = Vt[s < RCOND_LIMIT * s[0]]
-    if null.shape[0]:
-        parts = []
-        for v in null:
-            names = [_COLUMN_NAMES[j] for j in np.flatnonzero(np.abs(v) > 0.05 * np.max(np.abs(v)))]
-            joined = " and ".join(names)
-            what = f"{joined} are confounded" if len(names) > 1 else f"{joined} cannot be determined"
-            parts.append(f"{what}: every orientation has {_relation_text(v, f_scale)}")
-        raise ValueError(
-            "degenerate orientation set, the model cannot be identified on any channel: "
-            + "; ".join(parts)
-            + " (use ≥ 4 orientations whose gravity directions do not lie on one plane)"
-        )
-    return X
 
 
 def _validate(f_m_s2: FloatArray, y_mean: FloatArray, y_cov: FloatArray) -> tuple[FloatArray, ...]:
@@ -178,16 +115,6 @@ def _validate(f_m_s2: FloatArray, y_mean: FloatArray, y_cov: FloatArray) -> tupl
         w = int(np.argwhere(d <= 0)[0, 0])
         raise ValueError(f"window {w}: variance of the mean must be positive, got {d[w].tolist()}")
     return f, y, V
-
-
-def design_rows(f: FloatArray) -> FloatArray:
-    """(m, 3, 12) H_w = [I₃, I₃ ⊗ f_wᵀ]: y_w = H_w θ in the order of :data:`PARAMETER_NAMES`."""
-    m = f.shape[0]
-    H = np.zeros((m, 3, 12))
-    for i in range(3):
-        H[:, i, i] = 1.0
-        H[:, i, 3 + 3 * i : 6 + 3 * i] = f
-    return H
 
 
 def _gls(H: FloatArray, y: FloatArray, S: FloatArray) -> tuple[FloatArray, FloatArray, float]:
@@ -235,97 +162,6 @@ def _variance_components(
     return t * t_factor(3 * dof) * M, own * t_factor(dof), t
 
 
-WANDER_GATE = float(chi2_dist.ppf(0.95, 1))
-"""2 Δℓ_REML by which a wander correlated between windows must beat independent window
-errors before the calibration's covariance uses it: the 5 % point of χ²₁ (3.84). The
-independent model, when kept, understates the sigmas of a wander it missed (halves of
-simulated day-long sessions with 2Δℓ of 4–6 disagreed by 4.4 sigma under the 1 % point), so
-the gate errs towards the wander."""
-
-
-@dataclass(frozen=True)
-class SlowWander:
-    """The correlated between-window model of :func:`fit_static` (``slow_noise``).
-
-    :param noise: REML noise (τ² per channel, T_c, pose variance), inflated by ``t_factor``.
-    :param lr: 2 Δℓ_REML of the correlated wander over independent window errors.
-    :param J: (m, 3, 2) response of the window means to the pose angles.
-    :param nugget: (m, 3, 3) independent excess per window kept from the independent fit.
-    """
-
-    noise: NoiseParams
-    lr: float
-    J: FloatArray
-    nugget: FloatArray
-
-
-def correlation_time_grid(mid_s: FloatArray) -> list[float]:
-    """T_c (s) tried for the slow wander: 0.3, 1 and 3 times the span of the windows, and
-    shorter ones down to twice the median window spacing, in steps of 4 (long recordings
-    wander on scales much shorter than their span)."""
-    t = np.sort(np.asarray(mid_s, dtype=float))
-    span = float(t[-1] - t[0]) if t.size > 1 else 0.0
-    if span <= 0:
-        return []
-    grid = [0.3 * span, span, 3.0 * span]
-    spacing = float(np.median(np.diff(t)))
-    tc = 0.3 * span / 4.0
-    while tc >= 2.0 * spacing:
-        grid.insert(0, tc)
-        tc /= 4.0
-    return grid
-
-
-def pose_angles_response(K: FloatArray, f_m_s2: FloatArray) -> FloatArray:
-    """(m, 3, 2) response of each window mean to two small tilt angles (rad) about axes
-    perpendicular to its specific force: J_w = K |f_w| [u1 u2], so that J_w J_wᵀ =
-    |f_w|² K (I − f̂ f̂ᵀ) Kᵀ (the shape of ``window_noise.pose_scatter``)."""
-    f = np.asarray(f_m_s2, dtype=float)
-    fn = np.linalg.norm(f, axis=1, keepdims=True)
-    fh = f / fn
-    e = np.eye(3)[np.argmin(np.abs(fh), axis=1)]
-    u1 = np.cross(e, fh)
-    u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
-    u2 = np.cross(fh, u1)
-    return np.asarray(np.einsum("ik,wkq->wiq", K, fn[:, :, None] * np.stack([u1, u2], axis=2)), dtype=float)
-
-
-def _slow_wander(
-    f: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray, mid_s: FloatArray, own: FloatArray, t: float
-) -> SlowWander | None:
-    """REML fit of a per-channel wander correlated between windows, with the pose scatter.
-
-    τ² (3,), T_c and the pose variance are estimated by REML, T_c on
-    :func:`correlation_time_grid` (screened, then refined), against the same model with
-    T_c = 0 (independent). Returns ``None`` unless the correlated wander wins by
-    :data:`WANDER_GATE`. ``own`` (3,) and ``t`` ((m/s²)², the pose variance) of the
-    independent fit are the starting point.
-    """
-    m = f.shape[0]
-    grid = correlation_time_grid(mid_s)
-    if m <= 5 or not grid:
-        return None
-    X = design_rows(f).reshape(3 * m, 12)
-    z = y.reshape(-1)
-    J = pose_angles_response(K, f)
-    floor = 1e-6 * float(np.median(np.diagonal(V, axis1=1, axis2=2)))
-    g2 = float(np.median(np.sum(f * f, axis=1)))
-    init = NoiseParams(tau2=np.maximum(own, floor), pose_var_rad2=max(t / g2, 1e-12))
-    nugget = own[None, :, None] * np.eye(3)[None] * np.ones((m, 1, 1))
-    common = {"J_pose": J, "estimate_pose": True, "init": init, "fixed": nugget}
-    _, f0 = fit_noise(X, z, V, mid_s, corr_times_s=[0.0], **common)  # type: ignore[arg-type]
-    n1, f1 = fit_noise(X, z, V, mid_s, corr_times_s=grid, refine_corr_time=True, **common)  # type: ignore[arg-type]
-    lr = 2.0 * (f1.loglik_reml - f0.loglik_reml)
-    if lr <= WANDER_GATE or not np.any(n1.tau2 > 0):
-        return None
-    noise = NoiseParams(
-        tau2=n1.tau2 * t_factor(m - 4),
-        corr_time_s=n1.corr_time_s,
-        pose_var_rad2=n1.pose_var_rad2 * t_factor(3 * (m - 4)),
-    )
-    return SlowWander(noise=noise, lr=float(lr), J=J, nugget=nugget)
-
-
 def fit_static(
     f_m_s2: FloatArray,
     y_mean: FloatArray,
@@ -344,8 +180,9 @@ def fit_static(
         ``False`` trusts the within-window covariances alone.
     :param mid_s: (m,) window times (s). With them, a slow wander correlated between
         windows (per channel, exponential correlation, REML; ``slow_noise``) replaces the
-        independent excess when it fits the windows better by :data:`WANDER_GATE`: on a long
-        recording the windows share their errors (drift over the day, temperature) and
+        independent excess when it fits the windows better by
+        :data:`~.static_wander.WANDER_GATE` (:func:`~.static_wander.fit_slow_wander`): on a
+        long recording the windows share their errors (drift over the day, temperature) and
         independent errors would understate the sigmas.
     :returns: :class:`StaticFit`.
     :raises ValueError: bad shapes or values, fewer than 4 windows, or an orientation set
@@ -370,7 +207,7 @@ def fit_static(
         mid = np.asarray(mid_s, dtype=float).reshape(-1)
         if mid.shape != (m,) or not np.all(np.isfinite(mid)):
             raise ValueError(f"window times must be finite (m,) = ({m},), got shape {mid.shape}")
-        slow = _slow_wander(f, y, V, theta[3:].reshape(3, 3), mid, own_part, pose_t)
+        slow = fit_slow_wander(f, y, V, theta[3:].reshape(3, 3), mid, own_part, pose_t)
     if slow is not None:
         wc = window_covariance(V, mid, slow.noise, slow.J, slow.nugget)
         g_fit = gls(H.reshape(3 * m, 12), y.reshape(-1), wc)

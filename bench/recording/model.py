@@ -120,7 +120,42 @@ class Recording:
         return int(self.t_s.shape[0])
 
     def table_rad_unwrapped(self) -> FloatArray | None:
-        """(n, n_axes) encoder angles in radians, unwrapped along time."""
+        """(n, n_axes) encoder angles in radians, unwrapped along time (:func:`unwrap_rad`)."""
         if self.table_deg is None:
             return None
-        return np.unwrap(np.deg2rad(self.table_deg), axis=0)
+        return unwrap_rad(np.deg2rad(self.table_deg))
+
+
+UNWRAP_CHUNK = 1 << 16
+"""Rows unwrapped at once by :func:`unwrap_rad`: its temporaries are (chunk, k), not (n, k)."""
+
+
+def unwrap_rad(angles_rad: FloatArray) -> FloatArray:
+    """``numpy.unwrap(angles_rad, axis=0)`` (period 2π), bit for bit, in place, chunk by chunk.
+
+    numpy's rule: each step dd = p[i] − p[i−1] with |dd| ≥ π is replaced by its value in
+    [−π, π) (+π for dd = π exactly), and the corrections are accumulated by a running sum,
+    u[i] = p[i] + Σ_{j ≤ i} c_j. The running sum is continued across chunks from its last value,
+    which repeats numpy's own sequence of additions, so the result is identical; numpy's
+    version holds about six (n, k) temporaries at once.
+
+    :param angles_rad: (n, k) wrapped angles (rad); overwritten by the result.
+    :returns: ``angles_rad``, unwrapped.
+    """
+    u = angles_rad
+    n = u.shape[0]
+    if n < 2:
+        return u
+    carry = np.zeros((1, u.shape[1]))
+    prev = u[:1].copy()
+    for a in range(1, n, UNWRAP_CHUNK):
+        p = u[a : a + UNWRAP_CHUNK].copy()
+        dd = np.diff(np.concatenate([prev, p]), axis=0)
+        ddmod = np.mod(dd + np.pi, 2.0 * np.pi) - np.pi
+        np.copyto(ddmod, np.pi, where=(ddmod == -np.pi) & (dd > 0))
+        correction = ddmod - dd
+        np.copyto(correction, 0.0, where=np.abs(dd) < np.pi)
+        running = np.cumsum(np.concatenate([carry, correction]), axis=0)[1:]
+        u[a : a + UNWRAP_CHUNK] = p + running
+        carry, prev = running[-1:], p[-1:]
+    return u

@@ -1,8 +1,9 @@
 """Read and validate a calbench-recording/1 (CSV samples + JSON sidecar).
 
-The numeric columns are parsed in one ``numpy.loadtxt`` pass (about 1 s per million
-rows of seven columns); only when that pass fails, or an optional column has empty
-fields, is the file walked row by row to find and name the offending row. No row is
+The numeric columns are parsed by ``numpy.loadtxt`` in pieces of a megabyte into the
+recording's preallocated arrays (about 1 s per million rows of seven columns; memory the result
+plus one piece); only when that pass fails, or an optional column has empty fields, is the file walked
+row by row to find and name the offending row. No row is
 ever dropped: a row that cannot be used is an error.
 
 Data rows are numbered from 1 (the first sample); CSV line numbers count the header as
@@ -29,6 +30,7 @@ from bench.inputs import (
 )
 from bench.recording.errors import RecordingError
 from bench.recording.model import FloatArray, Recording, Sidecar
+from bench.recording.numeric_table import count_data_lines, load_columns
 from bench.recording.sidecar import parse_sidecar
 
 ACCEL_COLUMNS = ("ax", "ay", "az")
@@ -210,50 +212,32 @@ def _parse_slow(
     return cols, dict(zip(extras, extra_values, strict=True))
 
 
-def _count_data_lines(p: Path) -> int:
-    """Lines after the header, not counting trailing blank lines (fast, in binary chunks)."""
-    newlines = 0
-    with p.open("rb") as f:
-        while chunk := f.read(1 << 22):
-            newlines += chunk.count(b"\n")
-        size = f.tell()
-        f.seek(max(0, size - (1 << 16)))
-        tail = f.read()
-    trailing = tail[len(tail.rstrip(b"\r\n \t")) :].count(b"\n")
-    return newlines - trailing
-
-
 def _parse_columns(
-    p: Path, names: list[str], numeric: list[str], optional: set[str]
+    p: Path, names: list[str], groups: dict[str, list[str]], optional: set[str]
 ) -> tuple[dict[str, FloatArray], dict[str, list[str]]]:
-    """Numeric columns as float arrays and the other columns as strings.
+    """The numeric columns, by group, as (n, len(group)) float arrays, and the other columns as strings.
 
-    Fast path (no unknown columns): one ``loadtxt`` over all columns, which also checks
-    that every row has as many fields as the header. Otherwise, or when the fast path
-    fails or sees non-finite values or skipped blank lines, the row-by-row parse runs
-    and names the offending row.
+    :param groups: key -> column names (e.g. ``"accel"`` -> ax, ay, az); every numeric column in one group.
+
+    Fast path (no unknown columns): ``loadtxt`` over all columns, chunk by chunk into the
+    preallocated group arrays (``numeric_table.load_columns``), which also checks that every row
+    has as many fields as the header. Otherwise, or when the fast path fails or sees non-finite values
+    or skipped blank lines, the row-by-row parse runs and names the offending row.
     """
+    numeric = [c for cols in groups.values() for c in cols]
     extras = [c for c in names if c not in numeric]
-    n_lines = _count_data_lines(p)
+    n_lines = count_data_lines(p)
     if n_lines == 0:
-        return {c: np.zeros(0) for c in numeric}, {c: [] for c in extras}
+        return {k: np.zeros((0, len(cols))) for k, cols in groups.items()}, {c: [] for c in extras}
     if not extras:
-        try:
-            data = np.loadtxt(
-                p,
-                delimiter=",",
-                skiprows=1,
-                comments=None,
-                ndmin=2,
-                encoding="utf-8-sig",
-                quotechar='"',
-                dtype=float,
-            )
-        except ValueError:
-            data = None
-        if data is not None and data.shape[0] == n_lines and np.all(np.isfinite(data)):
-            return {c: np.ascontiguousarray(data[:, names.index(c)]) for c in numeric}, {}
-    return _parse_slow(p, names, numeric, optional, extras)
+        idx = [[names.index(c) for c in cols] for cols in groups.values()]
+        data = load_columns(p, n_lines, len(names), idx)
+        if data is not None:
+            return dict(zip(groups, data, strict=True)), {}
+    cols, extra_cols = _parse_slow(p, names, numeric, optional, extras)
+    n = cols[numeric[0]].shape[0]
+    stacked = {k: np.column_stack([cols[c] for c in g]) if g else np.zeros((n, 0)) for k, g in groups.items()}
+    return stacked, extra_cols
 
 
 def _check_sample_rate(t: FloatArray, rate_hz: float, csv_p: Path, json_p: Path) -> None:
@@ -275,8 +259,10 @@ def _check_sample_rate(t: FloatArray, rate_hz: float, csv_p: Path, json_p: Path)
 
 
 def _check_table_angles(table_deg: FloatArray, csv_p: Path) -> None:
-    """Encoder readings beyond ±:data:`MAX_TABLE_ANGLE_DEG` are no table's: refuse the first one."""
-    bad = np.argwhere(np.abs(table_deg) > MAX_TABLE_ANGLE_DEG)
+    """Encoder readings beyond ±:data:`MAX_TABLE_ANGLE_DEG` are no table's: refuse the first one.
+
+    Two comparisons, not ``abs``: boolean temporaries of n × axes bytes, not a float copy."""
+    bad = np.argwhere((table_deg > MAX_TABLE_ANGLE_DEG) | (table_deg < -MAX_TABLE_ANGLE_DEG))
     if bad.size:
         r, k = (int(v) for v in bad[0])
         raise RecordingError(
@@ -311,19 +297,19 @@ def read_recording(csv_path: str | Path) -> Recording:
     _expected_columns(names, sc, csv_p, json_p)
     n_axes = len(sc.table.axes) if sc.table is not None else 0
     has_gyro = "gx" in names
-    numeric = [TIME_COLUMN, *ACCEL_COLUMNS, *table_columns(n_axes)]
+    groups = {"t": [TIME_COLUMN], "accel": list(ACCEL_COLUMNS), "table": table_columns(n_axes)}
     optional: set[str] = set()
     if TEMP_COLUMN in names:
-        numeric.append(TEMP_COLUMN)
+        groups["temp"] = [TEMP_COLUMN]
         optional.add(TEMP_COLUMN)
     if has_gyro:
-        numeric.extend(GYRO_COLUMNS)
+        groups["gyro"] = list(GYRO_COLUMNS)
         optional.update(GYRO_COLUMNS)
     try:
-        cols, extra_cols = _parse_columns(csv_p, names, numeric, optional)
+        cols, extra_cols = _parse_columns(csv_p, names, groups, optional)
     except UnicodeDecodeError as exc:
         raise RecordingError(csv_p, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from exc
-    t = cols[TIME_COLUMN]
+    t = cols["t"].reshape(-1)
     if t.size == 0:
         raise RecordingError(csv_p, "no data rows; expected at least one sample after the header", line=2)
     bad = np.flatnonzero(np.diff(t) <= 0)
@@ -339,7 +325,7 @@ def read_recording(csv_path: str | Path) -> Recording:
         )
     _check_sample_rate(t, sc.sample_rate_hz, csv_p, json_p)
     if n_axes:
-        _check_table_angles(np.column_stack([cols[c] for c in table_columns(n_axes)]), csv_p)
+        _check_table_angles(cols["table"], csv_p)
     if sc.segments:
         for i, s in enumerate(sc.segments):
             if s.start_s < t[0] or s.end_s > t[-1]:
@@ -352,10 +338,10 @@ def read_recording(csv_path: str | Path) -> Recording:
     return Recording(
         sidecar=sc,
         t_s=t,
-        accel_raw=np.column_stack([cols[c] for c in ACCEL_COLUMNS]),
-        table_deg=np.column_stack([cols[c] for c in table_columns(n_axes)]) if n_axes else None,
-        temp_c=cols.get(TEMP_COLUMN),
-        gyro_raw=np.column_stack([cols[c] for c in GYRO_COLUMNS]) if has_gyro else None,
+        accel_raw=cols["accel"],
+        table_deg=cols["table"] if n_axes else None,
+        temp_c=cols["temp"].reshape(-1) if "temp" in cols else None,
+        gyro_raw=cols.get("gyro"),
         extra_columns=extra_cols,
         source=str(csv_p),
     )

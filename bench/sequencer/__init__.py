@@ -2,6 +2,8 @@
 
 * ``loop``: :class:`Sequencer`, the run's loop: DAQ pumping, observers, blocking table calls
   under a deadline, the life cycle and its outcome;
+* ``observers``: the run's observers told as one, an observer's failure named;
+* ``progress``: the progress event and its expected duration;
 * ``steps``: what each procedure step does on the table;
 * ``window``: a static or motion window being recorded;
 * ``daq``: the DAQ reader thread and what it hands over (blocks, gaps, restarts);

@@ -42,7 +42,7 @@ class RunContext(Protocol):
     last_temp_c: float
 
     def notify(self, method: str, *args: object) -> None:
-        """Tell every observer (``method`` of :class:`bench.records.RunObserver`)."""
+        """Tell every observer (``method`` of :class:`bench.run_observer.RunObserver`)."""
 
     def set_state(self, state: RunState, reason: str = "") -> None:
         """Change the run's state and tell the observers."""

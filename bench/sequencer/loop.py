@@ -16,7 +16,8 @@ is dropped, the table held, and the window recorded again once the condition cle
 
 Step execution is in :mod:`bench.sequencer.steps` and the safe state in
 :mod:`bench.sequencer.safety`, both over the :class:`~bench.sequencer.context.RunContext` this
-class offers; this module has the loop and life cycle.
+class offers; the observers are told through :mod:`bench.sequencer.observers`, progress is
+computed by :mod:`bench.sequencer.progress`; this module has the loop and life cycle.
 """
 
 from __future__ import annotations
@@ -34,17 +35,18 @@ from bench.records import (
     DwellChoice,
     GapRecord,
     Outcome,
-    Progress,
-    RunObserver,
     RunStart,
     RunState,
     StateChange,
     WindowRecord,
 )
+from bench.run_observer import RunObserver
 from bench.run_recorder import RunRecorder
 from bench.sequencer.control import AbortRequested, Interruption, RunControl, SequencerConfig, WindowSpoiled
 from bench.sequencer.daq import DaqPump, Failed, Gap, Restarted
 from bench.sequencer.deadline import call_with_deadline
+from bench.sequencer.observers import ObserverError, Observers
+from bench.sequencer.progress import run_progress
 from bench.sequencer.safety import make_safe, prepare_table
 from bench.sequencer.steps import execute_steps
 from bench.sequencer.window import WindowCollector
@@ -52,10 +54,6 @@ from drivers.base import Daq, RotaryTable, SampleBlock
 from drivers.errors import DataGap, DeviceError, DeviceTimeout, DriverError
 
 T = TypeVar("T")
-
-
-class ObserverError(Exception):
-    """An observer raised; the run cannot be trusted to be stored."""
 
 
 @dataclass(frozen=True)
@@ -100,7 +98,7 @@ class Sequencer:
         start_window: int = 0,
     ) -> None:
         self.table, self.daq, self.procedure, self.recorder = table, daq, procedure, recorder
-        self.start, self.observers = start, list(observers)
+        self.start, self._observers = start, Observers(observers)
         self.control = control or RunControl()
         self.config = config or SequencerConfig()
         self.dwell = dwell
@@ -132,13 +130,7 @@ class Sequencer:
 
     def notify(self, method: str, *args: object) -> None:
         """Call ``method`` on every observer; an exception becomes :class:`ObserverError`."""
-        for obs in self.observers:
-            try:
-                getattr(obs, method)(*args)
-            except Exception as exc:
-                raise ObserverError(
-                    f"observer {type(obs).__name__}.{method} failed: {type(exc).__name__}: {exc}"
-                ) from exc
+        self._observers.notify(method, *args)
 
     def set_state(self, state: RunState, reason: str = "") -> None:
         """Change state and tell the observers."""
@@ -151,22 +143,16 @@ class Sequencer:
         if not force and now - self._last_progress_wall < self.config.progress_interval_s:
             return
         self._last_progress_wall = now
-        step = self.procedure.steps[min(self.step_index, len(self.procedure.steps) - 1)]
-        n_win = max(1, self.procedure.n_windows)
-        # The preview's duration is an estimate; never let the bar reach its end early.
-        left = (n_win - self.next_window) * self.start.expected_duration_s / n_win
-        expected = max(self.start.expected_duration_s, self.now_s + left)
         self.notify(
             "on_progress",
             self.start.run_id,
-            Progress(
+            run_progress(
+                self.procedure,
                 self.step_index,
-                len(self.procedure.steps),
-                getattr(step, "label", ""),
                 self.window.index if self.window else None,
-                self.procedure.n_windows,
+                self.next_window,
                 self.now_s,
-                expected,
+                self.start.expected_duration_s,
                 self.positions_deg,
                 self.state,
             ),
@@ -212,7 +198,7 @@ class Sequencer:
             action="window re-measured" if w else "between windows",
             daq_epoch=self._daq_epoch,
         )
-        self._notify_gap(gap)
+        self._observers.gap(self.start.run_id, gap)
         if w is not None:
             raise WindowSpoiled(str(err))
 
@@ -229,19 +215,7 @@ class Sequencer:
             restart=True,
         )
         self._daq_epoch += 1
-        self._notify_gap(gap)
-
-    def _notify_gap(self, gap: GapRecord) -> None:
-        for obs in self.observers:
-            hook = getattr(obs, "on_gap", None)
-            if hook is None:
-                continue
-            try:
-                hook(self.start.run_id, gap)
-            except Exception as exc:
-                raise ObserverError(
-                    f"observer {type(obs).__name__}.on_gap failed: {type(exc).__name__}: {exc}"
-                ) from exc
+        self._observers.gap(self.start.run_id, gap)
 
     def _handle_block(self, block: SampleBlock) -> None:
         self._last_sample_wall = time.monotonic()

@@ -1,6 +1,6 @@
 """Uncertainty budget of a static calibration (GUM, JCGM 100:2008): Type A + Type B, per quantity.
 
-The fitted parameters θ = [b_x, b_y, b_z, K_xx, …, K_zz] (``static_fit.PARAMETER_NAMES``) of
+The fitted parameters θ = [b_x, b_y, b_z, K_xx, …, K_zz] (``static_design.PARAMETER_NAMES``) of
 
     y_w = b + K f_w          (window means y_w, specific force f_w, w = 1…m)
 
@@ -45,7 +45,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import t as student_t
 
-from bench.estimation.static_fit import PARAMETER_NAMES, design_rows
+from bench.estimation.static_design import PARAMETER_NAMES, design_rows
 
 FloatArray = npt.NDArray[np.float64]
 

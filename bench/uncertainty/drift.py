@@ -30,7 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from bench.estimation.static_fit import PARAMETER_NAMES
+from bench.estimation.static_design import PARAMETER_NAMES
+from bench.fitted_model import FittedModel
 
 BENCH_COMMON_GROUPS = ("table angle", "base levelling", "local gravity", "DAQ gain", "DAQ offset")
 """Budget groups (prefixes of ``TypeBInput.group``) whose errors are the same in every run on one
@@ -74,13 +75,13 @@ def reference_uncertainty(cert: dict[str, Any], name: str, *, same_bench: bool) 
 
 def compare(
     cert: dict[str, Any],
-    check: dict[str, Any],
+    check: FittedModel,
     k: float,
     *,
     bias_repeatability: Any = None,
     same_bench: bool = False,
 ) -> dict[str, Any]:
-    """Compare a check's fit (``calibrate --json``) with a certificate's content.
+    """Compare a check's fit with a certificate's content.
 
     :param bias_repeatability: (3,) standard deviation of the change of each channel's bias
         between two runs of an unchanged unit (channel units), or ``None`` (zero).
@@ -100,13 +101,14 @@ def compare(
     if u_rep_bias.shape != (3,) or not np.all(np.isfinite(u_rep_bias)):
         raise ValueError(f"bias repeatability must be 3 finite values, got {bias_repeatability!r}")
     res = cert["results"]
-    for name, sigma_key in (("bias", "bias_sigma"), ("scale_matrix", "scale_matrix_sigma")):
+    fitted = {"bias": (check.bias, check.bias_sigma), "scale_matrix": (check.K, check.K_sigma)}
+    for name, (value, sigma) in fitted.items():
         q = res[name]
         ref = np.asarray(q["value"], dtype=float)
         u_cert = np.asarray(q["expanded_uncertainty"], dtype=float) / float(q["k"])
         u_ref, bases[name] = reference_uncertainty(cert, name, same_bench=same_bench)
-        val = np.asarray(check[name], dtype=float)
-        u_val = np.asarray(check[sigma_key], dtype=float)
+        val = np.asarray(value, dtype=float)
+        u_val = np.asarray(sigma, dtype=float)
         u_rep = u_rep_bias if name == "bias" else np.zeros_like(val)
         if ref.shape != val.shape or u_val.shape != val.shape:
             raise ValueError(f"{name}: certificate shape {ref.shape}, check shape {val.shape}")

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
 
 import pytest
 
+from bench.fitted_model import FittedModel
+from bench.limit_check import LimitCheck
 from bench.limits import Limit, load_limits, verdict
 from bench.records import Outcome
+from tests.support.fits import stored_fit
 from tests.support.limits import SPEC
 
 
@@ -19,13 +23,15 @@ def write(tmp_path: Path, models: object, fmt: str = "calbench-unit-limits/1") -
     return p
 
 
-def contract(bias: list[float], K: list[list[float]], g_err: float = 0.001) -> dict[str, object]:
-    return {
-        "channel_unit": "V",
-        "bias": bias,
-        "scale_matrix": K,
-        "g_check": {"after": {"mean_error_m_s2": g_err, "std_m_s2": 0.001}},
-    }
+def contract(
+    bias: list[float], K: list[list[float]], g_err: float = 0.001, channel_unit: str = "V"
+) -> FittedModel:
+    return stored_fit(
+        channel_unit=channel_unit,
+        bias=bias,
+        scale_matrix=K,
+        g_check={"after": {"mean_error_m_s2": g_err, "std_m_s2": 0.001}},
+    )
 
 
 def test_a_fit_inside_every_interval_passes_and_each_excursion_is_named(tmp_path: Path) -> None:
@@ -60,7 +66,7 @@ def test_the_shipped_file_loads_and_a_fit_in_other_units_is_refused() -> None:
     lim = load_limits()["ADXL325"]
     assert lim.channel_unit == "V"
     with pytest.raises(ValueError, match="for V outputs, the fit is in 'g'"):
-        verdict({**contract([0.0] * 3, [[1, 0, 0], [0, 1, 0], [0, 0, 1]]), "channel_unit": "g"}, lim)
+        verdict(contract([0.0] * 3, [[1, 0, 0], [0, 1, 0], [0, 0, 1]], channel_unit="g"), lim)
 
 
 @pytest.mark.parametrize(
@@ -92,3 +98,28 @@ def test_malformed_files_name_the_file_and_key(
         load_limits(path)
     with pytest.raises(ValueError, match="cannot read the limits file"):
         load_limits(tmp_path / "missing.json")
+
+
+def test_a_stored_limit_check_is_read_back_and_a_bad_one_is_named() -> None:
+    check = LimitCheck("bias_x", "V", 1.52, 1.45, 1.55, True, 2e-5, 1.45002, 1.54998, "guarded-acceptance")
+    assert LimitCheck.from_stored(json.loads(json.dumps(dataclasses.asdict(check))), "run R") == check
+    # stored before checks carried U: no U, the acceptance interval is the tolerance interval
+    old = {
+        "name": "scale_x",
+        "unit": "V/(m/s2)",
+        "value": 0.0201,
+        "low": 0.0198,
+        "high": None,
+        "passed": True,
+    }
+    assert LimitCheck.from_stored(old, "run R") == LimitCheck(
+        "scale_x", "V/(m/s2)", 0.0201, 0.0198, None, True, None, 0.0198, None, "simple-acceptance"
+    )
+    with pytest.raises(ValueError, match=r"^run R: limit check 3: key 'passed' is missing$"):
+        LimitCheck.from_stored({k: v for k, v in old.items() if k != "passed"}, "run R: limit check 3")
+    with pytest.raises(ValueError, match=r"^run R: key 'value' must be a number, got '0.02'$"):
+        LimitCheck.from_stored({**old, "value": "0.02"}, "run R")
+    with pytest.raises(ValueError, match=r"^run R: key 'name' is missing$"):
+        LimitCheck.from_stored({k: v for k, v in old.items() if k != "name"}, "run R")
+    with pytest.raises(ValueError, match=r"^run R: must be an object, got list$"):
+        LimitCheck.from_stored([], "run R")

@@ -106,3 +106,56 @@ def test_bad_motion_rejected() -> None:
         prepare_motion(t, np.zeros((8, 1)), [[0, 0, 1]], np.eye(3))
     with pytest.raises(ValueError, match="samples"):
         prepare_motion(t[:3], np.zeros((3, 1)), [[0, 0, 1]], np.eye(3))
+
+
+def test_motion_formed_in_chunks_is_the_motion_formed_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Attitude, rate and acceleration are per-sample: the chunk size may not change a bit of G, B,
+    their derivatives, the corner mask or the peak rate (which may lie in any chunk)."""
+    from bench.estimation import dynamic_model
+
+    run, rec = rate()
+    q = rec.table_rad_unwrapped()
+    monkeypatch.setattr(dynamic_model, "KINEMATICS_CHUNK", rec.t_s.size)
+    whole = prepare_motion(rec.t_s, q, run.axis_vectors, run.mount)
+    monkeypatch.setattr(dynamic_model, "KINEMATICS_CHUNK", 7)
+    chunked = prepare_motion(rec.t_s, q, run.axis_vectors, run.mount)
+    for name in ("G", "G_dot", "G_ddot", "B", "B_dot", "B_ddot", "valid"):
+        np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name), err_msg=name)
+    assert chunked.peak_rate_rad_s == whole.peak_rate_rad_s
+    assert whole.peak_rate_rad_s == pytest.approx(np.radians(200.0), rel=1e-3)  # the rate table's top rate
+
+
+def test_prediction_in_chunks_is_the_prediction_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """predict, specific_force and the sensor rates are per-sample: a chunk size that does not
+    divide the recording (7) gives every bit of the whole-recording products, skew included."""
+    from bench.diagnosis.library_motion import sensor_rates
+    from bench.estimation import dynamic_model
+
+    run, rec = rate()
+    m = prepare_motion(rec.t_s, rec.table_rad_unwrapped(), run.axis_vectors, run.mount)
+    spec = ModelSpec(TERM_ORDER)
+    th = _theta_true(run, spec)
+    g = run.g_local_m_s2
+    monkeypatch.setattr(dynamic_model, "PREDICT_CHUNK", m.n)
+    raw_whole, _ = predict(th, m, spec, g, R_TRUE_M)
+    f_whole = dynamic_model.specific_force(th, m, spec, g, R_TRUE_M)
+    w_whole, dw_whole = sensor_rates(m)
+    monkeypatch.setattr(dynamic_model, "PREDICT_CHUNK", 7)
+    assert m.n % 7 != 0 and len(dynamic_model.sample_chunks(m.n)) == -(-m.n // 7)
+    raw, _ = predict(th, m, spec, g, R_TRUE_M)
+    np.testing.assert_array_equal(raw, raw_whole)
+    np.testing.assert_array_equal(dynamic_model.specific_force(th, m, spec, g, R_TRUE_M), f_whole)
+    w, dw = sensor_rates(m)
+    np.testing.assert_array_equal(w, w_whole)
+    np.testing.assert_array_equal(dw, dw_whole)
+    # the chunked prediction is the model's: the first sample's raw output by hand
+    d = DELAY_TRUE_S
+    gb = g * np.array([np.sin(th[-2]), -np.cos(th[-2]) * np.sin(th[-3]), np.cos(th[-2]) * np.cos(th[-3])])
+    Ge = m.G[0] - d * m.G_dot[0] + 0.5 * d * d * m.G_ddot[0]
+    Be = m.B[0] - d * m.B_dot[0] + 0.5 * d * d * m.B_ddot[0]
+    Q = th[spec.index("proof_mass_offsets")].reshape(3, 3)
+    f0 = Ge @ gb + np.array([Be[i] @ Q[i] for i in range(3)])
+    K = th[3:12].reshape(3, 3)
+    k2 = th[spec.index("nonlinearity_quadratic")]
+    expect = th[:3] + K @ f0 + np.diag(K) * k2 * f0**2 / 9.80665
+    np.testing.assert_allclose(raw[0], expect, rtol=1e-12, atol=1e-12)

@@ -180,6 +180,7 @@ def _yaml_acc(shared_dir: Path, sensor: str, axis: str) -> tuple[float, float]:
     return float(acc_n.group(1)), float(acc_w.group(1))
 
 
+@pytest.mark.slow  # 24 s: Allan fits of the 18 published curves
 def test_imu_utils_curves_give_their_published_noise_levels(shared_dir: Path) -> None:
     """Our fit of imu_utils' own Allan curves lands near the acc_n, acc_w its YAML files publish.
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.estimation.static_fit import PARAMETER_NAMES, fit_static
+from bench.estimation.static_design import PARAMETER_NAMES
+from bench.estimation.static_fit import fit_static
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
 from tests.support.static_sim import G_LOCAL, random_truth, simulate_run, tumble_specific_force
 

@@ -12,7 +12,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.estimation.static_fit import correlation_time_grid, fit_static
+from bench.estimation.static_fit import fit_static
+from bench.estimation.static_wander import correlation_time_grid
 from benchmarks.study_long_recording import LongSession, simulate, study
 
 

@@ -101,10 +101,16 @@ def test_sample_rate_within_tolerance_reads(tmp_path: Path) -> None:
     assert rec.sidecar.sample_rate_hz == 110.0
 
 
-def test_table_angle_offset_by_1e10_deg_is_refused(tmp_path: Path) -> None:
-    rows = [*ROWS[:2], "0.02,1.5,1.5,1.7,0,1e10", ROWS[3]]
+@pytest.mark.parametrize("angle", ["1e10", "-1e10", "1000000.5", "-1000000.5"])
+def test_table_angle_offset_by_1e10_deg_is_refused(tmp_path: Path, angle: str) -> None:
+    rows = [*ROWS[:2], f"0.02,1.5,1.5,1.7,0,{angle}", ROWS[3]]
     err = expect(write(tmp_path, rows), "beyond ±1e+06 deg")
     assert (err.row, err.column) == (3, "table_2")
+
+
+def test_table_angle_of_exactly_1e6_deg_reads(tmp_path: Path) -> None:
+    rows = [*ROWS[:2], "0.02,1.5,1.5,1.7,-1000000,1000000", ROWS[3]]
+    assert read_recording(write(tmp_path, rows)).n_samples == 4
 
 
 def test_wrapped_and_multi_turn_angles_still_read(tmp_path: Path) -> None:

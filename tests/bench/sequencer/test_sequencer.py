@@ -23,7 +23,6 @@ from bench.recording.reader import read_recording
 from bench.records import (
     ChunkRecord,
     DwellChoice,
-    NullObserver,
     Outcome,
     RunStart,
     RunState,
@@ -31,6 +30,7 @@ from bench.records import (
     WindowKind,
     WindowRecord,
 )
+from bench.run_observer import NullObserver
 from bench.run_recorder import RunRecorder
 from bench.sequencer.control import RunControl, SequencerConfig
 from bench.sequencer.loop import Sequencer
@@ -265,6 +265,7 @@ def test_full_static12_run_records_twelve_windows_that_recover_the_truth(tmp_pat
     assert [s.state for s in obs.states] == [RunState.RUNNING]
 
 
+@pytest.mark.slow  # a whole run with its noise window, 17 s
 def test_noise_window_decides_the_dwell_and_it_is_stored(tmp_path: Path) -> None:
     seq, *_, obs, _ = make(tmp_path, quick_static(dwell_s=None))
     acq = seq.run()

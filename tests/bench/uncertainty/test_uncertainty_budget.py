@@ -10,7 +10,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 from scipy.stats import t as student_t
 
-from bench.estimation.static_fit import PARAMETER_NAMES, fit_static
+from bench.estimation.static_design import PARAMETER_NAMES
+from bench.estimation.static_fit import fit_static
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
 from bench.uncertainty.budget import (
     TypeBInput,

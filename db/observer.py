@@ -1,6 +1,6 @@
 """``DbRunObserver``: the database as an output callback of bench runs.
 
-Implements ``bench.records.RunObserver``. Each event is written in its own short
+Implements ``bench.run_observer.RunObserver``. Each event is written in its own short
 transaction (``with factory.begin()``), so the database always holds the state of the
 run up to its last event: the last complete window and the last durable chunk of the
 recording, which is what a restart needs to resume. Transient database errors
@@ -17,15 +17,20 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
 from bench import records as br
+from bench.run_observer import NullObserver
 from db.models import FINAL_STATES, FitKind, Run, RunState
+from db.notify import notify_run
 from db.repo import progress, recovery, results, runs, units
 from db.types import utc_now
+
+if TYPE_CHECKING:
+    from bench.calibration import CalibrationResult
 
 T = TypeVar("T")
 
@@ -61,18 +66,17 @@ def finish_record(s: Session, record: br.RunRecord) -> bool:
     )
 
 
-def fit_kind_for(procedure: str, contract: dict[str, Any]) -> FitKind:
+def fit_kind_for(procedure: str, fit: CalibrationResult) -> FitKind:
     """``scalar`` for the orientation-free fit, ``dynamic`` for rate/oscillation procedures,
     else ``static``."""
-    terms = contract.get("terms") or []
-    if isinstance(terms, list) and "scale_matrix_lower_triangular" in terms:
+    if fit.method == "scalar":
         return FitKind.SCALAR
     if any(word in procedure for word in ("rate", "oscillation", "dynamic")):
         return FitKind.DYNAMIC
     return FitKind.STATIC
 
 
-class DbRunObserver(br.NullObserver):
+class DbRunObserver(NullObserver):
     """Writes runs, windows, chunks, progress, dwell, sample gaps and outcome to the database.
 
     :param session_factory: ``db.engine.make_session_factory(engine)``.
@@ -105,11 +109,16 @@ class DbRunObserver(br.NullObserver):
         self._last_progress: dict[str, float] = {}
         self._first_chunk_pending: set[str] = set()
 
-    def _tx(self, fn: Callable[[Session], T]) -> T:
+    def _tx(self, fn: Callable[[Session], T], notify: str | None = None) -> T:
+        """``fn`` in one transaction, retried on ``OperationalError``; with ``notify`` (a run id)
+        the run's listeners are notified when it commits (:func:`db.notify.notify_run`)."""
         for attempt in range(1, self._retries + 1):
             try:
                 with self._factory.begin() as session:
-                    return fn(session)
+                    out = fn(session)
+                    if notify is not None:
+                        notify_run(session, notify)
+                    return out
             except OperationalError:
                 if attempt == self._retries:
                     raise
@@ -166,7 +175,7 @@ class DbRunObserver(br.NullObserver):
             if start.resumed_from_window is not None:
                 recovery.rewind_run(s, start.run_id, start.resumed_from_window)
 
-        self._tx(write)
+        self._tx(write, notify=start.run_id)
         self._first_chunk_pending.add(start.run_id)
         self._last_progress.pop(start.run_id, None)
 
@@ -246,7 +255,7 @@ class DbRunObserver(br.NullObserver):
             run.params = {**run.params, "sample_gaps": [*gaps, dataclasses.asdict(gap)]}
             s.flush()
 
-        self._tx(write)
+        self._tx(write, notify=run_id)
 
     def on_finish(self, record: br.RunRecord) -> None:
         """Outcome, error, limit checks, any window not yet stored, and the fit (the contract
@@ -277,17 +286,17 @@ class DbRunObserver(br.NullObserver):
             else:
                 finish_record(s, record)
             if record.calibration is not None:
-                contract = dict(record.calibration)
+                contract = record.calibration.to_contract()
                 run.params = {**run.params, "calibration": contract}
                 results.add_fit(
                     s,
                     run_id,
-                    fit_kind_for(run.procedure, contract),
+                    fit_kind_for(run.procedure, record.calibration),
                     contract,
                     covariance=record.fit_covariance,
                     param_names=record.fit_param_names,
                 )
 
-        self._tx(write)
+        self._tx(write, notify=run_id)
         self._first_chunk_pending.discard(run_id)
         self._last_progress.pop(run_id, None)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
@@ -18,6 +18,12 @@ class Bench(IntId, Base):
     """One calibration station: a rotary table and a DAQ, addressed by URL.
 
     ``name`` is unique across the lab, so several benches can share one PostgreSQL database.
+
+    :param agent_seen_at: when the bench's agent last said it was alive (UTC; ``None``: no agent
+        runs, or it stopped cleanly).
+    :param agent_pid, agent_host: that agent's process.
+    :param info: what the agent tells of its bench (JSON): ``procedures`` (the names its table can
+        run) and ``bench_file`` (the bench file's identity: name, version, sha256, path).
     """
 
     __tablename__ = "bench"
@@ -25,6 +31,10 @@ class Bench(IntId, Base):
     name: Mapped[str] = mapped_column(sa.String(100), unique=True)
     table_url: Mapped[str | None] = mapped_column(sa.String(500))
     daq_url: Mapped[str | None] = mapped_column(sa.String(500))
+    agent_seen_at: Mapped[dt.datetime | None]
+    agent_pid: Mapped[int | None]
+    agent_host: Mapped[str | None] = mapped_column(sa.String(255))
+    info: Mapped[dict[str, Any] | None]
 
     units: Mapped[list[Unit]] = relationship(back_populates="bench", lazy="raise")
 

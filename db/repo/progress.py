@@ -14,6 +14,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from db.models import Run, RunWindow, SampleChunk
+from db.notify import notify_run
 
 
 def _finite(name: str, value: float, where: str) -> float:
@@ -49,7 +50,8 @@ def record_window(
     means: Mapping[str, Any] | None = None,
     step_index: int | None = None,
 ) -> RunWindow:
-    """Store completed window ``index`` (0-based) and advance ``last_complete_window``.
+    """Store completed window ``index`` (0-based) and advance ``last_complete_window``; the run's
+    listeners are told at commit (:func:`db.notify.notify_run`).
 
     :param start_s, end_s: window bounds on the recording clock (s), ``end_s >= start_s``.
     :param pose_deg: commanded table angles (deg); must be finite.
@@ -85,6 +87,7 @@ def record_window(
         .values(last_complete_window=index)
         .execution_options(synchronize_session="fetch")
     )
+    notify_run(session, run_id)
     return window
 
 

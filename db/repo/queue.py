@@ -28,6 +28,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from db.models import Bench, Run, RunState, SampleChunk, Unit
+from db.notify import notify_run
 from db.repo.recovery import ResumePoint, resume_point
 from db.types import utc_now
 
@@ -138,6 +139,7 @@ def claim_next_run(
     )
     if getattr(result, "rowcount", 0) != 1:
         return None
+    notify_run(session, run_id)
     run = session.get(Run, run_id, populate_existing=True)
     assert run is not None
     unit = session.get(Unit, run.unit_id)
@@ -185,6 +187,7 @@ def queue_resume(session: Session, run_id: str, *, now: dt.datetime | None = Non
     run.owner_pid, run.owner_host = None, None
     run.heartbeat_at = now or utc_now()
     session.flush()
+    notify_run(session, run_id)
     return point
 
 
@@ -209,6 +212,7 @@ def request_control(
         run.state, run.outcome, run.finished_at, run.heartbeat_at = RunState.ABORTED, "ABORTED", now, now
         run.error = f"aborted before it started: {reason or 'operator abort'}"
         session.flush()
+        notify_run(session, run_id)
         return run.state
     if run.state not in (RunState.QUEUED, *HOLDING_STATES):
         return None

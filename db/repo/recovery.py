@@ -19,6 +19,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from db.models import ACTIVE_STATES, RESUMABLE_STATES, Run, RunState, RunWindow, SampleChunk
+from db.notify import notify_run
 from db.types import utc_now
 
 DEFAULT_STALE_AFTER_S = 300.0
@@ -200,7 +201,10 @@ def mark_run_interrupted(
         .values(state=RunState.INTERRUPTED, error=f"interrupted: {reason}", heartbeat_at=now or utc_now())
         .execution_options(synchronize_session="fetch")
     )
-    return bool(getattr(result, "rowcount", 0) == 1)
+    changed = bool(getattr(result, "rowcount", 0) == 1)
+    if changed:
+        notify_run(session, run_id)
+    return changed
 
 
 def rewind_run(session: Session, run_id: str, next_window_index: int) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -12,6 +12,9 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from db.models import Finding, FitKind, FitModel, Run, Unit
+
+if TYPE_CHECKING:  # the type only: the diagnosis package (scipy) stays out of the database layer
+    from bench.diagnosis.stored import StoredFinding
 
 
 def add_fit(
@@ -75,30 +78,24 @@ def latest_fit_for_unit(
     return session.scalars(stmt).one_or_none()
 
 
-def add_findings(session: Session, run_id: str, findings: Iterable[Mapping[str, Any]]) -> list[Finding]:
-    """Store diagnosis findings, each a dict of the ``diagnose --json`` ``findings`` list.
+def add_findings(session: Session, run_id: str, findings: Iterable[StoredFinding]) -> list[Finding]:
+    """Store diagnosis findings (``bench.diagnosis.stored.StoredFinding``, parsed or fresh).
 
-    Keys: ``effect``, ``summary``, ``parameters``, ``sigma``, ``delta_bic`` and
-    optionally ``residual_rms_after``.
+    :raises ValueError: a finding's ``delta_bic`` or ``residual_rms_after`` is not finite (named).
     """
     rows = []
     for i, f in enumerate(findings):
-        missing = [k for k in ("effect", "summary") if k not in f]
-        if missing:
-            raise ValueError(f"run {run_id} finding {i}: missing {', '.join(missing)}")
-        numbers = {}
-        for key in ("delta_bic", "residual_rms_after"):
-            value = f.get(key)
-            if value is not None and not math.isfinite(float(value)):
+        numbers = {"delta_bic": f.delta_bic, "residual_rms_after": f.residual_rms_after}
+        for key, value in numbers.items():
+            if value is not None and not math.isfinite(value):
                 raise ValueError(f"run {run_id} finding {i}: {key} = {value!r} is not finite")
-            numbers[key] = None if value is None else float(value)
         rows.append(
             Finding(
                 run_id=run_id,
-                effect=str(f["effect"]),
-                summary=str(f["summary"]),
-                parameters=dict(f.get("parameters") or {}),
-                sigma=dict(f.get("sigma") or {}),
+                effect=f.effect,
+                summary=f.summary,
+                parameters=dict(f.parameters),
+                sigma=dict(f.sigma),
                 **numbers,
             )
         )

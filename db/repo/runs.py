@@ -14,6 +14,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
 from db.models import FINAL_STATES, Run, RunState, Unit
+from db.notify import notify_run
 from db.types import utc_now
 
 
@@ -93,15 +94,21 @@ def list_runs(
     return list(session.scalars(stmt))
 
 
-def _update_run(session: Session, run_id: str, allowed_from: Collection[RunState], **values: Any) -> bool:
-    """``UPDATE run SET values WHERE id = run_id AND state IN allowed_from``; True if a row changed."""
+def _update_run(
+    session: Session, run_id: str, allowed_from: Collection[RunState], *, notify: bool = True, **values: Any
+) -> bool:
+    """``UPDATE run SET values WHERE id = run_id AND state IN allowed_from``; True if a row changed
+    (and then, with ``notify``, the run's listeners are told at commit: :func:`db.notify.notify_run`)."""
     result = session.execute(
         sa.update(Run)
         .where(Run.id == run_id, Run.state.in_(list(allowed_from)))
         .values(**values)
         .execution_options(synchronize_session="fetch")
     )
-    return bool(getattr(result, "rowcount", 0) == 1)
+    changed = bool(getattr(result, "rowcount", 0) == 1)
+    if changed and notify:
+        notify_run(session, run_id)
+    return changed
 
 
 def start_run(
@@ -131,7 +138,7 @@ def heartbeat(
             raise ValueError(f"run {run_id}: progress {progress!r} outside 0..1")
         values["progress"] = float(progress)
     live = [RunState.QUEUED, RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED]
-    return _update_run(session, run_id, live, **values)
+    return _update_run(session, run_id, live, notify=False, **values)  # no event shows a heartbeat
 
 
 def finish_run(
@@ -179,9 +186,11 @@ def set_recording_path(session: Session, run_id: str, recording_path: str) -> No
 
 
 def merge_params(session: Session, run_id: str, extra: dict[str, Any]) -> None:
-    """Add keys to a run's ``params`` (e.g. the dwell chosen from Allan analysis and why)."""
+    """Add keys to a run's ``params`` (e.g. the dwell chosen from Allan analysis and why, the
+    latest progress event); the run's listeners are told at commit."""
     run = session.get(Run, run_id, with_for_update=True)
     if run is None:
         raise LookupError(f"run {run_id} not found")
     run.params = {**run.params, **extra}
     session.flush()
+    notify_run(session, run_id)

@@ -4,18 +4,22 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import json
 
 import pytest
 import sqlalchemy as sa
 from sqlalchemy.exc import OperationalError
 
 from bench import records as br
+from bench.limit_check import LimitCheck
+from bench.run_observer import RunObserver
 from db.models import FitKind, FitModel, Run, RunState, SampleChunk
 from db.observer import DbRunObserver, final_state, fit_kind_for
 from db.repo import progress, recovery
+from tests.support.fits import calibration_result
 
 T0 = dt.datetime(2025, 6, 1, 8, 0, tzinfo=dt.UTC)
-CONTRACT = {"unit": "SN-7", "bias": [1.5, 1.5, 1.5], "terms": ["bias", "scale_matrix"], "extra": {}}
+FIT = calibration_result(serial="SN-7")
 
 
 def _start(pid: int, resumed_from: int | None = None) -> br.RunStart:
@@ -81,7 +85,7 @@ def test_fresh_run_to_pass(db_session_factory):
     obs.on_dwell(
         start.run_id, br.DwellChoice(55.0, "noise_window", "Allan minimum at 55 s", {"tau_min_s": 55.0})
     )
-    check = br.LimitCheck("bias_x", "V", 1.5, 1.4, 1.6, True)
+    check = LimitCheck("bias_x", "V", 1.5, 1.4, 1.6, True)
     obs.on_finish(
         br.RunRecord(
             start,
@@ -89,7 +93,7 @@ def test_fresh_run_to_pass(db_session_factory):
             br.Outcome.PASS,
             tuple(_window(i) for i in range(4)),
             ended_at=T0 + dt.timedelta(minutes=7),
-            calibration=CONTRACT,
+            calibration=FIT,
             limit_checks=(check,),
             n_samples=40_000,
         )
@@ -136,7 +140,8 @@ def test_fresh_run_to_pass(db_session_factory):
         assert w[1].pose_deg == [0.0, 90.0] and w[1].step_index == 3 and w[1].kind == "static"
         assert s.scalar(sa.select(sa.func.count()).select_from(SampleChunk)) == 8
         fit = s.scalars(sa.select(FitModel)).one()
-        assert fit.kind is FitKind.STATIC and fit.contract == CONTRACT
+        assert fit.kind is FitKind.STATIC and fit.contract == json.loads(json.dumps(FIT.to_contract()))
+        assert run.params["calibration"] == fit.contract and fit.contract["unit"] == "SN-7"
 
 
 def test_killed_run_is_interrupted_then_resumed_from_its_next_window(db_session_factory):
@@ -255,13 +260,13 @@ def test_transient_database_error_is_retried(db_session_factory):
 
 
 def test_observer_satisfies_the_protocol(db_session_factory):
-    assert isinstance(DbRunObserver(db_session_factory), br.RunObserver)
+    assert isinstance(DbRunObserver(db_session_factory), RunObserver)
 
 
 def test_fit_kind_for():
-    assert fit_kind_for("static-12", CONTRACT) is FitKind.STATIC
-    assert fit_kind_for("hand-held", {"terms": ["bias", "scale_matrix_lower_triangular"]}) is FitKind.SCALAR
-    assert fit_kind_for("oscillation-2axis", CONTRACT) is FitKind.DYNAMIC
+    assert fit_kind_for("static-12", FIT) is FitKind.STATIC
+    assert fit_kind_for("hand-held", calibration_result("scalar")) is FitKind.SCALAR
+    assert fit_kind_for("oscillation-2axis", FIT) is FitKind.DYNAMIC
 
 
 def _gap(after_row: int, n_lost: int, window: int | None) -> br.GapRecord:

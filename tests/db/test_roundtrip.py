@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
+import math
 
 import numpy as np
 import pytest
 import sqlalchemy as sa
 from sqlalchemy.exc import IntegrityError, InvalidRequestError
 
+from bench.diagnosis.stored import StoredDiagnosis
 from db.models import (
     ApiToken,
     Bench,
@@ -187,7 +190,7 @@ def test_findings(db_session_factory):
     }
     with db_session_factory.begin() as s:
         make_run(s, "R-1")
-        results.add_findings(s, "R-1", [finding])
+        results.add_findings(s, "R-1", StoredDiagnosis.from_contract({"findings": [finding]}).findings)
     with db_session_factory() as s:
         f = s.scalars(sa.select(Finding)).one()
         assert (f.effect, f.summary, f.parameters, f.sigma) == (
@@ -197,8 +200,13 @@ def test_findings(db_session_factory):
             finding["sigma"],
         )
         assert f.delta_bic == -1068.8 and f.residual_rms_after == 3.2e-6
-    with pytest.raises(ValueError, match="finding 0: missing summary"), db_session_factory.begin() as s:
-        results.add_findings(s, "R-1", [{"effect": "lever_arm"}])
+    (stored,) = StoredDiagnosis.from_contract({"findings": [finding]}).findings
+    nan = dataclasses.replace(stored, delta_bic=math.nan)
+    with (
+        pytest.raises(ValueError, match="run R-1 finding 0: delta_bic = nan is not finite"),
+        db_session_factory.begin() as s,
+    ):
+        results.add_findings(s, "R-1", [nan])
 
 
 def test_certificate_and_drift_check(db_session_factory):

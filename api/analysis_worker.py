@@ -48,7 +48,7 @@ def analyse_upload(csv_path: str) -> AnalysisResult:
     if not DIAGNOSIS_AVAILABLE:
         return calibration, None, "the diagnosis module is not installed"
     try:
-        return calibration, diagnose(rec), None
+        return calibration, dict(diagnose(rec).to_contract()), None
     except ValueError as exc:
         return calibration, None, str(exc).replace(prefix, "")
 

@@ -8,6 +8,7 @@ other method gets a writing one (``BEGIN IMMEDIATE`` on SQLite).
 
 from __future__ import annotations
 
+import secrets
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Annotated
@@ -22,10 +23,12 @@ from api.auth import Authenticator, AuthError, Principal, Role
 from api.drift import DriftScheduler
 from api.runs.hub import ProgressHub
 from api.runs.queue import RunQueue
+from api.runs.wakeup import RunWakeups
 from api.settings import Settings
 
 if TYPE_CHECKING:
     from api.agent.bench_agent import BenchAgent
+    from api.doc_cache import DocumentStore
     from api.runs.events import SnapshotCache
 
 
@@ -46,6 +49,12 @@ class Services:
     """The bench agent running in this process (``settings.agent == "embedded"``), else ``None``."""
     snapshots: SnapshotCache | None = None
     """The runs' snapshots shared by this process's event streams (``None``: one per stream)."""
+    wakeups: RunWakeups = field(default_factory=RunWakeups)
+    """Wakes this process's event streams when a run changes (PostgreSQL notifications)."""
+    worker_id: str = field(default_factory=lambda: secrets.token_hex(4))
+    """Random id of this API process (``X-Calbench-Worker``), to tell workers apart."""
+    documents: DocumentStore | None = None
+    """The dashboard's documents kept per database revision (:mod:`api.doc_cache`; ``None``: none)."""
 
 
 def get_services(request: Request) -> Services:

@@ -20,16 +20,17 @@ from typing import Any
 import numpy as np
 
 from bench.export import FORMATS, to_c_header, to_imucal, to_json, to_kalibr
+from bench.fitted_model import FittedModel
 
 
-def kalibr_noise(allan: Mapping[str, Any], contract: Mapping[str, Any]) -> tuple[float, float, float]:
+def kalibr_noise(allan: Mapping[str, Any], fit: FittedModel) -> tuple[float, float, float]:
     """(sample rate Hz, noise density m/s²/√Hz, random walk m/s³/√Hz) from an Allan series.
 
     :raises ValueError: the series is too short or holds no finite value.
     """
     taus = np.asarray(allan["taus_s"], float)
     adev = np.asarray(allan["adev"], float)
-    K = np.asarray(contract["scale_matrix"], float)
+    K = np.asarray(fit.K, float)
     if taus.size < 2 or adev.shape != (3, taus.size):
         raise ValueError("the Allan curve is too short to give Kalibr's noise parameters")
     span = float(allan["end_s"]) - float(allan["start_s"])
@@ -43,23 +44,23 @@ def kalibr_noise(allan: Mapping[str, Any], contract: Mapping[str, Any]) -> tuple
     return rate, density, walk
 
 
-def export_text(fmt: str, contract: Mapping[str, Any], allan: Mapping[str, Any] | None, source: str) -> str:
+def export_text(fmt: str, fit: FittedModel, allan: Mapping[str, Any] | None, source: str) -> str:
     """The export ``fmt`` of a fit (``allan``: the run's Allan series, needed by ``kalibr``).
 
     :raises ValueError: unknown format, a bad model, or ``kalibr`` without an Allan curve.
     """
     if fmt == "imucal":
-        return to_imucal(contract, source)
+        return to_imucal(fit, source)
     if fmt == "c-header":
-        return to_c_header(contract, source)
+        return to_c_header(fit, source)
     if fmt == "json":
-        return to_json(contract, source)
+        return to_json(fit, source)
     if fmt == "kalibr":
         if allan is None:
             raise ValueError(
                 "the Kalibr export needs the run's Allan curve (a static stretch of the recording)"
             )
-        rate, density, walk = kalibr_noise(allan, contract)
-        return to_kalibr(contract, sample_rate_hz=rate, noise_density_m_s2_sqrt_hz=density,
+        rate, density, walk = kalibr_noise(allan, fit)
+        return to_kalibr(fit, sample_rate_hz=rate, noise_density_m_s2_sqrt_hz=density,
                          random_walk_m_s3_sqrt_hz=walk, source=source)  # fmt: skip
     raise ValueError(f"unknown export format {fmt!r}; known: {', '.join(FORMATS)}")

@@ -13,7 +13,8 @@
 
 parses a JSON body once under the size rules of :mod:`bench.inputs` (nesting, integer digits,
 duplicate keys: **422** naming the rule) and hands it on, and adds the security headers to
-every response (:data:`SECURITY_HEADERS`): a Content-Security-Policy that allows scripts and
+every response (:data:`SECURITY_HEADERS`, and `X-Calbench-Worker`: which API process answered):
+a Content-Security-Policy that allows scripts and
 connections only from the service itself and no framing, ``X-Frame-Options: DENY``,
 ``nosniff`` and no referrer.
 
@@ -137,6 +138,9 @@ class RequestGuard:
         headers_to_add = dict(SECURITY_HEADERS)
         if path in DOCS_PATHS:
             headers_to_add["content-security-policy"] = _CSP_DOCS
+        services = getattr(scope["app"].state, "services", None) if "app" in scope else None
+        if services is not None:  # which API process answered (calbench serve --workers N)
+            headers_to_add["x-calbench-worker"] = services.worker_id
         started = refused = False
 
         async def send_with_headers(message: Message) -> None:

@@ -10,7 +10,11 @@ recording closed, resumable with ``POST /api/runs/{id}/resume`` after the restar
 
 The lifespan opens (creates and migrates) the database, marks runs left live by a dead
 process ``interrupted`` (and runs a previous shutdown stopped, see
-:mod:`api.runs.resume`) and starts the drift scheduler's thread. On SIGTERM/SIGINT
+:mod:`api.runs.resume`), starts the drift scheduler's thread and, on PostgreSQL, the
+listener that wakes this process's event streams when a run changes (:mod:`db.notify`,
+:mod:`api.runs.wakeup`). The process keeps no state of its own that another API process would
+miss: runs, queue, live progress and events are all in the database, so ``calbench serve
+--workers N`` runs N of them. On SIGTERM/SIGINT
 the open event streams end first, so the server does not wait for them before stopping.
 Nothing is read from the environment here: the caller builds ``Settings`` (``calbench
 serve`` does, from ``CALBENCH_*``).
@@ -39,7 +43,9 @@ from fastapi.staticfiles import StaticFiles
 from api.agent.bench_agent import BenchAgent
 from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, Role, parse_tokens
+from api.db_revision import DatabaseRevision
 from api.deps import Services
+from api.doc_cache import DocumentCache, DocumentStore
 from api.drift import DriftScheduler
 from api.guard import RequestGuard, install_error_handlers, install_log_redaction
 from api.routes import api_router
@@ -47,11 +53,13 @@ from api.runs.events import SnapshotCache
 from api.runs.hub import ProgressHub
 from api.runs.queue import RunQueue
 from api.runs.resume import recover_shutdown_aborts
+from api.runs.wakeup import RunWakeups
 from api.settings import Settings
 from api.startup_check import check_configuration
 from bench.records import utc_now
 from db.engine import make_session_factory
 from db.migrate import open_database
+from db.notify import RunListener, listen_url
 from db.repo.recovery import mark_interrupted_runs
 
 log = logging.getLogger(__name__)
@@ -95,6 +103,7 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     drift = DriftScheduler(settings, sessions, runner, clock=clock)
     auth = Authenticator(env_tokens, sessions, read_sessions, public_read=settings.public_read)
     analysis = AnalysisPool(settings.upload_workers)
+    snapshots = SnapshotCache(read_sessions)
     return Services(
         settings,
         engine,
@@ -105,12 +114,31 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
         drift,
         auth,
         analysis,
-        snapshots=SnapshotCache(read_sessions),
+        snapshots=snapshots,
+        wakeups=RunWakeups(on_notify=snapshots.invalidate),
+        documents=DocumentStore(DatabaseRevision(engine.url)),
     )
 
 
+def end_streams(services: Services, reason: str) -> None:
+    """End every open event stream of this process with a ``shutdown`` event (``reason``)."""
+    services.hub.close_all(reason)
+    services.wakeups.wake_all()
+
+
+def start_listener(settings: Settings, services: Services) -> RunListener | None:
+    """On PostgreSQL, a :class:`db.notify.RunListener` that wakes this process's event streams
+    when a run changes (in any process); ``None`` on SQLite, where the streams poll."""
+    conninfo = listen_url(settings.effective_database_url)
+    if conninfo is None:
+        return None
+    listener = RunListener(conninfo, services.wakeups.notify, services.wakeups.set_listening)
+    listener.start()
+    return listener
+
+
 @contextmanager
-def streams_end_on_signal(hub: ProgressHub) -> Iterator[None]:
+def streams_end_on_signal(services: Services) -> Iterator[None]:
     """While the server runs, SIGTERM and SIGINT first end every open event stream, then go to
     the server's own handler (which waits for open responses before the lifespan's shutdown
     stops the run). Outside the main thread (a test client) nothing is installed."""
@@ -121,7 +149,8 @@ def streams_end_on_signal(hub: ProgressHub) -> Iterator[None]:
     previous: dict[signal.Signals, object] = {}
 
     def handler(signum: int, frame: object) -> None:
-        loop.call_soon_threadsafe(hub.close_all, f"the service is stopping ({signal.Signals(signum).name})")
+        reason = f"the service is stopping ({signal.Signals(signum).name})"
+        loop.call_soon_threadsafe(end_streams, services, reason)
         prev = previous.get(signal.Signals(signum))
         if callable(prev):
             prev(signum, frame)
@@ -165,15 +194,18 @@ def create_app(
             agent = BenchAgent(settings, clock=clock)
             agent.start()
         services.agent = agent
+        listener = start_listener(settings, services)
         services.analysis.warm()
         app.state.services = services
         if start_scheduler and services.drift.time_of_day is not None:
             services.drift.start()
         try:
-            with streams_end_on_signal(services.hub):
+            with streams_end_on_signal(services):
                 yield
         finally:
-            services.hub.close_all("the service is stopping")
+            end_streams(services, "the service is stopping")
+            if listener is not None:
+                listener.stop()
             services.drift.stop()
             if agent is not None:
                 agent.stop()
@@ -183,10 +215,13 @@ def create_app(
             services.auth.close()
             services.analysis.close()
             app.state.services = None
+            if services.documents is not None:
+                services.documents.close()
             services.engine.dispose()
 
     app = FastAPI(title="calbench", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
-    app.add_middleware(RequestGuard)  # type: ignore[arg-type]
+    app.add_middleware(DocumentCache)  # type: ignore[arg-type]
+    app.add_middleware(RequestGuard)  # type: ignore[arg-type]  # outermost: it heads every answer
     install_error_handlers(app)
     app.include_router(api_router)
     if importlib.util.find_spec("api.routes.dashboard") is not None:

@@ -1,23 +1,30 @@
-"""50 dashboard readers against the live service while a run records at ×50 speed.
+"""Dashboard readers that never pause against the live service while a run records at ×50.
 
-``calbench serve --sim`` runs in its own process on 127.0.0.1; it starts the bench agent
-(``calbench agent``: sequencer, drivers, recording) as another process, which starts the
-simulated table and Modbus DAQ in a third, as in a lab where the web server and the bench
-share a machine but not a process. A first short run gives the unit a history and a finished
-run to plot. Then:
+``calbench serve --sim`` runs in its own process on 127.0.0.1 on SQLite; it starts the bench
+agent (``calbench agent``: sequencer, drivers, recording) as another process, which starts the
+simulated table and Modbus DAQ in a third. The readers run in a fourth
+(:mod:`benchmarks.load_readers`), so the client's CPU is measured apart from the service's. A
+first short run gives the unit a history and a finished run to plot. Then:
 
-* baseline: one reader, the bench idle, the same request mix;
+* idle: one reader, the bench idle, ``BASELINE_CYCLES`` cycles of the same requests;
 * load: a static-12 run at ×``SPEED`` simulated speed and ``RATE_HZ`` samples/s, with dwells
-  long enough that it outlasts the load, and ``READERS`` threads polling what the dashboard
-  polls (runs list, the run, units, unit history, the finished run's plot series, health),
-  for ``LOAD_LIMIT_S`` seconds (``CALBENCH_LOAD_SECONDS``: 60 by default in ``make bench``,
-  180 for the acceptance figure in docs/benchmarks.md); half as many clients follow the run's
-  event stream as the run page does.
+  long enough that it outlasts the load, ``READERS`` readers that fetch without pause what the
+  run page and the overview read while a run is live (the run, the runs list, the units list,
+  and, every fifth cycle, what opening a page fetches: the unit's history and trends, the
+  finished run's plots, the service's health) for ``LOAD_S`` seconds, and half as many clients
+  following the live run's event stream as the run page does. Readers revalidate with
+  ``If-None-Match`` as the dashboard does.
 
-Printed: p50 / p99 latency per request kind and overall, as ratios against the idle
-baseline of the same run, and whether the run's recording has gaps (time stamps spaced
-1/rate, the database's chunk rows contiguous in sample numbers and adding up to the
-recording). Loopback only, bounded loops.
+``CALBENCH_LOAD_SECONDS`` sets the load's duration (180 s, the acceptance figure of
+docs/benchmarks.md; 30 for a quick check), ``CALBENCH_LOAD_PAUSE_S`` the readers' pause between
+cycles (0: never pause; a comma-separated list runs one loaded run per value).
+
+Printed: p50 / p99 latency per request kind and overall, idle and loaded in the same run and
+their ratio; requests per second and the share answered 304; the CPU seconds of the service,
+the agent (with its simulator) and the readers during the load; the load average; the run's
+outcome, its recorded gaps, and a check of its recording (time stamps spaced 1/rate, the
+database's chunk rows contiguous in sample numbers and adding up to the recording).
+Loopback only, bounded loops.
 """
 
 from __future__ import annotations
@@ -27,10 +34,9 @@ import os
 import subprocess
 import sys
 import tempfile
-import threading
 import time
-from collections import defaultdict
 from pathlib import Path
+from typing import Any
 
 import httpx
 import numpy as np
@@ -43,17 +49,17 @@ from db.models import SampleChunk
 READERS = 50
 SPEED = float(os.environ.get("CALBENCH_LOAD_SPEED", "50"))
 RATE_HZ = 100.0
-LOAD_LIMIT_S = float(os.environ.get("CALBENCH_LOAD_SECONDS", "60"))
-DWELL_S = max(60.0, 1.2 * LOAD_LIMIT_S * SPEED / 12)
+LOAD_S = float(os.environ.get("CALBENCH_LOAD_SECONDS", "180"))
+PAUSES_S = [float(x) for x in os.environ.get("CALBENCH_LOAD_PAUSE_S", "0").split(",")]
+"""The readers' pause between cycles (s) of each loaded run; 0 = never pause."""
+DWELL_S = max(30.0, 1.2 * LOAD_S * SPEED / 12)
 """Static dwell of the loaded run: its twelve windows outlast the load."""
-POLL_S = 3.0
-"""The dashboard's overview polls every 3 s (``view_overview.js``); the run page follows the stream."""
-POLLS_S = [float(x) for x in os.environ.get("CALBENCH_LOAD_POLLS", f"{POLL_S:g},0").split(",")]
-"""The load phases: the readers' pause between cycles (s), 0 = never pause."""
 BASELINE_CYCLES = 40
+PAGE_EVERY = 5
 OPERATOR = "operator-bench-load-0001"
 VIEWER = "viewer-bench-load-0001"
 FINAL = {"completed", "failed", "error", "aborted", "interrupted"}
+SERIAL = "SN-LOAD-1"
 
 
 def _free_port() -> int:
@@ -74,19 +80,8 @@ def _start_service(data_dir: Path, port: int) -> subprocess.Popen[bytes]:
         "CALBENCH_DRIFT_TIME": "",
         "CALBENCH_BENCH_NAME": "bench-load",
     }
-    cmd = [
-        sys.executable,
-        "-m",
-        "api",
-        "serve",
-        "--sim",
-        "--sim-speed",
-        str(SPEED),
-        "--port",
-        str(port),
-        "--log-level",
-        "warning",
-    ]
+    cmd = [sys.executable, "-m", "api", "serve", "--sim", "--sim-speed", str(SPEED)]
+    cmd += ["--port", str(port), "--log-level", "warning"]
     log = (data_dir / "serve.log").open("wb")
     return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
 
@@ -105,92 +100,75 @@ def _wait_up(base: str, proc: subprocess.Popen[bytes], timeout_s: float = 60.0) 
     raise RuntimeError(f"calbench serve did not answer on {base} within {timeout_s} s")
 
 
-def _start_run(c: httpx.Client, serial: str, dwell_s: float) -> str:
+def _start_run(c: httpx.Client, dwell_s: float) -> str:
     r = c.post(
         "/api/runs",
-        json={"unit_serial": serial, "procedure": "static-12", "dwell_s": dwell_s},
+        json={"unit_serial": SERIAL, "procedure": "static-12", "dwell_s": dwell_s},
         headers={"Authorization": f"Bearer {OPERATOR}"},
     )
     r.raise_for_status()
     return str(r.json()["id"])
 
 
-def _wait_final(c: httpx.Client, run_id: str, timeout_s: float) -> dict[str, object]:
+def _wait_state(c: httpx.Client, run_id: str, states: set[str], timeout_s: float) -> dict[str, Any]:
+    """The run once its state is in ``states`` (and, for a final state, the bench is free)."""
     deadline = time.monotonic() + timeout_s
-    body: dict[str, object] = {}
+    body: dict[str, Any] = {}
     while time.monotonic() < deadline:
         body = c.get(f"/api/runs/{run_id}").json()
-        if body.get("state") in FINAL and c.get("/api/health").json()["busy_run"] is None:
+        if body.get("state") in states and (
+            body["state"] not in FINAL or c.get("/api/health").json()["busy_run"] is None
+        ):
             return body
         time.sleep(0.3)
-    raise RuntimeError(f"run {run_id} did not finish within {timeout_s} s: {body}")
+    raise RuntimeError(f"run {run_id} did not reach {sorted(states)} within {timeout_s} s: {body}")
 
 
-def _paths(serial: str, live_id: str, done_id: str) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
-    """(what a page load fetches once, what the open page polls)."""
-    load = [
-        ("history", f"/api/units/{serial}/history"),
-        ("trends", f"/api/units/{serial}/plots/history"),
-        ("g-check", f"/api/runs/{done_id}/plots/g-check"),
-        ("residuals", f"/api/runs/{done_id}/plots/residuals"),
-        ("allan", f"/api/runs/{done_id}/plots/allan"),
+def _paths(live_id: str, done_id: str) -> tuple[list[list[str]], list[list[str]]]:
+    """(what opening a page fetches, what the readers fetch every cycle)."""
+    page = [
+        ["history", f"/api/units/{SERIAL}/history"],
+        ["trends", f"/api/units/{SERIAL}/plots/history"],
+        ["g-check", f"/api/runs/{done_id}/plots/g-check"],
+        ["residuals", f"/api/runs/{done_id}/plots/residuals"],
+        ["allan", f"/api/runs/{done_id}/plots/allan"],
+        ["health", "/api/health"],
     ]
-    poll = [
-        ("runs", "/api/runs?limit=20"),
-        ("run", f"/api/runs/{live_id}"),
-        ("units", "/api/units"),
-        ("health", "/api/health"),
-    ]
-    return load, poll
+    poll = [["run", f"/api/runs/{live_id}"], ["runs", "/api/runs?limit=20"], ["units", "/api/units"]]
+    return page, poll
 
 
-def _reader(
-    base: str,
-    paths: tuple[list[tuple[str, str]], list[tuple[str, str]]],
-    stop: threading.Event,
-    cycles: int | None,
-    poll_s: float,
-    out: dict[str, list[float]],
-    errors: list[str],
-    lock: threading.Lock,
-) -> None:
-    """A dashboard reader: every ``poll_s`` (0: without pause) it fetches what the pages poll and,
-    every fifth cycle, what a page load fetches (history, trends, plots)."""
-    local: dict[str, list[float]] = defaultdict(list)
-    n = 0
-    rng = np.random.default_rng(threading.get_ident() % (2**32))
-    with httpx.Client(base_url=base, headers={"Authorization": f"Bearer {VIEWER}"}, timeout=30.0) as c:
-        time.sleep(float(rng.uniform(0.0, poll_s)))  # readers do not arrive in lock step
-        while not stop.is_set() and (cycles is None or n < cycles):
-            t_cycle = time.perf_counter()
-            for kind, path in [*paths[0], *paths[1]] if n % 5 == 0 else paths[1]:
-                t0 = time.perf_counter()
-                try:
-                    r = c.get(path)
-                    if r.status_code != 200:
-                        errors.append(f"{kind}: HTTP {r.status_code}")
-                except httpx.HTTPError as exc:
-                    errors.append(f"{kind}: {type(exc).__name__}")
-                local[kind].append(time.perf_counter() - t0)
-            n += 1
-            stop.wait(max(0.0, poll_s - (time.perf_counter() - t_cycle)))
-    with lock:
-        for k, v in local.items():
-            out[k].extend(v)
+def _readers(port: int, data_dir: Path, name: str, **cfg: Any) -> dict[str, Any]:
+    """Run :mod:`benchmarks.load_readers` in its own process with ``cfg``; its tally."""
+    config = {"host": "127.0.0.1", "port": port, "token": VIEWER, "page_every": PAGE_EVERY, **cfg}
+    cfg_path, out_path = data_dir / f"{name}.json", data_dir / f"{name}.out.json"
+    cfg_path.write_text(json.dumps(config))
+    subprocess.run(
+        [sys.executable, "-m", "benchmarks.load_readers", str(cfg_path), str(out_path)], check=True
+    )
+    return dict(json.loads(out_path.read_text()))
 
 
-def _follow_events(base: str, run_id: str, counts: dict[str, int]) -> None:
-    """A run page's event stream, followed to its end; counts the events by name (all followers)."""
-    with (
-        httpx.Client(base_url=base, headers={"Authorization": f"Bearer {VIEWER}"}, timeout=60.0) as c,
-        c.stream("GET", f"/api/runs/{run_id}/events") as r,
-    ):
-        for line in r.iter_lines():
-            if line.startswith("event:"):
-                name = line[6:].strip()
-                counts[name] = counts.get(name, 0) + 1
-                if name == "finished":
-                    return
+def _cpu_s(pid: int) -> float:
+    """User + system CPU seconds of process ``pid`` (0 when it is gone)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _descendants(pid: int) -> list[int]:
+    """Every process started by ``pid`` (by any of its threads) and by those, recursively."""
+    out: list[int] = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            children = (task / "children").read_text().split()
+        except OSError:
+            continue
+        for child in map(int, children):
+            out += [child, *_descendants(child)]
+    return out
 
 
 def _percentiles(lat: dict[str, list[float]]) -> dict[str, tuple[float, float, int]]:
@@ -200,8 +178,8 @@ def _percentiles(lat: dict[str, list[float]]) -> dict[str, tuple[float, float, i
     return out
 
 
-def _gaps(recording: str, db_url: str, run_id: str) -> str:
-    rec = read_recording(recording)
+def _gaps(recording: Path, db_url: str, run_id: str) -> str:
+    rec = read_recording(str(recording))
     dt = np.diff(rec.t_s)
     step = 1.0 / rec.sidecar.sample_rate_hz
     big = np.flatnonzero(dt > 1.5 * step)
@@ -221,82 +199,92 @@ def _gaps(recording: str, db_url: str, run_id: str) -> str:
     worst = f"{dt.max() * 1e3:.3f} ms" if dt.size else "-"
     return (
         f"{verdict}: {rec.n_samples} samples over {rec.t_s[-1] - rec.t_s[0]:.1f} s "
-        f"at {rec.sidecar.sample_rate_hz:g} Hz; "
-        f"time steps > 1.5/rate: {big.size} (largest step {worst}); "
+        f"at {rec.sidecar.sample_rate_hz:g} Hz; time steps > 1.5/rate: {big.size} (largest step {worst}); "
         f"{len(rows)} chunk rows contiguous: {contiguous}, summing to {total} samples"
     )
 
 
 def _load_phase(
-    base: str, data_dir: Path, serial: str, done_id: str, poll_s: float, base_lat: dict[str, list[float]]
+    base: str,
+    port: int,
+    proc: subprocess.Popen[bytes],
+    data_dir: Path,
+    done_id: str,
+    pause_s: float,
+    idle: Any,
 ) -> None:
-    """Start a ×SPEED run, let READERS readers poll every ``poll_s`` until it ends, print the results."""
-    with httpx.Client(base_url=base, timeout=30.0) as c:
-        live_id = _start_run(c, serial, DWELL_S)
-    paths = _paths(serial, live_id, done_id)
-    lat: dict[str, list[float]] = defaultdict(list)
-    errors: list[str] = []
-    lock = threading.Lock()
-    stop = threading.Event()
-    events: dict[str, int] = {}
-    readers = [
-        threading.Thread(target=_reader, args=(base, paths, stop, None, poll_s, lat, errors, lock))
-        for _ in range(READERS)
-    ]
-    followers = [
-        threading.Thread(target=_follow_events, args=(base, live_id, events), daemon=True)
-        for _ in range(READERS // 2)
-    ]
-    t0 = time.perf_counter()
-    for th in [*followers, *readers]:
-        th.start()
+    """Start a ×SPEED run, load the service with READERS readers for LOAD_S s, print the results."""
     with httpx.Client(base_url=base, headers={"Authorization": f"Bearer {VIEWER}"}, timeout=30.0) as c:
-        while time.perf_counter() - t0 < LOAD_LIMIT_S:
-            if c.get(f"/api/runs/{live_id}").json().get("state") in FINAL:
-                break
-            time.sleep(0.5)
-        stop.set()
-        for th in readers:
-            th.join(timeout=60.0)
-        wall = time.perf_counter() - t0
-        run = _wait_final(c, live_id, 60.0 + 3.0 * 12 * (DWELL_S + 20.0) / SPEED)
-        for th in followers:
-            th.join(timeout=30.0)
-    bp, lp = _percentiles(base_lat), _percentiles(lat)
+        live_id = _start_run(c, DWELL_S)
+        _wait_state(c, live_id, {"running", *FINAL}, 120.0)
+        page, poll = _paths(live_id, done_id)
+        pids = {"service": [proc.pid], "agent+sim": _descendants(proc.pid)}
+        cpu0 = {k: sum(map(_cpu_s, v)) for k, v in pids.items()}
+        load0 = os.getloadavg()
+        t0 = time.monotonic()
+        tally = _readers(
+            port,
+            data_dir,
+            f"load-{pause_s:g}",
+            readers=READERS,
+            duration_s=LOAD_S,
+            pause_s=pause_s,
+            page=page,
+            poll=poll,
+            followers=READERS // 2,
+            events=f"/api/runs/{live_id}/events",
+            followers_timeout_s=60.0 + 3.0 * 12 * (DWELL_S + 20.0) / SPEED,
+        )
+        cpu = {k: sum(map(_cpu_s, v)) - cpu0[k] for k, v in pids.items()}
+        load1 = os.getloadavg()
+        run = _wait_state(c, live_id, FINAL, 60.0 + 3.0 * 12 * (DWELL_S + 20.0) / SPEED)
+    wall = tally["wall_s"]
+    bp, lp = _percentiles(idle["latency_s"]), _percentiles(tally["latency_s"])
     n_req = lp["ALL"][2]
+    n304 = tally["status"].get("304", 0)
+    errors = tally["errors"]
     err = f" ({run.get('error')})" if run.get("error") else ""
     print(
-        f"\n{READERS} readers polling every {poll_s:g} s for {wall:.1f} s; run {live_id} at x{SPEED:g}, "
-        f"{RATE_HZ:g} Hz ended {run.get('state')}{err}"
+        f"\n{READERS} readers pausing {pause_s:g} s between cycles for {wall:.1f} s; run {live_id} at "
+        f"x{SPEED:g}, {RATE_HZ:g} Hz ended {run.get('state')}{err} "
+        f"({time.monotonic() - t0:.0f} s after the load began)"
     )
     print(
-        f"{n_req} requests, {n_req / wall:.0f} req/s, {len(errors)} errors"
-        + (": " + ", ".join(sorted(set(errors))[:5]) if errors else "")
+        f"{n_req} requests, {n_req / wall:.0f} req/s, {n304 / max(n_req, 1):.0%} answered 304, "
+        f"{len(errors)} errors" + (": " + ", ".join(sorted(set(errors))[:5]) if errors else "")
     )
     print(
-        f"{READERS // 2} event streams: {events.get('progress', 0)} progress events in all, "
-        f"{events.get('finished', 0)} saw the end"
+        f"{READERS // 2} event streams: {tally['events'].get('progress', 0)} progress events in all, "
+        f"{tally['events'].get('finished', 0)} saw the end"
+    )
+    print(
+        f"load average (1 min) {load0[0]:.1f} at the start, {load1[0]:.1f} at the end; "
+        "CPU s during the load: "
+        + ", ".join(f"{k} {v:.1f}" for k, v in cpu.items())
+        + f", readers {tally['cpu_s']:.1f} (of {2 * wall:.0f} on 2 cores)"
     )
     print(
         f"{'request':10s} {'idle p50 ms':>12s} {'load p50 ms':>12s} {'ratio':>7s} {'idle p99 ms':>12s} "
         f"{'load p99 ms':>12s} {'ratio':>7s}"
     )
-    for k in [*(k for k, _ in [*paths[0], *paths[1]]), "ALL"]:
+    for k in [*(k for k, _ in [*poll, *page]), "ALL"]:
         if k in lp and k in bp:
             (b50, b99, _), (l50, l99, _) = bp[k], lp[k]
             print(
                 f"{k:10s} {b50 * 1e3:12.2f} {l50 * 1e3:12.2f} {l50 / b50:7.1f} {b99 * 1e3:12.2f} "
                 f"{l99 * 1e3:12.2f} {l99 / b99:7.1f}"
             )
+    lost = run.get("n_samples_lost")
+    print(f"gaps the run recorded: {len(run.get('gaps') or [])} ({lost} samples lost)")
     rec_path = data_dir / "recordings" / f"run-{live_id}.csv"
     if rec_path.exists():
-        print("recording:", _gaps(str(rec_path), f"sqlite:///{data_dir / 'calbench.db'}", live_id))
+        print("recording:", _gaps(rec_path, f"sqlite:///{data_dir / 'calbench.db'}", live_id))
     else:
         print(f"recording: {rec_path} not found")
 
 
 def main() -> None:
-    """Idle baseline, then the dashboard's own polling rate, then readers that never pause."""
+    """A finished run to read, the idle baseline, then one loaded run per pause of PAUSES_S."""
     with tempfile.TemporaryDirectory(prefix="calbench-load-") as d:
         data_dir = Path(d)
         port = _free_port()
@@ -304,28 +292,24 @@ def main() -> None:
         proc = _start_service(data_dir, port)
         try:
             _wait_up(base, proc)
-            serial = "SN-LOAD-1"
             with httpx.Client(
                 base_url=base, headers={"Authorization": f"Bearer {VIEWER}"}, timeout=30.0
             ) as c:
-                done_id = _start_run(c, serial, 3.0)
-                first = _wait_final(c, done_id, 300.0)
+                done_id = _start_run(c, 3.0)
+                first = _wait_state(c, done_id, FINAL, 300.0)
             if first.get("state") != "completed":
                 raise RuntimeError(f"the first run did not complete: {json.dumps(first)[:300]}")
-            base_lat: dict[str, list[float]] = defaultdict(list)
-            _reader(
-                base,
-                _paths(serial, done_id, done_id),
-                threading.Event(),
-                BASELINE_CYCLES,
-                0.0,
-                base_lat,
-                [],
-                threading.Lock(),
+            page, poll = _paths(done_id, done_id)
+            idle = _readers(
+                port, data_dir, "idle", readers=1, cycles=BASELINE_CYCLES, duration_s=600.0, pause_s=0.0,
+                page=page, poll=poll,
+            )  # fmt: skip
+            print(
+                f"idle baseline: one reader, {BASELINE_CYCLES} cycles, bench idle, "
+                f"load average {os.getloadavg()[0]:.1f}"
             )
-            print(f"idle baseline: one reader, {BASELINE_CYCLES} cycles, bench idle")
-            for poll_s in POLLS_S:
-                _load_phase(base, data_dir, serial, done_id, poll_s, base_lat)
+            for pause_s in PAUSES_S:
+                _load_phase(base, port, proc, data_dir, done_id, pause_s, idle)
         finally:
             proc.terminate()
             try:

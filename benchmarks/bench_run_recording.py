@@ -29,13 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
-from api.agent.session import sim_url
+from api.agent.devices import sim_url
 from api.settings import Settings
 from bench.procedures.steps import Dwell, MoveTo, Procedure
 from bench.recording.model import Sidecar, TableAxis, TableGeometry
 from bench.recording.rows import format_block
 from bench.recording.writer import RecordingWriter
-from bench.records import ChunkRecord, NullObserver, RunStart
+from bench.records import ChunkRecord, RunStart
+from bench.run_observer import NullObserver
 from bench.run_recorder import RunRecorder
 from bench.sequencer.control import SequencerConfig
 from bench.sequencer.loop import Sequencer

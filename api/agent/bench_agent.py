@@ -15,20 +15,28 @@ its last complete window when an operator asks (``POST /api/runs/{id}/resume``).
 
 On SIGTERM/SIGINT the agent stops the run it holds with the table safe and the recording
 closed, stored ``interrupted`` (resumable), as the service did before it had an agent.
+
+Every :data:`PRESENCE_S` the agent tells the database it is alive, with the procedures its
+table can run and its bench file's identity (:mod:`db.repo.benches`), so the API can list the
+benches with their state and send a run to a free bench that can run it; on a clean stop it
+marks its bench offline.
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import logging
+import math
 import os
 import socket
 import threading
+import time
 from collections.abc import Callable
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
+from api.agent.devices import bench_config_for
 from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
 from api.drift import record_drift_check
 from api.runs import resume as service_resume
@@ -36,11 +44,15 @@ from api.runs.hub import ProgressHub
 from api.runs.live import LiveRun
 from api.runs.runner import BenchBusy, BenchRunner
 from api.settings import Settings
+from bench.bench_config import BenchConfig
+from bench.procedures import PROCEDURES, build_procedure, preview
 from bench.records import RunRecord, utc_now
+from bench.sequencer.control import SequencerConfig
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Run, RunState
 from db.observer import finish_record
+from db.repo.benches import agent_alive, agent_gone
 from db.repo.queue import ClaimedRun, claim_next_run, pending_control
 from db.repo.recovery import mark_interrupted_runs
 from db.repo.runs import finish_run, merge_params
@@ -50,6 +62,20 @@ log = logging.getLogger(__name__)
 
 POLL_S = 0.25
 """How often the agent looks for queued runs and control requests (s)."""
+PRESENCE_S = 5.0
+"""How often the agent tells the database it is alive (s); well under ``AGENT_STALE_S``."""
+
+
+def runnable_procedures(settings: Settings, config: BenchConfig) -> list[str]:
+    """The registered procedures the bench of ``config`` can run: as many table axes as the
+    procedure needs and a preview the sequencer's table limits accept."""
+    limits = SequencerConfig(temp_band_c=settings.temp_band_c).limits
+    out = []
+    for name in sorted(PROCEDURES):
+        proc = build_procedure(name, dwell_s=settings.run_dwell_s)
+        if proc.n_axes == len(config.axes) and preview(proc, limits).ok:
+            out.append(name)
+    return out
 
 
 def make_finisher(
@@ -103,6 +129,10 @@ class BenchAgent:
             settings, self.sessions, ProgressHub(), finisher, clock=clock, store_live=True
         )
         self.pid, self.host = os.getpid(), socket.gethostname()
+        config = bench_config_for(settings, settings.sim)
+        self.procedures = runnable_procedures(settings, config)
+        self.bench_file = config.identity()
+        self._announced = -math.inf
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._applied: tuple[str, int, bool] | None = None  # (run id, control seq, abort sent)
@@ -115,9 +145,25 @@ class BenchAgent:
             log.warning("runs left live by a dead process, now interrupted: %s", ", ".join(marked))
         return marked
 
+    def announce(self) -> None:
+        """Tell the database this agent is alive, what its bench can run and its bench file."""
+        with self.sessions.begin() as s:
+            agent_alive(
+                s,
+                self.bench_id,
+                pid=self.pid,
+                host=self.host,
+                procedures=self.procedures,
+                bench_file=self.bench_file,
+            )
+        self._announced = time.monotonic()
+
     def tick(self) -> str | None:
         """One poll: claim and start the next queued run while the bench is free, or apply the
-        control requests of the run holding it. Returns the id of a run started now."""
+        control requests of the run holding it (and say it is alive every :data:`PRESENCE_S`).
+        Returns the id of a run started now."""
+        if time.monotonic() - self._announced >= PRESENCE_S:
+            self.announce()
         cur = self.runner.current
         if cur is not None:
             self._apply_control(cur)
@@ -218,6 +264,11 @@ class BenchAgent:
         if self._thread is not None:
             self._thread.join(timeout=10.0)
         stopped = self.runner.shutdown(timeout_s)
+        try:
+            with self.sessions.begin() as s:
+                agent_gone(s, self.bench_id, pid=self.pid, host=self.host)
+        except Exception:  # the database is gone too: the bench shows offline once the record is stale
+            log.exception("bench agent %s: could not mark the bench offline", self.settings.bench_name)
         if stopped is not None:
             log.warning("run %s interrupted by the agent's shutdown; resume it after the restart", stopped)
         return stopped

@@ -5,42 +5,28 @@
 (``sim://`` starts a simulated bench speaking the real protocols), create or claim the
 run in the database, write the recording under ``<data_dir>/recordings``, execute the
 procedure and, when every step completed, fit the recording and give the verdict.
+
+The devices and the bench file are :mod:`api.agent.devices`; the fit, the verdict and the
+observers' end of a run :mod:`api.agent.verdict`.
 """
 
 from __future__ import annotations
 
 import os
 import socket
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from api.certificates.conformity import check_uncertainties
-from api.certificates.issue import limits_model_name, run_budget
+from api.agent.devices import bench_config_for, bench_sidecar, open_devices
+from api.agent.verdict import execute, limits_for
 from api.settings import Settings
-from bench.bench_config import SIM_BENCH_FILE, BenchConfig, apply_to_daq, load_bench_config
-from bench.calibration import CalibrationResult, calibrate_recording
+from bench.bench_config import apply_to_daq
 from bench.dwell_policy import fixed_dwell
-from bench.estimation.scalar_fit import PARAMETER_NAMES as SCALAR_NAMES
-from bench.estimation.static_fit import PARAMETER_NAMES as STATIC_NAMES
-from bench.limits import UnitLimits, describe, load_limits, verdict
+from bench.limits import UnitLimits
 from bench.procedures import build_procedure, preview
-from bench.recording import Recording
-from bench.recording.model import Sidecar
-from bench.recording.reader import read_recording
-from bench.records import (
-    DwellChoice,
-    LimitCheck,
-    Outcome,
-    RunObserver,
-    RunRecord,
-    RunStart,
-    RunState,
-    new_run_id,
-)
+from bench.records import DwellChoice, RunRecord, RunStart, new_run_id
+from bench.run_observer import RunObserver
 from bench.run_recorder import RunRecorder
 from bench.sequencer.control import RunControl, SequencerConfig
 from bench.sequencer.loop import Sequencer
@@ -52,267 +38,12 @@ from db.observer import DbRunObserver
 from db.repo.recovery import ResumePoint, claim_for_resume, mark_interrupted_runs
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
-from drivers.factory import BenchDevices, open_bench
+from drivers.factory import BenchDevices
 from drivers.sim.physics import SensorTruth
-
-
-def sim_url(settings: Settings, speed: float | None, seed: int, unit: str = "V") -> str:
-    """The ``sim://`` URL of a simulated bench with this speed, seed and channel unit."""
-    speed = speed or settings.sim_speed
-    return f"sim://?speed={speed:g}&rate={settings.sim_sample_rate_hz:g}&seed={seed}&unit={unit}"
-
-
-def bench_config_for(settings: Settings, sim: bool) -> BenchConfig:
-    """The bench file of the settings (``CALBENCH_BENCH_FILE``); without one, the simulated
-    bench's (``--sim`` or a ``sim://`` table URL).
-
-    :raises BenchConfigError: the file is unreadable or invalid (file and key named).
-    :raises ValueError: a real bench without a bench file.
-    """
-    if settings.bench_file is not None:
-        return load_bench_config(settings.bench_file)
-    if sim or settings.table_url.lower().startswith("sim:"):
-        return load_bench_config(SIM_BENCH_FILE)
-    raise ValueError(
-        f"table {settings.table_url!r} is a real bench: its geometry, local g and DAQ channels come from a "
-        "bench file (CALBENCH_BENCH_FILE or --bench-file; format in docs/bench-config.md)"
-    )
-
-
-def _sim_geometry(config: BenchConfig) -> dict[str, Any]:
-    return {
-        "axes": [list(a.axis) for a in config.axes],
-        "mount": np.array(config.mount_rotation, dtype=float),
-        "lever_arm_m": config.lever_arm_m,
-        "g_local_m_s2": config.gravity.g_local_m_s2,
-    }
-
-
-def open_devices(
-    settings: Settings,
-    sim: bool,
-    sim_speed: float | None,
-    seed: int,
-    truth: SensorTruth | None = None,
-    config: BenchConfig | None = None,
-) -> BenchDevices:
-    """Table and DAQ of the bench file ``config`` (default :func:`bench_config_for`): a
-    simulated bench built to its geometry (``sim``, a ``sim://`` file, unit ``truth`` or the
-    seed's typical one; in its own process when ``settings.sim_process``) or the file's URLs;
-    the DAQ is checked against the file and its channels mapped to the sensor's x, y, z.
-    """
-    config = config or bench_config_for(settings, sim)
-    n_axes = len(config.axes)
-    if sim or config.simulated:
-        url = sim_url(settings, sim_speed, seed, config.channel_unit)
-        if not sim and settings.bench_file is None and settings.table_url.lower().startswith("sim:"):
-            url = settings.table_url  # a sim:// table URL with its own parameters
-        devices = open_bench(
-            url,
-            truth=truth,
-            n_axes=n_axes,
-            sim_geometry=_sim_geometry(config),
-            sim_process=settings.sim_process,
-        )
-    else:
-        devices = open_bench(config.table_url, config.daq_url, n_axes=n_axes)
-    try:
-        devices.daq = apply_to_daq(config, devices.daq)
-    except BaseException:
-        devices.close()
-        raise
-    return devices
-
-
-def _vec3(v: Any) -> tuple[float, float, float]:
-    return (float(v[0]), float(v[1]), float(v[2]))
-
-
-def check_devices(devices: BenchDevices, config: BenchConfig) -> None:
-    """The opened devices are the bench the file describes (axes; a simulation's geometry).
-
-    :raises ValueError: they differ (the file named).
-    """
-    if devices.table.n_axes != len(config.axes):
-        raise ValueError(
-            f"{config.path}: table.axes lists {len(config.axes)} axes, the table has {devices.table.n_axes}"
-        )
-    if devices.sim is not None:
-        geo = devices.sim.geometry
-        same = (
-            np.allclose(geo.axes, [a.axis for a in config.axes], atol=1e-9)
-            and np.allclose(geo.mount_rotation, config.mount_rotation, atol=1e-9)
-            and np.allclose(geo.lever_arm_m, config.lever_arm_m, atol=1e-12)
-            and abs(devices.sim.g_local_m_s2 - config.gravity.g_local_m_s2) < 1e-9
-        )
-        if not same:
-            raise ValueError(
-                f"{config.path}: the simulated bench's axes, mount, lever arm or g differ from the bench file"
-            )
-
-
-def bench_sidecar(
-    devices: BenchDevices,
-    unit_serial: str,
-    procedure: str,
-    config: BenchConfig,
-    g_local_m_s2: float | None = None,
-) -> Sidecar:
-    """The sidecar: units and rate from the DAQ, table geometry and local g from the bench file
-    (``g_local_m_s2`` overrides the file's g).
-
-    :raises ValueError: the devices are not the bench the file describes.
-    """
-    check_devices(devices, config)
-    return Sidecar(
-        unit_serial=unit_serial,
-        channel_unit=devices.daq.channel_unit,
-        sample_rate_hz=devices.daq.sample_rate_hz,
-        g_local_m_s2=config.gravity.g_local_m_s2 if g_local_m_s2 is None else g_local_m_s2,
-        procedure=procedure,
-        table=config.table_geometry(),
-    )
-
-
-def fit_covariance(result: CalibrationResult) -> tuple[tuple[tuple[float, ...], ...], tuple[str, ...]]:
-    """The fit's parameter covariance and the names of its rows (static, scalar or dynamic fit)."""
-    dynamic = getattr(result, "fit", None)
-    if dynamic is not None:
-        names = tuple(dynamic.names)
-    else:
-        names = SCALAR_NAMES if result.method == "scalar" else STATIC_NAMES
-    cov = tuple(tuple(float(v) for v in row) for row in np.asarray(result.cov, dtype=float))
-    if len(cov) != len(names):
-        raise ValueError(f"fit covariance is {len(cov)}x{len(cov)} for {len(names)} parameter names")
-    return cov, names
-
-
-def judged_uncertainties(
-    rec: Recording, calibration: dict[str, Any], settings: Settings | None, g_check_n: int | None = None
-) -> dict[str, float]:
-    """The expanded uncertainty of each value the limits check: with ``settings``, as the
-    certificate will state it (the uncertainty budget with the bench's Type B settings, needed
-    by a guard band); without, or when no budget can be formed, the fit's Type A σ with k = 2
-    (simple acceptance, where U is stated beside the verdict; the certificate states its own)."""
-    budget = None
-    if settings is not None:
-        budget, _why = run_budget(rec, calibration, settings)
-    return check_uncertainties(calibration, budget, g_check_n)
-
-
-def _finish(
-    seq: Sequencer,
-    acq_outcome: Outcome | None,
-    error: str | None,
-    csv_path: Path,
-    limits: UnitLimits | None,
-    settings: Settings | None = None,
-) -> RunRecord:
-    calibration: dict[str, object] | None = None
-    outcome = acq_outcome
-    checks: tuple[LimitCheck, ...] = ()
-    cov: tuple[tuple[float, ...], ...] | None = None
-    names: tuple[str, ...] = ()
-    rec: Recording | None = None
-    if outcome is None:
-        try:
-            rec = read_recording(csv_path)
-            result = calibrate_recording(rec)
-            calibration = result.to_contract()
-            cov, names = fit_covariance(result)
-        except ValueError as exc:
-            outcome, error = Outcome.ERROR, f"fit failed: {exc}"
-    if calibration is not None and rec is not None:
-        try:
-            n_g = int(np.size(result.g_after.error_m_s2))
-            # the budget (refits for a moving table) only where the decision needs it: a guard band
-            guarded = limits is not None and limits.decision_rule == "guarded-acceptance"
-            us = (
-                judged_uncertainties(rec, calibration, settings if guarded else None, n_g) if limits else None
-            )
-            outcome, checks = verdict(calibration, limits, us)
-        except ValueError as exc:
-            outcome, error = Outcome.ERROR, f"limits check failed: {exc}"
-        if outcome is Outcome.FAIL:
-            error = "outside limits: " + "; ".join(describe(c) for c in checks if not c.passed)
-    return RunRecord(
-        start=seq.start,
-        state=RunState.FINISHED,
-        outcome=outcome,
-        windows=tuple(seq.recorder.windows),
-        error=error,
-        calibration=calibration,
-        limit_checks=checks,
-        n_samples=seq.recorder.n_rows,
-        dwell=seq.dwell,
-        fit_covariance=cov,
-        fit_param_names=names,
-        gaps=tuple(seq.recorder.gaps),
-    )
-
-
-class RunNotStored(RuntimeError):
-    """A run ended but an observer (the database) could not store its end; names both."""
-
-
-def finish_observers(
-    observers: Sequence[RunObserver], record: RunRecord, retry_s: float = 30.0, wait_s: float = 0.5
-) -> None:
-    """Tell every observer the run ended; a failing one (a database write refused: disk full,
-    connection lost) is retried with growing waits for ``retry_s``, so a transient failure
-    still stores the outcome instead of leaving the run ``running``.
-
-    :raises RunNotStored: an observer still failed at the end (each one named).
-    """
-    problems = []
-    for obs in observers:
-        deadline = time.monotonic() + retry_s
-        pause = wait_s
-        while True:
-            try:
-                obs.on_finish(record)
-                break
-            except Exception as exc:  # any observer failure: retried, then reported
-                if time.monotonic() + pause > deadline:
-                    problems.append(f"{type(obs).__name__}: {type(exc).__name__}: {exc}")
-                    break
-                time.sleep(pause)
-                pause = min(2 * pause, 5.0)
-    if problems:
-        outcome = record.outcome.value if record.outcome else record.state.value
-        raise RunNotStored(
-            f"run {record.run_id} ended {outcome} but its end could not be stored "
-            f"(retried {retry_s:g} s): " + "; ".join(problems)
-        )
-
-
-def _execute(
-    seq: Sequencer,
-    csv_path: Path,
-    observers: Sequence[RunObserver],
-    limits: UnitLimits | None,
-    settings: Settings | None = None,
-) -> RunRecord:
-    acq = seq.run()
-    record = _finish(seq, acq.outcome, acq.error, csv_path, limits, settings)
-    finish_observers(observers, record)
-    return record
 
 
 def _config(settings: Settings) -> SequencerConfig:
     return SequencerConfig(temp_band_c=settings.temp_band_c)
-
-
-def limits_for(settings: Settings, model: str | None, channel_unit: str) -> UnitLimits | None:
-    """The limits that judge a unit: its registered ``model`` if the limits file has it, else
-    ``settings.limits_model``; ``None`` when neither applies to ``channel_unit`` outputs.
-
-    :raises ValueError: the limits file is unreadable or malformed (named).
-    """
-    table = load_limits(settings.limits_file)
-    name = limits_model_name(settings, model)
-    chosen = table.get(name) if name else None
-    return chosen if chosen is not None and chosen.channel_unit == channel_unit else None
 
 
 def start_run(
@@ -443,7 +174,7 @@ def start_run(
             (config or _config(settings)),
             dwell,
         )
-        return _execute(seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None, settings)
+        return execute(seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None, settings)
     finally:
         if owned:
             devices.close()
@@ -573,7 +304,7 @@ def continue_run(
             start_window=point.next_window_index,
         )
         limits = limits_for(settings, model, devices.daq.channel_unit)
-        return _execute(seq, csv_path, obs, limits, settings)
+        return execute(seq, csv_path, obs, limits, settings)
     finally:
         devices.close()
 

@@ -1,9 +1,11 @@
 """The certificate's uncertainty budget: Type B inputs of the bench from its settings, the fit's
-design from the recording, the budget of ``bench.uncertainty.budget`` as JSON.
+design from the recording, the budget of ``bench.uncertainty.budget`` passed on typed
+(:class:`CertificateBudget`) and written as JSON only into the certificate's content
+(:meth:`CertificateBudget.to_content`).
 
 The design is the run's recording refitted by ``calibrate_recording`` (the same windows and
 specific forces as the stored fit); values and Type A standard uncertainties are the stored
-fit's (``calibrate --json``). Inputs that do not apply are listed under ``not_evaluated``
+fit's (:class:`bench.fitted_model.FittedModel`). Inputs that do not apply are listed under ``not_evaluated``
 with the reason (no table in the sidecar, no temperature channel, a digital output).
 """
 
@@ -18,7 +20,8 @@ import numpy as np
 from bench.calibration import calibrate_recording, select_windows
 from bench.calibration.dynamic import calibrate_dynamic, is_dynamic
 from bench.calibration.windows import table_window_angles
-from bench.estimation.static_fit import PARAMETER_NAMES
+from bench.estimation.static_design import PARAMETER_NAMES
+from bench.fitted_model import FittedModel
 from bench.recording import Recording
 from bench.uncertainty.budget import RULE, Budget, TypeBInput, uncertainty_budget
 from bench.uncertainty.dynamic import METHOD as DYNAMIC_METHOD
@@ -75,7 +78,7 @@ def _window_temps(rec: Recording) -> np.ndarray | None:
 
 
 def budget_inputs(
-    rec: Recording, cal: dict[str, Any], tb: TypeBSettings
+    rec: Recording, stored: FittedModel, tb: TypeBSettings
 ) -> tuple[np.ndarray, np.ndarray, list[TypeBInput], list[str]]:
     """The design (f (m, 3), window covariances (m, 3, 3)), the Type B inputs and what was not evaluated.
 
@@ -86,7 +89,7 @@ def budget_inputs(
         raise ValueError(f"the {fit.method} fit has no known specific force per window")
     f = np.array([w.f_m_s2 for w in fit.windows], dtype=float)
     S = np.array([np.diag(np.asarray(w.mean_sigma, dtype=float) ** 2) for w in fit.windows])
-    b, K = np.asarray(cal["bias"], dtype=float), np.asarray(cal["scale_matrix"], dtype=float)
+    b, K = np.asarray(stored.bias, dtype=float), np.asarray(stored.K, dtype=float)
     g = rec.sidecar.g_local_m_s2
     inputs: list[TypeBInput] = [gravity_input(f, g, tb.g_local_u_m_s2)]
     skipped: list[str] = []
@@ -99,7 +102,7 @@ def budget_inputs(
         )  # fmt: skip
     else:
         skipped.append("table angles and base levelling: the recording has no table angles")
-    unit = str(cal.get("channel_unit", rec.sidecar.channel_unit))
+    unit = stored.channel_unit
     if unit in ANALOG_UNITS:
         inputs += daq_inputs(b + f @ K.T, tb.daq_gain_u_rel, tb.daq_offset_u, unit)
     else:
@@ -114,76 +117,101 @@ def budget_inputs(
     return f, S, inputs, skipped
 
 
-def budget_json(
-    budget: Budget,
-    unit: str,
-    skipped: list[str],
-    *,
-    type_a_basis: str = TYPE_A_BASIS,
-    method: str = STATIC_METHOD,
-) -> dict[str, Any]:
-    """The budget as certificate JSON: inputs, and per parameter its lines, u_c, ν_eff, k and U
-    (contributions and U to three significant digits, u_c unrounded; ν_eff ``"infinite"`` when
-    every contribution has ν = ∞)."""
-    units = [unit] * 3 + [f"{unit}/(m/s2)"] * 9
-    quantities: dict[str, Any] = {}
-    for q, qunit in zip(budget.quantities, units, strict=True):
-        lines = [
-            {"name": c.name, "group": c.group, "channel": c.channel, "u": _sig3(c.u), "unit": c.unit,
-             "sensitivity": _sig3(c.sensitivity), "contribution": _sig3(c.contribution)}
-            for c in q.contributions
-            if c.group == "Type A" or c.contribution > 1e-6 * q.u_c
-        ]  # fmt: skip
-        quantities[q.name] = {
-            "value": q.value, "unit": qunit, "u_c": q.u_c, "k": round(q.k, 3), "U": _sig3(q.U),
-            "nu_eff": "infinite" if math.isinf(q.nu_eff) else round(q.nu_eff, 1), "contributions": lines,
-        }  # fmt: skip
-    return {
-        "rule": RULE,
-        "type_a": type_a_basis,
-        "sensitivity_method": method,
-        "inputs": [
-            {
-                "name": i.name,
-                "group": i.group,
-                "u": i.u,
-                "unit": i.unit,
-                "basis": i.basis,
-                "dof": "infinite" if math.isinf(i.dof) else i.dof,
-            }
-            for i in budget.inputs
-        ],
-        "not_evaluated": skipped,
-        "quantities": quantities,
-    }
+@dataclass(frozen=True)
+class CertificateBudget:
+    """The budget a certificate states: the typed budget of the 12 parameters, with what the
+    certificate says about it.
+
+    :param budget: u_c, ν_eff, k and U of each parameter (``PARAMETER_NAMES`` order) and the
+        contributions |c_i|·u(x_i) behind them.
+    :param channel_unit: the unit of the biases (the scale matrix's is per m/s²).
+    :param not_evaluated: inputs that do not apply, each with the reason.
+    :param type_a_basis: where the Type A part comes from. :param sensitivity_method: how the
+        sensitivities c_i were found.
+    """
+
+    budget: Budget
+    channel_unit: str
+    not_evaluated: tuple[str, ...]
+    type_a_basis: str = TYPE_A_BASIS
+    sensitivity_method: str = STATIC_METHOD
+
+    def combined(self, quantity: str) -> tuple[np.ndarray, float]:
+        """u_c of ``"bias"`` (3,) or ``"scale_matrix"`` (3, 3), in the quantity's unit, and its
+        coverage factor: the largest k of its elements, each k as the certificate states it (three
+        decimals), so one k per quantity, never smaller than any element's own.
+
+        :raises ValueError: ``quantity`` is neither ``"bias"`` nor ``"scale_matrix"``.
+        """
+        if quantity not in ("bias", "scale_matrix"):
+            raise ValueError(f"budget quantity {quantity!r}: expected 'bias' or 'scale_matrix'")
+        names = PARAMETER_NAMES[:3] if quantity == "bias" else PARAMETER_NAMES[3:]
+        qs = [self.budget.by_name(n) for n in names]
+        u = np.array([q.u_c for q in qs], dtype=float)
+        return (u if quantity == "bias" else u.reshape(3, 3)), max(round(q.k, 3) for q in qs)
+
+    def to_content(self) -> dict[str, Any]:
+        """The budget as the certificate's JSON (``results.uncertainty_budget``): inputs, and per
+        parameter its lines, u_c, ν_eff, k and U (contributions and U to three significant
+        digits, u_c unrounded, k to three decimals; ν_eff ``"infinite"`` when every contribution
+        has ν = ∞)."""
+        budget, unit = self.budget, self.channel_unit
+        units = [unit] * 3 + [f"{unit}/(m/s2)"] * 9
+        quantities: dict[str, Any] = {}
+        for q, qunit in zip(budget.quantities, units, strict=True):
+            lines = [
+                {"name": c.name, "group": c.group, "channel": c.channel, "u": _sig3(c.u), "unit": c.unit,
+                 "sensitivity": _sig3(c.sensitivity), "contribution": _sig3(c.contribution)}
+                for c in q.contributions
+                if c.group == "Type A" or c.contribution > 1e-6 * q.u_c
+            ]  # fmt: skip
+            quantities[q.name] = {
+                "value": q.value, "unit": qunit, "u_c": q.u_c, "k": round(q.k, 3), "U": _sig3(q.U),
+                "nu_eff": "infinite" if math.isinf(q.nu_eff) else round(q.nu_eff, 1), "contributions": lines,
+            }  # fmt: skip
+        return {
+            "rule": RULE,
+            "type_a": self.type_a_basis,
+            "sensitivity_method": self.sensitivity_method,
+            "inputs": [
+                {
+                    "name": i.name,
+                    "group": i.group,
+                    "u": i.u,
+                    "unit": i.unit,
+                    "basis": i.basis,
+                    "dof": "infinite" if math.isinf(i.dof) else i.dof,
+                }
+                for i in budget.inputs
+            ],
+            "not_evaluated": list(self.not_evaluated),
+            "quantities": quantities,
+        }
 
 
-def certificate_budget(rec: Recording, cal: dict[str, Any], tb: TypeBSettings) -> dict[str, Any]:
-    """The budget of a stored fit (``calibrate --json``) whose recording is ``rec``.
+def certificate_budget(rec: Recording, stored: FittedModel, tb: TypeBSettings) -> CertificateBudget:
+    """The budget of a stored fit whose recording is ``rec``.
 
     A moving-table recording (``is_dynamic``) gets the budget of ``bench.uncertainty.dynamic``
     (sensitivities by refits, the extra terms those the stored recording's fit chooses).
 
-    :raises ValueError: the fit is not a known-orientation static or a dynamic fit, or its values are missing.
+    :raises ValueError: the fit is not a known-orientation static or a dynamic fit.
     """
-    sigma = np.concatenate(
-        [np.asarray(cal["bias_sigma"], float), np.asarray(cal["scale_matrix_sigma"], float).ravel()]
-    )
-    b, K = np.asarray(cal["bias"], dtype=float), np.asarray(cal["scale_matrix"], dtype=float)
+    sigma = np.concatenate([np.asarray(stored.bias_sigma, float), np.asarray(stored.K_sigma, float).ravel()])
+    b, K = np.asarray(stored.bias, dtype=float), np.asarray(stored.K, dtype=float)
     if is_dynamic(rec):
-        return _dynamic_budget(rec, cal, tb, b, K, np.diag(sigma**2))
-    f, S, inputs, skipped = budget_inputs(rec, cal, tb)
+        return _dynamic_budget(rec, stored.channel_unit, tb, b, K, np.diag(sigma**2))
+    f, S, inputs, skipped = budget_inputs(rec, stored, tb)
     budget = uncertainty_budget(f, b, K, np.diag(sigma**2), inputs, window_cov=S)
-    return budget_json(budget, str(cal.get("channel_unit", "")), skipped)
+    return CertificateBudget(budget, stored.channel_unit, tuple(skipped))
 
 
 def _dynamic_budget(
-    rec: Recording, cal: dict[str, Any], tb: TypeBSettings, b: np.ndarray, K: np.ndarray, cov: np.ndarray
-) -> dict[str, Any]:
+    rec: Recording, unit: str, tb: TypeBSettings, b: np.ndarray, K: np.ndarray, cov: np.ndarray
+) -> CertificateBudget:
     fit = calibrate_dynamic(rec, cross_check=False)
     assert fit.fit is not None
     terms = fit.fit.spec.terms
-    unit = str(cal.get("channel_unit", rec.sidecar.channel_unit))
     inputs, skipped = dynamic_inputs(
         rec, terms, b, K,
         angle_u_rad=math.radians(tb.table_angle_u_deg), tilt_u_rad=tb.base_tilt_u_rad,
@@ -192,14 +220,4 @@ def _dynamic_budget(
         temp_coeff=(tb.temp_coeff_bias_u_m_s2_per_k, tb.temp_coeff_scale_u_rel_per_k),
     )  # fmt: skip
     budget = dynamic_budget(rec, terms, b, K, cov, inputs)
-    return budget_json(budget, unit, skipped, type_a_basis=DYNAMIC_TYPE_A_BASIS, method=DYNAMIC_METHOD)
-
-
-def combined(budget: dict[str, Any], quantity: str) -> tuple[np.ndarray, float]:
-    """u_c of ``"bias"`` (3,) or ``"scale_matrix"`` (3, 3) from a budget's JSON, and the quantity's
-    coverage factor: the largest k of its elements (one k per quantity, never smaller than any
-    element's own)."""
-    names = PARAMETER_NAMES[:3] if quantity == "bias" else PARAMETER_NAMES[3:]
-    qs = [budget["quantities"][n] for n in names]
-    u = np.array([q["u_c"] for q in qs], dtype=float)
-    return (u if quantity == "bias" else u.reshape(3, 3)), max(float(q["k"]) for q in qs)
+    return CertificateBudget(budget, unit, tuple(skipped), DYNAMIC_TYPE_A_BASIS, DYNAMIC_METHOD)

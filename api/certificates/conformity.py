@@ -4,8 +4,9 @@ The expanded uncertainties the checks carry are the certificate's own (:func:`ch
 so the U beside each verdict is the U of the results table:
 
 * ``bias_i``, ``scale_i`` (K_ii): U = k·u_c of the parameter, k the quantity's coverage factor
-  (the largest t_95.45 %(ν_eff) of its elements, :func:`api.certificates.budget.combined`),
-  rounded to two significant digits (GUM 7.2.6);
+  (the largest t_95.45 %(ν_eff) of its elements,
+  :meth:`api.certificates.budget.CertificateBudget.combined`), rounded to two significant
+  digits (GUM 7.2.6);
 * ``cross_axis_ij`` = K_ij / K_ii: u² = (u(K_ij)/K_ii)² + (K_ij·u(K_ii)/K_ii²)² (first-order
   propagation, the two taken uncorrelated), k of the scale matrix;
 * ``g_error_after``, the mean of e_w = |f̂_w| − g_local over the n windows (or 1 s blocks):
@@ -24,8 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from api.certificates.budget import combined
+from api.certificates.budget import CertificateBudget
 from api.certificates.rounding import round_significant
+from bench.fitted_model import FittedModel
+from bench.limit_check import LimitCheck
 from bench.limits import AXES, DECISION_RULES
 
 COVERAGE_K = 2.0
@@ -35,47 +38,36 @@ G_CHECK_U_BASIS = (
 )
 
 
-def _u_k(
-    cal: Mapping[str, Any], budget: Mapping[str, Any] | None
-) -> tuple[np.ndarray, float, np.ndarray, float]:
+def _u_k(fit: FittedModel, budget: CertificateBudget | None) -> tuple[np.ndarray, float, np.ndarray, float]:
     if budget is not None:
-        (u_b, k_b), (u_k, k_k) = combined(dict(budget), "bias"), combined(dict(budget), "scale_matrix")
+        (u_b, k_b), (u_k, k_k) = budget.combined("bias"), budget.combined("scale_matrix")
         return np.asarray(u_b, float), k_b, np.asarray(u_k, float), k_k
-    return (
-        np.asarray(cal["bias_sigma"], float),
-        COVERAGE_K,
-        np.asarray(cal["scale_matrix_sigma"], float),
-        COVERAGE_K,
-    )
+    return np.asarray(fit.bias_sigma, float), COVERAGE_K, np.asarray(fit.K_sigma, float), COVERAGE_K
 
 
 def _u2(x: float) -> float:
     return round_significant(x) if math.isfinite(x) and x > 0 else float(x)
 
 
-def g_check_u(std_m_s2: Any, n: int | None) -> float | None:
+def g_check_u(std_m_s2: float | None, n: int | None) -> float | None:
     """U (k = 2, two significant digits) of the |g| check's mean error over ``n`` windows,
     ``None`` when ``n`` < 2 or the standard deviation is not a finite number."""
-    if n is None or n < 2 or not isinstance(std_m_s2, int | float) or not math.isfinite(std_m_s2):
+    if n is None or n < 2 or std_m_s2 is None or not math.isfinite(std_m_s2):
         return None
     return _u2(COVERAGE_K * float(std_m_s2) / math.sqrt(float(n)))
 
 
 def check_uncertainties(
-    cal: Mapping[str, Any], budget: Mapping[str, Any] | None, g_check_n: int | None = None
+    fit: FittedModel, budget: CertificateBudget | None, g_check_n: int | None = None
 ) -> dict[str, float]:
     """Expanded uncertainty U (two significant digits) of each value the limits check, by limit
-    name (``bench.limits.checked_values``), from a ``calibrate --json`` object and its budget.
+    name (``bench.limits.checked_values``), from a fit and its budget.
 
     :param g_check_n: the number of windows (or 1 s blocks) of the |g| check; ``None``: its U
         is not stated.
-    :raises ValueError: the fit lacks a σ or a value.
     """
-    try:
-        K = np.asarray(cal["scale_matrix"], float)
-        u_b, k_b, u_K, k_K = _u_k(cal, budget)
-    except (KeyError, TypeError) as exc:
-        raise ValueError(f"the fit lacks an uncertainty the conformity statement needs: {exc!r}") from exc
+    K = np.asarray(fit.K, float)
+    u_b, k_b, u_K, k_K = _u_k(fit, budget)
     out: dict[str, float] = {}
     for i, a in enumerate(AXES):
         out[f"bias_{a}"] = _u2(k_b * float(u_b[i]))
@@ -85,8 +77,7 @@ def check_uncertainties(
                 kii, kij = K[i, i], K[i, j]
                 u = math.hypot(u_K[i, j] / kii, kij * u_K[i, i] / kii**2)
                 out[f"cross_axis_{a}{AXES[j]}"] = _u2(k_K * u)
-    after = cal.get("g_check", {}).get("after", {}) if isinstance(cal.get("g_check"), Mapping) else {}
-    u_g = g_check_u(after.get("std_m_s2") if isinstance(after, Mapping) else None, g_check_n)
+    u_g = g_check_u(fit.g_after.std_m_s2, g_check_n)
     if u_g is not None:
         out["g_error_after"] = u_g
     return out
@@ -97,14 +88,14 @@ def _verdict_word(passed: bool) -> str:
 
 
 def conformity_statement(
-    checks: Sequence[Mapping[str, Any]],
+    checks: Sequence[LimitCheck],
     outcome: str | None,
     model: str | None,
     rule: str | None,
     uncertainties: Mapping[str, float] | None = None,
 ) -> dict[str, Any]:
-    """The certificate's conformity section from the run's stored limit checks
-    (``bench.records.LimitCheck`` as dicts) and its stored outcome.
+    """The certificate's conformity section from the run's stored limit checks and its stored
+    outcome.
 
     :param uncertainties: the certificate's own U of each checked value
         (:func:`check_uncertainties` with its budget), stated in place of the stored one; the
@@ -124,28 +115,27 @@ def conformity_statement(
             "decision_rule": "not applicable",
             "checks": [],
         }
-    rule = rule or str(checks[0].get("rule", "simple-acceptance"))
-    all_pass = all(bool(c["passed"]) for c in checks)
+    rule = rule or checks[0].rule
+    all_pass = all(c.passed for c in checks)
     if outcome not in ("PASS", "FAIL") or (outcome == "PASS") != all_pass:
         which = "all" if all_pass else "not all"
         raise ValueError(f"the run's outcome {outcome!r} disagrees with its limit checks ({which} pass)")
     rows = []
     for c in checks:
-        lo, hi = c.get("low"), c.get("high")
         rows.append(
             {
-                "quantity": c["name"],
-                "value": c["value"],
-                "expanded_uncertainty": (uncertainties or {}).get(c["name"], c.get("expanded_uncertainty")),
-                "unit": c["unit"],
-                "low": lo,
-                "high": hi,
-                "acceptance_low": c.get("acceptance_low", lo),
-                "acceptance_high": c.get("acceptance_high", hi),
-                "verdict": _verdict_word(bool(c["passed"])),
+                "quantity": c.name,
+                "value": c.value,
+                "expanded_uncertainty": (uncertainties or {}).get(c.name, c.expanded_uncertainty),
+                "unit": c.unit,
+                "low": c.low,
+                "high": c.high,
+                "acceptance_low": c.acceptance_low,
+                "acceptance_high": c.acceptance_high,
+                "verdict": _verdict_word(c.passed),
             }
         )
-    n_bad = sum(1 for c in checks if not c["passed"])
+    n_bad = sum(1 for c in checks if not c.passed)
     what = (
         f"the item conforms to the specification of model {model or 'not stated'}: all {len(checks)} "
         "checked values are inside their acceptance intervals"

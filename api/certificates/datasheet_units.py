@@ -13,13 +13,14 @@ Each value is rounded to the decimal place of its U's second significant digit (
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from api.certificates.budget import CertificateBudget
 from api.certificates.conformity import check_uncertainties
 from api.certificates.rounding import round_expanded
+from bench.fitted_model import FittedModel
 from bench.limits import AXES
 
 G_N_M_S2 = 9.80665
@@ -31,17 +32,17 @@ def _pair(value: float, u: float) -> tuple[float, float]:
     return round_expanded(value, u, 1.0)
 
 
-def datasheet_results(cal: Mapping[str, Any], budget: Mapping[str, Any] | None) -> dict[str, Any]:
-    """Sensitivity, zero-g output and cross-axis sensitivity of a ``calibrate --json`` object
-    with the certificate's U (``budget`` as in the results table; ``None``: Type A, k = 2).
+def datasheet_results(fit: FittedModel, budget: CertificateBudget | None) -> dict[str, Any]:
+    """Sensitivity, zero-g output and cross-axis sensitivity of a fit with the certificate's U
+    (``budget`` as in the results table; ``None``: Type A, k = 2).
 
-    :raises ValueError: the fit lacks a value or σ.
+    :raises ValueError: a value or its U cannot be rounded (not finite).
     """
-    unit = str(cal.get("channel_unit", ""))
+    unit = fit.channel_unit
     factor, out_unit = _SCALE.get(unit, (1.0, unit))
-    us = check_uncertainties(cal, budget)
-    K = np.asarray(cal["scale_matrix"], float)
-    b = np.asarray(cal["bias"], float)
+    us = check_uncertainties(fit, budget)
+    K = np.asarray(fit.K, float)
+    b = np.asarray(fit.bias, float)
     sens = [
         _pair(K[i, i] * G_N_M_S2 * factor, us[f"scale_{a}"] * G_N_M_S2 * factor) for i, a in enumerate(AXES)
     ]

@@ -20,12 +20,17 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
-from api.certificates.budget import TypeBSettings, certificate_budget
-from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
+from api.certificates.budget import CertificateBudget, TypeBSettings, certificate_budget
+from api.certificates.certificate import certificate_content
+from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.pdf import render_pdf
 from api.settings import Settings
 from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording, select_windows
 from bench.calibration.dynamic import is_dynamic
+from bench.diagnosis.result import Diagnosis
+from bench.diagnosis.stored import StoredDiagnosis
+from bench.fitted_model import FittedModel, GCheckSummary, NominalReference
+from bench.limit_check import LimitCheck
 from bench.limits import load_limits
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
@@ -39,8 +44,8 @@ DIAGNOSIS_AVAILABLE = importlib.util.find_spec("bench.calibration.diagnose") is 
 """The diagnosis module is installed (it is optional for the service)."""
 
 
-def diagnose(rec: Recording) -> dict[str, Any]:
-    """The ``calbench diagnose --json`` object of a recording.
+def diagnose(rec: Recording) -> Diagnosis:
+    """The diagnosis of a recording (its ``calbench diagnose --json`` object by ``to_contract()``).
 
     :raises RuntimeError: the diagnosis module is not installed.
     :raises ValueError: the recording cannot be diagnosed (message names it).
@@ -49,7 +54,7 @@ def diagnose(rec: Recording) -> dict[str, Any]:
         raise RuntimeError("the diagnosis module (bench.calibration.diagnose) is not installed")
     from bench.calibration.diagnose import diagnose_recording
 
-    return dict(diagnose_recording(rec).to_contract())
+    return diagnose_recording(rec)
 
 
 class CertificateRefused(ValueError):
@@ -99,27 +104,26 @@ class RunAnalysis:
     """What a finished run's recording gave, computed outside any transaction.
 
     :param rec: the recording, or ``None`` when unreadable or not needed.
-    :param diagnosis: the ``calbench diagnose --json`` object, or ``None``.
+    :param diagnosis: the recording's diagnosis, or ``None``.
     :param note: why there is no diagnosis (empty when there is one).
     :param g_before: the |g| check with the unit's registered nominal scale (``before``
-        adjustment, ``calibrate --json`` names) when the fit had none, with ``nominal``.
+        adjustment) when the fit had none, with its ``nominal``.
     """
 
     rec: Recording | None
-    diagnosis: dict[str, Any] | None
+    diagnosis: Diagnosis | None
     note: str
-    g_before: dict[str, Any] | None = None
+    g_before: GCheckSummary | None = None
 
 
 Nominal = tuple[float, float | None]
 """A unit's registered nominal scale (channel unit per m/s²) and zero-g output (channel unit)."""
 
 
-def g_check_before(rec: Recording, nominal: Nominal) -> dict[str, Any] | None:
-    """The |g| check of ``rec`` with the nominal scale and zero-g output (no adjustment), as
-    ``{"mean_error_m_s2", "std_m_s2", "nominal": {...}}``; ``None`` if it cannot be formed
-    (also when a V or count unit was registered without its zero-g output: assuming 0 would
-    give a meaningless check)."""
+def g_check_before(rec: Recording, nominal: Nominal) -> GCheckSummary | None:
+    """The |g| check of ``rec`` with the nominal scale and zero-g output (no adjustment), with
+    that nominal; ``None`` if it cannot be formed (also when a V or count unit was registered
+    without its zero-g output: assuming 0 would give a meaningless check)."""
     scale, bias = nominal
     if bias is None and rec.sidecar.channel_unit not in NATURAL_ZERO_UNITS:
         return None
@@ -127,10 +131,10 @@ def g_check_before(rec: Recording, nominal: Nominal) -> dict[str, Any] | None:
         cal = calibrate_recording(rec, nominal_scale=scale, nominal_bias=np.full(3, bias or 0.0))
     except ValueError:
         return None
-    before = cal.to_contract().get("g_check", {}).get("before")
-    if not isinstance(before, dict):
+    if cal.g_before is None:
         return None
-    return {**before, "nominal": {"scale": scale, "bias": bias or 0.0, "source": "unit registration"}}
+    ref = NominalReference(scale, bias or 0.0, "unit registration")
+    return GCheckSummary(cal.g_before.mean_error_m_s2, cal.g_before.std_m_s2, ref)
 
 
 def analyse_recording(path: str | None, nominal: Nominal | None = None) -> RunAnalysis:
@@ -154,8 +158,7 @@ def analyse_run(record: RunRecord, nominal: Nominal | None = None) -> RunAnalysi
     |g| check is formed only when the fit has no ``before`` of its own."""
     if record.calibration is None:
         return RunAnalysis(None, None, "diagnosis not performed: the run has no fit")
-    g_check = record.calibration.get("g_check")
-    if isinstance(g_check, dict) and "before" in g_check:
+    if record.calibration.g_before is not None:
         nominal = None
     return analyse_recording(str(record.start.recording_path), nominal)
 
@@ -166,17 +169,17 @@ def store_diagnosis(s: Session, run_id: str, analysis: RunAnalysis) -> None:
     if analysis.diagnosis is None:
         merge_params(s, run_id, {"diagnosis_error": analysis.note})
         return
-    add_findings(s, run_id, analysis.diagnosis.get("findings", []))
-    merge_params(s, run_id, {"diagnosis": analysis.diagnosis, "diagnosis_error": None})
+    add_findings(s, run_id, StoredDiagnosis.of(analysis.diagnosis).findings)
+    merge_params(s, run_id, {"diagnosis": dict(analysis.diagnosis.to_contract()), "diagnosis_error": None})
 
 
-def store_g_before(s: Session, run_id: str, g_before: dict[str, Any] | None) -> None:
+def store_g_before(s: Session, run_id: str, g_before: GCheckSummary | None) -> None:
     """Add the nominal |g| check to the run's stored fit as ``g_check.before``."""
     run = s.get(Run, run_id)
     cal = run.params.get("calibration") if run is not None else None
     if g_before is None or not isinstance(cal, dict) or "before" in cal.get("g_check", {}):
         return
-    g_check = {**cal.get("g_check", {}), "before": g_before}
+    g_check = {**cal.get("g_check", {}), "before": g_before.to_contract()}
     merge_params(s, run_id, {"calibration": {**cal, "g_check": g_check}})
 
 
@@ -184,25 +187,25 @@ def store_results(s: Session, record: RunRecord, analysis: RunAnalysis) -> None:
     """Store the fit (unless the run's database observer already did), the nominal |g| check
     and the diagnosis (or why there is none)."""
     if record.calibration is not None and not list_fits(s, record.run_id):
-        add_fit(s, record.run_id, FitKind.STATIC, record.calibration)
+        add_fit(s, record.run_id, FitKind.STATIC, record.calibration.to_contract())
     store_g_before(s, record.run_id, analysis.g_before)
     store_diagnosis(s, record.run_id, analysis)
 
 
-def unit_inputs(unit: Unit) -> dict[str, Any]:
+def unit_inputs(unit: Unit) -> UnitFacts:
     """What the certificate states about the item and its customer, from the unit's registration."""
-    return {
-        "serial": unit.serial,
-        "model": unit.model,
-        "channel_unit": unit.channel_unit,
-        "description": unit.description,
-        "condition": unit.condition,
-        "customer_name": unit.customer_name,
-        "customer_address": unit.customer_address,
-        "received_on": unit.received_on.isoformat() if unit.received_on else None,
-        "nominal_scale": unit.nominal_scale,
-        "nominal_bias": unit.nominal_bias,
-    }
+    return UnitFacts(
+        serial=unit.serial,
+        model=unit.model,
+        channel_unit=unit.channel_unit,
+        description=unit.description,
+        condition=unit.condition,
+        customer_name=unit.customer_name,
+        customer_address=unit.customer_address,
+        received_on=unit.received_on,
+        nominal_scale=unit.nominal_scale,
+        nominal_bias=unit.nominal_bias,
+    )
 
 
 def unit_nominal(unit: Unit | None) -> Nominal | None:
@@ -234,8 +237,8 @@ def limits_model_name(settings: Settings, model: str | None) -> str | None:
 
 
 def run_budget(
-    rec: Recording | None, calibration: dict[str, Any], settings: Settings
-) -> tuple[dict[str, Any] | None, str]:
+    rec: Recording | None, calibration: FittedModel, settings: Settings
+) -> tuple[CertificateBudget | None, str]:
     """The uncertainty budget of a run's fit with the bench's Type B settings, or ``None`` and why not."""
     if rec is None:
         return None, "the run's recording cannot be read, so the fit's design is unknown"
@@ -251,21 +254,25 @@ def issue_for_run(
     run_id: str,
     *,
     rec: Recording | None = None,
-    diagnosis: dict[str, Any] | None = None,
+    diagnosis: StoredDiagnosis | None = None,
     diagnosis_note: str = "",
     temp_c: tuple[float, float, float] | None = None,
     now: dt.datetime | None = None,
 ) -> Certificate:
     """Issue the certificate of a completed run that has a fit.
 
+    :param diagnosis: the run's diagnosis; ``None``: the one stored with the run, if any.
     :raises LookupError: no such run. :raises ValueError: the run has no fit or is not completed.
+    :raises bench.fitted_model.ContractError: the stored fit or the stored diagnosis lacks a key
+        or holds an ill-typed one (named).
     """
     run = s.get(Run, run_id)
     if run is None:
         raise LookupError(f"run {run_id} not found")
-    calibration = run.params.get("calibration")
-    if run.state.value != "completed" or not isinstance(calibration, dict):
+    stored = run.params.get("calibration")
+    if run.state.value != "completed" or not isinstance(stored, dict):
         raise ValueError(f"run {run_id} is {run.state.value} without a fit: no certificate can be issued")
+    calibration = FittedModel.from_contract(stored, f"run {run_id}: stored fit")
     unit = s.get(Unit, run.unit_id)
     assert unit is not None
     if rec is None and run.recording_path:
@@ -273,8 +280,8 @@ def issue_for_run(
             rec = read_recording(run.recording_path)
         except (OSError, ValueError):
             rec = None
-    if diagnosis is None and isinstance(run.params.get("diagnosis"), dict):
-        diagnosis = run.params["diagnosis"]
+    if diagnosis is None and run.params.get("diagnosis") is not None:
+        diagnosis = StoredDiagnosis.from_contract(run.params["diagnosis"], f"run {run_id}: stored diagnosis")
     simulated = bool(run.params.get("sim"))
     blocking, _warnings = settings.certificate_gaps()
     if blocking and not simulated:
@@ -288,16 +295,16 @@ def issue_for_run(
         settings = settings.model_copy(update={"g_local_u_m_s2": u_g})
     budget, budget_note = run_budget(rec, calibration, settings)
     inputs = CertificateInputs(
-        run={
-            "id": run.id,
-            "procedure": run.procedure,
-            "started_at": run.started_at,
-            "finished_at": run.finished_at,
-            "parameters": run.params.get("parameters", {}),
-            "bench": run.params.get("bench"),
-            "sample_gaps": run.params.get("sample_gaps", []),
-            "bench_config": run.params.get("bench_config"),
-        },
+        run=RunFacts(
+            id=run.id,
+            procedure=run.procedure,
+            started_at=run.started_at,
+            finished_at=run.finished_at,
+            parameters=run.params.get("parameters", {}),
+            bench=run.params.get("bench"),
+            sample_gaps=run.params.get("sample_gaps", []),
+            bench_config=run.params.get("bench_config"),
+        ),
         unit=unit_inputs(unit),
         calibration=calibration,
         g_local_m_s2=g_local,
@@ -308,7 +315,10 @@ def issue_for_run(
         simulated=simulated,
         budget=budget,
         budget_note=budget_note,
-        limit_checks=tuple(dict(c) for c in (run.limit_checks or [])),
+        limit_checks=tuple(
+            LimitCheck.from_stored(c, f"run {run_id}: limit check {i}")
+            for i, c in enumerate(run.limit_checks or [])
+        ),
         outcome=run.outcome,
         limits_model=limits_model_name(settings, unit.model) if run.limit_checks else None,
         g_check_n=g_check_count(rec) if rec is not None else None,
@@ -346,7 +356,7 @@ def _issue_after_run(s: Session, settings: Settings, record: RunRecord, analysis
         settings,
         record.run_id,
         rec=analysis.rec,
-        diagnosis=analysis.diagnosis,
+        diagnosis=StoredDiagnosis.of(analysis.diagnosis) if analysis.diagnosis is not None else None,
         diagnosis_note=analysis.note,
         temp_c=_temperature(record),
     )

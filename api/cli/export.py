@@ -36,13 +36,12 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise BadInput(str(exc)) from exc
     cal = calibrate_recording(rec)
-    contract = cal.to_contract()
     allan = None
     if args.format == "kalibr":
         static = [(w.start_s, w.end_s) for w in cal.windows]
         s, e, source = pick_noise_span(rec, [], static)
         allan = allan_series(rec, s, e, source)
-    text = export_text(args.format, contract, allan, f"from {path.name}")
+    text = export_text(args.format, cal.fitted_model(), allan, f"from {path.name}")
     if args.out is None:
         sys.stdout.write(text)
     else:

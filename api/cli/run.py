@@ -22,7 +22,8 @@ from api.cli import decimal_arg
 from api.settings import Settings
 from bench.limits import describe
 from bench.procedures import PROCEDURES
-from bench.records import NullObserver, Outcome, Progress, RunRecord, StateChange
+from bench.records import Outcome, Progress, RunRecord, StateChange
+from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl
 
 
@@ -112,7 +113,7 @@ def record_as_dict(record: RunRecord) -> dict[str, Any]:
         "dwell": None
         if dwell is None
         else {"dwell_s": dwell.dwell_s, "source": dwell.source, "reason": dwell.reason},
-        "calibration": record.calibration,
+        "calibration": None if record.calibration is None else record.calibration.to_contract(),
         "limit_checks": [dataclasses.asdict(c) for c in record.limit_checks],
     }
 
@@ -130,16 +131,17 @@ def report(record: RunRecord, as_json: bool) -> int:
     )
     if record.dwell is not None:
         print(f"dwell: {record.dwell.reason}")
-    cal: dict[str, Any] | None = record.calibration
-    if cal is not None:
-        pairs = zip(cal["bias"], cal["bias_sigma"], strict=True)
+    if record.calibration is not None:
+        fit = record.calibration.fitted_model()
+        pairs = zip(fit.bias.tolist(), fit.bias_sigma.tolist(), strict=True)
         print("bias:", "  ".join(f"{b:.6g} ± {s:.2g}" for b, s in pairs))
         print("scale matrix K (channel unit per m/s²):")
-        for row, srow in zip(cal["scale_matrix"], cal["scale_matrix_sigma"], strict=True):
+        for row, srow in zip(fit.K.tolist(), fit.K_sigma.tolist(), strict=True):
             print("   " + "  ".join(f"{k:+.6e} ± {s:.1e}" for k, s in zip(row, srow, strict=True)))
         print(f"{'|g| check':12s} {'mean error (m/s²)':>18s} {'std (m/s²)':>12s}")
-        for name, g in cal["g_check"].items():
-            print(f"{name:12s} {g['mean_error_m_s2']:18.3e} {g['std_m_s2']:12.3e}")
+        for name, g in (("before", fit.g_before), ("after", fit.g_after)):
+            if g is not None:
+                print(f"{name:12s} {g.mean_error_m_s2:18.3e} {g.std_m_s2:12.3e}")
     if record.limit_checks:
         bad = [c for c in record.limit_checks if not c.passed]
         print(

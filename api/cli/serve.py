@@ -1,10 +1,15 @@
-"""``calbench serve [--sim] [--sim-speed N] [--host H] [--port P] [--agent MODE]``: the REST
-service and dashboard.
+"""``calbench serve [--sim] [--sim-speed N] [--host H] [--port P] [--agent MODE] [--workers N]``:
+the REST service and dashboard.
 
 The service never drives the bench itself: by default it starts the bench's agent
 (``calbench agent``, :mod:`api.agent.supervisor`) as a child process and keeps it running;
 ``--agent external`` leaves that to someone else (docker compose, systemd), ``--agent
 embedded`` runs the agent in a thread of the service (one process, as before).
+
+``--workers N`` serves the API from N processes (uvicorn's workers, each building the app with
+:func:`worker_app` from the settings this process resolved, handed down in
+:data:`SERVE_CONFIG_ENV`); they share nothing but the database, so any of them answers any
+request and streams any run. The bench agent is then never embedded in a worker.
 
 Settings come from ``CALBENCH_*`` (see ``docs/service.md``). Without ``CALBENCH_TOKENS``
 an admin token is generated and printed once on stderr (it may also create database tokens
@@ -16,15 +21,25 @@ dashboard of a development bench opens without a token.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from api.auth import new_secret, parse_tokens
 from api.cli import BadInput
 from api.drift import parse_time_of_day
 from api.settings import Settings
 from api.startup_check import check_configuration
+
+if TYPE_CHECKING:
+    from fastapi import FastAPI
+
+SERVE_CONFIG_ENV = "CALBENCH_SERVE_CONFIG"
+"""Environment variable through which ``calbench serve --workers N`` hands its resolved settings
+and generated tokens to the worker processes (JSON ``{"settings": {...}, "extra_tokens": {...}}``)."""
+MAX_WORKERS = 64
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -50,6 +65,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="spawn (default): start and watch the bench agent process; external: it runs elsewhere; "
         "embedded: in a thread of this process",
     )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="API worker processes sharing the port (default 1); they share only the database",
+    )
 
 
 def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
@@ -66,6 +88,14 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         raise BadInput(str(exc).splitlines()[0]) from None
     if not 0 < args.port < 65536:
         raise BadInput(f"--port {args.port}: expected 1..65535")
+    workers = getattr(args, "workers", 1)
+    if not 1 <= workers <= MAX_WORKERS:
+        raise BadInput(f"--workers {workers}: expected 1..{MAX_WORKERS}")
+    if workers > 1 and getattr(args, "agent", "spawn") == "embedded":
+        raise BadInput(
+            f"--workers {workers} with --agent embedded: each worker would drive the bench; "
+            "use --agent spawn (default) or external"
+        )
     update: dict[str, object] = {}
     if args.sim:
         update["sim"] = True
@@ -73,7 +103,7 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         if not args.sim_speed > 0:
             raise BadInput(f"--sim-speed {args.sim_speed}: expected a positive number")
         update["sim_speed"] = args.sim_speed
-    from api.agent.session import bench_config_for
+    from api.agent.devices import bench_config_for
 
     if getattr(args, "bench_file", None) is not None:
         update["bench_file"] = Path(args.bench_file)
@@ -93,6 +123,27 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
     return final, generated
 
 
+def worker_app() -> FastAPI:
+    """The app of one ``calbench serve --workers N`` worker (uvicorn calls this factory in each
+    worker process): the settings and generated tokens of :data:`SERVE_CONFIG_ENV`.
+
+    :raises RuntimeError: the variable is missing or malformed (the worker was not started by
+        ``calbench serve``).
+    """
+    from api.main import create_app
+
+    raw = os.environ.get(SERVE_CONFIG_ENV)
+    try:
+        config = json.loads(raw or "")
+        settings = Settings.model_validate(config["settings"])
+        extra_tokens = {str(k): str(v) for k, v in config["extra_tokens"].items()}
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise RuntimeError(
+            f"{SERVE_CONFIG_ENV}: missing or malformed ({exc}); API workers are started by calbench serve"
+        ) from None
+    return create_app(settings, extra_tokens=extra_tokens)
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``calbench serve``."""
     import uvicorn
@@ -104,9 +155,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"calbench serve: no CALBENCH_TOKENS; {role} token of this process: {secret}", file=sys.stderr)
     if settings.public_read:
         print("calbench serve: reads need no token (public_read)", file=sys.stderr)
+    workers = getattr(args, "workers", 1)
     print(
         f"calbench serve: bench {settings.bench_name!r}, database {settings.effective_database_url}, "
-        f"{'simulated bench' if settings.sim else settings.table_url}, http://{args.host}:{args.port}/",
+        f"{'simulated bench' if settings.sim else settings.table_url}, http://{args.host}:{args.port}/"
+        + (f", {workers} API workers" if workers > 1 else ""),
         file=sys.stderr,
     )
     supervisor = None
@@ -116,9 +169,21 @@ def run(args: argparse.Namespace) -> int:
         supervisor = AgentSupervisor(settings, sim=settings.sim, sim_speed=args.sim_speed)
         supervisor.start()
     try:
-        stop_agent = supervisor.stop if supervisor is not None else None
-        app = create_app(settings, extra_tokens=generated, on_shutdown=stop_agent)
-        uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level)
+        if workers > 1:
+            config = {"settings": settings.model_dump(mode="json"), "extra_tokens": generated}
+            os.environ[SERVE_CONFIG_ENV] = json.dumps(config)
+            uvicorn.run(
+                "api.cli.serve:worker_app",
+                factory=True,
+                workers=workers,
+                host=args.host,
+                port=args.port,
+                log_level=args.log_level,
+            )
+        else:
+            stop_agent = supervisor.stop if supervisor is not None else None
+            app = create_app(settings, extra_tokens=generated, on_shutdown=stop_agent)
+            uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level)
     finally:  # also when the app never started; stopping twice is harmless
         if supervisor is not None:
             supervisor.stop()

@@ -9,7 +9,7 @@ import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from api.certificates.certificate import NOT_STATED
+from api.certificates.statements import NOT_STATED
 from api.settings import Settings
 from bench.records import RunRecord
 from bench.uncertainty.drift import compare
@@ -48,8 +48,8 @@ def record_drift_check(s: Session, settings: Settings, serial: str, record: RunR
     elif record.calibration is None:
         result["error"] = record.error or "the check run produced no fit"
     else:
-        check = dict(record.calibration)
-        k_diag = np.abs(np.diag(np.asarray(check["scale_matrix"], dtype=float)))
+        check = record.calibration.fitted_model()
+        k_diag = np.abs(np.diag(np.asarray(check.K, dtype=float)))
         rep = k_diag * float(getattr(settings, "drift_bias_repeatability_m_s2", 0.0))
         cert_bench = certificate_bench(s, cert)
         same = cert_bench is not None and cert_bench == record.start.bench_name

@@ -1,5 +1,6 @@
 """The colours of the accelerometer channels x, y, z in every plot: the dashboard (``--cx``,
-``--cy``, ``--cz`` in ``api/static/style.css``), the Allan PNG and the diagnose HTML report."""
+``--cy``, ``--cz``, served from here as ``/channel-colours.css`` by ``api.routes.dashboard``),
+the Allan PNG (``api.plots.allan``) and the diagnose HTML report (``api.reports``)."""
 
 from __future__ import annotations
 

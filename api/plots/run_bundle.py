@@ -10,12 +10,18 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from api.plots.run_series import allan_series, g_check_series, pick_noise_span, residual_series
+from api.plots.run_series import (
+    PreviousCalibration,
+    allan_series,
+    g_check_series,
+    pick_noise_span,
+    residual_series,
+)
 from bench.calibration import CalibrationResult, calibrate_recording
 from bench.recording import read_recording
 
@@ -40,7 +46,7 @@ class RunBundle:
         self,
         nominal_scale: float | None = None,
         nominal_bias: Sequence[float] | None = None,
-        previous: Mapping[str, Any] | None = None,
+        previous: PreviousCalibration | None = None,
     ) -> dict[str, Any]:
         """|g| before/after (see :func:`~api.plots.run_series.g_check_series`)."""
         return g_check_series(

@@ -18,7 +18,8 @@ the browser draws them. Units travel with the numbers (``*_m_s2``, ``channel_uni
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -27,9 +28,20 @@ import numpy.typing as npt
 from bench.calibration import CalibrationResult
 from bench.estimation.allan import overlapping_allan
 from bench.estimation.g_check import correct
+from bench.fitted_model import FittedModel
 from bench.recording import G0_M_S2, Recording
 
 FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PreviousCalibration:
+    """The unit's previous calibrated run: its id and its stored fit."""
+
+    run_id: str
+    fit: FittedModel
+
+
 CHANNELS = ("ax", "ay", "az")
 MIN_ALLAN_SAMPLES = 64
 """Below this a window gives too few τ points for a useful Allan curve."""
@@ -47,7 +59,7 @@ def _reference(
     cal: CalibrationResult,
     nominal_scale: float | None,
     nominal_bias: Sequence[float] | None,
-    previous: Mapping[str, Any] | None,
+    previous: PreviousCalibration | None,
 ) -> tuple[str, FloatArray, FloatArray] | None:
     """(label, bias, K) of the 'before' model, or ``None`` when nothing is known."""
     if nominal_scale is not None:
@@ -62,9 +74,8 @@ def _reference(
     if cal.channel_unit == "g":
         return "uncorrected (g × g0)", np.zeros(3), np.eye(3) / G0_M_S2
     if previous is not None:
-        label = f"previous calibration ({previous.get('run_id', '?')})"
-        b, K = previous["bias"], previous["scale_matrix"]
-        return label, np.asarray(b, dtype=float), np.asarray(K, dtype=float)
+        label = f"previous calibration ({previous.run_id})"
+        return label, np.asarray(previous.fit.bias, dtype=float), np.asarray(previous.fit.K, dtype=float)
     return None
 
 
@@ -73,15 +84,15 @@ def g_check_series(
     *,
     nominal_scale: float | None = None,
     nominal_bias: Sequence[float] | None = None,
-    previous: Mapping[str, Any] | None = None,
+    previous: PreviousCalibration | None = None,
 ) -> dict[str, Any]:
     """|f̂| per static window before and after correction.
 
     :param cal: the run's calibration.
     :param nominal_scale: datasheet sensitivity (channel unit per m/s²) for 'before'.
     :param nominal_bias: (3,) datasheet zero-g output with ``nominal_scale``.
-    :param previous: the unit's previous calibration contract (``bias``, ``scale_matrix``,
-        ``run_id``), used for 'before' when no nominal scale applies.
+    :param previous: the unit's previous calibration, used for 'before' when no nominal scale
+        applies.
     :returns: ``{"g_local_m_s2", "labels", "after_m_s2", "before_m_s2" | None,
         "before_label" | None, "after_mean_error_m_s2", "after_std_m_s2",
         "before_mean_error_m_s2", "before_std_m_s2"}``; magnitudes in m/s².

@@ -4,8 +4,19 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from api.routes import certificates, drift, health, links, procedures, recordings, runs, tokens, units
+from api.routes import (
+    benches,
+    certificates,
+    drift,
+    health,
+    links,
+    procedures,
+    recordings,
+    runs,
+    tokens,
+    units,
+)
 
 api_router = APIRouter()
-for _module in (health, runs, procedures, certificates, units, recordings, drift, tokens, links):
+for _module in (health, runs, benches, procedures, certificates, units, recordings, drift, tokens, links):
     api_router.include_router(_module.router)

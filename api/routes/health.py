@@ -34,6 +34,8 @@ def health(services: ServicesDep) -> Health:
         public_read=services.auth.public_read,
         certificate_problems=blocking + warnings,
         certificates_blocked=bool(blocking) and not services.settings.sim,
+        worker=services.worker_id,
+        live_updates="notify" if services.wakeups.listening else "poll",
     )
 
 

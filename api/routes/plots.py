@@ -8,6 +8,7 @@ recording that has gone missing or cannot be read 422 naming the file.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Response, status
@@ -17,7 +18,9 @@ from api.deps import SessionDep, ViewerDep, ViewerLinkDep
 from api.exports import export_text
 from api.plots.history_series import HistoryPoint, coefficient_history
 from api.plots.run_bundle import BundleCache, RunBundle, build_bundle
+from api.plots.run_series import PreviousCalibration
 from bench.export import FORMATS, MEDIA_TYPES, SUFFIX
+from bench.fitted_model import ContractError, FittedModel
 from db.models import ACTIVE_STATES, Run
 from db.repo.progress import list_windows
 from db.repo.runs import get_run, list_runs
@@ -66,8 +69,16 @@ def _bundle(session: Session, run_id: str) -> tuple[str, RunBundle]:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id}: {exc}") from None
 
 
-def _previous_calibration(session: Session, run_id: str) -> dict[str, Any] | None:
-    """The contract of the unit's last calibrated run before ``run_id``, with its ``run_id``."""
+def stored_fit(run: Run) -> FittedModel:
+    """The run's stored fit, parsed.
+
+    :raises ContractError: the stored object lacks a key or holds an ill-typed one (named).
+    """
+    return FittedModel.from_contract(run.params.get("calibration"), f"run {run.id}: stored fit")
+
+
+def _previous_calibration(session: Session, run_id: str) -> PreviousCalibration | None:
+    """The unit's last calibrated run before ``run_id`` whose stored fit can be read."""
     with session.begin():
         run = get_run(session, run_id, with_unit=True)
         if run is None:
@@ -75,9 +86,12 @@ def _previous_calibration(session: Session, run_id: str) -> dict[str, Any] | Non
         for other in list_runs(session, unit_serial=run.unit.serial):  # newest first
             if other.id == run_id or other.created_at >= run.created_at:
                 continue
-            cal = other.params.get("calibration")
-            if isinstance(cal, dict) and "bias" in cal and "scale_matrix" in cal:
-                return {**cal, "run_id": other.id}
+            if not isinstance(other.params.get("calibration"), dict):
+                continue
+            try:
+                return PreviousCalibration(other.id, stored_fit(other))
+            except ContractError:
+                continue
     return None
 
 
@@ -141,23 +155,31 @@ def diagnosis(run_id: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
 
 @router.get("/api/units/{serial}/plots/history", responses={404: {"description": "no such unit"}})
 def history(serial: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
-    """Every fitted coefficient of the unit over its calibrated runs, with U = 2σ of the fit's Type A σ."""
+    """Every fitted coefficient of the unit over its calibrated runs, with U = 2σ of the fit's Type A σ;
+    a run whose stored fit cannot be read is listed under ``unreadable_fits`` with the key at fault."""
     with session.begin():
         unit = get_unit_by_serial(session, serial)
         if unit is None:
             raise HTTPException(status.HTTP_404_NOT_FOUND, f"unit {serial} not found")
         points = []
+        unreadable = []
         for run in list_runs(session, unit_serial=serial):
-            cal = run.params.get("calibration")
-            if not isinstance(cal, dict):
+            if not isinstance(run.params.get("calibration"), dict):
+                continue
+            try:
+                fit = stored_fit(run)
+            except ContractError as exc:
+                unreadable.append({"run_id": run.id, "error": str(exc)})
                 continue
             when = run.finished_at or run.started_at or run.created_at
             kind = str(run.params.get("service_kind") or "other")
-            points.append(HistoryPoint(run.id, when.isoformat() if when else "", cal, kind))
+            points.append(HistoryPoint(run.id, when.isoformat() if when else "", fit, kind))
         channel_unit = unit.channel_unit or "?"
     out = coefficient_history(points, channel_unit)
     out["unit_serial"] = serial
     out["channel_unit"] = channel_unit
+    if unreadable:
+        out["unreadable_fits"] = unreadable
     return out
 
 
@@ -176,10 +198,14 @@ def export(run_id: str, fmt: str, session: SessionDep, _: ViewerLinkDep) -> Resp
         )
     with session.begin():
         run = _final_run(session, run_id)
-        contract = {**run.params["calibration"], "unit": run.params["calibration"].get("unit") or run_id}
+        try:
+            fit = stored_fit(run)
+        except ContractError as exc:
+            raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
+    fit = replace(fit, unit_serial=fit.unit_serial or run_id)
     allan = _bundle(session, run_id)[1].allan if fmt == "kalibr" else None
     try:
-        text = export_text(fmt, contract, allan, f"run {run_id}")
+        text = export_text(fmt, fit, allan, f"run {run_id}")
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id}: {exc}") from None
     name = f"{run_id}{SUFFIX[fmt]}"

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import asyncio
-import json
-from collections.abc import AsyncIterator, Mapping
+from collections.abc import AsyncIterator
 from typing import Annotated, Any
 
 import anyio.to_thread
@@ -15,34 +13,34 @@ from starlette.concurrency import run_in_threadpool
 
 from api.deps import OperatorDep, RunnerDep, ServicesDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
 from api.routes.views import live_out, run_out
-from api.runs.events import EVENT_POLL_S, RunSnapshot, SnapshotCache
-from api.runs.hub import CLOSED_EVENT, TERMINAL_EVENT
+from api.runs.events import RunSnapshot, SnapshotCache
 from api.runs.queue import NotResumable
+from api.runs.stream import run_events
 from api.schemas import AbortOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
 from db.models import Certificate, RunState
 from db.repo.progress import list_windows
 from db.repo.runs import get_run, list_runs
 
 router = APIRouter(prefix="/api/runs", tags=["runs"])
-KEEPALIVE_S = 15.0
-REAUTH_S = 2.0
-"""An open event stream checks this often (s) that its token has not been revoked."""
 
 
 @router.post(
     "",
     status_code=status.HTTP_202_ACCEPTED,
     response_model=RunCreated,
-    responses={422: {"description": "a bad procedure, dwell or serial (named)"}},
+    responses={
+        422: {"description": "a bad procedure, dwell or serial; an unknown bench or one that cannot run it"}
+    },
 )
 def start_run(body: RunCreate, runner: RunnerDep, _: OperatorDep) -> RunCreated:
-    """Queue a procedure for a unit on this bench: the bench's agent starts it as soon as the
-    bench is free (at once when idle; after the runs queued before it when busy)."""
+    """Queue a procedure for a unit on the bench ``bench`` names, or (without it) on a free bench
+    whose agent can run the procedure: the bench's agent starts it as soon as the bench is free
+    (at once when idle; after the runs queued before it when busy)."""
     try:
-        live = runner.start(body.unit_serial, body.procedure, dwell_s=body.dwell_s)
+        live = runner.start(body.unit_serial, body.procedure, dwell_s=body.dwell_s, bench=body.bench)
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
-    return RunCreated(id=live.id)
+    return RunCreated(id=live.id, bench=live.extra.get("bench"))
 
 
 @router.get("", response_model=list[RunOut])
@@ -164,10 +162,6 @@ def resume(run_id: str, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
     )
 
 
-def _sse(event: str, data: Mapping[str, object]) -> str:
-    return f"event: {event}\ndata: {json.dumps(data, default=str)}\n\n"
-
-
 @router.get(
     "/{run_id}/events",
     response_class=StreamingResponse,
@@ -184,58 +178,41 @@ async def events(
     link (``POST /api/links``) or with fetch and the Authorization header.
 
     The events come from the database, where the bench's agent writes them (whichever
-    process this is, and also after it restarted mid-run): the run is read at most twice per
-    ``EVENT_POLL_S`` for all the streams of this process (:class:`api.runs.events.SnapshotCache`),
-    in a worker thread, never on the event loop."""
-    hub, snapshots = services.hub, services.snapshots or SnapshotCache(services.read_sessions)
-    first = await run_in_threadpool(snapshots.get, run_id)
+    process this is, and also after it restarted mid-run): on PostgreSQL a notification of the
+    write wakes the stream at once (LISTEN/NOTIFY, :mod:`api.runs.wakeup`), on SQLite it reads
+    the run every ``EVENT_POLL_S``; one read serves all the streams of this process
+    (:class:`api.runs.events.SnapshotCache`), in a worker thread, never on the event loop."""
+    snapshots = services.snapshots or SnapshotCache(services.read_sessions)
+    wakeups = services.wakeups
+    waiter = wakeups.subscribe(run_id)  # before the first read: no change falls between the two
+    try:
+        first = await run_in_threadpool(snapshots.get, run_id)
+    except BaseException:
+        wakeups.unsubscribe(waiter)
+        raise
     if first is None:
+        wakeups.unsubscribe(waiter)
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
 
+    async def read() -> RunSnapshot | None:
+        return await run_in_threadpool(snapshots.get, run_id)
+
+    async def token_live() -> bool:
+        return bool(await anyio.to_thread.run_sync(services.auth.is_live, who))
+
     async def stream() -> AsyncIterator[str]:
-        snap: RunSnapshot | None = first
-        state, live = None, None
-        last_window = snap.last_window if snap is not None else None  # a late stream does not replay
-        n_gaps = 0  # every gap is news: the run page counts the lost samples from them
-        quiet_s = 0.0
-        loop = asyncio.get_running_loop()
-        last_check = loop.time()
-        while snap is not None:
-            if hub.closed is not None:
-                yield _sse(CLOSED_EVENT, {"reason": hub.closed})
-                return
-            if loop.time() - last_check >= REAUTH_S:
-                last_check = loop.time()
-                if not await anyio.to_thread.run_sync(services.auth.is_live, who):
-                    yield _sse(CLOSED_EVENT, {"reason": "the token of this stream has been revoked"})
-                    return
-            sent = False
-            for gap in snap.gaps[n_gaps:]:
-                yield _sse("gap", gap)
-                sent = True
-            n_gaps = len(snap.gaps)
-            if snap.state != state:
-                state = snap.state
-                yield _sse("state", {"state": state, "reason": snap.error or ""})
-                sent = True
-            for window in snap.windows:
-                if last_window is None or window["index"] > last_window:
-                    yield _sse("window", window)
-                    last_window, sent = window["index"], True
-            if snap.live is not None and snap.live != live and snap.finished is None:
-                live = snap.live
-                yield _sse("progress", live)
-                sent = True
-            if snap.finished is not None:
-                yield _sse(TERMINAL_EVENT, snap.finished)
-                return
-            quiet_s = 0.0 if sent else quiet_s + EVENT_POLL_S
-            if quiet_s >= KEEPALIVE_S:
-                if await request.is_disconnected():
-                    return
-                quiet_s = 0.0
-                yield ": keepalive\n\n"
-            await asyncio.sleep(EVENT_POLL_S)
-            snap = await run_in_threadpool(snapshots.get, run_id)
+        try:
+            async for chunk in run_events(
+                first,
+                read=read,
+                waiter=waiter,
+                poll_s=lambda: wakeups.poll_s,
+                closed=lambda: services.hub.closed,
+                token_live=token_live,
+                disconnected=request.is_disconnected,
+            ):
+                yield chunk
+        finally:
+            wakeups.unsubscribe(waiter)
 
     return StreamingResponse(stream(), media_type="text/event-stream", headers={"Cache-Control": "no-cache"})

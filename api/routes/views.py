@@ -6,6 +6,8 @@ from typing import Any
 
 from api.runs.runner import LiveRun
 from api.schemas import CertificateOut, DriftCheckOut, LimitCheckOut, RunOut, SampleGapOut, WindowOut
+from bench.diagnosis.stored import StoredDiagnosis
+from bench.fitted_model import ContractError
 from bench.limits import DECISION_RULES
 from db.models import Certificate, DriftCheck, Run, RunWindow
 
@@ -32,9 +34,7 @@ def run_out(
     :param windows: the run's stored windows (one run's view), ``None`` in lists.
     """
     cal = run.params.get("calibration")
-    diag = run.params.get("diagnosis")
-    diag = diag if isinstance(diag, dict) else None
-    note = run.params.get("diagnosis_error")
+    diag, stored, note = _diagnosis(run)
     raw_gaps = run.params.get("sample_gaps")
     gaps = [SampleGapOut(**g) for g in raw_gaps if isinstance(g, dict)] if isinstance(raw_gaps, list) else []
     progress = run.progress
@@ -57,7 +57,7 @@ def run_out(
         last_complete_window=run.last_complete_window,
         calibration=cal if isinstance(cal, dict) else None,
         certificate_number=certificate,
-        n_findings=len(diag.get("findings", [])) if diag is not None else None,
+        n_findings=len(stored.findings) if stored is not None else None,
         diagnosis=diag if with_diagnosis else None,
         diagnosis_note=str(note) if diag is None and note else None,
         n_samples_lost=sum(g.n_lost or 0 for g in gaps) if run.n_samples is not None or gaps else None,
@@ -69,6 +69,19 @@ def run_out(
         decision_rule=_rule(run.limit_checks),
         windows=[_window(w) for w in windows] if windows is not None else None,
     )
+
+
+def _diagnosis(run: Run) -> tuple[dict[str, Any] | None, StoredDiagnosis | None, object]:
+    """The run's stored diagnosis as stored and parsed, and why there is none: a stored
+    diagnosis that cannot be parsed is shown as none, with the parser's message naming the key."""
+    diag = run.params.get("diagnosis")
+    if diag is None:
+        return None, None, run.params.get("diagnosis_error")
+    try:
+        stored = StoredDiagnosis.from_contract(diag, f"run {run.id}: stored diagnosis")
+    except ContractError as exc:
+        return None, None, str(exc)
+    return diag, stored, None
 
 
 def _check(c: dict[str, Any]) -> LimitCheckOut:

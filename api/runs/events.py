@@ -6,7 +6,8 @@ results and certificate are stored, its final event (``params["service_finished"
 :func:`run_snapshot` reads them in one short read-only transaction; the stream of
 ``GET /api/runs/{id}/events`` turns the differences between two snapshots into events. No
 in-process hub is needed, so every API worker streams every run, including after the
-process restarted mid-run.
+process restarted mid-run. On PostgreSQL a notification (:mod:`db.notify`,
+:mod:`api.runs.wakeup`) wakes the streams of a run as soon as a write to it commits.
 """
 
 from __future__ import annotations
@@ -22,12 +23,10 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from api.runs.live import LIVE_KEY
 from api.runs.runner import FINISHED_KEY
+from api.runs.wakeup import EVENT_POLL_S
 from db.models import FINAL_STATES, Run, RunState, RunWindow
 from db.repo.recovery import DEFAULT_STALE_AFTER_S
 from db.types import utc_now
-
-EVENT_POLL_S = 0.5
-"""How often an open event stream reads the run (s)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,6 +116,7 @@ class SnapshotCache:
     Every open stream of a run asks for its snapshot every :data:`EVENT_POLL_S`; fifty
     streams would make fifty reads. The first ask after ``max_age_s`` reads the run (with all
     its windows) and the others reuse that snapshot, each taking the windows it has not sent.
+    A notified change drops the run's snapshot (:meth:`invalidate`), so the next ask reads.
     """
 
     def __init__(self, sessions: sessionmaker[Session], max_age_s: float = EVENT_POLL_S / 2) -> None:
@@ -136,3 +136,8 @@ class SnapshotCache:
                 del self._cache[key]
             self._cache[run_id] = (now, snap)
             return snap
+
+    def invalidate(self, run_id: str) -> None:
+        """Forget the run's snapshot (it changed): the next :meth:`get` reads the database."""
+        with self._lock:
+            self._cache.pop(run_id, None)

@@ -20,16 +20,8 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from api.runs.hub import ProgressHub
 from api.runs.resume import SIM_AGE_KEY
-from bench.records import (
-    GapRecord,
-    NullObserver,
-    Progress,
-    RunRecord,
-    RunStart,
-    StateChange,
-    WindowRecord,
-    utc_now,
-)
+from bench.records import GapRecord, Progress, RunRecord, RunStart, StateChange, WindowRecord, utc_now
+from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl
 from db.repo.runs import merge_params
 

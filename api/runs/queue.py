@@ -3,10 +3,12 @@
 :class:`RunQueue` has the runner's interface (``start``, ``resume``, ``abort``, ``pause``,
 ``continue_run``, ``current``, ``wait_idle``), so the routes and the drift scheduler use it
 as they used the in-process runner, but every call is a database write or read
-(:mod:`db.repo.queue`): a start queues a run for this API's bench (``CALBENCH_BENCH_NAME``)
-and answers at once, also while the bench is busy; the bench's agent (:mod:`api.agent.bench_agent`)
-claims it when the bench is free. Any number of API processes can serve one bench, and any
-can restart while a run records.
+(:mod:`db.repo.queue`): a start queues a run for the bench the client names, or for a free
+bench whose agent can run the procedure (:func:`db.repo.benches.choose_bench`; this API's bench,
+``CALBENCH_BENCH_NAME``, when no agent reports), and answers at once, also while the bench is
+busy; the bench's agent (:mod:`api.agent.bench_agent`) claims it when the bench is free. Any
+number of API processes can serve the benches, and any can restart while a run records: none
+keeps state of its own.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from bench.procedures import build_procedure, preview
 from bench.records import new_run_id, utc_now
 from bench.sequencer.control import RunControl, SequencerConfig
 from db.models import ACTIVE_STATES, FINAL_STATES, Run, Unit
+from db.repo.benches import bench_status, choose_bench, find_bench
 from db.repo.queue import (
     ControlAction,
     bench_id_of,
@@ -40,7 +43,12 @@ from db.repo.queue import (
 from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs, process_alive
 from db.repo.units import get_or_create_bench, get_or_create_unit, get_unit_by_serial
 
-__all__ = ["NotResumable", "RunQueue"]
+__all__ = ["NotResumable", "RunQueue", "UnknownBench"]
+
+
+class UnknownBench(ValueError):
+    """A run asked for a bench the database does not know, or one that cannot run its procedure
+    (HTTP 422, the bench named)."""
 
 
 class RunQueue:
@@ -96,8 +104,10 @@ class RunQueue:
         )
         for run in rows:
             service = run.params.get("service_kind") is not None
-            owner_alive = run.owner_host != socket.gethostname() or (
-                run.owner_pid is not None and process_alive(run.owner_pid)
+            # a run aborted while queued was never owned: nothing is storing it
+            owner_alive = run.owner_host is not None and (
+                run.owner_host != socket.gethostname()
+                or (run.owner_pid is not None and process_alive(run.owner_pid))
             )
             if service and FINISHED_KEY not in run.params and owner_alive:
                 return run
@@ -108,12 +118,21 @@ class RunQueue:
         return None
 
     def start(
-        self, unit_serial: str, procedure: str, *, dwell_s: float | None = None, kind: RunKind = "calibration"
+        self,
+        unit_serial: str,
+        procedure: str,
+        *,
+        dwell_s: float | None = None,
+        kind: RunKind = "calibration",
+        bench: str | None = None,
     ) -> LiveRun:
-        """Queue a run for this bench (also while it is busy); the agent starts it when free.
+        """Queue a run on ``bench`` (also while it is busy); its agent starts it when free.
         A drift check of a unit that has one queued or running already is that one (several API
         processes each run the nightly scheduler).
 
+        :param bench: a bench's name or its bench file's name; ``None``: a free bench that can run
+            the procedure (:meth:`bench_for`), a drift check this API's bench.
+        :raises UnknownBench: no such bench, or it cannot run the procedure (named).
         :raises ValueError: unknown procedure or one the table limits refuse.
         """
         dwell_s = dwell_s if dwell_s is not None else self.settings.run_dwell_s
@@ -123,10 +142,12 @@ class RunQueue:
             raise ValueError(f"{procedure}: " + "; ".join(pv.problems))
         now = self.clock()
         run_id = new_run_id(unit_serial, now)
-        params = {"service_kind": kind, "request": {"dwell_s": dwell_s}, "bench": self.settings.bench_name}
+        params: dict[str, object] = {"service_kind": kind, "request": {"dwell_s": dwell_s}}
         with self.sessions.begin() as s:
-            bench = get_or_create_bench(s, self.settings.bench_name)
-            unit = get_or_create_unit(s, unit_serial, bench_id=bench.id)
+            name = self.bench_for(s, procedure, bench, kind)
+            params["bench"] = name
+            bench_row = get_or_create_bench(s, name)
+            unit = get_or_create_unit(s, unit_serial, bench_id=bench_row.id)
             if kind == "drift_check":  # every API process has a scheduler: one check per unit at a time
                 live = s.scalars(
                     sa.select(Run).where(Run.unit_id == unit.id, Run.state.in_(list(ACTIVE_STATES)))
@@ -134,8 +155,33 @@ class RunQueue:
                 for run in live:
                     if run.params.get("service_kind") == "drift_check":
                         return _live_of(run, unit_serial)
-            queue_run(s, run_id, unit.id, bench.id, procedure, params)
-        return LiveRun(run_id, unit_serial, procedure, kind, RunControl(), 0.0)
+            queue_run(s, run_id, unit.id, bench_row.id, procedure, params)
+        created = LiveRun(run_id, unit_serial, procedure, kind, RunControl(), 0.0)
+        created.extra["bench"] = name
+        return created
+
+    def bench_for(self, s: Session, procedure: str, bench: str | None, kind: RunKind) -> str:
+        """The name of the bench a run goes to (see :meth:`start`).
+
+        :raises UnknownBench: ``bench`` is not known or its agent says it cannot run ``procedure``.
+        """
+        own = self.settings.bench_name
+        if bench is None and kind == "drift_check":
+            return own
+        statuses = bench_status(s)
+        if bench is None:
+            return choose_bench(statuses, procedure, own) or own
+        if bench == own and all(st.name != own for st in statuses):
+            return own  # this service's bench before its agent first reported
+        try:
+            status = find_bench(statuses, bench)
+        except LookupError as exc:
+            raise UnknownBench(str(exc)) from None
+        if not status.can_run(procedure):
+            raise UnknownBench(
+                f"bench {status.name!r} cannot run {procedure}; it runs {', '.join(status.procedures)}"
+            )
+        return status.name
 
     def resume(self, run_id: str) -> LiveRun:
         """Queue an ``interrupted`` run to continue from the window after its last complete one.

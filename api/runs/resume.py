@@ -26,7 +26,8 @@ from sqlalchemy.orm import Session
 
 from api.agent.session import continue_run
 from api.settings import Settings
-from bench.records import RunObserver, RunRecord
+from bench.records import RunRecord
+from bench.run_observer import RunObserver
 from bench.sequencer.control import RunControl
 from db.models import Run, RunState, Unit
 from db.repo.queue import ClaimedRun
@@ -121,23 +122,21 @@ def claim(session: Session, run_id: str) -> Claimed:
     except ValueError as exc:
         raise NotResumable(str(exc)) from None
     unit = session.get(Unit, run.unit_id)
-    params = dict(run.params)
-    kind = params.get("service_kind")
-    age = params.get(SIM_AGE_KEY)
-    return Claimed(
-        run_id,
-        unit.serial if unit is not None else "?",
-        getattr(unit, "model", None),
-        run.procedure,
-        params,
-        point,
-        kind if kind in ("calibration", "drift_check") else "calibration",
-        float(age) if isinstance(age, int | float) else None,
+    return from_queue(
+        ClaimedRun(
+            run_id,
+            unit.serial if unit is not None else "?",
+            getattr(unit, "model", None),
+            run.procedure,
+            dict(run.params),
+            point,
+        )
     )
 
 
 def from_queue(queued: ClaimedRun) -> Claimed:
-    """The :class:`Claimed` of a resume the agent claimed from the queue (``queued.point`` set)."""
+    """The :class:`Claimed` of a claimed resume (``queued.point`` set): from the queue by an
+    agent, or by :func:`claim` in this process."""
     if queued.point is None:
         raise ValueError(f"run {queued.run_id} was queued as a fresh run, not a resume")
     kind = queued.params.get("service_kind")

@@ -33,7 +33,8 @@ from api.runs.live import DbLiveObserver, HubObserver, LiveRun, RunKind, Service
 from api.runs.resume import SHUTDOWN_REASON, NotResumable
 from api.settings import Settings
 from bench.procedures import build_procedure, preview
-from bench.records import Outcome, RunObserver, RunRecord, RunState, new_run_id, utc_now
+from bench.records import Outcome, RunRecord, RunState, new_run_id, utc_now
+from bench.run_observer import RunObserver
 from bench.sequencer.control import RunControl, SequencerConfig
 from db.models import Run
 from db.models import RunState as DbRunState

@@ -34,10 +34,25 @@ async function failure(resp) {
   return new ApiError(resp.status, `${resp.status} ${detail}`);
 }
 
+// The last answer to each path with its ETag: the next read of the path sends it back as
+// If-None-Match and takes a 304 (no body) as that answer, so a document the page polls is
+// sent again only when it changed.
+const answers = new Map();
+const MAX_ANSWERS = 64;
+
 export async function getJson(path, { signal } = {}) {
-  const resp = await fetch(path, { headers: headers(), signal });
+  const known = answers.get(path);
+  const resp = await fetch(path, { headers: headers(known ? { "If-None-Match": known.etag } : {}), signal, cache: "no-store" });
+  if (resp.status === 304 && known) return JSON.parse(known.text);
   if (!resp.ok) throw await failure(resp);
-  return resp.json();
+  const text = await resp.text();
+  const etag = resp.headers.get("ETag");
+  answers.delete(path);
+  if (etag) {
+    answers.set(path, { etag, text });
+    if (answers.size > MAX_ANSWERS) answers.delete(answers.keys().next().value);
+  }
+  return JSON.parse(text);
 }
 
 export async function postJson(path, body) {

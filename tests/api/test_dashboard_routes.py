@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import datetime as dt
+import json
 import threading
 import time
 from collections.abc import Iterator
@@ -31,6 +32,7 @@ from bench.recording import Recording, Sidecar, read_recording
 from db.models import RunState
 from db.repo.runs import create_run, finish_run
 from db.repo.units import get_or_create_unit
+from tests.support.fits import stored_fit
 from tests.support.service_helpers import VIEW, service_settings
 
 SERIAL = "SN-DASH-1"
@@ -222,9 +224,12 @@ def test_coefficient_history_has_values_and_expanded_uncertainties(
     assert by["K_zz"]["value"][0] == pytest.approx(1.01 * contract["scale_matrix"][2][2])
 
 
-def test_history_skips_missing_or_non_finite_values() -> None:
-    good = {"bias": [1.0, 2.0, 3.0], "bias_sigma": [0.1, 0.2, 0.3], "scale_matrix": np.eye(3).tolist()}
-    bad = {"bias": [float("nan"), 2.5, 3.5], "scale_matrix": "not a matrix"}
+def test_history_skips_non_finite_values() -> None:
+    nan = float("nan")
+    good = stored_fit(bias=[1.0, 2.0, 3.0], bias_sigma=[0.1, 0.2, 0.3], scale_matrix=np.eye(3).tolist())
+    bad = stored_fit(
+        bias=[nan, 2.5, 3.5], bias_sigma=[0.1, nan, nan], scale_matrix=np.full((3, 3), nan).tolist()
+    )
     out = coefficient_history(
         [HistoryPoint("b", "2026-02-01T00:00:00", bad), HistoryPoint("a", "2026-01-01T00:00:00", good)], "V"
     )
@@ -233,6 +238,29 @@ def test_history_skips_missing_or_non_finite_values() -> None:
     assert by["bias_x"]["run_index"] == [0] and by["bias_x"]["U"] == [pytest.approx(COVERAGE_K * 0.1)]
     assert by["bias_y"]["run_index"] == [0, 1] and by["bias_y"]["U"] == [pytest.approx(0.4), None]
     assert by["K_xx"]["value"] == [1.0] and by["K_xy"]["value"] == [0.0]
+
+
+def test_a_stored_fit_with_a_renamed_key_is_named_by_the_history_and_the_export(
+    tmp_path: Path, example: Path, contract: dict[str, Any]
+) -> None:
+    renamed = copy.deepcopy(contract)
+    renamed["scale_matrix_1sigma"] = renamed.pop("scale_matrix_sigma")
+    app = create_app(service_settings(tmp_path), start_scheduler=False)
+    with TestClient(app) as c:
+        _register(c, "run-a", RunState.COMPLETED, str(example), contract, 0.0)
+        _register(c, "run-b", RunState.COMPLETED, str(example), renamed, 100.0)
+        body = c.get(f"/api/units/{SERIAL}/plots/history", headers=VIEW).json()
+        assert [r["run_id"] for r in body["runs"]] == ["run-a"]
+        assert body["unreadable_fits"] == [
+            {"run_id": "run-b", "error": "run run-b: stored fit: key 'scale_matrix_sigma' is missing"}
+        ]
+        bad = c.get("/api/runs/run-b/export/json", headers=VIEW)
+        assert bad.status_code == 422
+        assert bad.json()["detail"] == "run run-b: stored fit: key 'scale_matrix_sigma' is missing"
+        good = c.get("/api/runs/run-a/export/json", headers=VIEW)
+        assert good.status_code == 200
+        doc = json.loads(good.text)
+        assert doc["unit_serial"] == contract["unit"] and doc["scale_matrix"] == contract["scale_matrix"]
 
 
 def test_diagnosis_route_says_why_there_is_none(client: TestClient) -> None:

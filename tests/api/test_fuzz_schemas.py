@@ -49,7 +49,7 @@ VALUES = st.one_of(
     st.lists(st.integers(), max_size=3),
 )
 MODELS: dict[type[BaseModel], list[str]] = {
-    RunCreate: ["unit_serial", "procedure", "dwell_s"],
+    RunCreate: ["unit_serial", "procedure", "dwell_s", "bench"],
     UnitRegistration: list(UnitRegistration.model_fields),
     TokenCreate: ["role", "label"],
     LinkRequest: ["path"],

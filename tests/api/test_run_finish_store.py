@@ -8,8 +8,9 @@ import sqlite3
 
 import pytest
 
-from api.agent.session import RunNotStored, finish_observers
-from bench.records import NullObserver, Outcome, RunRecord, RunStart, RunState
+from api.agent.verdict import RunNotStored, finish_observers
+from bench.records import Outcome, RunRecord, RunStart, RunState
+from bench.run_observer import NullObserver
 
 START = RunStart("run-x", "SN-X", "static-12", "bench-a", "/tmp/r.csv", 100.0, 3, 12, 100.0)
 RECORD = RunRecord(START, RunState.FINISHED, Outcome.ERROR, (), error="recording: disk full")

@@ -21,6 +21,7 @@ from tests.support.service_helpers import (
     wait_final,
     wait_state,
 )
+from tests.support.sse import sse_events
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(400)]  # whole simulated runs through the service
 
@@ -134,15 +135,9 @@ def test_unknown_run_is_404(client: TestClient) -> None:
 def test_event_stream_follows_a_run_to_its_end(client: TestClient) -> None:
     r = client.post("/api/runs", json={"unit_serial": "SN-SSE", "procedure": "static-12"}, headers=OP)
     run_id = r.json()["id"]
-    events: list[tuple[str, dict[str, object]]] = []
     with client.stream("GET", signed_link(client, f"/api/runs/{run_id}/events")) as s:
         assert s.headers["content-type"].startswith("text/event-stream")
-        event = ""
-        for line in s.iter_lines():
-            if line.startswith("event: "):
-                event = line[7:]
-            elif line.startswith("data: "):
-                events.append((event, json.loads(line[6:])))
+        events = list(sse_events(s.iter_lines()))
     names = [e for e, _ in events]
     assert names[-1] == "finished" and events[-1][1]["state"] == "completed"
     assert events[-1][1]["certificate_number"]

@@ -269,6 +269,15 @@ def test_event_stream_ends_when_its_token_is_revoked(client: TestClient) -> None
     client.post(f"/api/runs/{run_id}/abort", headers=OP)
 
 
+def test_a_run_aborted_while_queued_does_not_hold_the_bench(client: TestClient) -> None:
+    """Nobody ever owned it, so nobody is storing its results: the bench is free at once."""
+    run_id = client.post(
+        "/api/runs", json={"unit_serial": "SN-QAB", "procedure": "static-12"}, headers=OP
+    ).json()["id"]
+    assert client.post(f"/api/runs/{run_id}/abort", headers=OP).json()["state"] == "aborted"
+    assert client.app.state.services.runner.current is None  # type: ignore[attr-defined]
+
+
 def test_invalid_utf8_in_one_run_does_not_break_the_list(client: TestClient, tmp_path: Path) -> None:
     run_id = client.post(
         "/api/runs", json={"unit_serial": "SN-BAD", "procedure": "static-12"}, headers=OP

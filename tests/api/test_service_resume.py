@@ -8,7 +8,6 @@ next window with live events, and the certificate is issued as for a fresh run.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -19,6 +18,7 @@ from fastapi.testclient import TestClient
 
 from api.main import create_app
 from tests.support.service_helpers import OP, VIEW, service_settings, signed_link, wait_final
+from tests.support.sse import sse_events
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(400)]  # whole simulated runs through the service
 
@@ -45,15 +45,8 @@ def wait_run(
 
 def stream(client: TestClient, run_id: str) -> list[tuple[str, dict[str, Any]]]:
     """Every event of the run's stream until it ends."""
-    events: list[tuple[str, dict[str, Any]]] = []
     with client.stream("GET", signed_link(client, f"/api/runs/{run_id}/events")) as s:
-        event = ""
-        for line in s.iter_lines():
-            if line.startswith("event: "):
-                event = line[7:]
-            elif line.startswith("data: "):
-                events.append((event, json.loads(line[6:])))
-    return events
+        return list(sse_events(s.iter_lines()))
 
 
 def started(client: TestClient, serial: str) -> str:

@@ -18,6 +18,7 @@ from typing import Any
 import httpx
 import pytest
 
+from api.plots.colours import CHANNEL_COLOURS
 from tests.browser.conftest import CHROMIUM
 from tests.browser.live_server import live_service
 from tests.support.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
@@ -37,6 +38,11 @@ pytestmark = [
         reason="Debian's chromium is not installed at /usr/bin/chromium (`make browser` installs it)",
     ),
 ]
+
+
+def _rgb(hex_colour: str) -> tuple[int, int, int]:
+    """``#rrggbb`` as three 0-255 integers."""
+    return int(hex_colour[1:3], 16), int(hex_colour[3:5], 16), int(hex_colour[5:7], 16)
 
 
 @pytest.fixture(scope="module")
@@ -113,6 +119,11 @@ def test_operator_runs_a_calibration_from_the_dashboard(service: str, browser: A
     assert number.startswith("CB-")
     # 12 windows of 3 channels in the residual plot, 12 windows in the |g| plot
     assert page.locator("#residuals svg rect[fill^='var(--c']").count() == 36
+    # drawn in the channel colours of api.plots.colours (served as /channel-colours.css)
+    fills = page.locator("#residuals svg rect[fill^='var(--c']").evaluate_all(
+        "els => els.slice(0, 3).map((e) => getComputedStyle(e).fill)"
+    )
+    assert fills == [f"rgb({r}, {g}, {b})" for r, g, b in (_rgb(c) for c in CHANNEL_COLOURS)]
     assert page.locator("#g-check svg circle").count() == 12
     # the first run of a V unit has no 'before' until the datasheet values are given
     assert "enter the datasheet values" in page.inner_text("#g-check")

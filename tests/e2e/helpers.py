@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from api.settings import Settings
+from bench.fitted_model import FittedModel
 from drivers.sim.physics import SensorTruth
 
 RATE_HZ = 100.0
@@ -32,20 +33,15 @@ def settings_for(tmp_path: Path, database_url: str | None = None, bench_name: st
     )
 
 
-def z_scores(calibration: dict[str, object], truth: SensorTruth) -> np.ndarray:
+def z_scores(fit: FittedModel, truth: SensorTruth) -> np.ndarray:
     """(12,) (fit − truth) / sigma for bias and K."""
-    b = np.asarray(calibration["bias"], dtype=float)
-    sb = np.asarray(calibration["bias_sigma"], dtype=float)
-    k = np.asarray(calibration["scale_matrix"], dtype=float)
-    sk = np.asarray(calibration["scale_matrix_sigma"], dtype=float)
-    return np.concatenate([(b - truth.bias) / sb, ((k - truth.K) / sk).ravel()])
+    return np.concatenate(
+        [(fit.bias - truth.bias) / fit.bias_sigma, ((fit.K - truth.K) / fit.K_sigma).ravel()]
+    )
 
 
-def difference_z(a: dict[str, object], b: dict[str, object]) -> np.ndarray:
+def difference_z(a: FittedModel, b: FittedModel) -> np.ndarray:
     """(12,) (a − b) / sqrt(σa² + σb²) for bias and K of two fits."""
-    out = []
-    for key in ("bias", "scale_matrix"):
-        va, vb = np.asarray(a[key], dtype=float), np.asarray(b[key], dtype=float)
-        sa, sb = np.asarray(a[f"{key}_sigma"], dtype=float), np.asarray(b[f"{key}_sigma"], dtype=float)
-        out.append(((va - vb) / np.hypot(sa, sb)).ravel())
-    return np.concatenate(out)
+    db = (a.bias - b.bias) / np.hypot(a.bias_sigma, b.bias_sigma)
+    dk = (a.K - b.K) / np.hypot(a.K_sigma, b.K_sigma)
+    return np.concatenate([db, dk.ravel()])

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.agent.session import bench_config_for, open_devices, start_run
+from api.agent.devices import bench_config_for, open_devices
+from api.agent.session import start_run
 from api.certificates.certificate import bench_configuration
 from bench.bench_config import SIM_BENCH_FILE, load_bench_config
 from bench.recording.reader import read_recording
@@ -73,5 +74,5 @@ def test_a_run_on_a_bench_file_records_its_geometry_and_identity(tmp_path: Path)
     line = bench_configuration(identity)
     assert "'turned mount' version 7" in line and config.sha256[:12] in line and f"local g {G}" in line
     # The belief matches the physics: the fit recovers the simulated unit within its sigmas.
-    z = z_scores(record.calibration, SensorTruth.typical("V", 4))  # type: ignore[arg-type]
+    z = z_scores(record.calibration.fitted_model(), SensorTruth.typical("V", 4))
     assert np.max(np.abs(z)) < 5.0, z.round(1)

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from api.agent.session import start_run
+from bench.fitted_model import FittedModel
 from bench.recording.reader import read_recording
 from bench.records import Outcome
 from drivers.sim.physics import SensorTruth
@@ -137,6 +138,7 @@ def test_sigkill_mid_window_then_resume(tmp_path: Path) -> None:
         dwell_s=8.0,
     )
     assert clean.outcome is Outcome.PASS and clean.calibration is not None
-    dz = difference_z(out["calibration"], clean.calibration)
+    stored = FittedModel.from_contract(out["calibration"], "calbench runs --json")
+    dz = difference_z(stored, clean.calibration.fitted_model())
     assert np.max(np.abs(dz)) < 4.5, dz
-    assert np.max(np.abs(z_scores(out["calibration"], SensorTruth.typical("V", SEED)))) < 4.5
+    assert np.max(np.abs(z_scores(stored, SensorTruth.typical("V", SEED)))) < 4.5

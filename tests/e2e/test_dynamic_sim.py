@@ -44,11 +44,12 @@ def test_moving_table_procedure_is_calibrated_by_the_dynamic_model(
     assert sum(w.kind is moving for w in record.windows) == n_windows - (
         6 if moving is WindowKind.RATE else 2
     )
-    cal = record.calibration
-    assert cal is not None and cal["method"] == "dynamic-batch"
+    assert record.calibration is not None
+    cal = record.calibration.to_contract()
+    assert cal["method"] == "dynamic-batch"
     # The terms are the ones the recording's evidence supports, and the result says so.
     assert cal["model_selection"]["rule"] == "evidence", cal["model_selection"]
-    z = z_scores(cal, SensorTruth.typical("V", seed))
+    z = z_scores(record.calibration.fitted_model(), SensorTruth.typical("V", seed))
     assert np.max(np.abs(z)) < 4.5, z
     # The simulated unit has its sensor on the axes (no lever arm): either the evidence leaves
     # the lever arm out (with its reason), or the fitted one is zero within its uncertainty.

@@ -14,9 +14,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from api.agent.session import sim_url, start_run
+from api.agent.devices import sim_url
+from api.agent.session import start_run
 from bench.recording.reader import read_recording
-from bench.records import NullObserver, Outcome, RunRecord, RunState, StateChange, WindowRecord
+from bench.records import Outcome, RunRecord, RunState, StateChange, WindowRecord
+from bench.run_observer import NullObserver
 from bench.sequencer.control import SequencerConfig
 from drivers.base import AxisMode
 from drivers.factory import BenchDevices, open_bench

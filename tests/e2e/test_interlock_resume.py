@@ -8,9 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.agent.session import sim_url, start_run
+from api.agent.devices import sim_url
+from api.agent.session import start_run
 from bench.recording.reader import read_recording
-from bench.records import NullObserver, Outcome, RunState, StateChange, WindowRecord
+from bench.records import Outcome, RunState, StateChange, WindowRecord
+from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl, SequencerConfig
 from drivers.factory import BenchDevices, open_bench
 from drivers.sim.physics import SensorTruth
@@ -64,7 +66,7 @@ def test_operator_resume_after_an_interlock_trip_completes_the_run(tmp_path: Pat
         assert labels == [f"pos{i:02d}" for i in range(1, 13)]  # each window once, none lost
         assert np.all(np.diff(rec.t_s) > 0)
         assert record.calibration is not None
-        assert np.max(np.abs(z_scores(record.calibration, SensorTruth.typical("V", 8)))) < 4.5
+        assert np.max(np.abs(z_scores(record.calibration.fitted_model(), SensorTruth.typical("V", 8)))) < 4.5
         assert devices.table.status().interlock_ok is False  # made safe at the end
     finally:
         devices.close()

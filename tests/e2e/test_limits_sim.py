@@ -37,7 +37,8 @@ def test_a_unit_with_its_x_bias_outside_the_limits_fails(tmp_path: Path) -> None
     failed = [c.name for c in record.limit_checks if not c.passed]
     assert failed == ["bias_x"]  # the fit finds the shifted bias, and nothing else is out
     check = record.limit_checks[0]
-    sigma = record.calibration["bias_sigma"][0]  # type: ignore[index]
+    assert record.calibration is not None
+    sigma = record.calibration.bias_sigma[0]
     assert abs(check.value - bad.bias[0]) < 5 * sigma
     engine = open_database(settings.effective_database_url)
     with make_session_factory(engine).begin() as s:

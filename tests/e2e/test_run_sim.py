@@ -13,9 +13,10 @@ import pytest
 import sqlalchemy as sa
 
 from api.agent.session import start_run
-from bench.estimation.static_fit import PARAMETER_NAMES as STATIC_NAMES
+from bench.estimation.static_design import PARAMETER_NAMES as STATIC_NAMES
 from bench.recording.reader import read_recording
-from bench.records import NullObserver, Outcome, Progress, RunRecord, WindowKind
+from bench.records import Outcome, Progress, RunRecord, WindowKind
+from bench.run_observer import NullObserver
 from db.engine import make_session_factory
 from db.models import Run
 from db.repo.results import list_fits
@@ -56,7 +57,7 @@ def test_static12_on_the_simulated_bench_recovers_the_unit(tmp_path: Path) -> No
     fractions = [p.fraction for p in seen.progress]
     assert fractions == sorted(fractions) or max(fractions) <= 1.0
     assert record.calibration is not None
-    z = z_scores(record.calibration, SensorTruth.typical("V", 3))
+    z = z_scores(record.calibration.fitted_model(), SensorTruth.typical("V", 3))
     assert np.max(np.abs(z)) < 4.5, z
     assert float(np.mean(z**2)) < 4.0, z  # honest sigmas: z² averages about 1
     rec = read_recording(record.start.recording_path)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.agent.session import bench_sidecar
+from api.agent.devices import bench_sidecar
 from bench.bench_config import SIM_BENCH_FILE, load_bench_config
 from bench.procedures import build_procedure
 from bench.recording.reader import read_recording

@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from api.runs.runner import simulated_unit
+from bench.fitted_model import FittedModel
 from bench.recording.reader import read_recording
 from tests.e2e.helpers import SIM_SPEED, wall_budget_s, z_scores
 from tests.e2e.service_process import ServiceProcess, wait_for
@@ -100,7 +101,7 @@ def check_completed(svc: ServiceProcess, run_id: str, run: dict[str, Any], path:
     assert cert["number"] == run["certificate_number"] and len(cert["sha256"]) == 64
     ((params,),) = svc.sql("SELECT params FROM run WHERE id = ?", run_id)
     age = json.loads(params)["service_sim_age_days"]
-    z = z_scores(run["calibration"], simulated_unit(SERIAL, age))
+    z = z_scores(FittedModel.from_contract(run["calibration"]), simulated_unit(SERIAL, age))
     assert np.max(np.abs(z)) < 4.5, z
 
 

@@ -1,15 +1,16 @@
 """Two bench agents (two simulated benches) and two API processes on one PostgreSQL database.
 
 Each agent is ``calbench agent --sim`` as its own process (with its simulated bench in yet
-another); each API is ``calbench serve --agent external`` and never touches a bench. Runs on
-both benches complete with their certificates and fits on the simulated truth; a third run
-requested while its bench is busy is queued and runs after; either API process shows every
-run, including the other bench's, live through its event stream.
+another); each API is ``calbench serve --agent external`` and never touches a bench. Both
+agents report to ``GET /api/benches``; runs requested through one API naming each bench
+(``POST /api/runs`` ``bench``) complete on those benches with their certificates and fits on the
+simulated truth; a third run named for a busy bench is queued and runs after; an unknown bench
+is refused naming it; either API process shows every run, including the other bench's, live
+through its event stream.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -21,9 +22,11 @@ import numpy as np
 import pytest
 
 from api.runs.runner import simulated_unit
+from bench.fitted_model import FittedModel
 from tests.e2e.helpers import RATE_HZ, SIM_SPEED, wall_budget_s, z_scores
 from tests.e2e.service_process import CALBENCH, OP, OPERATOR, VIEW, VIEWER, free_port, wait_for
 from tests.pg import pg_database, pg_unreachable_reason
+from tests.support.sse import sse_events
 
 pytestmark = [pytest.mark.slow, pytest.mark.postgres, pytest.mark.timeout(900)]
 
@@ -55,15 +58,13 @@ def _finished(base: str, run_id: str) -> dict[str, Any] | None:
 
 
 def _events(base: str, run_id: str) -> list[tuple[str, dict[str, Any]]]:
-    events: list[tuple[str, dict[str, Any]]] = []
     with httpx.stream("GET", f"{base}/api/runs/{run_id}/events", headers=VIEW, timeout=None) as s:
-        event = ""
-        for line in s.iter_lines():
-            if line.startswith("event: "):
-                event = line[7:]
-            elif line.startswith("data: "):
-                events.append((event, json.loads(line[6:])))
-    return events
+        return list(sse_events(s.iter_lines()))
+
+
+def _idle_benches(base: str) -> set[str]:
+    benches = httpx.get(f"{base}/api/benches", headers=VIEW, timeout=30).json()
+    return {b["name"] for b in benches if b["state"] == "idle" and "static-12" in b["procedures"]}
 
 
 def test_two_agents_two_apis_one_postgresql(tmp_path: Path) -> None:
@@ -104,14 +105,26 @@ def test_two_agents_two_apis_one_postgresql(tmp_path: Path) -> None:
 
             for base in bases.values():
                 wait_for(lambda b=base: healthy(b), 120, f"{base} to answer")  # type: ignore[misc]
+            wait_for(
+                lambda: _idle_benches(bases["bench-b"]) >= {"bench-a", "bench-b"},
+                120,
+                "both agents to report their benches idle",
+            )
+            api = bases["bench-a"]  # one API queues on both benches
             body = {"procedure": "static-12", "dwell_s": DWELL_S}
+            unknown = httpx.post(
+                api + "/api/runs", json={**body, "unit_serial": "SN-X", "bench": "bench-z"}, headers=OP
+            )
+            assert unknown.status_code == 422 and "bench 'bench-z' unknown" in unknown.text, unknown.text
             ids: dict[str, str] = {}
-            for bench, serial in (("bench-a", "SN-PG-A"), ("bench-b", "SN-PG-B")):
-                r = httpx.post(f"{bases[bench]}/api/runs", json={**body, "unit_serial": serial}, headers=OP)
-                assert r.status_code == 202, r.text
+            for bench, serial in (("bench-b", "SN-PG-B"), ("bench-a", "SN-PG-A")):
+                r = httpx.post(
+                    f"{api}/api/runs", json={**body, "unit_serial": serial, "bench": bench}, headers=OP
+                )
+                assert r.status_code == 202 and r.json()["bench"] == bench, r.text
                 ids[bench] = r.json()["id"]
             third = httpx.post(
-                f"{bases['bench-a']}/api/runs", json={**body, "unit_serial": "SN-PG-C"}, headers=OP
+                f"{api}/api/runs", json={**body, "unit_serial": "SN-PG-C", "bench": "bench-a"}, headers=OP
             )
             assert third.status_code == 202 and third.json()["state"] == "queued", third.text
             third_id = third.json()["id"]
@@ -132,6 +145,8 @@ def test_two_agents_two_apis_one_postgresql(tmp_path: Path) -> None:
             runs[third_id] = wait_for(
                 lambda: _finished(bases["bench-a"], third_id), wall_budget_s(RUN_SIM_S), f"run {third_id}"
             )
+            assert [runs[ids[b]]["bench"] for b in ids] == list(ids)
+            assert runs[third_id]["bench"] == "bench-a"
             a_first, a_third = runs[ids["bench-a"]], runs[third_id]
             assert a_third["started_at"] >= a_first["finished_at"]  # queued, then run after
             listed = httpx.get(f"{bases['bench-b']}/api/runs", headers=VIEW).json()
@@ -143,7 +158,7 @@ def test_two_agents_two_apis_one_postgresql(tmp_path: Path) -> None:
             ):
                 run = runs[run_id]
                 assert run["unit_serial"] == serial and run["certificate_number"]
-                z = z_scores(run["calibration"], simulated_unit(serial, 0.0))
+                z = z_scores(FittedModel.from_contract(run["calibration"]), simulated_unit(serial, 0.0))
                 assert np.max(np.abs(z)) < 4.5, (run_id, z)
             numbers = {runs[r]["certificate_number"] for r in runs}
             assert len(numbers) == 3

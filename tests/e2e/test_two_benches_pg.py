@@ -45,7 +45,9 @@ def test_two_simulated_benches_share_one_postgresql_database(tmp_path: Path) -> 
             rec = results[name]
             assert rec.outcome is Outcome.PASS, rec.error
             assert rec.calibration is not None
-            assert np.max(np.abs(z_scores(rec.calibration, SensorTruth.typical("V", seed)))) < 4.5
+            assert (
+                np.max(np.abs(z_scores(rec.calibration.fitted_model(), SensorTruth.typical("V", seed)))) < 4.5
+            )
         engine = sa.create_engine(url)
         try:
             with engine.connect() as conn:

@@ -13,6 +13,7 @@ from api.certificates.issue import issue_for_run
 from api.settings import Settings
 from api.simulated_recording import write_simulated
 from bench.calibration import calibrate_recording
+from bench.fitted_model import FittedModel
 from bench.recording import read_recording
 from db.engine import make_session_factory
 from db.migrate import open_database
@@ -60,12 +61,14 @@ def test_the_budget_takes_u_g_from_the_bench_file_and_the_conditions_name_it(tmp
     assert "'bench-b' version 4 (SHA-256 abababababab…)" in content["conditions"]["bench_configuration"]
     assert "u = 0.0003 m/s², survey 2023" in content["conditions"]["bench_configuration"]
     expected = certificate_budget(
-        rec, cal, TypeBSettings.of(settings.model_copy(update={"g_local_u_m_s2": U_G_FILE}))
+        rec,
+        FittedModel.from_contract(cal),
+        TypeBSettings.of(settings.model_copy(update={"g_local_u_m_s2": U_G_FILE})),
     )
-    default = certificate_budget(rec, cal, TypeBSettings.of(settings))
+    default = certificate_budget(rec, FittedModel.from_contract(cal), TypeBSettings.of(settings))
     stated = content["results"]["uncertainty_budget"]
-    assert stated == expected
+    assert stated == expected.to_content()
     (gravity,) = [i for i in stated["inputs"] if i["group"] == "local gravity"]
     assert gravity["u"] == U_G_FILE
-    u_c, u_c_default = stated["quantities"]["K_xx"]["u_c"], default["quantities"]["K_xx"]["u_c"]
+    u_c, u_c_default = stated["quantities"]["K_xx"]["u_c"], default.budget.by_name("K_xx").u_c
     assert not np.isclose(u_c, u_c_default, rtol=0.01), (u_c, u_c_default)

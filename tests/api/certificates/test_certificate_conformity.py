@@ -14,9 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
+from api.certificates.certificate import certificate_content
 from api.certificates.conformity import check_uncertainties, conformity_statement
+from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.pdf import certificate_lines, conformity_line, render_pdf
+from bench.fitted_model import FittedModel
+from bench.limit_check import LimitCheck
 from bench.limits import load_limits, verdict
 from bench.records import Outcome
 from db.repo.certificates import canonical_sha256
@@ -24,6 +27,7 @@ from tests.support.limits import SPEC
 
 K = [[0.0201, 0.0201 * 0.004, 0.0], [0.0, 0.0199, -0.0199 * 0.004], [0.0, 0.0, 0.02]]
 CAL = {
+    "unit": "SN-C",
     "channel_unit": "V",
     "procedure": "static-12",
     "bias": [1.54, 1.46, 1.5],
@@ -35,6 +39,7 @@ CAL = {
     "residual_rms": 7.7e-6,
     "g_check": {"after": {"mean_error_m_s2": 1e-4, "std_m_s2": 4e-4}},
 }
+FIT = FittedModel.from_contract(CAL)
 
 
 def _limits(tmp_path: Path, rule: str | None) -> object:
@@ -45,7 +50,7 @@ def _limits(tmp_path: Path, rule: str | None) -> object:
 
 
 def test_uncertainty_of_each_check_is_k_sigma_and_the_ratio_propagates_both_terms() -> None:
-    us = check_uncertainties(CAL, None, 16)
+    us = check_uncertainties(FIT, None, 16)
     assert us["bias_y"] == pytest.approx(4.0e-5) and us["scale_x"] == pytest.approx(4.0e-6)
     assert us["g_error_after"] == pytest.approx(2 * 4e-4 / 4)  # s/sqrt(n), k = 2
     # the ratio K_xy/K_xx by Monte Carlo (a different formulation than the first-order propagation)
@@ -58,14 +63,14 @@ def test_uncertainty_of_each_check_is_k_sigma_and_the_ratio_propagates_both_term
 def test_guard_band_rejects_a_value_within_u_of_its_limit_that_simple_acceptance_passes(
     tmp_path: Path,
 ) -> None:
-    us = check_uncertainties(CAL, None, 16)
+    us = check_uncertainties(FIT, None, 16)
     # bias_x = 1.54 is 0.01 V inside its limit 1.55: U = 2e-5 V leaves it acceptable either way
     simple = _limits(tmp_path, None)
     guarded = _limits(tmp_path, "guarded-acceptance")
-    assert verdict(CAL, simple, us)[0] is Outcome.PASS
-    assert verdict(CAL, guarded, us)[0] is Outcome.PASS
+    assert verdict(FIT, simple, us)[0] is Outcome.PASS
+    assert verdict(FIT, guarded, us)[0] is Outcome.PASS
     # move bias_x to 1.549990: inside [1.45, 1.55] but within U = 2e-5 of 1.55
-    near = {**CAL, "bias": [1.54999, 1.46, 1.5]}
+    near = FittedModel.from_contract({**CAL, "bias": [1.54999, 1.46, 1.5]})
     out_s, checks_s = verdict(near, simple, us)
     out_g, checks_g = verdict(near, guarded, us)
     assert out_s is Outcome.PASS and out_g is Outcome.FAIL
@@ -84,11 +89,11 @@ def test_unknown_decision_rule_is_refused_naming_the_model(tmp_path: Path) -> No
         _limits(tmp_path, "shared-risk")
 
 
-def _content(checks: list[dict[str, object]], outcome: str | None) -> dict[str, object]:
+def _content(checks: list[LimitCheck], outcome: str | None) -> dict[str, object]:
     inputs = CertificateInputs(
-        run={"id": "r1", "procedure": "static-12"},
-        unit={"serial": "S", "model": "M", "channel_unit": "V"},
-        calibration=CAL,
+        run=RunFacts(id="r1", procedure="static-12"),
+        unit=UnitFacts("S", model="M", channel_unit="V"),
+        calibration=FIT,
         g_local_m_s2=9.81,
         limit_checks=tuple(checks),
         g_check_n=16,
@@ -101,9 +106,11 @@ def _content(checks: list[dict[str, object]], outcome: str | None) -> dict[str, 
 
 def test_certificate_lists_every_check_and_states_the_runs_outcome(tmp_path: Path) -> None:
     outcome, checks = verdict(
-        CAL, _limits(tmp_path, "guarded-acceptance"), check_uncertainties(CAL, None, 16)
+        FIT, _limits(tmp_path, "guarded-acceptance"), check_uncertainties(FIT, None, 16)
     )
-    rows = [dataclasses.asdict(c) for c in checks]
+    # as the run stored them, read back as the service reads them
+    rows = [LimitCheck.from_stored(json.loads(json.dumps(dataclasses.asdict(c))), "stored") for c in checks]
+    assert rows == list(checks)
     c = _content(rows, outcome.value)
     conf = c["conformity"]
     assert isinstance(conf, dict) and conf["requested"] and conf["outcome"] == "PASS"
@@ -135,7 +142,7 @@ def test_without_limits_the_certificate_says_no_statement_is_made() -> None:
 def test_datasheet_units_convert_the_fit_with_matching_digits() -> None:
     from api.certificates.datasheet_units import datasheet_results
 
-    d = datasheet_results(CAL, None)
+    d = datasheet_results(FIT, None)
     s = d["sensitivity"]
     # K_xx = 0.0201 V/(m/s2) -> 0.0201 * 9.80665 * 1000 mV/g = 197.113665 mV/g; U = 4e-6 * 9806.65 = 0.039
     assert s["unit"] == "mV/g" and s["expanded_uncertainty"][0] == pytest.approx(0.039)
@@ -153,8 +160,8 @@ def test_datasheet_units_convert_the_fit_with_matching_digits() -> None:
 @pytest.mark.parametrize("with_limits", [True, False])
 def test_every_pdf_page_renders_and_states_the_stored_outcome(tmp_path: Path, with_limits: bool) -> None:
     if with_limits:
-        outcome, checks = verdict(CAL, _limits(tmp_path, None), check_uncertainties(CAL, None, 16))
-        rows, stored = [dataclasses.asdict(c) for c in checks], outcome.value
+        outcome, checks = verdict(FIT, _limits(tmp_path, None), check_uncertainties(FIT, None, 16))
+        rows, stored = list(checks), outcome.value
         expected = "Conformity: PASS against the limits of unit model M (simple acceptance)"
     else:
         rows, stored = [], "PASS"

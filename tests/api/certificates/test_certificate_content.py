@@ -10,9 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from api.certificates.certificate import REQUIRED_ITEMS, CertificateInputs, Laboratory, certificate_content
+from api.certificates.certificate import certificate_content
+from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.pdf import render_pdf
 from api.certificates.rounding import expanded_quantity, round_expanded
+from api.certificates.statements import REQUIRED_ITEMS
+from bench.diagnosis.stored import StoredDiagnosis, StoredFinding
+from bench.fitted_model import FittedModel
 from db.repo.certificates import canonical_sha256
 
 
@@ -54,31 +58,34 @@ CAL = {
     "residual_rms": 7.7e-6,
     "g_check": {"after": {"mean_error_m_s2": 3.2e-9, "std_m_s2": 3.3e-4}},
 }
+FIT = FittedModel.from_contract(CAL)
 
 
 def _content() -> dict[str, object]:
     inputs = CertificateInputs(
-        run={
-            "id": "r1",
-            "procedure": "static-12",
-            "started_at": dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
-            "finished_at": dt.datetime(2025, 1, 1, 0, 5, tzinfo=dt.UTC),
-            "parameters": {"dwell_s": 8.0},
-        },
-        unit={"serial": "SN-C", "model": "ADXL325", "channel_unit": "V"},
-        calibration=CAL,
+        run=RunFacts(
+            id="r1",
+            procedure="static-12",
+            started_at=dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
+            finished_at=dt.datetime(2025, 1, 1, 0, 5, tzinfo=dt.UTC),
+            parameters={"dwell_s": 8.0},
+        ),
+        unit=UnitFacts("SN-C", model="ADXL325", channel_unit="V"),
+        calibration=FIT,
         g_local_m_s2=9.81535,
         temp_c=(24.4, 24.6, 24.9),
-        diagnosis={
-            "findings": [
-                {
-                    "effect": "nonlinearity_quadratic",
-                    "summary": "z: k2 = 1.5e-3 per g",
-                    "parameters": {"k2_per_g": [0, 0, 0.0015]},
-                    "sigma": {},
-                }
-            ]
-        },
+        diagnosis=StoredDiagnosis(
+            (
+                StoredFinding(
+                    effect="nonlinearity_quadratic",
+                    summary="z: k2 = 1.5e-3 per g",
+                    parameters={"k2_per_g": [0, 0, 0.0015]},
+                    sigma={},
+                    delta_bic=-120.0,
+                    residual_rms_after=None,
+                ),
+            )
+        ),
     )
     lab = Laboratory("Test lab", "1 Lab Road", "room 2", "A. Person")
     return certificate_content(
@@ -139,15 +146,15 @@ def test_every_17025_item_is_filled_and_missing_ones_say_not_stated() -> None:
     assert c["dates"]["received"] == "not stated" and c["item"]["model"] == "ADXL325"
     lab = Laboratory("L", "A", "room", "P", default_customer_name="Dept. 7", default_customer_address="B 2")
     inputs = CertificateInputs(
-        run={"procedure": "static-12"},
-        unit={"serial": "S", "customer_name": "Acme", "received_on": "2025-01-01"},
-        calibration=CAL,
+        run=RunFacts(procedure="static-12"),
+        unit=UnitFacts("S", customer_name="Acme", received_on=dt.date(2025, 1, 1)),
+        calibration=FIT,
         g_local_m_s2=None,
     )
     c2 = certificate_content(inputs, lab, number="N", issued_at=dt.datetime(2025, 1, 2, tzinfo=dt.UTC))
     assert c2["customer"] == {"name": "Acme", "address": "not stated", "source": "unit registration"}
     assert c2["dates"]["received"] == "2025-01-01" and c2["conditions"]["g_local_m_s2"] == "not stated"
-    inputs3 = CertificateInputs(run={}, unit={"serial": "S"}, calibration=CAL, g_local_m_s2=9.8)
+    inputs3 = CertificateInputs(run=RunFacts(), unit=UnitFacts("S"), calibration=FIT, g_local_m_s2=9.8)
     c3 = certificate_content(inputs3, lab, number="N", issued_at=dt.datetime(2025, 1, 2, tzinfo=dt.UTC))
     assert c3["customer"]["name"] == "Dept. 7" and c3["customer"]["source"] == "laboratory default"
 

@@ -8,16 +8,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from api.certificates.budget import TypeBSettings, certificate_budget
-from api.certificates.certificate import (
-    DYNAMIC_COVERAGE_STATEMENT,
-    CertificateInputs,
-    Laboratory,
-    certificate_content,
-)
+from api.certificates.budget import CertificateBudget, TypeBSettings, certificate_budget
+from api.certificates.certificate import certificate_content
+from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.rounding import round_expanded
+from api.certificates.statements import DYNAMIC_COVERAGE_STATEMENT
 from api.settings import Settings
 from bench.calibration.dynamic import calibrate_dynamic
+from bench.fitted_model import FittedModel
 from bench.recording import Recording
 from tests.support.dynamic_sim import oscillation
 
@@ -33,12 +31,12 @@ def recorded() -> tuple[Recording, dict[str, Any]]:
     return rec, calibrate_dynamic(rec).to_contract()
 
 
-def _content(rec: Recording, cal: dict[str, Any], budget: dict[str, Any] | None) -> dict[str, Any]:
+def _content(rec: Recording, cal: dict[str, Any], budget: CertificateBudget | None) -> dict[str, Any]:
     inputs = CertificateInputs(
-        run={"id": "r2", "procedure": "oscillation-2axis",
-             "started_at": dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
-             "finished_at": dt.datetime(2025, 1, 1, 0, 5, tzinfo=dt.UTC), "parameters": {}},
-        unit={"serial": "SN-DYN", "channel_unit": "V"}, calibration=cal,
+        run=RunFacts(id="r2", procedure="oscillation-2axis",
+                     started_at=dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
+                     finished_at=dt.datetime(2025, 1, 1, 0, 5, tzinfo=dt.UTC)),
+        unit=UnitFacts("SN-DYN", channel_unit="V"), calibration=FittedModel.from_contract(cal),
         g_local_m_s2=rec.sidecar.g_local_m_s2, temp_c=(24.4, 24.6, 24.9), budget=budget,
         budget_note="" if budget else "no recording",
     )  # fmt: skip
@@ -50,7 +48,8 @@ def _content(rec: Recording, cal: dict[str, Any], budget: dict[str, Any] | None)
 
 def test_dynamic_certificate_has_a_budget(recorded: tuple[Recording, dict[str, Any]]) -> None:
     rec, cal = recorded
-    budget = certificate_budget(rec, cal, TypeBSettings.of(Settings()))
+    typed = certificate_budget(rec, FittedModel.from_contract(cal), TypeBSettings.of(Settings()))
+    budget = typed.to_content()
     assert "refit" in budget["sensitivity_method"] and "sandwich" in budget["type_a"]
     groups = {i["group"] for i in budget["inputs"]}
     assert {"table angle", "local gravity", "DAQ gain", "DAQ offset"} <= groups
@@ -63,7 +62,7 @@ def test_dynamic_certificate_has_a_budget(recorded: tuple[Recording, dict[str, A
     g_line = next(c for c in K_xx["contributions"] if c["name"] == "local gravity g_local")
     g = rec.sidecar.g_local_m_s2
     assert g_line["sensitivity"] == pytest.approx(-cal["scale_matrix"][0][0] / g, rel=0.03)
-    c = _content(rec, cal, budget)
+    c = _content(rec, cal, typed)
     assert c["uncertainty_statement"] == DYNAMIC_COVERAGE_STATEMENT
     u = np.array(c["results"]["bias"]["expanded_uncertainty"])
     np.testing.assert_allclose(
@@ -74,7 +73,7 @@ def test_dynamic_certificate_has_a_budget(recorded: tuple[Recording, dict[str, A
 
 def test_dynamic_budget_without_type_b_is_two_sigma(recorded: tuple[Recording, dict[str, Any]]) -> None:
     rec, cal = recorded
-    res = _content(rec, cal, certificate_budget(rec, cal, ZERO))["results"]
+    res = _content(rec, cal, certificate_budget(rec, FittedModel.from_contract(cal), ZERO))["results"]
     assert res["bias"]["k"] == 2.0 and res["scale_matrix"]["k"] == 2.0
     for name, sig in (("bias", "bias_sigma"), ("scale_matrix", "scale_matrix_sigma")):
         expected = [

@@ -11,9 +11,10 @@ from sqlalchemy.orm import Session
 
 from api.certificates.issue import CertificateRefused, issue_for_run
 from api.settings import Settings
+from bench.fitted_model import ContractError
 from db.engine import make_session_factory
 from db.migrate import open_database
-from db.models import RunState
+from db.models import Run, RunState
 from db.repo.runs import merge_params
 from tests.api.certificates.test_certificate_conformity import CAL
 from tests.db._factories import make_run
@@ -115,3 +116,81 @@ def test_health_names_the_gaps_and_the_preview_matches_the_procedure(tmp_path: P
     assert got["wall_duration_s"] == pytest.approx(pv.duration_s / 4.0)
     real = Settings(**IDENTITY)
     assert real.certificate_gaps()[0] == []
+
+
+def test_a_stored_fit_without_its_g_check_is_refused_naming_the_key(tmp_path: Path) -> None:
+    engine, sessions = _sessions(tmp_path)
+    try:
+        with sessions.begin() as s:
+            _completed_run(s, "r-old", sim=True)
+            merge_params(s, "r-old", {"calibration": {**CAL, "g_check": {"before": CAL["g_check"]["after"]}}})
+        with sessions.begin() as s, pytest.raises(ContractError) as info:
+            issue_for_run(s, Settings(**IDENTITY), "r-old")
+        assert str(info.value) == "run r-old: stored fit: key 'g_check.after' is missing"
+    finally:
+        engine.dispose()
+
+
+def test_stored_limit_checks_are_read_back_into_the_conformity_statement(tmp_path: Path) -> None:
+    check = {"name": "bias_x", "unit": "V", "value": 1.54, "low": 1.45, "high": 1.55, "passed": True}
+    engine, sessions = _sessions(tmp_path)
+    try:
+        with sessions.begin() as s:
+            _completed_run(s, "r-lc", sim=True)
+            run = s.get(Run, "r-lc")
+            assert run is not None
+            run.limit_checks = [check, {k: v for k, v in check.items() if k != "passed"}]
+        with sessions.begin() as s, pytest.raises(ValueError) as info:
+            issue_for_run(s, Settings(**IDENTITY), "r-lc")
+        assert str(info.value) == "run r-lc: limit check 1: key 'passed' is missing"
+        with sessions.begin() as s:
+            run = s.get(Run, "r-lc")
+            assert run is not None
+            run.limit_checks = [check]
+        with sessions.begin() as s:
+            rows = issue_for_run(s, Settings(**IDENTITY), "r-lc").content["conformity"]["checks"]
+        assert rows == [
+            {
+                "quantity": "bias_x",
+                "value": 1.54,
+                "expanded_uncertainty": 2e-05,  # the certificate's own U: 2 x bias_sigma_x of the fit
+                "unit": "V",
+                "low": 1.45,
+                "high": 1.55,
+                "acceptance_low": 1.45,
+                "acceptance_high": 1.55,
+                "verdict": "conforms",
+            }
+        ]
+    finally:
+        engine.dispose()
+
+
+def test_a_stored_diagnosis_is_read_into_the_certificate_and_a_renamed_key_is_named(tmp_path: Path) -> None:
+    from api.routes.views import run_out
+
+    finding = {"effect": "lever_arm", "summary": "lever arm of 2 cm", "parameters": {"r_m": [0.02, 0.0, 0.0]},
+               "sigma": {"r_m": [0.001, 0.001, 0.001]}, "delta_bic": -80.0}  # fmt: skip
+    engine, sessions = _sessions(tmp_path)
+    try:
+        with sessions.begin() as s:
+            _completed_run(s, "r-dg", sim=True)
+            merge_params(s, "r-dg", {"diagnosis": {"findings": [finding]}})
+        with sessions.begin() as s:
+            c = issue_for_run(s, Settings(**IDENTITY), "r-dg").content["diagnosis"]
+            shown = run_out(s.get(Run, "r-dg"), "SN-0001")
+        assert c["performed"] is True
+        assert c["findings"] == [{k: finding[k] for k in ("effect", "summary", "parameters", "sigma")}]
+        assert shown.n_findings == 1 and shown.diagnosis_note is None
+        with sessions.begin() as s:
+            _completed_run(s, "r-dg2", sim=True)
+            merge_params(s, "r-dg2", {"diagnosis": {"finding": [finding]}})
+            shown = run_out(s.get(Run, "r-dg2"), "SN-0001", with_diagnosis=True)
+        message = "run r-dg2: stored diagnosis: key 'findings' is missing"
+        # the run's view shows no diagnosis and says why; the certificate is refused, naming the key
+        assert (shown.n_findings, shown.diagnosis, shown.diagnosis_note) == (None, None, message)
+        with sessions.begin() as s, pytest.raises(ContractError) as info:
+            issue_for_run(s, Settings(**IDENTITY), "r-dg2")
+        assert str(info.value) == message
+    finally:
+        engine.dispose()

@@ -8,9 +8,11 @@ import datetime as dt
 
 import pytest
 
-from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
+from api.certificates.certificate import certificate_content
+from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.pdf import certificate_lines
 from api.certificates.rounding import format_significant, round_significant
+from bench.fitted_model import FittedModel
 
 
 @pytest.mark.parametrize(
@@ -30,7 +32,7 @@ def test_round_significant_is_half_up_and_refuses_non_finite() -> None:
 
 def test_certificate_states_and_prints_two_digits() -> None:
     cal = {
-        "unit": "SN-T", "channel_unit": "V", "procedure": "static-12",
+        "unit": "SN-T", "channel_unit": "V", "procedure": "static-12", "terms": ["bias", "scale_matrix"],
         "bias": [1.5, 1.5, 1.5], "bias_sigma": [1e-5] * 3,
         "scale_matrix": [[0.0175, 0, 0], [0, 0.0175, 0], [0, 0, 0.0175]],
         "scale_matrix_sigma": [[1e-6] * 3] * 3,
@@ -39,8 +41,8 @@ def test_certificate_states_and_prints_two_digits() -> None:
                     "after": {"mean_error_m_s2": -1.0e-4, "std_m_s2": 3.04e-4}},
     }  # fmt: skip
     inputs = CertificateInputs(
-        run={"id": "r1", "procedure": "static-12"}, unit={"serial": "SN-T", "channel_unit": "V"},
-        calibration=cal, g_local_m_s2=9.81535,
+        run=RunFacts(id="r1", procedure="static-12"), unit=UnitFacts("SN-T", channel_unit="V"),
+        calibration=FittedModel.from_contract(cal), g_local_m_s2=9.81535,
     )  # fmt: skip
     lab = Laboratory("Lab", "1 Road", "room", "A. Person")
     c = certificate_content(inputs, lab, number="CB-2025-00003", issued_at=dt.datetime(2025, 1, 2))

@@ -18,18 +18,19 @@ from api.cli import main
 from api.exports import kalibr_noise
 from bench.estimation.allan import overlapping_allan
 from bench.export import to_c_header, to_imucal, to_json, to_kalibr
+from tests.support.fits import stored_fit
 
 RNG = np.random.default_rng(14)
 B = np.array([1.504, 1.497, 1.502])
 K = np.array([[0.01744, 9.2e-5, -1.08e-4], [1e-5, 0.0175, 2e-5], [3e-5, -2e-5, 0.0176]])
-CONTRACT = {"unit": "SN-EX/1", "channel_unit": "V", "bias": B.tolist(), "scale_matrix": K.tolist()}
+FIT = stored_fit(unit="SN-EX/1", channel_unit="V", bias=B.tolist(), scale_matrix=K.tolist())
 F = RNG.normal(0.0, 9.8, size=(20, 3))  # specific forces (m/s2)
 RAW = B + F @ K.T  # raw = b + K f
 
 
 def test_imucal_loads_the_json_and_recovers_the_specific_force() -> None:
     imucal = pytest.importorskip("imucal")
-    info = imucal.CalibrationInfo.from_json(to_imucal(CONTRACT, "run r1"))
+    info = imucal.CalibrationInfo.from_json(to_imucal(FIT, "run r1"))
     assert type(info).__name__ == "FerrarisCalibrationInfo" and info.from_acc_unit == "V"
     acc, gyr = info.calibrate(RAW, np.zeros_like(RAW), acc_unit="V", gyr_unit="deg/s")
     assert np.allclose(acc, F, rtol=0, atol=1e-9)
@@ -37,7 +38,7 @@ def test_imucal_loads_the_json_and_recovers_the_specific_force() -> None:
 
 
 def test_kalibr_yaml_has_kalibrs_keys_and_the_correction_recovers_f() -> None:
-    text = to_kalibr(CONTRACT, sample_rate_hz=1000.0, noise_density_m_s2_sqrt_hz=3.1e-3,
+    text = to_kalibr(FIT, sample_rate_hz=1000.0, noise_density_m_s2_sqrt_hz=3.1e-3,
                      random_walk_m_s3_sqrt_hz=2e-4, source="run r1")  # fmt: skip
     doc = yaml.safe_load(text)["imu0"]
     for key in ("accelerometer_noise_density", "accelerometer_random_walk", "gyroscope_noise_density",
@@ -49,9 +50,7 @@ def test_kalibr_yaml_has_kalibrs_keys_and_the_correction_recovers_f() -> None:
     f = (np.asarray(corr["correction_matrix"]) @ (RAW - np.asarray(corr["bias"])).T).T
     assert np.allclose(f, F, rtol=0, atol=1e-9) and corr["channel_unit"] == "V"
     with pytest.raises(ValueError, match="noise density must be a finite number"):
-        to_kalibr(
-            CONTRACT, sample_rate_hz=1e3, noise_density_m_s2_sqrt_hz=math.nan, random_walk_m_s3_sqrt_hz=0
-        )
+        to_kalibr(FIT, sample_rate_hz=1e3, noise_density_m_s2_sqrt_hz=math.nan, random_walk_m_s3_sqrt_hz=0)
 
 
 def test_kalibr_noise_density_of_white_noise_is_sigma_over_root_rate() -> None:
@@ -60,7 +59,7 @@ def test_kalibr_noise_density_of_white_noise_is_sigma_over_root_rate() -> None:
     res = overlapping_allan(x, fs)
     allan = {"taus_s": res.taus_s.tolist(), "adev": res.adev.T.tolist(), "start_s": 0.0,
              "end_s": (x.shape[0] - 1) / fs, "n_samples": x.shape[0]}  # fmt: skip
-    rate, density, walk = kalibr_noise(allan, CONTRACT)
+    rate, density, walk = kalibr_noise(allan, FIT)
     expected = sigma_v / math.sqrt(fs) / K[0, 0]  # the largest of the channels: smallest K_ii
     assert rate == pytest.approx(fs)
     assert density == pytest.approx(expected, rel=0.05)
@@ -69,7 +68,7 @@ def test_kalibr_noise_density_of_white_noise_is_sigma_over_root_rate() -> None:
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed")
 def test_c_header_compiles_and_corrects_like_numpy(tmp_path: Path) -> None:
-    (tmp_path / "cal.h").write_text(to_c_header(CONTRACT, "run r1"))
+    (tmp_path / "cal.h").write_text(to_c_header(FIT, "run r1"))
     rows = "\n".join("{" + ", ".join(f"{v:.17g}" for v in r) + "}," for r in RAW)
     (tmp_path / "main.c").write_text(
         '#include <stdio.h>\n#include "cal.h"\n'
@@ -88,11 +87,11 @@ def test_c_header_compiles_and_corrects_like_numpy(tmp_path: Path) -> None:
 
 
 def test_plain_json_and_a_singular_model_is_refused() -> None:
-    doc = json.loads(to_json(CONTRACT))
+    doc = json.loads(to_json(FIT))
     assert doc["format"] == "calbench-correction/1"
     assert np.allclose(np.asarray(doc["correction_matrix"]) @ K, np.eye(3), atol=1e-12)
     with pytest.raises(ValueError, match="singular"):
-        to_json({**CONTRACT, "scale_matrix": [[1, 0, 0], [1, 0, 0], [0, 0, 1]]})
+        to_json(stored_fit(scale_matrix=[[1, 0, 0], [1, 0, 0], [0, 0, 1]]))
 
 
 def test_cli_writes_each_format_from_a_recording(shared_dir: Path, tmp_path: Path) -> None:

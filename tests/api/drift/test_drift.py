@@ -16,6 +16,7 @@ from fastapi.testclient import TestClient
 from api.drift import DriftScheduler, compare, parse_time_of_day
 from api.main import create_app
 from api.runs.runner import simulated_unit
+from tests.support.fits import stored_fit
 from tests.support.service_helpers import OP, VIEW, MovableClock, service_settings, wait_final
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]  # whole simulated drift-check runs
@@ -73,13 +74,13 @@ def test_compare_uses_both_uncertainties() -> None:
         "scale_matrix": np.eye(3).tolist(),
         "scale_matrix_sigma": np.full((3, 3), 1e-6).tolist(),
     }
-    out = compare(cert, check, k=3.0)  # limit = 3·sqrt(2)·1e-5 = 4.243e-5
+    out = compare(cert, stored_fit(**check), k=3.0)  # limit = 3·sqrt(2)·1e-5 = 4.243e-5
     rows = {r["name"]: r for r in out["coefficients"]}
     assert rows["bias[0]"]["limit"] == pytest.approx(3 * np.sqrt(2) * 1e-5)
     assert rows["bias[0]"]["exceeded"] and rows["bias[1]"]["exceeded"] and not rows["bias[2]"]["exceeded"]
     assert out["flagged"] and len(rows) == 12
     assert out["false_alarm_probability"] == pytest.approx(1 - (1 - 0.0026998) ** 12, rel=1e-3)
-    quiet = compare(cert, {**check, "bias": [1.0, 1.0, 1.0]}, k=3.0)
+    quiet = compare(cert, stored_fit(**{**check, "bias": [1.0, 1.0, 1.0]}), k=3.0)
     assert not quiet["flagged"]
 
 

@@ -17,13 +17,16 @@ import math
 import numpy as np
 import pytest
 
-from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
+from api.certificates.certificate import certificate_content
+from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.drift import compare
 from api.simulated_recording import nominal_geometry, to_recording
 from bench.calibration import calibrate_recording
+from bench.fitted_model import FittedModel
 from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg
 from drivers.sim.physics import SensorPhysics
 from drivers.sim.sensor_truth import SensorTruth
+from tests.support.fits import stored_fit
 
 RATE_HZ = 50.0
 DWELL_S = 8.0
@@ -31,20 +34,20 @@ N_PAIRS = 100
 LAB = Laboratory("Lab", "1 Road", "room", "A. Person")
 
 
-def _fit(truth: SensorTruth, seed: int) -> tuple[dict[str, object], float]:
+def _fit(truth: SensorTruth, seed: int) -> tuple[FittedModel, float]:
     physics = SensorPhysics(
         truth, DEFAULT_AXES, None, 9.81535, seed=seed, sample_rate_hz=RATE_HZ, encoder_resolution_deg=1e-4
     )
     run = simulate_static(static12_poses_deg(), DWELL_S, physics, RATE_HZ)
     rec = to_recording(run, serial="SN-DRIFT-MC", geometry=nominal_geometry(run, (0.0, 0.0, 0.0)))
     span_s = run.segments[-1][1] - run.segments[0][0]
-    return calibrate_recording(rec).to_contract(), span_s
+    return calibrate_recording(rec).fitted_model(), span_s
 
 
-def _certificate(cal: dict[str, object]) -> dict[str, object]:
+def _certificate(cal: FittedModel) -> dict[str, object]:
     inputs = CertificateInputs(
-        run={"id": "r", "procedure": "static-12"},
-        unit={"serial": "SN-DRIFT-MC", "channel_unit": "V"},
+        run=RunFacts(id="r", procedure="static-12"),
+        unit=UnitFacts("SN-DRIFT-MC", channel_unit="V"),
         calibration=cal,
         g_local_m_s2=9.81535,
     )
@@ -65,7 +68,7 @@ def test_unchanged_unit_is_flagged_at_the_stated_rate() -> None:
         chk, _ = _fit(truth, 1001 + 2 * i)
         x = span_s / tc
         rep_m_s2 = B * math.sqrt(2.0 * 2.0 * (x - 1.0 + math.exp(-x)) / x**2)
-        rep = np.abs(np.diag(np.asarray(chk["scale_matrix"], dtype=float))) * rep_m_s2
+        rep = np.abs(np.diag(chk.K)) * rep_m_s2
         out = compare(_certificate(ref), chk, 3.0, bias_repeatability=rep)
         flagged += bool(out["flagged"])
         p_stated = out["false_alarm_probability"]
@@ -90,12 +93,12 @@ def test_repeatability_widens_only_the_bias_limits() -> None:
         "k": 2.0,
     }
     cert = {"results": {"bias": u, "scale_matrix": m}}
-    check = {
-        "bias": [1.0, 1.0, 1.0],
-        "bias_sigma": [1e-5] * 3,
-        "scale_matrix": np.eye(3).tolist(),
-        "scale_matrix_sigma": np.full((3, 3), 1e-6).tolist(),
-    }
+    check = stored_fit(
+        bias=[1.0, 1.0, 1.0],
+        bias_sigma=[1e-5] * 3,
+        scale_matrix=np.eye(3).tolist(),
+        scale_matrix_sigma=np.full((3, 3), 1e-6).tolist(),
+    )
     rows = {r["name"]: r for r in compare(cert, check, 3.0, bias_repeatability=[2e-5, 0, 0])["coefficients"]}
     assert rows["bias[0]"]["limit"] == pytest.approx(3 * math.sqrt(1e-10 + 1e-10 + 4e-10))
     assert rows["bias[1]"]["limit"] == pytest.approx(3 * math.sqrt(2e-10))

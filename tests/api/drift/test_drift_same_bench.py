@@ -7,17 +7,20 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import pytest
 
 from api.certificates.budget import TypeBSettings, certificate_budget
-from api.certificates.certificate import CertificateInputs, Laboratory, certificate_content
+from api.certificates.certificate import certificate_content
+from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.drift import certificate_bench, compare
 from api.settings import Settings
 from api.simulated_recording import write_simulated
 from bench.calibration import calibrate_recording
+from bench.fitted_model import FittedModel
 from bench.recording import read_recording
 from bench.uncertainty.budget import TYPE_A_NAME
 from db.models import Certificate
@@ -28,18 +31,18 @@ G = 9.81535
 
 
 @pytest.fixture(scope="module")
-def certified(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any], dict[str, Any]]:
+def certified(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any], FittedModel]:
     """(certificate content with the default bench's budget, the fit it states)."""
     truth = SensorTruth.typical("V", seed=4)
     physics = SensorPhysics(truth, DEFAULT_AXES, None, G, seed=5, encoder_resolution_deg=1e-4)
     path = tmp_path_factory.mktemp("drift") / "sim.csv"
     write_simulated(path, simulate_static(static12_poses_deg(), 5.0, physics, 100.0), serial="SN-D", seed=5)
     rec = read_recording(path)
-    cal = calibrate_recording(rec).to_contract()
+    cal = calibrate_recording(rec).fitted_model()
     budget = certificate_budget(rec, cal, TypeBSettings.of(Settings()))
     inputs = CertificateInputs(
-        run={"id": "r1", "procedure": "static-12", "bench": "bench-A"},
-        unit={"serial": "SN-D", "channel_unit": "V"}, calibration=cal, g_local_m_s2=G, budget=budget,
+        run=RunFacts(id="r1", procedure="static-12", bench="bench-A"),
+        unit=UnitFacts("SN-D", channel_unit="V"), calibration=cal, g_local_m_s2=G, budget=budget,
     )  # fmt: skip
     lab = Laboratory("Lab", "1 Road", "room", "A. Person")
     content = certificate_content(inputs, lab, number="CB-2025-00001", issued_at=dt.datetime(2025, 1, 2))
@@ -52,16 +55,16 @@ def _type_a(content: dict[str, Any], name: str) -> float:
 
 
 def test_bias_shift_of_three_and_a_half_type_a_sigma_is_flagged(
-    certified: tuple[dict[str, Any], dict[str, Any]],
+    certified: tuple[dict[str, Any], FittedModel],
 ) -> None:
     content, cal = certified
     u_a = _type_a(content, "b_x")
-    u_check = float(cal["bias_sigma"][0])
+    u_check = float(cal.bias_sigma[0])
     u_full = content["results"]["bias"]["expanded_uncertainty"][0] / content["results"]["bias"]["k"]
     assert u_full > 2.0 * u_a  # the V unit's budget is dominated by the DAQ's gain and offset
     shift = 3.5 * math.hypot(u_a, u_check)
     bias = np.asarray(content["results"]["bias"]["value"]) + np.array([shift, 0.0, 0.0])
-    check = {**cal, "bias": bias.tolist()}
+    check = replace(cal, bias=bias)
 
     same = compare(content, check, 3.0, same_bench=True)
     row = {r["name"]: r for r in same["coefficients"]}["bias[0]"]
@@ -79,7 +82,7 @@ def test_bias_shift_of_three_and_a_half_type_a_sigma_is_flagged(
 
 
 def test_scale_limits_drop_only_the_bench_common_lines(
-    certified: tuple[dict[str, Any], dict[str, Any]],
+    certified: tuple[dict[str, Any], FittedModel],
 ) -> None:
     content, cal = certified
     rows = {r["name"]: r for r in compare(content, cal, 3.0, same_bench=True)["coefficients"]}

@@ -1,0 +1,33 @@
+"""The lab's benches and their state (viewer)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from api.deps import SessionDep, ViewerDep
+from api.schemas import BenchOut
+from db.repo.benches import bench_status
+
+router = APIRouter(prefix="/api/benches", tags=["benches"])
+
+
+@router.get("", response_model=list[BenchOut])
+def benches(session: SessionDep, _: ViewerDep) -> list[BenchOut]:
+    """Every bench in the database, by name: ``idle``, ``busy`` (with the run holding it) or
+    ``offline`` (its agent has not reported for 30 s), the procedures its table can run and its
+    bench file, as its agent reports them, and how many runs wait for it. A run names one in
+    ``POST /api/runs`` (``bench``)."""
+    with session.begin():
+        return [
+            BenchOut(
+                name=b.name,
+                state=b.state,
+                agent_seen_at=b.agent_seen_at,
+                agent_host=b.agent_host,
+                procedures=list(b.procedures),
+                bench_file=b.bench_file,
+                running_run=b.holding_run,
+                n_queued=b.n_queued,
+            )
+            for b in bench_status(session)
+        ]

@@ -1,0 +1,28 @@
+"""What the wire models of every resource share: run state names, the serial pattern, the
+shortest dwell, and the text rule of stored text (:func:`bench.inputs.check_text`)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from bench.inputs import InputError, check_text
+
+RunStateName = Literal[
+    "queued", "running", "paused", "suspended", "completed", "failed", "error", "aborted", "interrupted"
+]
+SERIAL_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"
+MIN_DWELL_S = 0.5
+"""Shortest static dwell a run may ask for (s): shorter windows hold too few samples to fit."""
+
+
+def stored_text(value: str | None, *, multiline: bool = False) -> str | None:
+    """``value`` when it passes the stored-text rules (``None`` passes).
+
+    :raises ValueError: NUL, control or bidi-control characters (the message names the rule).
+    """
+    if value is None:
+        return None
+    try:
+        return check_text(value, multiline=multiline)
+    except InputError as exc:
+        raise ValueError(str(exc)) from None

@@ -122,7 +122,8 @@ def _not_live(session: SessionDep, run_id: str, what: str) -> HTTPException:
 @router.post("/{run_id}/pause", response_model=RunActionOut, responses=_NOT_LIVE)
 def pause(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
     """Hold the live run: the table stops, the window in progress is dropped and recorded again
-    when the run continues (``POST /api/runs/{id}/resume``). Idempotent."""
+    when the run continues (``POST /api/runs/{id}/resume``). A run still waiting in the queue
+    is held as soon as its agent starts it. Idempotent."""
     if runner.pause(run_id):
         return RunActionOut(id=run_id, action="pause", state="paused")
     raise _not_live(session, run_id, "nothing to pause")

@@ -13,7 +13,8 @@ Control requests (abort, pause, continue) are written into the run's ``params`` 
 :func:`request_control`; the agent reads them with :func:`pending_control`. An abort is
 sticky (``params["abort_requested"]``); pause and continue are a numbered request
 (``params["control"] = {"seq", "action"}``): the agent applies the newest one it has not
-applied. A resume of an ``interrupted`` run is queued like a fresh run
+applied, from the claim on, so a pause asked of a run still waiting in the queue holds it as
+soon as it starts. A resume of an ``interrupted`` run is queued like a fresh run
 (:func:`queue_resume`, ``params["resume_requested"]``); the claim then computes where the
 recording is cut and deletes the chunk rows after it, as :func:`db.repo.recovery.claim_for_resume`.
 """
@@ -159,7 +160,7 @@ def claim_next_run(
         )
         run.resume_count += 1
         run.error = None
-        run.params = {k: v for k, v in params.items() if k not in (RESUME_KEY, ABORT_KEY, CONTROL_KEY)}
+        run.params = {k: v for k, v in params.items() if k not in (RESUME_KEY, ABORT_KEY)}
         session.flush()
     return ClaimedRun(
         run_id,
@@ -196,7 +197,8 @@ def request_control(
 ) -> RunState | None:
     """Ask the owner of a live run to ``abort``, ``pause`` or ``continue``.
 
-    A queued run nobody has claimed is aborted at once (it never touched the table).
+    A queued run nobody has claimed is aborted at once (it never touched the table); a pause or
+    continue asked of it is stored for its agent, which applies it once it has claimed the run.
     Returns the run's state after the request, or ``None`` when the request does not apply
     (the run is final or interrupted; pause of a paused run is accepted, idempotent).
 
@@ -205,9 +207,7 @@ def request_control(
     run = session.get(Run, run_id, with_for_update=True, populate_existing=True)
     if run is None:
         raise LookupError(f"run {run_id} not found")
-    if run.state is RunState.QUEUED and run.owner_pid is None:
-        if action != "abort":
-            return None
+    if run.state is RunState.QUEUED and run.owner_pid is None and action == "abort":
         now = utc_now()
         run.state, run.outcome, run.finished_at, run.heartbeat_at = RunState.ABORTED, "ABORTED", now, now
         run.error = f"aborted before it started: {reason or 'operator abort'}"

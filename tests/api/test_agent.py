@@ -4,6 +4,7 @@ a queued run of another bench is not its business."""
 from __future__ import annotations
 
 import os
+import time
 import socket
 from pathlib import Path
 
@@ -96,3 +97,31 @@ def test_a_second_agent_for_the_bench_exits_naming_the_first(
     finally:
         held.close()
     assert lock_holder(path) is None
+
+
+def test_a_pause_asked_while_the_run_waits_in_the_queue_holds_it_once_claimed(tmp_path: Path) -> None:
+    settings = service_settings(tmp_path)
+    agent = BenchAgent(settings)
+    queue = RunQueue(settings, agent.sessions, agent.read_sessions)
+    try:
+        run = queue.start("SN-QUEUED-PAUSE", "static-12", dwell_s=3.0)
+        assert queue.pause(run.id)  # nobody has claimed it yet: stored for the agent
+        with agent.sessions.begin() as s:
+            row = s.get(Run, run.id)
+            assert row is not None and row.state is RunState.QUEUED and row.owner_pid is None
+        assert agent.tick() == run.id  # claimed and started
+        deadline = time.monotonic() + 60.0
+        state = RunState.QUEUED
+        while time.monotonic() < deadline and state is not RunState.PAUSED:
+            agent.tick()  # applies the stored pause
+            time.sleep(0.1)
+            with agent.read_sessions.begin() as s:
+                row = s.get(Run, run.id)
+                assert row is not None
+                state = row.state
+        assert state is RunState.PAUSED
+        assert queue.abort(run.id)
+        agent.tick()
+        assert agent.runner.wait_idle(60.0)
+    finally:
+        agent.close()

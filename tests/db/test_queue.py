@@ -117,7 +117,7 @@ def test_control_requests_and_queued_abort(db_session_factory: sessionmaker[Sess
     with db_session_factory.begin() as s:
         assert request_control(s, "r1", "pause") is RunState.RUNNING
         assert request_control(s, "r1", "continue") is RunState.RUNNING
-        assert request_control(s, "r2", "pause") is None  # not started: nothing to pause
+        assert request_control(s, "r2", "pause") is RunState.QUEUED  # held once it starts
         assert request_control(s, "r2", "abort", "not needed") is RunState.ABORTED
     with db_session_factory.begin() as s:
         assert pending_control(s, "r1").seq == 2 and pending_control(s, "r1").action == "continue"

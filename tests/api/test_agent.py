@@ -4,8 +4,8 @@ a queued run of another bench is not its business."""
 from __future__ import annotations
 
 import os
-import time
 import socket
+import time
 from pathlib import Path
 
 import pytest

@@ -274,9 +274,11 @@ class Progress:
     :param window_index: window being recorded, or ``None`` during moves.
     :param n_windows: windows in the procedure.
     :param elapsed_s: run time so far on the recording clock (s).
-    :param expected_total_s: preview duration of the whole procedure (s).
+    :param expected_total_s: expected duration of the whole run on the recording clock (s),
+        holds so far included.
     :param table_deg: latest encoder angles (deg).
     :param state: current run state.
+    :param held_s: recording-clock time spent held so far (operator pause, suspension), s.
     """
 
     step_index: int
@@ -288,13 +290,19 @@ class Progress:
     expected_total_s: float
     table_deg: tuple[float, ...]
     state: RunState
+    held_s: float = 0.0
 
     @property
     def fraction(self) -> float:
-        """Fraction of the expected duration done, in [0, 1]."""
-        if self.expected_total_s <= 0:
+        """Fraction of the expected working time done, in [0, 1]: time held counts in neither,
+
+            fraction = (elapsed_s − held_s) / (expected_total_s − held_s),
+
+        so a bar stands still while the run is paused or suspended."""
+        working_s = self.expected_total_s - self.held_s
+        if working_s <= 0:
             return 0.0
-        return min(1.0, max(0.0, self.elapsed_s / self.expected_total_s))
+        return min(1.0, max(0.0, (self.elapsed_s - self.held_s) / working_s))
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,12 @@ class RunContext(Protocol):
     window: WindowCollector | None
     positions_deg: tuple[float, ...]
     last_temp_c: float
+    now_s: float
+    """The recording clock (s)."""
+    held_s: float
+    """Recording-clock time of the holds that have ended (s)."""
+    hold_began_s: float | None
+    """The recording clock when the hold in progress began (``None``: not held)."""
 
     def notify(self, method: str, *args: object) -> None:
         """Tell every observer (``method`` of :class:`bench.run_observer.RunObserver`)."""

@@ -107,6 +107,8 @@ class Sequencer:
         self.state = RunState.PENDING
         self.window: WindowCollector | None = None
         self.now_s = recorder.last_t_s or 0.0
+        self.held_s = 0.0
+        self.hold_began_s: float | None = None
         self.step_index = 0
         self.where = "start"
         self.last_temp_c = float("nan")
@@ -155,6 +157,8 @@ class Sequencer:
                 self.start.expected_duration_s,
                 self.positions_deg,
                 self.state,
+                self.held_s
+                + (0.0 if self.hold_began_s is None else max(0.0, self.now_s - self.hold_began_s)),
             ),
         )
 

@@ -76,13 +76,18 @@ def hold(seq: RunContext, intr: Interruption) -> None:
         with contextlib.suppress(DeviceError, DeviceTimeout, InterlockOpen, OSError):
             seq.call(seq.table.stop, seq.config.stop_timeout_s, "stop")
         begun = time.monotonic()
+        seq.hold_began_s = seq.now_s
         limit = seq.config.suspend_timeout_s
-        while not _cleared(seq, intr):
-            if limit is not None and time.monotonic() - begun > limit:
-                raise DeviceError(f"suspended for more than {limit:g} s ({intr.reason})")
-            if intr.state is RunState.SUSPENDED and seq.control.take_resume_request():
-                _operator_resume(seq, intr)
-            seq.pump_once(0.05)
+        try:
+            while not _cleared(seq, intr):
+                if limit is not None and time.monotonic() - begun > limit:
+                    raise DeviceError(f"suspended for more than {limit:g} s ({intr.reason})")
+                if intr.state is RunState.SUSPENDED and seq.control.take_resume_request():
+                    _operator_resume(seq, intr)
+                seq.pump_once(0.05)
+        finally:
+            seq.held_s += max(0.0, seq.now_s - seq.hold_began_s)
+            seq.hold_began_s = None
         seq.set_state(RunState.RUNNING, f"resumed after: {intr.reason}")
 
 

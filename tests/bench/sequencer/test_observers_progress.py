@@ -69,6 +69,10 @@ def test_the_expected_duration_is_never_reached_before_the_last_window() -> None
     p = run_progress(proc, 3, 6, k, 90.0, 100.0, (0.0, 0.0, 0.0), RunState.RUNNING)
     assert p.expected_total_s == pytest.approx(90.0 + 100.0 * (n - k) / n)
     assert (p.step_index, p.n_steps, p.window_index, p.n_windows) == (3, len(proc.steps), 6, n)
+    # held 50 s of 90: the working time is 40 s, the bar where 40 s would put it
+    p = run_progress(proc, 3, 6, k, 90.0, 100.0, (0.0, 0.0, 0.0), RunState.PAUSED, held_s=50.0)
+    assert p.expected_total_s == pytest.approx(50.0 + 100.0)
+    assert p.fraction == pytest.approx(40.0 / 100.0)
     # a step index past the end (the run finishing) labels the last step
     p = run_progress(proc, len(proc.steps) + 2, None, n, 200.0, 100.0, (1.0, 2.0, 3.0), RunState.RUNNING)
     assert p.step_label == getattr(proc.steps[-1], "label", "") and p.expected_total_s == 200.0

@@ -24,6 +24,7 @@ from bench.records import (
     ChunkRecord,
     DwellChoice,
     Outcome,
+    Progress,
     RunStart,
     RunState,
     StateChange,
@@ -171,7 +172,11 @@ class Recorder(NullObserver):
         self.chunks: list[ChunkRecord] = []
         self.dwells: list[DwellChoice] = []
         self.starts: list[RunStart] = []
+        self.progress: list[Progress] = []
         self.hook = None
+
+    def on_progress(self, run_id: str, progress: Progress) -> None:
+        self.progress.append(progress)
 
     def on_start(self, start: RunStart) -> None:
         self.starts.append(start)

@@ -69,6 +69,12 @@ def test_pause_and_resume(tmp_path: Path) -> None:
     assert acq.outcome is None
     assert [s.state for s in obs.states] == [RunState.RUNNING, RunState.PAUSED, RunState.RUNNING]
     assert len(acq.windows) == 12
+    # the bar stands still while held: every progress event of the pause has one fraction,
+    # though the recording clock went on
+    held = [p for p in obs.progress if p.state is RunState.PAUSED]
+    assert len(held) >= 2 and held[-1].elapsed_s > held[0].elapsed_s
+    assert {round(p.fraction, 12) for p in held} == {round(held[0].fraction, 12)}
+    assert held[-1].held_s > 0 and obs.progress[-1].held_s >= held[-1].held_s
 
 
 def test_operator_resume_re_prepares_a_latched_interlock(tmp_path: Path) -> None:

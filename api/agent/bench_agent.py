@@ -52,6 +52,7 @@ from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Run, RunState
 from db.observer import finish_record
+from db.process import process_start_ticks
 from db.repo.benches import agent_alive, agent_gone
 from db.repo.queue import ClaimedRun, claim_next_run, pending_control
 from db.repo.recovery import mark_interrupted_runs
@@ -129,6 +130,7 @@ class BenchAgent:
             settings, self.sessions, ProgressHub(), finisher, clock=clock, store_live=True
         )
         self.pid, self.host = os.getpid(), socket.gethostname()
+        self.start_ticks = process_start_ticks(self.pid)
         config = bench_config_for(settings, settings.sim)
         self.procedures = runnable_procedures(settings, config)
         self.bench_file = config.identity()
@@ -155,6 +157,7 @@ class BenchAgent:
                 host=self.host,
                 procedures=self.procedures,
                 bench_file=self.bench_file,
+                start_ticks=self.start_ticks,
             )
         self._announced = time.monotonic()
 

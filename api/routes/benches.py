@@ -14,7 +14,8 @@ router = APIRouter(prefix="/api/benches", tags=["benches"])
 @router.get("", response_model=list[BenchOut])
 def benches(session: SessionDep, _: ViewerDep) -> list[BenchOut]:
     """Every bench in the database, by name: ``idle``, ``busy`` (with the run holding it) or
-    ``offline`` (its agent has not reported for 30 s), the procedures its table can run and its
+    ``offline`` (its agent has not reported for 30 s, or, an agent of this host, its process is
+    gone), the procedures its table can run and its
     bench file, as its agent reports them, and how many runs wait for it. A run names one in
     ``POST /api/runs`` (``bench``)."""
     with session.begin():

@@ -30,6 +30,7 @@ from bench.procedures import build_procedure, preview
 from bench.records import new_run_id, utc_now
 from bench.sequencer.control import RunControl, SequencerConfig
 from db.models import ACTIVE_STATES, FINAL_STATES, Run, Unit
+from db.process import process_alive
 from db.repo.benches import bench_status, choose_bench, find_bench
 from db.repo.queue import (
     ControlAction,
@@ -40,7 +41,7 @@ from db.repo.queue import (
     queued_runs,
     request_control,
 )
-from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs, process_alive
+from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs
 from db.repo.units import get_or_create_bench, get_or_create_unit, get_unit_by_serial
 
 __all__ = ["NotResumable", "RunQueue", "UnknownBench"]

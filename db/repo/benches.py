@@ -2,7 +2,10 @@
 each is, and which one a run goes to.
 
 A bench's agent calls :func:`agent_alive` every few seconds (and :func:`agent_gone` when it
-stops); an agent not seen for ``stale_after_s`` is taken as offline. :func:`bench_status`
+stops); an agent not seen for ``stale_after_s`` is taken as offline. An agent of this host is
+offline at once when its process is gone (killed, crashed): the agent records its pid and the
+start time of its process (:mod:`db.process`), so a later process that was given the same pid
+is not taken for it; an agent of another host keeps the staleness rule. :func:`bench_status`
 lists every bench with its state (``idle``, ``busy`` or ``offline``), the run holding it and
 its queue; :func:`choose_bench` picks the bench of a run the client left to the service.
 """
@@ -11,18 +14,22 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-from collections.abc import Sequence
+import socket
+from collections.abc import Callable, Sequence
 from typing import Any, Literal
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from db.models import Bench, Run, RunState
+from db.process import same_process_alive
 from db.types import utc_now
 
 AGENT_STALE_S = 30.0
 """An agent not seen for this long is offline (s); agents report every few seconds."""
 HOLDING = (RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED)
+START_KEY = "agent_start_ticks"
+"""Key of ``Bench.info`` holding the start time of the agent's process (:mod:`db.process`)."""
 
 BenchState = Literal["idle", "busy", "offline"]
 
@@ -59,14 +66,19 @@ def agent_alive(
     host: str,
     procedures: Sequence[str],
     bench_file: dict[str, Any] | None,
+    start_ticks: int | None = None,
     now: dt.datetime | None = None,
 ) -> None:
-    """The bench's agent ``pid@host`` is alive now and its table can run ``procedures``."""
+    """The bench's agent ``pid@host`` is alive now and its table can run ``procedures``.
+
+    :param start_ticks: the start time of the agent's process (:func:`db.process.process_start_ticks`),
+        so that an API on the same host tells it from a later process with the same pid.
+    """
     bench = session.get(Bench, bench_id, with_for_update=True)
     if bench is None:
         raise LookupError(f"bench {bench_id} not found")
     bench.agent_seen_at, bench.agent_pid, bench.agent_host = now or utc_now(), pid, host
-    info = {"procedures": list(procedures), "bench_file": bench_file}
+    info = {"procedures": list(procedures), "bench_file": bench_file, START_KEY: start_ticks}
     if bench.info != info:
         bench.info = info
     session.flush()
@@ -82,10 +94,39 @@ def agent_gone(session: Session, bench_id: int, *, pid: int, host: str) -> None:
     )
 
 
+AgentCheck = Callable[[int, int | None], bool]
+"""``(pid, start_ticks) -> alive``: whether an agent process of this host still runs."""
+
+
+def agent_online(
+    bench: Bench,
+    now: dt.datetime,
+    *,
+    stale_after_s: float = AGENT_STALE_S,
+    host: str | None = None,
+    is_alive: AgentCheck = same_process_alive,
+) -> bool:
+    """Whether the bench has a live agent: seen within ``stale_after_s``, and, when the agent is
+    of this ``host`` (default: this machine's name), its process (pid and start time) still runs."""
+    seen = bench.agent_seen_at
+    if seen is None or (now - seen).total_seconds() > stale_after_s:
+        return False
+    here = host if host is not None else socket.gethostname()
+    if bench.agent_host != here or bench.agent_pid is None:
+        return True
+    start = (bench.info or {}).get(START_KEY)
+    return is_alive(bench.agent_pid, start if isinstance(start, int) else None)
+
+
 def bench_status(
-    session: Session, *, now: dt.datetime | None = None, stale_after_s: float = AGENT_STALE_S
+    session: Session,
+    *,
+    now: dt.datetime | None = None,
+    stale_after_s: float = AGENT_STALE_S,
+    host: str | None = None,
+    is_alive: AgentCheck = same_process_alive,
 ) -> list[BenchStatus]:
-    """Every bench, by name."""
+    """Every bench, by name; a bench is ``offline`` as :func:`agent_online` says."""
     now = now or utc_now()
     benches = list(session.scalars(sa.select(Bench).order_by(Bench.name)))
     held = session.execute(sa.select(Run.bench_id, Run.id).where(Run.state.in_(HOLDING))).all()
@@ -101,7 +142,7 @@ def bench_status(
     out = []
     for b in benches:
         seen = b.agent_seen_at
-        online = seen is not None and (now - seen).total_seconds() <= stale_after_s
+        online = agent_online(b, now, stale_after_s=stale_after_s, host=host, is_alive=is_alive)
         run_id = holding.get(b.id)
         state: BenchState = "offline" if not online else "busy" if run_id is not None else "idle"
         info = b.info or {}

@@ -11,7 +11,6 @@ run to a new owner, exactly once.
 from __future__ import annotations
 
 import datetime as dt
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -20,22 +19,10 @@ from sqlalchemy.orm import Session
 
 from db.models import ACTIVE_STATES, RESUMABLE_STATES, Run, RunState, RunWindow, SampleChunk
 from db.notify import notify_run
+from db.process import process_alive
 from db.types import utc_now
 
 DEFAULT_STALE_AFTER_S = 300.0
-
-
-def process_alive(pid: int) -> bool:
-    """Whether a process with ``pid`` exists on this host (``kill(pid, 0)``)."""
-    if pid <= 0:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True  # exists, owned by another user
-    return True
 
 
 def mark_interrupted_runs(

@@ -1,9 +1,15 @@
-"""GET /api/benches and the bench of POST /api/runs: named, by bench file, unknown, unable."""
+"""GET /api/benches and the bench of POST /api/runs: named, by bench file, unknown, unable; a
+killed agent's bench is offline at once."""
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -15,7 +21,7 @@ from db.migrate import open_database
 from db.models import RunState
 from db.repo.benches import agent_alive
 from db.repo.units import get_or_create_bench
-from tests.support.service_helpers import OP, VIEW, service_settings
+from tests.support.service_helpers import OP, RATE_HZ, VIEW, service_settings
 
 FAR_FILE = {"name": "far-table", "version": 1, "sha256": "cd" * 32, "path": "/benches/far.toml"}
 
@@ -104,3 +110,47 @@ def test_a_bench_name_with_control_characters_is_refused(client: TestClient) -> 
 def test_no_run_was_left_for_a_refused_request(client: TestClient) -> None:
     r = client.get("/api/runs?unit_serial=SN-NONE", headers=VIEW)
     assert r.status_code == 200 and r.json() == []
+
+
+@pytest.mark.slow
+def test_a_killed_agent_of_this_host_shows_its_bench_offline_at_once(tmp_path: Path) -> None:
+    """``calbench agent --sim`` as a real process, SIGKILLed: no chance to say it stops, its record
+    is fresh, yet the API on the same host shows its bench offline and sends no run there."""
+    settings = service_settings(tmp_path, agent="external", bench_name="bench-api")
+    env = {
+        **os.environ,
+        "CALBENCH_DATABASE_URL": settings.effective_database_url,
+        "CALBENCH_DATA_DIR": str(tmp_path / "killed"),
+        "CALBENCH_SIM_SAMPLE_RATE_HZ": str(RATE_HZ),
+        "CALBENCH_BENCH_NAME": "bench-killed",
+        "CALBENCH_DRIFT_TIME": "",
+    }
+    calbench = str(Path(sys.executable).with_name("calbench"))
+    with TestClient(create_app(settings, start_scheduler=False)) as c:
+        with (tmp_path / "agent.log").open("wb") as log:  # its own session: the group is killed
+            agent = subprocess.Popen(
+                [calbench, "agent", "--sim", "--log-level", "warning"],
+                env=env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        try:
+            deadline = time.monotonic() + 60
+            while (killed := _benches(c).get("bench-killed")) is None or killed["state"] != "idle":
+                assert agent.poll() is None, (tmp_path / "agent.log").read_text()
+                assert time.monotonic() < deadline, killed
+                time.sleep(0.2)
+            os.killpg(agent.pid, signal.SIGKILL)
+            agent.wait(timeout=30)
+            killed_at = time.monotonic()
+            killed = _benches(c)["bench-killed"]
+            assert killed["state"] == "offline" and killed["agent_seen_at"] is not None, killed
+            assert time.monotonic() - killed_at < 30.0  # well before the record went stale
+            # a run left to the service does not go to it (no other bench has an agent here)
+            r = c.post("/api/runs", json={"unit_serial": "SN-KILLED", "procedure": "static-12"}, headers=OP)
+            assert r.status_code == 202 and r.json()["bench"] == "bench-api", r.text
+        finally:
+            if agent.poll() is None:
+                os.killpg(agent.pid, signal.SIGKILL)
+                agent.wait(timeout=30)

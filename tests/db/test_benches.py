@@ -109,3 +109,41 @@ def test_a_run_left_to_the_service_goes_to_a_free_bench_that_can_run_it() -> Non
         == "b"
     )
     assert choose_bench([no_rate, _status("c", "offline")], "rate-1axis", "a") is None
+
+
+def test_an_agent_of_this_host_whose_process_is_gone_is_offline_at_once(
+    db_session_factory: sessionmaker[Session],
+) -> None:
+    """Same host: the pid and the process start time decide at once; another host: staleness only."""
+    gone: set[int] = {21}  # pids of this host with no process
+    started = {22: 1000}  # pid 22 runs, started at tick 1000
+
+    def is_alive(pid: int, start: int | None) -> bool:
+        return pid not in gone and (start is None or started.get(pid) == start)
+
+    with db_session_factory.begin() as s:
+        for name, pid, host, start in (
+            ("dead-here", 21, "here", 500),
+            ("live-here", 22, "here", 1000),
+            ("reused-pid", 22, "here", 999),  # pid 22 is now another process
+            ("unknown-start", 22, "here", None),
+            ("dead-elsewhere", 21, "there", 500),
+        ):
+            bench_id = get_or_create_bench(s, name).id
+            agent_alive(
+                s, bench_id, pid=pid, host=host, procedures=[], bench_file=None, start_ticks=start, now=T0
+            )
+    fresh = T0 + dt.timedelta(seconds=1)
+    with db_session_factory.begin() as s:
+        states = {st.name: st.state for st in bench_status(s, now=fresh, host="here", is_alive=is_alive)}
+    assert states == {
+        "dead-elsewhere": "idle",  # another host's pid says nothing here: fresh record, online
+        "dead-here": "offline",
+        "live-here": "idle",
+        "reused-pid": "offline",
+        "unknown-start": "idle",
+    }
+    stale = T0 + dt.timedelta(seconds=AGENT_STALE_S + 1)
+    with db_session_factory.begin() as s:
+        states = {st.name: st.state for st in bench_status(s, now=stale, host="here", is_alive=is_alive)}
+    assert set(states.values()) == {"offline"}

@@ -1,4 +1,5 @@
-"""Drift checks in the database: which units are due, and storing a finished check's comparison
+"""Drift checks in the database: which units are due and on which bench, which checks wait or
+run, and storing a finished check's comparison
 (:func:`bench.uncertainty.drift.compare`) with the unit's latest certificate."""
 
 from __future__ import annotations
@@ -10,13 +11,14 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from api.certificates.statements import NOT_STATED
+from api.drift.plan import DueUnit
 from api.settings import Settings
 from bench.records import RunRecord
 from bench.uncertainty.drift import compare
-from db.models import Bench, Certificate, DriftCheck, Run, Unit
+from db.models import ACTIVE_STATES, Bench, Certificate, DriftCheck, Run, RunState, Unit
 from db.repo.certificates import latest_certificate
 from db.repo.drift import add_drift_check
-from db.repo.units import get_bench_by_name, get_unit_by_serial
+from db.repo.units import get_unit_by_serial
 
 
 def certificate_bench(s: Session, cert: Certificate) -> str | None:
@@ -71,14 +73,34 @@ def record_drift_check(s: Session, settings: Settings, serial: str, record: RunR
     )
 
 
-def units_due(s: Session, bench_name: str) -> list[str]:
-    """Serials of this bench's units that have a certificate."""
-    bench = get_bench_by_name(s, bench_name)
-    if bench is None:
-        return []
-    stmt = (
-        sa.select(Unit.serial)
-        .where(Unit.bench_id == bench.id, sa.exists().where(Certificate.unit_id == Unit.id))
+def unit_bench(s: Session, unit: Unit) -> str | None:
+    """The name of the unit's bench: the one it was last run on, else its latest certificate's
+    (:func:`certificate_bench`); ``None`` when neither is known."""
+    if unit.bench_id is not None:
+        bench = s.get(Bench, unit.bench_id)
+        if bench is not None:
+            return bench.name
+    cert = latest_certificate(s, unit.id)
+    return certificate_bench(s, cert) if cert is not None else None
+
+
+def units_due(s: Session) -> list[DueUnit]:
+    """Every unit that has a certificate, by serial, with its bench (:func:`unit_bench`), on
+    whichever bench of the lab it is."""
+    stmt = sa.select(Unit).where(sa.exists().where(Certificate.unit_id == Unit.id)).order_by(Unit.serial)
+    return [DueUnit(unit.serial, unit_bench(s, unit)) for unit in s.scalars(stmt)]
+
+
+def drift_checks_in_queue(s: Session) -> tuple[list[str], list[str]]:
+    """Serials of the units whose drift check waits in a bench's queue, and of those whose check
+    holds its bench (running, paused or suspended), each by serial."""
+    rows = s.execute(
+        sa.select(Unit.serial, Run.state, Run.params)
+        .join(Unit, Run.unit_id == Unit.id)
+        .where(Run.state.in_(list(ACTIVE_STATES)))
         .order_by(Unit.serial)
-    )
-    return list(s.scalars(stmt))
+    ).all()
+    checks = [(serial, state) for serial, state, p in rows if p.get("service_kind") == "drift_check"]
+    waiting = [serial for serial, state in checks if state is RunState.QUEUED]
+    holding = [serial for serial, state in checks if state is not RunState.QUEUED]
+    return waiting, holding

@@ -1,10 +1,15 @@
-"""Nightly drift checks: re-measure each unit of this bench and compare with its last certificate
-(the test itself: :mod:`bench.uncertainty.drift`).
+"""Nightly drift checks: re-measure every certified unit of the lab and compare with its last
+certificate (the test itself: :mod:`bench.uncertainty.drift`).
 
-:class:`DriftScheduler` runs the check once a day at ``CALBENCH_DRIFT_TIME`` (``HH:MM``,
-local time of the clock) for every unit of the bench that has a certificate, one after
-the other on the bench's runner. Its clock is injectable and :meth:`DriftScheduler.tick`
-is what its thread calls, so tests drive it without waiting for the night.
+:class:`DriftScheduler` runs once a day at ``CALBENCH_DRIFT_TIME`` (``HH:MM``, local time of
+the clock): it queues a drift check for every unit that has a certificate, on the unit's own
+bench (:mod:`api.drift.plan`), where that bench's agent runs the checks one after the other.
+A unit whose bench has no live agent, or whose agent cannot run the check's procedure, is not
+checked: it is logged and listed with the reason (:attr:`DriftScheduler.not_checked`,
+``GET /api/drift``). Every API process runs a scheduler; the run queue keeps one check per unit
+a night (:meth:`api.runs.queue.RunQueue.start`, ``drift_night``). Its clock is injectable and
+:meth:`DriftScheduler.tick` is what its thread calls, so tests drive it without waiting for
+the night.
 """
 
 from __future__ import annotations
@@ -17,10 +22,11 @@ from typing import TYPE_CHECKING
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from api.drift.record import units_due
-from api.runs.runner import BenchBusy, BenchRunner
+from api.drift.plan import DueUnit, NotChecked, plan_checks
+from api.drift.record import unit_bench, units_due
 from api.settings import Settings
 from bench.records import utc_now
+from db.repo.benches import bench_status
 from db.repo.units import get_unit_by_serial
 
 if TYPE_CHECKING:
@@ -44,24 +50,25 @@ def parse_time_of_day(text: str) -> dt.time | None:
 
 
 class DriftScheduler:
-    """Starts the nightly check runs on the runner, one unit at a time.
+    """Queues the nightly check runs, each on its unit's bench.
 
     :param clock: wall clock (aware datetime); the run time is taken in the clock's local zone.
     :param poll_s: how often the thread calls :meth:`tick`.
+    :ivar not_checked: the units the last queueing left unchecked, by serial, with the reason.
     """
 
     def __init__(
         self,
         settings: Settings,
         sessions: sessionmaker[Session],
-        runner: BenchRunner | RunQueue,
+        runner: RunQueue,
         clock: Callable[[], dt.datetime] = utc_now,
         poll_s: float = 20.0,
     ) -> None:
         self.settings, self.sessions, self.runner, self.clock = settings, sessions, runner, clock
         self.time_of_day = parse_time_of_day(settings.drift_time)
         self.poll_s = poll_s
-        self.pending: list[str] = []
+        self.not_checked: dict[str, NotChecked] = {}
         self.last_run_at: dt.datetime | None = None
         self.next_run_at = self._next_after(clock()) if self.time_of_day else None
         self._lock = threading.Lock()
@@ -75,41 +82,62 @@ class DriftScheduler:
         at = local.replace(hour=tod.hour, minute=tod.minute, second=0, microsecond=0)
         return at if at > local else at + dt.timedelta(days=1)
 
-    def enqueue(self, serial: str | None = None) -> list[str]:
-        """Queue one unit (it must exist) or every due unit of the bench; returns the queue.
+    def enqueue(self, serial: str | None = None, *, night: dt.datetime | None = None) -> list[str]:
+        """Queue the drift check of one unit (it must exist) or of every unit with a certificate,
+        each on its bench; returns the ids of the runs queued (or queued already: the unit's
+        check waiting or running, or this ``night``'s). The units left unchecked replace
+        :attr:`not_checked` (one unit: its entry only) and are logged.
 
+        :param night: the scheduled time of the night the checks are for (``None``: asked now).
         :raises LookupError: the unit is unknown.
         """
+        procedure = self.settings.drift_procedure
         with self.sessions.begin() as s:
-            if serial is not None and get_unit_by_serial(s, serial) is None:
-                raise LookupError(f"unit {serial} not found")
-            serials = [serial] if serial is not None else units_due(s, self.settings.bench_name)
+            if serial is not None:
+                unit = get_unit_by_serial(s, serial)
+                if unit is None:
+                    raise LookupError(f"unit {serial} not found")
+                due = [DueUnit(serial, unit_bench(s, unit))]
+            else:
+                due = units_due(s)
+            targets, skipped = plan_checks(due, bench_status(s), procedure)
+        ids: list[str] = []
+        for target in targets:
+            try:
+                live = self.runner.start(
+                    target.unit_serial,
+                    procedure,
+                    dwell_s=self.settings.drift_dwell_s,
+                    kind="drift_check",
+                    bench=target.bench,
+                    drift_night=night.isoformat() if night is not None else None,
+                )
+            except ValueError as exc:  # UnknownBench: the bench changed since the plan
+                skipped.append(NotChecked(target.unit_serial, target.bench, str(exc)))
+                continue
+            ids.append(live.id)
+        for item in skipped:
+            log.warning(
+                "drift check of %s not queued (bench %s): %s", item.unit_serial, item.bench, item.reason
+            )
         with self._lock:
-            self.pending.extend(x for x in serials if x not in self.pending)
+            if serial is None:
+                self.not_checked = {}
+            else:
+                self.not_checked.pop(serial, None)
+            self.not_checked.update({item.unit_serial: item for item in skipped})
             self.last_run_at = self.clock()
-            return list(self.pending)
+        return ids
 
     def tick(self) -> str | None:
-        """Queue the units when the time has come, and start the next check if the bench is
-        free; returns the id of the run started, if any."""
+        """Queue the night's checks when their time has come; returns the id of the first run
+        queued then, if any (the benches' agents run them)."""
         now = self.clock()
-        if self.next_run_at is not None and now >= self.next_run_at:
-            self.next_run_at = self._next_after(now)
-            self.enqueue()
-        with self._lock:
-            if not self.pending or self.runner.current is not None:
-                return None
-            serial = self.pending[0]
-        try:
-            live = self.runner.start(
-                serial, self.settings.drift_procedure, dwell_s=self.settings.drift_dwell_s, kind="drift_check"
-            )
-        except BenchBusy:
+        if self.next_run_at is None or now < self.next_run_at:
             return None
-        with self._lock:
-            if serial in self.pending:
-                self.pending.remove(serial)
-        return live.id
+        night, self.next_run_at = self.next_run_at, self._next_after(now)
+        ids = self.enqueue(night=night)
+        return ids[0] if ids else None
 
     def _loop(self) -> None:
         while not self._stop.wait(self.poll_s):
@@ -124,7 +152,7 @@ class DriftScheduler:
         self._thread.start()
 
     def stop(self) -> None:
-        """Stop the thread (the current check run, if any, is the runner's)."""
+        """Stop the thread (the checks queued stay queued for their benches' agents)."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5.0)

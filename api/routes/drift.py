@@ -8,15 +8,18 @@ import sqlalchemy as sa
 from fastapi import APIRouter, HTTPException, Query, status
 
 from api.deps import OperatorDep, ServicesDep, SessionDep, ViewerDep
+from api.drift import drift_checks_in_queue
 from api.routes.views import drift_out
-from api.schemas import DriftCheckOut, DriftRequest, DriftStatus
+from api.schemas import DriftCheckOut, DriftNotChecked, DriftRequest, DriftStatus
 from db.models import Certificate, DriftCheck, Unit
 
 router = APIRouter(prefix="/api/drift", tags=["drift"])
 
 
-def _status(services: ServicesDep) -> DriftStatus:
+def _status(services: ServicesDep, session: SessionDep) -> DriftStatus:
     d, s = services.drift, services.settings
+    with session.begin():
+        waiting, holding = drift_checks_in_queue(session)
     return DriftStatus(
         enabled=d.time_of_day is not None,
         time_of_day=d.time_of_day.strftime("%H:%M") if d.time_of_day else None,
@@ -25,15 +28,21 @@ def _status(services: ServicesDep) -> DriftStatus:
         procedure=s.drift_procedure,
         dwell_s=s.drift_dwell_s,
         k=s.drift_k,
-        running=services.runner.current is not None and services.runner.current.kind == "drift_check",
-        pending_units=list(d.pending),
+        running=bool(holding),
+        pending_units=waiting,
+        not_checked=[
+            DriftNotChecked(unit_serial=n.unit_serial, bench=n.bench, reason=n.reason)
+            for n in sorted(d.not_checked.values(), key=lambda n: n.unit_serial)
+        ],
     )
 
 
 @router.get("", response_model=DriftStatus)
-def drift_status(services: ServicesDep, _: ViewerDep) -> DriftStatus:
-    """When the nightly check runs next, what it runs, which units wait."""
-    return _status(services)
+def drift_status(services: ServicesDep, session: SessionDep, _: ViewerDep) -> DriftStatus:
+    """When the nightly check runs next, what it runs, which units' checks wait in their benches'
+    queues, and which units were not checked (their bench has no live agent or cannot run the
+    procedure), with the reason."""
+    return _status(services, session)
 
 
 @router.post(
@@ -42,15 +51,14 @@ def drift_status(services: ServicesDep, _: ViewerDep) -> DriftStatus:
     response_model=DriftStatus,
     responses={404: {"description": "no such unit"}},
 )
-def run_now(body: DriftRequest, services: ServicesDep, _: OperatorDep) -> DriftStatus:
-    """Queue the drift check now for one unit or every unit of the bench with a certificate;
-    the checks run one after the other as the bench becomes free."""
+def run_now(body: DriftRequest, services: ServicesDep, session: SessionDep, _: OperatorDep) -> DriftStatus:
+    """Queue the drift check now for one unit or every unit with a certificate, each on its
+    unit's bench; each bench's agent runs its checks one after the other."""
     try:
         services.drift.enqueue(body.unit_serial)
     except LookupError as exc:
         raise HTTPException(status.HTTP_404_NOT_FOUND, str(exc)) from None
-    services.drift.tick()
-    return _status(services)
+    return _status(services, session)
 
 
 @router.get("/checks", response_model=list[DriftCheckOut])

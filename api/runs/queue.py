@@ -44,7 +44,10 @@ from db.repo.queue import (
 from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs
 from db.repo.units import get_or_create_bench, get_or_create_unit, get_unit_by_serial
 
-__all__ = ["NotResumable", "RunQueue", "UnknownBench"]
+__all__ = ["NIGHT_KEY", "NotResumable", "RunQueue", "UnknownBench"]
+
+NIGHT_KEY = "drift_night"
+"""Key of a nightly drift check's ``params``: the scheduled time of its night (ISO 8601)."""
 
 
 class UnknownBench(ValueError):
@@ -126,13 +129,17 @@ class RunQueue:
         dwell_s: float | None = None,
         kind: RunKind = "calibration",
         bench: str | None = None,
+        drift_night: str | None = None,
     ) -> LiveRun:
         """Queue a run on ``bench`` (also while it is busy); its agent starts it when free.
-        A drift check of a unit that has one queued or running already is that one (several API
-        processes each run the nightly scheduler).
+        A drift check of a unit that has one queued or running already is that one, and so is a
+        drift check queued for the same ``drift_night`` in whatever state (several API processes
+        each run the nightly scheduler: a unit is checked once a night).
 
         :param bench: a bench's name or its bench file's name; ``None``: a free bench that can run
             the procedure (:meth:`bench_for`), a drift check this API's bench.
+        :param drift_night: the scheduled time of the night a drift check is for (ISO 8601, the
+            same in every API process); stored in the run's ``params`` (``drift_night``).
         :raises UnknownBench: no such bench, or it cannot run the procedure (named).
         :raises ValueError: unknown procedure or one the table limits refuse.
         """
@@ -150,12 +157,17 @@ class RunQueue:
             bench_row = get_or_create_bench(s, name)
             unit = get_or_create_unit(s, unit_serial, bench_id=bench_row.id)
             if kind == "drift_check":  # every API process has a scheduler: one check per unit at a time
-                live = s.scalars(
-                    sa.select(Run).where(Run.unit_id == unit.id, Run.state.in_(list(ACTIVE_STATES)))
-                ).all()
-                for run in live:
-                    if run.params.get("service_kind") == "drift_check":
+                # the unit's row lock orders two processes queueing its check (PostgreSQL; SQLite
+                # writers are alone anyway)
+                s.execute(sa.select(Unit.id).where(Unit.id == unit.id).with_for_update())
+                for run in s.scalars(sa.select(Run).where(Run.unit_id == unit.id)):
+                    if run.params.get("service_kind") != "drift_check":
+                        continue
+                    same_night = drift_night is not None and run.params.get(NIGHT_KEY) == drift_night
+                    if run.state in ACTIVE_STATES or same_night:
                         return _live_of(run, unit_serial)
+                if drift_night is not None:
+                    params[NIGHT_KEY] = drift_night
             queue_run(s, run_id, unit.id, bench_row.id, procedure, params)
         created = LiveRun(run_id, unit_serial, procedure, kind, RunControl(), 0.0)
         created.extra["bench"] = name

@@ -40,6 +40,7 @@ from api.schemas.runs import (
 from api.schemas.units import (
     CertificateOut,
     DriftCheckOut,
+    DriftNotChecked,
     DriftRequest,
     DriftStatus,
     UnitHistory,
@@ -55,6 +56,7 @@ __all__ = [
     "BenchOut",
     "CertificateOut",
     "DriftCheckOut",
+    "DriftNotChecked",
     "DriftRequest",
     "DriftStatus",
     "Health",

@@ -115,8 +115,21 @@ class DriftRequest(BaseModel):
     unit_serial: str | None = Field(default=None, pattern=SERIAL_PATTERN)
 
 
+class DriftNotChecked(BaseModel):
+    """A unit whose drift check was not queued: its bench (if known) and why."""
+
+    unit_serial: str
+    bench: str | None
+    reason: str
+
+
 class DriftStatus(BaseModel):
-    """The drift scheduler: when it runs next and what it did last."""
+    """The drift scheduler: when it runs next and what it did last.
+
+    :param running: a drift check holds a bench now; :param pending_units: the units whose check
+        waits in a bench's queue; :param not_checked: the units its last queueing (in this API
+        process) left unchecked, and why.
+    """
 
     enabled: bool
     time_of_day: str | None
@@ -127,3 +140,4 @@ class DriftStatus(BaseModel):
     k: float
     running: bool
     pending_units: list[str]
+    not_checked: list[DriftNotChecked] = []

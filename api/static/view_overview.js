@@ -87,9 +87,12 @@ export async function overviewView(view, session, signal) {
       getJson("/api/drift", { signal }).catch(() => null)]);
     runsBox.replaceChildren(runsTable(runs));
     const next = drift && drift.enabled && drift.next_run_at
-      ? `Nightly drift check of every certified unit: next ${when(drift.next_run_at)}${drift.pending_units.length ? ` · waiting: ${drift.pending_units.join(", ")}` : ""}. Run one now from a unit's page.`
+      ? `Nightly drift check of every certified unit, on its bench: next ${when(drift.next_run_at)}${drift.pending_units.length ? ` · waiting: ${drift.pending_units.join(", ")}` : ""}. Run one now from a unit's page.`
       : "No nightly drift check is scheduled (CALBENCH_DRIFT_TIME); run one from a unit's page.";
-    unitsBox.replaceChildren(unitsTable(units), h("p", { class: "note", id: "drift-schedule" }, next));
+    const skipped = drift && drift.not_checked && drift.not_checked.length
+      ? [h("p", { class: "note", id: "drift-not-checked" }, "Not checked: " + drift.not_checked.map((n) => `${n.unit_serial} (${n.reason})`).join("; "))]
+      : [];
+    unitsBox.replaceChildren(unitsTable(units), h("p", { class: "note", id: "drift-schedule" }, next), ...skipped);
     return runs.some((r) => LIVE.has(r.state));
   };
   if (session.role === "none") {

@@ -15,20 +15,33 @@ from pathlib import Path
 PROC = Path("/proc")
 
 
-def process_start_ticks(pid: int, proc: Path = PROC) -> int | None:
-    """The start time of process ``pid`` (clock ticks since boot); ``None`` when it does not
-    exist or the system does not tell (no ``/proc``)."""
+def _stat_fields(pid: int, proc: Path) -> list[str] | None:
+    """The fields of ``/proc/<pid>/stat`` from field 3 (state) on; ``None`` when unreadable."""
     try:
         stat = (proc / str(pid) / "stat").read_text()
     except OSError:
         return None
-    # "pid (comm) state ppid ...": comm may hold spaces and parentheses; the fields after the
-    # last ")" start with field 3 (state), so field 22 (starttime) is the 20th of them.
-    fields = stat[stat.rfind(")") + 1 :].split()
+    # "pid (comm) state ppid ...": comm may hold spaces and parentheses
+    return stat[stat.rfind(")") + 1 :].split()
+
+
+def process_start_ticks(pid: int, proc: Path = PROC) -> int | None:
+    """The start time of process ``pid`` (clock ticks since boot); ``None`` when it does not
+    exist or the system does not tell (no ``/proc``)."""
+    fields = _stat_fields(pid, proc)
     try:
-        return int(fields[19])
+        return int(fields[19]) if fields is not None else None  # field 22: the 20th from state
     except (IndexError, ValueError):
         return None
+
+
+def process_ended(pid: int, proc: Path = PROC) -> bool:
+    """Whether process ``pid`` has ended but its parent has not yet collected it (a zombie,
+    state ``Z`` or ``X``: ``kill(pid, 0)`` still succeeds)."""
+    fields = _stat_fields(pid, proc)
+    if not fields:
+        return False
+    return fields[0] in ("Z", "X")
 
 
 def process_alive(pid: int) -> bool:
@@ -46,9 +59,10 @@ def process_alive(pid: int) -> bool:
 
 def same_process_alive(pid: int, start_ticks: int | None) -> bool:
     """Whether process ``pid`` of this host is alive and is the one that started at
-    ``start_ticks`` (``None``: not recorded, the pid alone decides). When the start time of the
-    live process cannot be read it is taken as the same one."""
-    if not process_alive(pid):
+    ``start_ticks`` (``None``: not recorded, the pid alone decides). A process that has ended
+    and waits to be collected by its parent is not alive. When the start time of the live
+    process cannot be read it is taken as the same one."""
+    if not process_alive(pid) or process_ended(pid):
         return False
     if start_ticks is None:
         return True

@@ -5,11 +5,12 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
-from db.process import process_alive, process_start_ticks, same_process_alive
+from db.process import process_alive, process_ended, process_start_ticks, same_process_alive
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
 
@@ -37,3 +38,20 @@ def test_a_killed_process_and_a_reused_pid_are_not_the_recorded_one() -> None:
         child.kill()
         child.wait(timeout=10)
     assert not process_alive(child.pid) and not same_process_alive(child.pid, start)
+
+
+def test_a_killed_child_not_yet_collected_is_not_alive() -> None:
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        start = process_start_ticks(child.pid)
+        assert not process_ended(child.pid)
+        child.kill()
+        deadline = time.monotonic() + 10
+        while not process_ended(child.pid):  # until the kernel has ended it
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        assert process_alive(child.pid)  # kill(pid, 0) still finds the zombie
+        assert not same_process_alive(child.pid, start) and not same_process_alive(child.pid, None)
+    finally:
+        child.kill()
+        child.wait(timeout=10)

@@ -19,14 +19,14 @@ from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session, sessionmaker
 
 from api.certificates.statements import NOT_STATED
-from api.drift import DriftScheduler
+from api.drift import DriftScheduler, DriftTarget, DueUnit, NotChecked, plan_checks
 from api.main import create_app
 from api.runs.queue import RunQueue
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Bench, Run, RunState, Unit
 from db.process import process_start_ticks
-from db.repo.benches import agent_alive
+from db.repo.benches import BenchStatus, agent_alive
 from db.repo.certificates import issue_certificate
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
@@ -165,3 +165,17 @@ def test_a_check_asked_now_goes_to_the_units_bench_or_says_why_not(
     assert [n["unit_serial"] for n in r.json()["not_checked"]] == ["SN-D1"]
     assert _drift_runs(sessions) == [("SN-B1", "bench-b", "queued")]
     assert client.post("/api/drift/run", json={"unit_serial": "SN-ZZZ"}, headers=OP).status_code == 404
+
+
+def test_the_plan_names_the_bench_by_its_name_or_bench_file_and_says_why_not() -> None:
+    table = {"name": "table-room-2", "version": 1, "sha256": "ef" * 32, "path": "/b.toml"}
+    statuses = [
+        BenchStatus("bench-x", "busy", None, "h", ("static-12",), table, "R-1", 2),
+        BenchStatus("bench-y", "idle", None, "h", (), None, None, 0),  # procedures not told: assumed
+    ]
+    units = [DueUnit("U1", "table-room-2"), DueUnit("U2", "bench-y"), DueUnit("U3", "bench-gone")]
+    targets, skipped = plan_checks(units, statuses, "static-12")
+    assert targets == [DriftTarget("U1", "bench-x"), DriftTarget("U2", "bench-y")]  # busy: waits in its queue
+    assert skipped == [
+        NotChecked("U3", "bench-gone", "bench 'bench-gone' unknown; known benches: bench-x, bench-y")
+    ]

@@ -97,7 +97,8 @@ class SnapshotRevision:
         if self._reader is None or self._reader.done():
             self._reader = loop.create_task(self._read_batches())
         try:
-            return await asyncio.wait_for(asyncio.shield(waiting), READ_TIMEOUT_S)
+            async with asyncio.timeout(READ_TIMEOUT_S):
+                return await asyncio.shield(waiting)
         except TimeoutError:
             return None
 

@@ -19,8 +19,9 @@ visible (PostgreSQL's ``ProcArrayEndTransaction``: "the transaction commit/abort
 reported to WAL and pg_xact"). A position read in that window already counts the commit, a
 document computed just after does not show it, and it would be kept at that position until the
 next commit. The snapshot is the visibility itself, so a document computed after the revision
-is read shows at least what the revision counts. It also works on a standby (replayed
-transactions), where the ``pg_current_wal_*`` functions fail.
+is read shows at least what the revision counts. The ``pg_current_wal_*`` functions also fail
+on a standby (during recovery); ``pg_current_snapshot()`` is available there, over the replayed
+transactions (not exercised by the tests, which run on a primary).
 
 :class:`SnapshotRevision` reads it on a connection of its own (psycopg, asynchronous, on the
 service's event loop, autocommit, :data:`STATEMENT_TIMEOUT_MS`), one read at a time: requests

@@ -6,9 +6,10 @@ the runs list, the units list, a unit's history). :class:`DocumentCache` (pure A
 
 1. it checks the caller's token as the route would (a viewer, or none with ``public_read``);
    when that fails the request goes on to the route, which answers the 401/403;
-2. it reads the database's revision (:class:`api.db_revision.DatabaseRevision`, a few µs);
-   a document computed at the same revision is still exact, since nothing was committed
-   since, so its stored bytes are the answer, without a route, a session or a serialisation;
+2. it reads the database's revision (:class:`api.db_revision.DatabaseRevision`: a few µs on
+   SQLite, one round trip shared by concurrent requests on PostgreSQL); a document computed at
+   the same revision is still exact, since nothing was committed since, so its stored bytes are
+   the answer, without a route, a session or a serialisation;
 3. otherwise the route computes it once for all the requests waiting on the same path (the
    others wait for that one), and a ``200`` JSON answer is stored with the revision read
    *before* it was computed (so it is at least as new as that revision).
@@ -16,7 +17,8 @@ the runs list, the units list, a unit's history). :class:`DocumentCache` (pure A
 Every such answer carries ``ETag`` (a hash of the body: an unchanged document keeps its tag
 when other data change) and ``Cache-Control: private, no-cache``; a request whose
 ``If-None-Match`` names the tag gets ``304`` with no body (RFC 9110 §13.1.2, §15.4.5).
-Without a revision (not SQLite) every document is computed afresh and tagged in the same way.
+Without a revision (another backend, or the revision's reader failed) every document is
+computed afresh and tagged in the same way.
 
 The documents kept are the ones whose content depends on the database alone (no clock, no
 process state): ``GET /api/runs``, ``/api/runs/{id}``, ``/api/runs/{id}/diagnosis``,
@@ -42,7 +44,7 @@ from typing import Any
 import anyio.to_thread
 
 from api.auth import Authenticator, AuthError, Role
-from api.db_revision import DatabaseRevision
+from api.db_revision import DatabaseRevision, Revision
 
 Scope = MutableMapping[str, Any]
 Message = MutableMapping[str, Any]
@@ -80,7 +82,7 @@ def matches(if_none_match: str | None, etag: str) -> bool:
 class Document:
     """A kept answer: the revision it is exact at, its tag, its media type and its bytes."""
 
-    revision: int | None
+    revision: Revision | None
     etag: str
     content_type: bytes
     body: bytes
@@ -100,9 +102,9 @@ class DocumentStore:
         self.revision, self.max_entries, self.max_bytes = revision, max_entries, max_bytes
         self._docs: OrderedDict[str, Document] = OrderedDict()
         self._bytes = 0
-        self._inflight: dict[tuple[str, int], asyncio.Future[Document | None]] = {}
+        self._inflight: dict[tuple[str, Revision], asyncio.Future[Document | None]] = {}
 
-    def get(self, key: str, revision: int, max_age_s: float | None = None) -> Document | None:
+    def get(self, key: str, revision: Revision, max_age_s: float | None = None) -> Document | None:
         """The answer kept for ``key`` if it is exact at ``revision`` (and, with ``max_age_s``,
         computed at most that long ago)."""
         doc = self._docs.get(key)
@@ -127,7 +129,7 @@ class DocumentStore:
             self._bytes -= len(dropped.body)
 
     async def once(
-        self, key: str, revision: int, compute: Callable[[], Awaitable[Captured]]
+        self, key: str, revision: Revision, compute: Callable[[], Awaitable[Captured]]
     ) -> tuple[Document | None, Captured | None]:
         """The document of ``key`` at ``revision``, computed by one request while the others wait.
 
@@ -211,7 +213,7 @@ class Captured:
         elif message["type"] == "http.response.body":
             self.chunks.append(bytes(message.get("body", b"")))
 
-    def document(self, revision: int | None) -> Document | None:
+    def document(self, revision: Revision | None) -> Document | None:
         """The answer as a document if it is a ``200`` JSON one."""
         if self.start is None or self.start["status"] != 200:
             return None
@@ -248,7 +250,7 @@ class DocumentCache:
             await self.app(scope, receive, send)  # the route answers 401/403
             return
         if_none_match = _header(scope, b"if-none-match")
-        revision = store.revision.current()
+        revision = await store.revision.current()
         if revision is None:
             fresh = await self._compute(scope, receive)
             doc = fresh.document(None)

@@ -1,8 +1,8 @@
 """Dashboard readers that never pause against the live service while a run records at ×50.
 
-``calbench serve --sim`` runs in its own process on 127.0.0.1 on SQLite; it starts the bench
-agent (``calbench agent``: sequencer, drivers, recording) as another process, which starts the
-simulated table and Modbus DAQ in a third. The readers run in a fourth
+``calbench serve --sim`` runs in its own process on 127.0.0.1 on SQLite (or PostgreSQL, below);
+it starts the bench agent (``calbench agent``: sequencer, drivers, recording) as another
+process, which starts the simulated table and Modbus DAQ in a third. The readers run in a fourth
 (:mod:`benchmarks.load_readers`), so the client's CPU is measured apart from the service's. A
 first short run gives the unit a history and a finished run to plot. Then:
 
@@ -18,6 +18,9 @@ first short run gives the unit a history and a finished run to plot. Then:
 ``CALBENCH_LOAD_SECONDS`` sets the load's duration (180 s, the acceptance figure of
 docs/benchmarks.md; 30 for a quick check), ``CALBENCH_LOAD_PAUSE_S`` the readers' pause between
 cycles (0: never pause; a comma-separated list runs one loaded run per value).
+``CALBENCH_LOAD_PG_URL`` (a PostgreSQL URL, ``postgresql+psycopg://user@host:port/db``, of a
+database the user may ``CREATE DATABASE`` from) runs the service on PostgreSQL instead: in a
+database ``calbench_load_<random>`` of that server, created for the benchmark and dropped after.
 
 Printed: p50 / p99 latency per request kind and overall, idle and loaded in the same run and
 their ratio; requests per second and the share answered 304; the CPU seconds of the service,
@@ -31,10 +34,13 @@ from __future__ import annotations
 
 import json
 import os
+import secrets
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -50,6 +56,8 @@ READERS = 50
 SPEED = float(os.environ.get("CALBENCH_LOAD_SPEED", "50"))
 RATE_HZ = 100.0
 LOAD_S = float(os.environ.get("CALBENCH_LOAD_SECONDS", "180"))
+PG_URL = os.environ.get("CALBENCH_LOAD_PG_URL", "")
+"""A PostgreSQL server to run on (empty: SQLite in the benchmark's directory)."""
 PAUSES_S = [float(x) for x in os.environ.get("CALBENCH_LOAD_PAUSE_S", "0").split(",")]
 """The readers' pause between cycles (s) of each loaded run; 0 = never pause."""
 DWELL_S = max(30.0, 1.2 * LOAD_S * SPEED / 12)
@@ -70,11 +78,30 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _start_service(data_dir: Path, port: int) -> subprocess.Popen[bytes]:
+@contextmanager
+def _database(data_dir: Path) -> Iterator[str]:
+    """The service's database URL: SQLite in ``data_dir``, or a fresh database on the server of
+    :data:`PG_URL`, dropped on exit."""
+    if not PG_URL:
+        yield f"sqlite:///{data_dir / 'calbench.db'}"
+        return
+    name = f"calbench_load_{secrets.token_hex(4)}"
+    admin = sa.create_engine(PG_URL, isolation_level="AUTOCOMMIT")
+    try:
+        with admin.connect() as conn:
+            conn.execute(sa.text(f'CREATE DATABASE "{name}"'))
+        yield sa.make_url(PG_URL).set(database=name).render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as conn:
+            conn.execute(sa.text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+        admin.dispose()
+
+
+def _start_service(data_dir: Path, port: int, db_url: str) -> subprocess.Popen[bytes]:
     env = {
         **os.environ,
         "CALBENCH_DATA_DIR": str(data_dir),
-        "CALBENCH_DATABASE_URL": f"sqlite:///{data_dir / 'calbench.db'}",
+        "CALBENCH_DATABASE_URL": db_url,
         "CALBENCH_TOKENS": f"operator:{OPERATOR},viewer:{VIEWER}",
         "CALBENCH_SIM_SAMPLE_RATE_HZ": str(RATE_HZ),
         "CALBENCH_DRIFT_TIME": "",
@@ -212,6 +239,7 @@ def _load_phase(
     done_id: str,
     pause_s: float,
     idle: Any,
+    db_url: str,
 ) -> None:
     """Start a ×SPEED run, load the service with READERS readers for LOAD_S s, print the results."""
     with httpx.Client(base_url=base, headers={"Authorization": f"Bearer {VIEWER}"}, timeout=30.0) as c:
@@ -278,18 +306,18 @@ def _load_phase(
     print(f"gaps the run recorded: {len(run.get('gaps') or [])} ({lost} samples lost)")
     rec_path = data_dir / "recordings" / f"run-{live_id}.csv"
     if rec_path.exists():
-        print("recording:", _gaps(rec_path, f"sqlite:///{data_dir / 'calbench.db'}", live_id))
+        print("recording:", _gaps(rec_path, db_url, live_id))
     else:
         print(f"recording: {rec_path} not found")
 
 
 def main() -> None:
     """A finished run to read, the idle baseline, then one loaded run per pause of PAUSES_S."""
-    with tempfile.TemporaryDirectory(prefix="calbench-load-") as d:
+    with tempfile.TemporaryDirectory(prefix="calbench-load-") as d, _database(Path(d)) as db_url:
         data_dir = Path(d)
         port = _free_port()
         base = f"http://127.0.0.1:{port}"
-        proc = _start_service(data_dir, port)
+        proc = _start_service(data_dir, port, db_url)
         try:
             _wait_up(base, proc)
             with httpx.Client(
@@ -305,11 +333,12 @@ def main() -> None:
                 page=page, poll=poll,
             )  # fmt: skip
             print(
+                f"database {sa.make_url(db_url).get_backend_name()}; "
                 f"idle baseline: one reader, {BASELINE_CYCLES} cycles, bench idle, "
                 f"load average {os.getloadavg()[0]:.1f}"
             )
             for pause_s in PAUSES_S:
-                _load_phase(base, port, proc, data_dir, done_id, pause_s, idle)
+                _load_phase(base, port, proc, data_dir, done_id, pause_s, idle, db_url)
         finally:
             proc.terminate()
             try:

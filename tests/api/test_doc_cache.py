@@ -176,23 +176,27 @@ def test_the_revision_moves_with_every_commit_of_another_connection(tmp_path: Pa
     writer.execute("PRAGMA journal_mode = WAL")
     writer.execute("CREATE TABLE t (x)")
     revision = DatabaseRevision(sa.make_url(f"sqlite:///{path}"))
+
+    def now() -> object:
+        return asyncio.run(revision.current())
+
     try:
-        seen = [revision.current()]
-        seen.append(revision.current())
+        seen = [now()]
+        seen.append(now())
         writer.execute("INSERT INTO t VALUES (1)")
-        seen.append(revision.current())
+        seen.append(now())
         writer.execute("BEGIN IMMEDIATE")  # a write not yet committed changes nothing
         writer.execute("INSERT INTO t VALUES (2)")
-        seen.append(revision.current())
+        seen.append(now())
         writer.execute("COMMIT")
-        seen.append(revision.current())
+        seen.append(now())
     finally:
         writer.close()
         revision.close()
     assert None not in seen
     assert seen[0] == seen[1] != seen[2] == seen[3] != seen[4]
-    assert revision.current() is None  # closed
-    assert DatabaseRevision(sa.make_url("postgresql+psycopg://u@127.0.0.1/db")).current() is None
+    assert now() is None  # closed
+    assert asyncio.run(DatabaseRevision(sa.make_url("mysql://u@127.0.0.1/db")).current()) is None
 
 
 def _doc(body: bytes, revision: int = 1) -> Document:

@@ -85,6 +85,8 @@ def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
         peak_rate_rad_s=peak,
         window_samples=tuple(rec.accel_raw[w.slice] for w in wins),
         sample_rate_hz=rec.sidecar.sample_rate_hz,
+        window_temp_c=None if rec.temp_c is None else tuple(rec.temp_c[w.slice] for w in wins),
+        window_t_s=tuple(t[w.slice] for w in wins),
     )
 
 

@@ -12,6 +12,8 @@ recording goes to :func:`bench.diagnosis.dynamic.diagnose_dynamic` instead):
    effect must lower the leave-one-window-out prediction error of its channels (``referee``);
    where a catalogue effect fails that check, the selection runs again without it;
 4. refit with the chosen effects: parameters with sigmas, residuals before/after (``refit``);
+   a library term that changes within a window (in temperature or time) is first removed
+   from the window noise and the model refitted under it (``within_window``);
 5. where the first-order residuals are largest and what they correlate with
    (``residuals``, ``regressors``); whether the final model still fails the recording's
    noise (``unexplained``: χ² whole, per channel, channels against each other); effects and
@@ -39,6 +41,7 @@ from bench.diagnosis.result import Diagnosis, Finding, ModelSummary
 from bench.diagnosis.selection import FALSE_ALARM, select
 from bench.diagnosis.summaries import summary
 from bench.diagnosis.unexplained import unexplained
+from bench.diagnosis.within_window import refit_within_window
 
 __all__ = ["Diagnosis", "StaticEvidence", "diagnose"]
 
@@ -165,10 +168,13 @@ def diagnose(
         state, notes2 = select_without(excluded)
         notes = {**notes2, **{k: v for k, v in notes.items() if k in excluded}}
         referee(ev, state, fixed, notes)
+    # a library term that changes within a window (in temp or t) is not window noise: the
+    # final model is refitted under the window noise without it (``within_window``)
+    ev_final, state = refit_within_window(ev, state, lib_terms, fixed)
     assert state.fit is not None and state.noise is not None
     K = scale_matrix(state.fit)
     order = list(dict.fromkeys(s.effect for s in state.steps))
-    seq = model_sequence(ev, order, state.candidates, state.pose, state.noise, K, fixed)
+    seq = model_sequence(ev_final, order, state.candidates, state.pose, state.noise, K, fixed)
     final = seq[-1]
     span = float(np.ptp(ev.mid_s))
     alike = confounded(ev, K, state.candidates, pool)
@@ -177,7 +183,7 @@ def diagnose(
     for k, effect in enumerate(order):
         if effect in lib_terms:
             discovered.append(
-                discovery(ev, lib_terms[effect], final, seq, k, K, state, channel_unit, lib_terms, pool)
+                discovery(ev_final, lib_terms[effect], final, seq, k, K, state, channel_unit, lib_terms, pool)
             )
             continue
         if effect == "pose_error":
@@ -255,7 +261,7 @@ def diagnose(
                 )
             )
     base = _summary(seq[0])
-    rs = summarise(ev, seq[0].resid, seq[0].sigma)
+    rs = summarise(ev_final, seq[0].resid, seq[0].sigma)
     return Diagnosis(
         unit=unit,
         channel_unit=channel_unit,
@@ -264,8 +270,8 @@ def diagnose(
         final=_summary(final),
         findings=tuple(findings),
         channel_ratio=rs.channel_ratio,
-        where=where(ev, rs),
-        correlations=tuple(correlations(ev, seq[0].resid, seq[0].sigma)),
+        where=where(ev_final, rs),
+        correlations=tuple(correlations(ev_final, seq[0].resid, seq[0].sigma)),
         unobservable=unobservable,
         notes=(*note_list, _noise_text(state.noise)),
         noise_text=_noise_text(state.noise),
@@ -275,5 +281,5 @@ def diagnose(
         K=K,
         source=source,
         discovered=tuple(discovered),
-        unexplained=unexplained(ev, final, state, K, fixed),
+        unexplained=unexplained(ev_final, final, state, K, fixed),
     )

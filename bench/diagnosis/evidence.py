@@ -35,6 +35,11 @@ class StaticEvidence:
     :param peak_rate_rad_s: largest table rate seen between the windows (rad/s), 0 if none.
     :param window_samples: per window (n_w, 3) raw samples, for within-window tests, or ``None``.
     :param sample_rate_hz: sampling rate (Hz), with ``window_samples``.
+    :param window_temp_c: per window (n_w,) sensor temperature of each sample (°C, NaN where
+        not measured), or ``None``: what a term in temperature does within a window
+        (``within_window``).
+    :param window_t_s: per window (n_w,) time of each sample (s, on the clock of ``mid_s``),
+        or ``None``.
     """
 
     y: FloatArray
@@ -51,6 +56,8 @@ class StaticEvidence:
     peak_rate_rad_s: float = 0.0
     window_samples: tuple[FloatArray, ...] | None = None
     sample_rate_hz: float | None = None
+    window_temp_c: tuple[FloatArray, ...] | None = None
+    window_t_s: tuple[FloatArray, ...] | None = None
 
     def __post_init__(self) -> None:
         m = self.y.shape[0] if self.y.ndim == 2 else -1
@@ -70,6 +77,10 @@ class StaticEvidence:
             raise ValueError(f"evidence: temp_c has shape {self.temp_c.shape}, expected ({m},)")
         if self.table_rad is not None and (self.table_rad.ndim != 2 or self.table_rad.shape[0] != m):
             raise ValueError(f"evidence: table_rad has shape {self.table_rad.shape}, expected ({m}, k)")
+        for name in ("window_temp_c", "window_t_s"):
+            per = getattr(self, name)
+            if per is not None and len(per) != m:
+                raise ValueError(f"evidence: {name} has {len(per)} windows, expected {m}")
         if np.any(np.diagonal(self.V, axis1=1, axis2=2) <= 0):
             raise ValueError("evidence: every window mean needs a positive variance")
 

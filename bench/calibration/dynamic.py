@@ -1,6 +1,6 @@
 """Calibrate a recording in which the table moves (``rate-1axis``, ``oscillation-2axis``).
 
-Recording -> motion regressors (``dynamic_model.prepare_motion`` on the unwrapped encoder
+Recording -> motion regressors (``motion_data.prepare_motion`` on the unwrapped encoder
 angles and the sidecar geometry) -> choice of terms (below) -> batch fit over every usable
 sample (``dynamic_batch``) -> extended Kalman filter over the same samples as a cross-check
 (``dynamic_kalman``) -> the contract of ``calbench calibrate`` with the terms beyond bias
@@ -39,16 +39,9 @@ from bench.calibration.windows import MAX_TABLE_MOTION_RAD, moving_samples, sele
 from bench.diagnosis.dynamic import select_terms
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_kalman import run_dynamic_kalman
-from bench.estimation.dynamic_model import (
-    G0_M_S2,
-    ModelSpec,
-    MotionData,
-    initial_theta,
-    positions,
-    predict,
-    sample_chunks,
-)
+from bench.estimation.dynamic_model import G0_M_S2, ModelSpec, initial_theta, positions, predict
 from bench.estimation.g_check import GCheck
+from bench.estimation.motion_data import MotionData, sample_chunks
 from bench.estimation.observability import USEFUL_SIGMA, fisher_information, information_report
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
 from bench.fitted_model import DYNAMIC_BATCH, FittedModel

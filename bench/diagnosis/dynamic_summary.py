@@ -21,7 +21,8 @@ from scipy.stats import t as t_dist
 from bench.diagnosis.regressors import SIGNIFICANCE, Correlation
 from bench.diagnosis.result import ModelSummary
 from bench.estimation.dynamic_batch import DynamicFit
-from bench.estimation.dynamic_model import MotionData, predict, specific_force
+from bench.estimation.dynamic_model import predict, specific_force
+from bench.estimation.motion_data import MotionData
 
 FloatArray = np.ndarray
 BLOCK_S = 1.0

@@ -56,14 +56,8 @@ from bench.diagnosis.library import (
 )
 from bench.diagnosis.library import physics as static_physics
 from bench.estimation.dynamic_batch import DynamicFit
-from bench.estimation.dynamic_model import (
-    G0_M_S2,
-    MotionData,
-    gravity_base,
-    positions,
-    sample_chunks,
-    specific_force,
-)
+from bench.estimation.dynamic_model import G0_M_S2, gravity_base, positions, specific_force
+from bench.estimation.motion_data import MotionData, sample_chunks
 
 FloatArray = np.ndarray
 AXES = "xyz"

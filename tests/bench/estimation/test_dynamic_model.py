@@ -5,14 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.estimation.dynamic_model import (
-    TERM_ORDER,
-    ModelSpec,
-    initial_theta,
-    predict,
-    prepare_motion,
-    window_samples,
-)
+from bench.estimation.dynamic_model import TERM_ORDER, ModelSpec, initial_theta, predict
+from bench.estimation.motion_data import prepare_motion, window_samples
 from tests.support.dynamic_sim import DELAY_TRUE_S, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
 
 RHO = np.array([[0.0, 0.004, -0.002], [0.003, 0.0, 0.001], [-0.002, 0.002, 0.0]])
@@ -111,13 +105,13 @@ def test_bad_motion_rejected() -> None:
 def test_motion_formed_in_chunks_is_the_motion_formed_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
     """Attitude, rate and acceleration are per-sample: the chunk size may not change a bit of G, B,
     their derivatives, the corner mask or the peak rate (which may lie in any chunk)."""
-    from bench.estimation import dynamic_model
+    from bench.estimation import motion_data
 
     run, rec = rate()
     q = rec.table_rad_unwrapped()
-    monkeypatch.setattr(dynamic_model, "KINEMATICS_CHUNK", rec.t_s.size)
+    monkeypatch.setattr(motion_data, "KINEMATICS_CHUNK", rec.t_s.size)
     whole = prepare_motion(rec.t_s, q, run.axis_vectors, run.mount)
-    monkeypatch.setattr(dynamic_model, "KINEMATICS_CHUNK", 7)
+    monkeypatch.setattr(motion_data, "KINEMATICS_CHUNK", 7)
     chunked = prepare_motion(rec.t_s, q, run.axis_vectors, run.mount)
     for name in ("G", "G_dot", "G_ddot", "B", "B_dot", "B_ddot", "valid"):
         np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name), err_msg=name)
@@ -129,19 +123,19 @@ def test_prediction_in_chunks_is_the_prediction_at_once(monkeypatch: pytest.Monk
     """predict, specific_force and the sensor rates are per-sample: a chunk size that does not
     divide the recording (7) gives every bit of the whole-recording products, skew included."""
     from bench.diagnosis.library_motion import sensor_rates
-    from bench.estimation import dynamic_model
+    from bench.estimation import dynamic_model, motion_data
 
     run, rec = rate()
     m = prepare_motion(rec.t_s, rec.table_rad_unwrapped(), run.axis_vectors, run.mount)
     spec = ModelSpec(TERM_ORDER)
     th = _theta_true(run, spec)
     g = run.g_local_m_s2
-    monkeypatch.setattr(dynamic_model, "PREDICT_CHUNK", m.n)
+    monkeypatch.setattr(motion_data, "PREDICT_CHUNK", m.n)
     raw_whole, _ = predict(th, m, spec, g, R_TRUE_M)
     f_whole = dynamic_model.specific_force(th, m, spec, g, R_TRUE_M)
     w_whole, dw_whole = sensor_rates(m)
-    monkeypatch.setattr(dynamic_model, "PREDICT_CHUNK", 7)
-    assert m.n % 7 != 0 and len(dynamic_model.sample_chunks(m.n)) == -(-m.n // 7)
+    monkeypatch.setattr(motion_data, "PREDICT_CHUNK", 7)
+    assert m.n % 7 != 0 and len(motion_data.sample_chunks(m.n)) == -(-m.n // 7)
     raw, _ = predict(th, m, spec, g, R_TRUE_M)
     np.testing.assert_array_equal(raw, raw_whole)
     np.testing.assert_array_equal(dynamic_model.specific_force(th, m, spec, g, R_TRUE_M), f_whole)

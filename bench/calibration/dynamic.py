@@ -187,10 +187,11 @@ def _corrected_gravity(fit: DynamicFit, m: MotionData, y: FloatArray, lever: Flo
     Q = positions(th, spec, lever)
     f_motion = np.empty((m.n, 3))
     for s in sample_chunks(m.n):  # B_δ per sample: chunks bound the (chunk, 3, 3) temporaries
-        Be = m.B[s]
+        ms = m.take(s)
+        Be = ms.B
         if "time_skew" in spec.terms:
             d = th[spec.index("time_skew")][0]
-            Be = m.B[s] - d * m.B_dot[s] + 0.5 * d * d * m.B_ddot[s]
+            Be = ms.B - d * ms.B_dot + 0.5 * d * d * ms.B_ddot
         f_motion[s] = np.einsum("nic,ic->ni", Be, Q)
     fhat = np.linalg.solve(K, (y - b).T).T
     if "nonlinearity_quadratic" in spec.terms:  # one fixed-point step removes the k2 f² term

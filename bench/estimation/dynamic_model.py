@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.motion_data import MotionData, sample_chunks
+from bench.estimation.motion_data import MotionData, MotionSamples, sample_chunks
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -125,7 +125,7 @@ def positions(theta: FloatArray, spec: ModelSpec, lever_arm_m: FloatArray) -> Fl
 
 
 def _forces(
-    theta: FloatArray, m: MotionData, spec: ModelSpec, g: float, lever_arm_m: FloatArray
+    theta: FloatArray, m: MotionSamples, spec: ModelSpec, g: float, lever_arm_m: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """f_δ (n,3), ∂f_δ/∂δ = −ḟ + δ f̈ (n,3), and the effective regressors G_δ, B_δ (n,3,3)."""
     gb, _ = gravity_base(theta, spec, g)
@@ -142,7 +142,7 @@ def _forces(
 
 
 def specific_force(
-    theta: FloatArray, m: MotionData, spec: ModelSpec, g_m_s2: float, lever_arm_m: FloatArray
+    theta: FloatArray, m: MotionData | MotionSamples, spec: ModelSpec, g_m_s2: float, lever_arm_m: FloatArray
 ) -> FloatArray:
     """(n, 3) specific force f_δ each axis feels (m/s²), lever arm, tilt and skew included.
 
@@ -157,7 +157,7 @@ def specific_force(
 
 def predict(
     theta: FloatArray,
-    m: MotionData,
+    m: MotionData | MotionSamples,
     spec: ModelSpec,
     g_m_s2: float,
     lever_arm_m: FloatArray,
@@ -168,8 +168,8 @@ def predict(
 
     Without the Jacobian the output is formed :data:`motion_data.PREDICT_CHUNK` samples at a time (each
     sample's prediction depends on that sample alone), so a whole recording's prediction holds
-    only (chunk, 3, 3) temporaries; with it, the caller chooses the samples (the Jacobian is
-    itself (n, 3, p)).
+    only (chunk, 3, 3) temporaries; with it, the caller chooses the samples (``MotionData.take``;
+    the Jacobian is itself (n, 3, p)).
 
     :param theta: (p,) parameters in ``spec.names`` order.
     :param lever_arm_m: (3,) lever arm used when the model does not fit it (m).
@@ -179,12 +179,13 @@ def predict(
         for s in sample_chunks(m.n):
             out[s] = _predict_samples(theta, m.take(s), spec, g_m_s2, lever_arm_m, jacobian=False)[0]
         return out, None
-    return _predict_samples(theta, m, spec, g_m_s2, lever_arm_m, jacobian=True)
+    ms = m if isinstance(m, MotionSamples) else m.take(slice(0, m.n))
+    return _predict_samples(theta, ms, spec, g_m_s2, lever_arm_m, jacobian=True)
 
 
 def _predict_samples(
     theta: FloatArray,
-    m: MotionData,
+    m: MotionSamples,
     spec: ModelSpec,
     g_m_s2: float,
     lever_arm_m: FloatArray,

@@ -177,7 +177,8 @@ def test_regressors_taken_at_any_samples_are_the_whole_recording_ones(
 
 def test_prediction_in_chunks_is_the_prediction_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
     """predict, specific_force and the sensor rates are per-sample: a chunk size that does not
-    divide the recording (7) gives every bit of the whole-recording products, skew included."""
+    divide the recording (997; each chunk takes its own regressors from the motion) gives every
+    bit of the whole-recording products, skew included."""
     from bench.diagnosis.library_motion import sensor_rates
     from bench.estimation import dynamic_model, motion_data
 
@@ -190,8 +191,8 @@ def test_prediction_in_chunks_is_the_prediction_at_once(monkeypatch: pytest.Monk
     raw_whole, _ = predict(th, m, spec, g, R_TRUE_M)
     f_whole = dynamic_model.specific_force(th, m, spec, g, R_TRUE_M)
     w_whole, dw_whole = sensor_rates(m)
-    monkeypatch.setattr(motion_data, "PREDICT_CHUNK", 7)
-    assert m.n % 7 != 0 and len(motion_data.sample_chunks(m.n)) == -(-m.n // 7)
+    monkeypatch.setattr(motion_data, "PREDICT_CHUNK", 997)
+    assert m.n % 997 != 0 and len(motion_data.sample_chunks(m.n)) == -(-m.n // 997)
     raw, _ = predict(th, m, spec, g, R_TRUE_M)
     np.testing.assert_array_equal(raw, raw_whole)
     np.testing.assert_array_equal(dynamic_model.specific_force(th, m, spec, g, R_TRUE_M), f_whole)

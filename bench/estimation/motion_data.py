@@ -19,7 +19,7 @@ of them, are left out of the fit (``MotionData.valid``).
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -43,6 +43,12 @@ KINEMATICS_CHUNK = 1 << 15
 """Samples whose attitude, rate and acceleration are formed at once in :func:`prepare_motion`
 and :meth:`MotionData.take` (with their derivative windows): the rotation products, skew
 matrices and G, B before differentiation are (chunk, 3, 3) temporaries, not (n, 3, 3)."""
+KEEP_BYTES = 1 << 30
+"""The (n, 3, 3) regressors G, Ġ, B, Ḃ, G̈, B̈ of a recording up to this size (432 bytes per
+sample: 2.5 M samples, 41 min at 1 kHz) are formed once in :func:`prepare_motion` and kept;
+a longer recording forms them per chunk where they are used, each Gauss–Newton pass again
+(about half the peak memory of keeping them, four to seven times the CPU time,
+docs/benchmarks.md)."""
 PREDICT_CHUNK = 1 << 15
 """Samples whose prediction or specific force :func:`predict` and :func:`specific_force` form at
 once: with ``time_skew`` the corrected regressors G_δ, B_δ and their δ-derivatives are
@@ -92,10 +98,11 @@ class MotionSamples:
 class MotionData:
     """The table motion of a whole recording, reduced to what the model needs (all (n, …)).
 
-    Holds the angles and their derivatives, not the (n, 3, 3) regressors: :meth:`take` forms
-    those for the samples asked, bit for bit as a whole-recording computation would (each
-    Savitzky–Golay output depends on the ``window`` samples around it, or on the first or last
-    ``window`` samples of its stretch near the stretch's ends).
+    Holds the angles and their derivatives, and the (n, 3, 3) regressors only when they fit in
+    :data:`KEEP_BYTES` (``kept``): otherwise :meth:`take` forms them for the samples asked, bit
+    for bit as a whole-recording computation would (each Savitzky–Golay output depends on the
+    ``window`` samples around it, or on the first or last ``window`` samples of its stretch
+    near the stretch's ends).
 
     :param t_s: (n,) time (s).
     :param angles_rad: (n, k) unwrapped axis angles; :param rates_rad_s: (n, k) their rates;
@@ -105,6 +112,7 @@ class MotionData:
     :param runs: [a, b) sample ranges between gaps at least ``window`` long.
     :param valid: (n,) samples the fit may use (not at a rate-profile corner).
     :param peak_rate_rad_s: max |ω| (rad/s).
+    :param kept: the regressors of every sample, formed once (``None``: formed where used).
     """
 
     t_s: FloatArray
@@ -118,6 +126,7 @@ class MotionData:
     runs: tuple[tuple[int, int], ...]
     valid: BoolArray
     peak_rate_rad_s: float
+    kept: MotionSamples | None = None
 
     @property
     def n(self) -> int:
@@ -127,9 +136,12 @@ class MotionData:
     def take(self, idx: slice | npt.NDArray[np.int64]) -> MotionSamples:
         """G, B and their derivatives at the samples ``idx`` (a slice or index array), in its order.
 
-        Formed :data:`KINEMATICS_CHUNK` samples of derivative windows at a time, so a slice of the
-        whole recording holds (chunk, 3, 3) temporaries beside its (len(idx), 3, 3) result.
+        From ``kept`` when the regressors are kept; otherwise formed :data:`KINEMATICS_CHUNK`
+        samples of derivative windows at a time, so a slice of the whole recording holds
+        (chunk, 3, 3) temporaries beside its (len(idx), 3, 3) result.
         """
+        if self.kept is not None:
+            return self.kept.take(idx)
         sel = np.arange(*idx.indices(self.n)) if isinstance(idx, slice) else np.asarray(idx, dtype=np.int64)
         pts, inv = np.unique(sel, return_inverse=True)
         out = [np.empty((pts.size, 3, 3)) for _ in range(6)]
@@ -243,6 +255,7 @@ def prepare_motion(
     mount: npt.ArrayLike,
     *,
     window_s: float = DERIVATIVE_WINDOW_S,
+    keep_bytes: int | None = None,
 ) -> MotionData:
     """The motion of a recording from its sampled encoder angles (:class:`MotionData`).
 
@@ -250,6 +263,7 @@ def prepare_motion(
     :param angles_rad_unwrapped: (n, k) unwrapped axis angles (rad).
     :param axis_vectors: (k, 3) unit axes, outermost first.
     :param mount: (3, 3) mount rotation M.
+    :param keep_bytes: keep the regressors up to this size (bytes; ``None``: :data:`KEEP_BYTES`).
     :raises ValueError: too few samples, non-uniform (other than gaps) or non-increasing time.
     """
     t = np.asarray(t_s, dtype=float).reshape(-1)
@@ -300,7 +314,7 @@ def prepare_motion(
         s = slice(a, a + KINEMATICS_CHUNK)
         omega = angular_velocity(axes, q[s], rates[s])
         peak_rate = max(peak_rate, float(np.max(np.linalg.norm(omega, axis=1))))
-    return MotionData(
+    motion = MotionData(
         t_s=t,
         angles_rad=q,
         rates_rad_s=rates,
@@ -313,3 +327,7 @@ def prepare_motion(
         valid=~corner,
         peak_rate_rad_s=peak_rate,
     )
+    limit = KEEP_BYTES if keep_bytes is None else keep_bytes
+    if 6 * 9 * 8 * t.shape[0] <= limit:
+        motion = replace(motion, kept=motion.take(slice(None)))
+    return motion

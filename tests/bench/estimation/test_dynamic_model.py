@@ -143,8 +143,10 @@ def test_regressors_taken_at_any_samples_are_the_whole_recording_ones(
     keep[n0 // 5 : n0 // 5 + 40] = False
     keep[n0 // 3 : n0 // 3 + 3] = False
     keep[n0 // 3 + 6 : n0 // 3 + 12] = False  # leaves a 3-sample stretch
-    m = prepare_motion(rec.t_s[keep], rec.table_rad_unwrapped()[keep], run.axis_vectors, run.mount)
-    assert (
+    m = prepare_motion(
+        rec.t_s[keep], rec.table_rad_unwrapped()[keep], run.axis_vectors, run.mount, keep_bytes=0
+    )
+    assert m.kept is None and (
         len(m.runs) == 3 and m.runs[1][1] < m.runs[2][0] and (~m.valid[m.runs[0][0] :]).sum() > 3 * m.window
     )
     ref = _whole_recording_regressors(m)
@@ -168,9 +170,18 @@ def test_regressors_taken_at_any_samples_are_the_whole_recording_ones(
                 np.testing.assert_array_equal(getattr(ms, name), whole[idx], err_msg=f"{chunk} {case} {name}")
             np.testing.assert_array_equal(ms.valid, m.valid[idx])
     assert np.all(ref["G_dot"][cases["outside"]] == 0.0) and np.any(ref["G_dot"][cases["valid"]] != 0.0)
+    monkeypatch.setattr(motion_data, "KINEMATICS_CHUNK", 1 << 15)
+    kept = prepare_motion(rec.t_s[keep], rec.table_rad_unwrapped()[keep], run.axis_vectors, run.mount)
+    assert kept.kept is not None  # within KEEP_BYTES: formed once, taken from there
+    for case, idx in cases.items():
+        ms = kept.take(idx)
+        for name, whole in ref.items():
+            np.testing.assert_array_equal(getattr(ms, name), whole[idx], err_msg=f"kept {case} {name}")
     whole_peak = m.peak_rate_rad_s
     monkeypatch.setattr(motion_data, "KINEMATICS_CHUNK", 7)
-    chunked = prepare_motion(rec.t_s[keep], rec.table_rad_unwrapped()[keep], run.axis_vectors, run.mount)
+    chunked = prepare_motion(
+        rec.t_s[keep], rec.table_rad_unwrapped()[keep], run.axis_vectors, run.mount, keep_bytes=0
+    )
     assert chunked.peak_rate_rad_s == whole_peak
     assert whole_peak == pytest.approx(np.radians(200.0), rel=1e-3)  # the rate table's top rate
 

@@ -20,7 +20,8 @@ import numpy as np
 from api.simulated_recording import to_recording
 from bench.estimation.dynamic_batch import fit_dynamic_batch, linear_start
 from bench.estimation.dynamic_kalman import run_dynamic_kalman
-from bench.estimation.dynamic_model import ModelSpec, initial_theta, prepare_motion, specific_force
+from bench.estimation.dynamic_model import ModelSpec, initial_theta, specific_force
+from bench.estimation.motion_data import prepare_motion
 from drivers.sim.offline import DEFAULT_AXES, simulate_oscillation
 from drivers.sim.physics import SensorPhysics, SensorTruth
 

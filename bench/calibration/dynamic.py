@@ -1,6 +1,6 @@
 """Calibrate a recording in which the table moves (``rate-1axis``, ``oscillation-2axis``).
 
-Recording -> motion regressors (``dynamic_model.prepare_motion`` on the unwrapped encoder
+Recording -> motion regressors (``motion_data.prepare_motion`` on the unwrapped encoder
 angles and the sidecar geometry) -> choice of terms (below) -> batch fit over every usable
 sample (``dynamic_batch``) -> extended Kalman filter over the same samples as a cross-check
 (``dynamic_kalman``) -> the contract of ``calbench calibrate`` with the terms beyond bias
@@ -39,16 +39,9 @@ from bench.calibration.windows import MAX_TABLE_MOTION_RAD, moving_samples, sele
 from bench.diagnosis.dynamic import select_terms
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_kalman import run_dynamic_kalman
-from bench.estimation.dynamic_model import (
-    G0_M_S2,
-    ModelSpec,
-    MotionData,
-    initial_theta,
-    positions,
-    predict,
-    sample_chunks,
-)
+from bench.estimation.dynamic_model import G0_M_S2, ModelSpec, initial_theta, positions, predict
 from bench.estimation.g_check import GCheck
+from bench.estimation.motion_data import MotionData, sample_chunks
 from bench.estimation.observability import USEFUL_SIGMA, fisher_information, information_report
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
 from bench.fitted_model import DYNAMIC_BATCH, FittedModel
@@ -194,10 +187,11 @@ def _corrected_gravity(fit: DynamicFit, m: MotionData, y: FloatArray, lever: Flo
     Q = positions(th, spec, lever)
     f_motion = np.empty((m.n, 3))
     for s in sample_chunks(m.n):  # B_δ per sample: chunks bound the (chunk, 3, 3) temporaries
-        Be = m.B[s]
+        ms = m.take(s)
+        Be = ms.B
         if "time_skew" in spec.terms:
             d = th[spec.index("time_skew")][0]
-            Be = m.B[s] - d * m.B_dot[s] + 0.5 * d * d * m.B_ddot[s]
+            Be = ms.B - d * ms.B_dot + 0.5 * d * d * ms.B_ddot
         f_motion[s] = np.einsum("nic,ic->ni", Be, Q)
     fhat = np.linalg.solve(K, (y - b).T).T
     if "nonlinearity_quadratic" in spec.terms:  # one fixed-point step removes the k2 f² term

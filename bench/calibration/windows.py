@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.dynamic_model import MotionData, prepare_motion
+from bench.estimation.motion_data import MotionData, prepare_motion
 from bench.estimation.window_noise import WindowNoise, pooled_mean_covariances, window_noise
 from bench.estimation.windows import StaticWindow, detect_static_windows, windows_from_segments
 from bench.kinematics import attitude, static_specific_force
@@ -234,7 +234,7 @@ def known_specific_force(rec: Recording, wins: list[StaticWindow]) -> FloatArray
 def moving_samples(rec: Recording) -> tuple[MotionData, FloatArray]:
     """The motion regressors and raw samples of a moving-table recording.
 
-    :returns: ``dynamic_model.prepare_motion`` of the unwrapped encoder angles and the
+    :returns: ``motion_data.prepare_motion`` of the unwrapped encoder angles and the
         sidecar geometry, and the (n, 3) raw outputs (channel units).
     :raises ValueError: no table, or a raw sample that is not finite (named by row and time).
     """

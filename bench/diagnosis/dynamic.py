@@ -48,7 +48,8 @@ from bench.diagnosis.library_motion_swap import cut_catalogue, fit_bic
 from bench.diagnosis.result import Diagnosis, Finding, Unexplained
 from bench.diagnosis.selection import FALSE_ALARM
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
-from bench.estimation.dynamic_model import TERM_ORDER, ModelSpec, MotionData, initial_theta
+from bench.estimation.dynamic_model import TERM_ORDER, ModelSpec, initial_theta
+from bench.estimation.motion_data import MotionData
 from bench.estimation.observability import fisher_information, information_report
 
 FloatArray = np.ndarray
@@ -254,7 +255,7 @@ def diagnose_dynamic(
 ) -> Diagnosis:
     """Diagnose a moving-table recording (module docstring).
 
-    :param m: the motion (``dynamic_model.prepare_motion``); :param y: (n, 3) raw samples.
+    :param m: the motion (``motion_data.prepare_motion``); :param y: (n, 3) raw samples.
     :param lever_arm_m: (3,) the lever arm the recording believes (m).
     :param temp_c: (n,) temperature (°C) or ``None``.
     :param library: search the moving library after the catalogue (``library_motion``).

@@ -21,7 +21,8 @@ from scipy.stats import t as t_dist
 from bench.diagnosis.regressors import SIGNIFICANCE, Correlation
 from bench.diagnosis.result import ModelSummary
 from bench.estimation.dynamic_batch import DynamicFit
-from bench.estimation.dynamic_model import MotionData, predict, specific_force
+from bench.estimation.dynamic_model import predict, specific_force
+from bench.estimation.motion_data import MotionData, sample_chunks
 
 FloatArray = np.ndarray
 BLOCK_S = 1.0
@@ -50,10 +51,12 @@ def motion_regressors(
     m: MotionData, y: FloatArray, fit: DynamicFit, g: float, lever: FloatArray, temp_c: FloatArray | None
 ) -> dict[str, FloatArray]:
     """Name -> (n,) regressor per sample (module docstring)."""
-    B = m.B
-    out = {"omega^2": -0.5 * np.trace(B, axis1=1, axis2=2)}
-    a_zy, a_xz, a_yx = (0.5 * (B[:, i, j] - B[:, j, i]) for i, j in ((2, 1), (0, 2), (1, 0)))
-    out["|omega_dot|"] = np.sqrt(a_zy**2 + a_xz**2 + a_yx**2)  # the antisymmetric part of B is [ω̇]×
+    out = {"omega^2": np.empty(m.n), "|omega_dot|": np.empty(m.n)}
+    for s in sample_chunks(m.n):  # B per sample: chunks bound the (chunk, 3, 3) regressors
+        B = m.take(s).B
+        out["omega^2"][s] = -0.5 * np.trace(B, axis1=1, axis2=2)
+        a_zy, a_xz, a_yx = (0.5 * (B[:, i, j] - B[:, j, i]) for i, j in ((2, 1), (0, 2), (1, 0)))
+        out["|omega_dot|"][s] = np.sqrt(a_zy**2 + a_xz**2 + a_yx**2)  # the antisymmetric part of B is [ω̇]×
     f = specific_force(fit.theta, m, fit.spec, g, lever)
     for i, a in enumerate("xyz"):
         out[f"f_{a}^2"] = f[:, i] ** 2

@@ -56,14 +56,8 @@ from bench.diagnosis.library import (
 )
 from bench.diagnosis.library import physics as static_physics
 from bench.estimation.dynamic_batch import DynamicFit
-from bench.estimation.dynamic_model import (
-    G0_M_S2,
-    MotionData,
-    gravity_base,
-    positions,
-    sample_chunks,
-    specific_force,
-)
+from bench.estimation.dynamic_model import G0_M_S2, gravity_base, positions, specific_force
+from bench.estimation.motion_data import MotionData, sample_chunks
 
 FloatArray = np.ndarray
 AXES = "xyz"
@@ -86,18 +80,23 @@ def sensor_rates(m: MotionData) -> tuple[FloatArray, FloatArray]:
     """
     w, dw = np.empty((m.n, 3)), np.empty((m.n, 3))
     for s in sample_chunks(m.n):
-        G, G_dot = m.G[s], m.G_dot[s]
+        ms = m.take(s)
+        G, G_dot = ms.G, ms.G_dot
         Gt = np.transpose(G, (0, 2, 1))
         w[s] = _axial(-G_dot @ Gt)
-        dw[s] = _axial(-(m.G_ddot[s] @ Gt + G_dot @ np.transpose(G_dot, (0, 2, 1))))
+        dw[s] = _axial(-(ms.G_ddot @ Gt + G_dot @ np.transpose(G_dot, (0, 2, 1))))
     return w, dw
 
 
 def force_rate(fit: DynamicFit, m: MotionData, g_m_s2: float, lever: FloatArray) -> FloatArray:
-    """(n, 3) ḟ = Ġ g_base + Ḃ q of the fitted model (m/s²/s)."""
+    """(n, 3) ḟ = Ġ g_base + Ḃ q of the fitted model (m/s²/s), ``sample_chunks`` at a time."""
     gb, _ = gravity_base(fit.theta, fit.spec, g_m_s2)
     Q = positions(fit.theta, fit.spec, lever)
-    return np.asarray(m.G_dot @ gb + np.einsum("nic,ic->ni", m.B_dot, Q), dtype=float)
+    out = np.empty((m.n, 3))
+    for s in sample_chunks(m.n):
+        ms = m.take(s)
+        out[s] = ms.G_dot @ gb + np.einsum("nic,ic->ni", ms.B_dot, Q)
+    return out
 
 
 def motion_bases(

@@ -35,7 +35,8 @@ import numpy as np
 from bench.diagnosis.library import Base
 from bench.diagnosis.library_motion import MotionTerm, base_values
 from bench.estimation.dynamic_batch import BLOCK_S, NW_LAGS, TARGET_BLOCKS, DynamicFit
-from bench.estimation.dynamic_model import ModelSpec, MotionData, predict
+from bench.estimation.dynamic_model import ModelSpec, predict
+from bench.estimation.motion_data import MotionData
 
 FloatArray = np.ndarray
 CHUNK = 4000

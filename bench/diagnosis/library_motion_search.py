@@ -55,7 +55,8 @@ from bench.diagnosis.library_motion_scores import (
 from bench.diagnosis.result import Discovery
 from bench.diagnosis.selection import ALIKE_COSINE, LIBRARY_SHARE, MAX_STEPS, TIE_CHI2
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch
-from bench.estimation.dynamic_model import ModelSpec, MotionData, predict
+from bench.estimation.dynamic_model import ModelSpec, predict
+from bench.estimation.motion_data import MotionData
 
 FloatArray = np.ndarray
 REFIT_ITER = 5

@@ -38,7 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.dynamic_model import ModelSpec, MotionData, initial_theta, predict, specific_force
+from bench.estimation.dynamic_model import ModelSpec, initial_theta, predict, specific_force
+from bench.estimation.motion_data import MotionData
 from bench.estimation.observability import check_information
 
 FloatArray = npt.NDArray[np.float64]

@@ -27,9 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.dynamic_model import ModelSpec, MotionData, predict
+from bench.estimation.dynamic_model import ModelSpec, predict
 from bench.estimation.kalman import KalmanState, rts_smooth, update_diagonal
 from bench.estimation.kalman import predict as kf_predict
+from bench.estimation.motion_data import MotionData
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -20,11 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.dynamic_model import (
-    ModelSpec,
-    MotionData,
-    predict,
-)
+from bench.estimation.dynamic_model import ModelSpec, predict
+from bench.estimation.motion_data import MotionData
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.dynamic_model import G0_M_S2, TERM_ORDER, ModelSpec, initial_theta, prepare_motion
+from bench.estimation.dynamic_model import G0_M_S2, TERM_ORDER, ModelSpec, initial_theta
+from bench.estimation.motion_data import prepare_motion
 from bench.estimation.observability import (
     USEFUL_SIGMA,
     ObservabilityReport,

@@ -235,7 +235,7 @@ def test_clean_recording_is_calibrated_with_the_first_order_model() -> None:
     fitting every term the motion determines would spread the same data over more
     parameters (the z-bias sigma grows several-fold) for nothing."""
     from bench.calibration.dynamic import choose_spec
-    from bench.estimation.dynamic_model import prepare_motion
+    from bench.estimation.motion_data import prepare_motion
 
     run, rec = oscillation(seed=5, truth=truth(effects={}))
     res = calibrate_dynamic(rec, cross_check=False)

@@ -4,15 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.signal import savgol_filter
 
-from bench.estimation.dynamic_model import (
-    TERM_ORDER,
-    ModelSpec,
-    initial_theta,
-    predict,
-    prepare_motion,
-    window_samples,
-)
+from bench.estimation.dynamic_model import TERM_ORDER, ModelSpec, initial_theta, predict
+from bench.estimation.motion_data import MotionData, prepare_motion, window_samples
+from bench.kinematics import angular_acceleration, angular_velocity, inner_attitude
 from tests.support.dynamic_sim import DELAY_TRUE_S, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
 
 RHO = np.array([[0.0, 0.004, -0.002], [0.003, 0.0, 0.001], [-0.002, 0.002, 0.0]])
@@ -108,40 +104,106 @@ def test_bad_motion_rejected() -> None:
         prepare_motion(t[:3], np.zeros((3, 1)), [[0, 0, 1]], np.eye(3))
 
 
-def test_motion_formed_in_chunks_is_the_motion_formed_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Attitude, rate and acceleration are per-sample: the chunk size may not change a bit of G, B,
-    their derivatives, the corner mask or the peak rate (which may lie in any chunk)."""
-    from bench.estimation import dynamic_model
+def _whole_recording_regressors(m: MotionData) -> dict[str, np.ndarray]:
+    """G, B for every sample at once, then their Savitzky–Golay derivatives run by run over whole
+    runs (zero outside them): the formulation that holds six (n, 3, 3) arrays."""
+    R = inner_attitude(m.axis_vectors, m.angles_rad)
+    G = np.einsum("ji,njk->nik", m.mount, np.transpose(R, (0, 2, 1)))
+    om = angular_velocity(m.axis_vectors, m.angles_rad, m.rates_rad_s)
+    dom = angular_acceleration(m.axis_vectors, m.angles_rad, m.rates_rad_s, m.accels_rad_s2)
 
-    run, rec = rate()
-    q = rec.table_rad_unwrapped()
-    monkeypatch.setattr(dynamic_model, "KINEMATICS_CHUNK", rec.t_s.size)
-    whole = prepare_motion(rec.t_s, q, run.axis_vectors, run.mount)
-    monkeypatch.setattr(dynamic_model, "KINEMATICS_CHUNK", 7)
-    chunked = prepare_motion(rec.t_s, q, run.axis_vectors, run.mount)
-    for name in ("G", "G_dot", "G_ddot", "B", "B_dot", "B_ddot", "valid"):
-        np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name), err_msg=name)
-    assert chunked.peak_rate_rad_s == whole.peak_rate_rad_s
-    assert whole.peak_rate_rad_s == pytest.approx(np.radians(200.0), rel=1e-3)  # the rate table's top rate
+    def cross_matrix(v: np.ndarray) -> np.ndarray:  # column j is v × e_j
+        return np.stack([np.cross(v, e) for e in np.eye(3)], axis=-1)
+
+    W = cross_matrix(om)
+    B = G @ (cross_matrix(dom) + W @ W) @ R
+
+    def sg(x: np.ndarray, deriv: int) -> np.ndarray:
+        out = np.zeros_like(x)
+        for a, b in m.runs:
+            out[a:b] = savgol_filter(x[a:b], m.window, 3, deriv=deriv, delta=m.step_s, axis=0, mode="interp")
+        return out
+
+    return {"G": G, "G_dot": sg(G, 1), "B": B, "B_dot": sg(B, 1), "G_ddot": sg(G, 2), "B_ddot": sg(B, 2)}
+
+
+@pytest.mark.parametrize("rate_hz", [100.0, 1000.0])
+def test_regressors_taken_at_any_samples_are_the_whole_recording_ones(
+    monkeypatch: pytest.MonkeyPatch, rate_hz: float
+) -> None:
+    """A rate-table recording (corners at every ramp) with dropped blocks (two runs, a stretch
+    shorter than the window): G, B and their derivatives taken at any samples — all, the valid
+    ones, a sparse subsample, unsorted with repeats, at and beside the runs' ends, outside the
+    runs — in pieces of any size are every bit of the whole-recording computation's."""
+    from bench.estimation import motion_data
+
+    run, rec = rate(rate_hz=rate_hz, rates_deg_s=(0.0, 120.0, -200.0), dwell_s=3.0)
+    n0 = rec.n_samples
+    keep = np.ones(n0, dtype=bool)
+    keep[n0 // 5 : n0 // 5 + 40] = False
+    keep[n0 // 3 : n0 // 3 + 3] = False
+    keep[n0 // 3 + 6 : n0 // 3 + 12] = False  # leaves a 3-sample stretch
+    m = prepare_motion(
+        rec.t_s[keep], rec.table_rad_unwrapped()[keep], run.axis_vectors, run.mount, keep_bytes=0
+    )
+    assert m.kept is None and (
+        len(m.runs) == 3 and m.runs[1][1] < m.runs[2][0] and (~m.valid[m.runs[0][0] :]).sum() > 3 * m.window
+    )
+    ref = _whole_recording_regressors(m)
+    h = m.window // 2
+    ends = [x for a, b in m.runs for d in (0, 1, h - 1, h, h + 1) for x in (a + d, b - 1 - d)]
+    cases = {
+        "all": slice(0, m.n),
+        "valid": np.flatnonzero(m.valid),
+        "sparse": np.flatnonzero(m.valid)[::37],
+        "unsorted": np.random.default_rng(0).integers(0, m.n, 400),
+        "ends": np.array(ends),
+        "outside": np.arange(m.runs[1][1], m.runs[2][0]),
+    }
+    for chunk in (1 << 15, 7 * m.window, 7):  # 7: a piece per sample (a window adds up to m.window)
+        monkeypatch.setattr(motion_data, "KINEMATICS_CHUNK", chunk)
+        for case, idx in cases.items():
+            if chunk == 7 and case in ("all", "valid") and m.window > 7:
+                continue  # a piece per sample of the whole recording: seconds of work for nothing new
+            ms = m.take(idx)
+            for name, whole in ref.items():
+                np.testing.assert_array_equal(getattr(ms, name), whole[idx], err_msg=f"{chunk} {case} {name}")
+            np.testing.assert_array_equal(ms.valid, m.valid[idx])
+    assert np.all(ref["G_dot"][cases["outside"]] == 0.0) and np.any(ref["G_dot"][cases["valid"]] != 0.0)
+    monkeypatch.setattr(motion_data, "KINEMATICS_CHUNK", 1 << 15)
+    kept = prepare_motion(rec.t_s[keep], rec.table_rad_unwrapped()[keep], run.axis_vectors, run.mount)
+    assert kept.kept is not None  # within KEEP_BYTES: formed once, taken from there
+    for case, idx in cases.items():
+        ms = kept.take(idx)
+        for name, whole in ref.items():
+            np.testing.assert_array_equal(getattr(ms, name), whole[idx], err_msg=f"kept {case} {name}")
+    whole_peak = m.peak_rate_rad_s
+    monkeypatch.setattr(motion_data, "KINEMATICS_CHUNK", 7)
+    chunked = prepare_motion(
+        rec.t_s[keep], rec.table_rad_unwrapped()[keep], run.axis_vectors, run.mount, keep_bytes=0
+    )
+    assert chunked.peak_rate_rad_s == whole_peak
+    assert whole_peak == pytest.approx(np.radians(200.0), rel=1e-3)  # the rate table's top rate
 
 
 def test_prediction_in_chunks_is_the_prediction_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
     """predict, specific_force and the sensor rates are per-sample: a chunk size that does not
-    divide the recording (7) gives every bit of the whole-recording products, skew included."""
+    divide the recording (997; each chunk takes its own regressors from the motion) gives every
+    bit of the whole-recording products, skew included."""
     from bench.diagnosis.library_motion import sensor_rates
-    from bench.estimation import dynamic_model
+    from bench.estimation import dynamic_model, motion_data
 
     run, rec = rate()
     m = prepare_motion(rec.t_s, rec.table_rad_unwrapped(), run.axis_vectors, run.mount)
     spec = ModelSpec(TERM_ORDER)
     th = _theta_true(run, spec)
     g = run.g_local_m_s2
-    monkeypatch.setattr(dynamic_model, "PREDICT_CHUNK", m.n)
+    monkeypatch.setattr(motion_data, "PREDICT_CHUNK", m.n)
     raw_whole, _ = predict(th, m, spec, g, R_TRUE_M)
     f_whole = dynamic_model.specific_force(th, m, spec, g, R_TRUE_M)
     w_whole, dw_whole = sensor_rates(m)
-    monkeypatch.setattr(dynamic_model, "PREDICT_CHUNK", 7)
-    assert m.n % 7 != 0 and len(dynamic_model.sample_chunks(m.n)) == -(-m.n // 7)
+    monkeypatch.setattr(motion_data, "PREDICT_CHUNK", 997)
+    assert m.n % 997 != 0 and len(motion_data.sample_chunks(m.n)) == -(-m.n // 997)
     raw, _ = predict(th, m, spec, g, R_TRUE_M)
     np.testing.assert_array_equal(raw, raw_whole)
     np.testing.assert_array_equal(dynamic_model.specific_force(th, m, spec, g, R_TRUE_M), f_whole)
@@ -151,8 +213,9 @@ def test_prediction_in_chunks_is_the_prediction_at_once(monkeypatch: pytest.Monk
     # the chunked prediction is the model's: the first sample's raw output by hand
     d = DELAY_TRUE_S
     gb = g * np.array([np.sin(th[-2]), -np.cos(th[-2]) * np.sin(th[-3]), np.cos(th[-2]) * np.cos(th[-3])])
-    Ge = m.G[0] - d * m.G_dot[0] + 0.5 * d * d * m.G_ddot[0]
-    Be = m.B[0] - d * m.B_dot[0] + 0.5 * d * d * m.B_ddot[0]
+    m0 = m.take(slice(0, 1))
+    Ge = m0.G[0] - d * m0.G_dot[0] + 0.5 * d * d * m0.G_ddot[0]
+    Be = m0.B[0] - d * m0.B_dot[0] + 0.5 * d * d * m0.B_ddot[0]
     Q = th[spec.index("proof_mass_offsets")].reshape(3, 3)
     f0 = Ge @ gb + np.array([Be[i] @ Q[i] for i in range(3)])
     K = th[3:12].reshape(3, 3)

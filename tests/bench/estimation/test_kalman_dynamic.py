@@ -6,7 +6,8 @@ import numpy as np
 
 from bench.estimation.dynamic_batch import linear_start, white_sigma
 from bench.estimation.dynamic_kalman import Prior, run_dynamic_kalman
-from bench.estimation.dynamic_model import ModelSpec, initial_theta, prepare_motion
+from bench.estimation.dynamic_model import ModelSpec, initial_theta
+from bench.estimation.motion_data import prepare_motion
 from tests.support.dynamic_sim import EFFECTS, oscillation, truth
 
 DRIFT_M_S2_PER_S = np.array([2e-4, -1.5e-4, 1e-4])

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import json
 import os
-import secrets
 import subprocess
 import sys
 import tempfile
@@ -51,6 +50,7 @@ import sqlalchemy as sa
 from bench.recording import read_recording
 from db.engine import make_engine
 from db.models import SampleChunk
+from tests.pg import pg_database
 
 READERS = 50
 SPEED = float(os.environ.get("CALBENCH_LOAD_SPEED", "50"))
@@ -85,16 +85,8 @@ def _database(data_dir: Path) -> Iterator[str]:
     if not PG_URL:
         yield f"sqlite:///{data_dir / 'calbench.db'}"
         return
-    name = f"calbench_load_{secrets.token_hex(4)}"
-    admin = sa.create_engine(PG_URL, isolation_level="AUTOCOMMIT")
-    try:
-        with admin.connect() as conn:
-            conn.execute(sa.text(f'CREATE DATABASE "{name}"'))
-        yield sa.make_url(PG_URL).set(database=name).render_as_string(hide_password=False)
-    finally:
-        with admin.connect() as conn:
-            conn.execute(sa.text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        admin.dispose()
+    with pg_database(PG_URL) as url:
+        yield url
 
 
 def _start_service(data_dir: Path, port: int, db_url: str) -> subprocess.Popen[bytes]:

@@ -81,6 +81,16 @@ def pg_server() -> Iterator[str]:
         yield url
 
 
+@pytest.fixture(scope="module")
+def pg_url() -> Iterator[str]:
+    """URL of a fresh, empty PostgreSQL database for one test module (skips if no server)."""
+    reason = pg_unreachable_reason()
+    if reason:
+        pytest.skip(reason)
+    with pg_database() as url:
+        yield url
+
+
 @pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
 def db_backend(request: pytest.FixtureRequest) -> str:
     """``"sqlite"`` or ``"postgresql"``."""

@@ -30,22 +30,12 @@ from api.db_revision import DatabaseRevision
 from api.main import create_app
 from api.pg_revision import APPLICATION_NAME, SnapshotRevision
 from db.notify import listen_url
-from tests.pg import pg_database, pg_unreachable_reason
 from tests.support.service_helpers import OP, VIEW, service_settings
 
 pytestmark = [pytest.mark.postgres, pytest.mark.timeout(120)]
 
 QUIET_TRIES = 30
 """Attempts at a moment without commits elsewhere on the shared server."""
-
-
-@pytest.fixture(scope="module")
-def pg_url() -> Iterator[str]:
-    reason = pg_unreachable_reason()
-    if reason is not None:
-        pytest.skip(reason)
-    with pg_database() as url:
-        yield url
 
 
 @pytest.fixture()

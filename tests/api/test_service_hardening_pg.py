@@ -12,19 +12,9 @@ from fastapi.testclient import TestClient
 
 from api.guard import install_error_handlers
 from api.main import create_app
-from tests.pg import pg_database, pg_unreachable_reason
 from tests.support.service_helpers import OP, VIEW, service_settings
 
 pytestmark = [pytest.mark.postgres, pytest.mark.timeout(180)]
-
-
-@pytest.fixture(scope="module")
-def pg_url() -> Iterator[str]:
-    reason = pg_unreachable_reason()
-    if reason is not None:
-        pytest.skip(reason)
-    with pg_database() as url:
-        yield url
 
 
 @pytest.fixture()

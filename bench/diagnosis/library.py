@@ -116,16 +116,24 @@ def bases(ev: StaticEvidence) -> tuple[Base, ...]:
     return tuple(out)
 
 
-def base_values(ev: StaticEvidence, b: Base) -> FloatArray:
-    """(m,) values of one base quantity per window."""
+def quantity(b: Base, f_m_s2: FloatArray, temp_c: FloatArray | None, t_s: FloatArray | None) -> FloatArray:
+    """Values of one base quantity in its own unit: f_i or abs(f_i) in g from the specific force
+    (…, 3) (m/s²), temp − 25 °C from the temperature (°C), t (s) from the time; a term's
+    monomial is the product of its factors' values, broadcast together."""
     if b.kind == "f":
-        return ev.f_m_s2[:, b.axis] / G0_M_S2
+        return f_m_s2[..., b.axis] / G0_M_S2
     if b.kind == "abs":
-        return np.abs(ev.f_m_s2[:, b.axis]) / G0_M_S2
+        return np.abs(f_m_s2[..., b.axis]) / G0_M_S2
     if b.kind == "temp":
-        assert ev.temp_c is not None
-        return ev.temp_c - REFERENCE_TEMP_C
-    return ev.mid_s.copy()
+        assert temp_c is not None
+        return np.asarray(temp_c, dtype=float) - REFERENCE_TEMP_C
+    assert t_s is not None
+    return np.array(t_s, dtype=float, copy=True)
+
+
+def base_values(ev: StaticEvidence, b: Base) -> FloatArray:
+    """(m,) values of one base quantity per window (:func:`quantity` of the window means)."""
+    return quantity(b, ev.f_m_s2, ev.temp_c, ev.mid_s)
 
 
 def _power_string(items: list[tuple[str, int]], sep: str) -> str:

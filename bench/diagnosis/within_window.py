@@ -48,9 +48,8 @@ import numpy as np
 
 from bench.diagnosis.effects import Candidate
 from bench.diagnosis.effects.base import FloatArray
-from bench.diagnosis.effects.sensor import REFERENCE_TEMP_C
-from bench.diagnosis.evidence import G0_M_S2, StaticEvidence
-from bench.diagnosis.library import LibraryTerm
+from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.library import LibraryTerm, quantity
 from bench.diagnosis.likelihood import GlsFit
 from bench.diagnosis.model_state import ModelState, fit_model, scale_matrix
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
@@ -78,20 +77,13 @@ def can_correct(ev: StaticEvidence, t: LibraryTerm) -> bool:
 def sample_values(ev: StaticEvidence, t: LibraryTerm, w: int) -> FloatArray:
     """(n_w,) the term's monomial at every sample of window ``w`` (its own unit; NaN where the
     temperature was not measured): f and abs(f) from the window's pose (g), temp − 25 °C and
-    t (s) per sample, as ``library.base_values`` per window."""
+    t (s) per sample (``library.quantity``, as the library's per-window values)."""
     assert ev.window_samples is not None
+    temp = None if ev.window_temp_c is None else ev.window_temp_c[w]
+    t_s = None if ev.window_t_s is None else ev.window_t_s[w]
     x = np.ones(ev.window_samples[w].shape[0])
     for b in t.factors:
-        if b.kind == "f":
-            x = x * (ev.f_m_s2[w, b.axis] / G0_M_S2)
-        elif b.kind == "abs":
-            x = x * (abs(ev.f_m_s2[w, b.axis]) / G0_M_S2)
-        elif b.kind == "temp":
-            assert ev.window_temp_c is not None
-            x = x * (np.asarray(ev.window_temp_c[w], dtype=float) - REFERENCE_TEMP_C)
-        else:
-            assert ev.window_t_s is not None
-            x = x * np.asarray(ev.window_t_s[w], dtype=float)
+        x = x * quantity(b, ev.f_m_s2[w], temp, t_s)
     return x
 
 

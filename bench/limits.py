@@ -177,6 +177,54 @@ def load_limits(path: str | Path | None = None) -> dict[str, UnitLimits]:
     return {name: UnitLimits.from_spec(name, spec, str(path)) for name, spec in doc["models"].items()}
 
 
+@dataclass(frozen=True)
+class LimitsChoice:
+    """The limits that judge a unit, or why none do.
+
+    :param limits: the model's limits; ``None``: no statement of conformity can be made.
+    :param reason: one sentence saying why no limits apply (empty when they do).
+    """
+
+    limits: UnitLimits | None
+    reason: str = ""
+
+
+def choose_limits(
+    table: Mapping[str, UnitLimits], model: str | None, channel_unit: str | None, default_model: str = ""
+) -> LimitsChoice:
+    """The limits of a unit registered as ``model`` with ``channel_unit`` outputs.
+
+    A unit is judged only against its own model's limits: a model the limits file lacks gets no
+    limits (never another model's). ``default_model`` judges only a unit whose registration names
+    no model. Limits for other outputs than ``channel_unit`` do not apply (``None``: not known yet).
+    """
+    name = (model or "").strip()
+    if name:
+        if name not in table:
+            known = ", ".join(sorted(table)) or "none"
+            return LimitsChoice(
+                None, f"no limits are configured for model {name} (the limits file has models: {known})"
+            )
+        chosen = table[name]
+    elif default_model and default_model in table:
+        chosen = table[default_model]
+    elif default_model:
+        return LimitsChoice(
+            None,
+            f"the unit's registration names no model and the default limits model {default_model} "
+            "is not in the limits file",
+        )
+    else:
+        return LimitsChoice(None, "the unit's registration names no model and no default limits model is set")
+    if channel_unit is not None and chosen.channel_unit != channel_unit:
+        return LimitsChoice(
+            None,
+            f"the limits of model {chosen.model} are for {chosen.channel_unit} outputs, "
+            f"the unit's outputs are in {channel_unit}",
+        )
+    return LimitsChoice(chosen)
+
+
 def checked_values(fit: FittedModel) -> dict[str, float]:
     """The values the limits check, by limit name: b_i, K_ii, K_ij / K_ii and the mean |g|
     error after correction (m/s²)."""

@@ -195,6 +195,7 @@ def certificate_content(
             inp.limits_model,
             None,
             check_uncertainties(inp.calibration, inp.budget, inp.g_check_n) if inp.limit_checks else None,
+            inp.limits_note,
         ),
         "traceability": traceability,
         "statements": [ONLY_ITEM, NOT_REPRODUCED],

@@ -24,12 +24,15 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+from sqlalchemy.orm import Session
 
 from api.certificates.budget import CertificateBudget
 from api.certificates.rounding import round_significant
+from api.settings import Settings
 from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
-from bench.limits import AXES, DECISION_RULES
+from bench.limits import AXES, DECISION_RULES, LimitsChoice, choose_limits, load_limits
+from db.repo.units import get_unit_by_serial
 
 COVERAGE_K = 2.0
 G_CHECK_U_BASIS = (
@@ -83,6 +86,37 @@ def check_uncertainties(
     return out
 
 
+def limits_choice(settings: Settings, model: str | None, channel_unit: str | None) -> LimitsChoice:
+    """The limits that judge a unit registered as ``model`` (``bench.limits.choose_limits`` on
+    the bench's limits file, ``settings.limits_model`` only for a unit that names no model),
+    or why none do; ``channel_unit`` ``None``: not known yet.
+
+    :raises ValueError: the limits file is unreadable or malformed (named).
+    """
+    return choose_limits(load_limits(settings.limits_file), model, channel_unit, settings.limits_model)
+
+
+def conformity_warning(settings: Settings, model: str | None, channel_unit: str | None) -> str | None:
+    """What an operator is told before a run of such a unit starts when its certificate will
+    make no statement of conformity; ``None`` when limits apply."""
+    try:
+        choice = limits_choice(settings, model, channel_unit)
+    except ValueError as exc:
+        return f"no statement of conformity: the limits file cannot be read ({exc})"
+    if choice.limits is not None:
+        return None
+    return f"no statement of conformity will be made: {choice.reason}"
+
+
+def unit_warnings(session: Session, settings: Settings, serial: str) -> list[str]:
+    """:func:`conformity_warning` for the unit registered as ``serial`` (a serial not yet
+    registered names no model), as a list for an API answer."""
+    unit = get_unit_by_serial(session, serial)
+    model, channel_unit = (unit.model, unit.channel_unit) if unit is not None else (None, None)
+    warning = conformity_warning(settings, model, channel_unit)
+    return [warning] if warning else []
+
+
 def _verdict_word(passed: bool) -> str:
     return "conforms" if passed else "does not conform"
 
@@ -93,6 +127,7 @@ def conformity_statement(
     model: str | None,
     rule: str | None,
     uncertainties: Mapping[str, float] | None = None,
+    no_limits_reason: str = "",
 ) -> dict[str, Any]:
     """The certificate's conformity section from the run's stored limit checks and its stored
     outcome.
@@ -101,6 +136,8 @@ def conformity_statement(
         (:func:`check_uncertainties` with its budget), stated in place of the stored one; the
         verdicts and acceptance intervals are the stored ones (under guarded acceptance they
         were formed with this same U).
+    :param no_limits_reason: why no limits applied (``LimitsChoice.reason``), stated when there
+        are no checks.
 
     The statement's verdict is the run's outcome; it is checked against the checks, so a
     certificate can never state another verdict than the checks it lists.
@@ -108,10 +145,11 @@ def conformity_statement(
     :raises ValueError: the outcome disagrees with the checks.
     """
     if not checks:
+        why = no_limits_reason or f"no limits are configured for its model {model or 'not stated'}"
         return {
             "requested": False,
-            "statement": "No statement of conformity is made: no specification limits apply to this unit "
-            f"(no limits are configured for its model {model or 'not stated'}).",
+            "statement": "No statement of conformity is made: no specification limits apply to this "
+            f"unit ({why}).",
             "decision_rule": "not applicable",
             "checks": [],
         }

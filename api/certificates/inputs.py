@@ -78,6 +78,7 @@ class CertificateInputs:
     :param outcome: the run's stored outcome (``PASS``/``FAIL``), which the conformity
         statement must agree with.
     :param limits_model: the unit model whose limits judged the run.
+    :param limits_note: why no limits judged the run (stated in place of a conformity statement).
     :param g_check_n: windows (or 1 s blocks) of the |g| check, for the U of its mean; ``None``
         when not known (U not stated).
     """
@@ -97,6 +98,7 @@ class CertificateInputs:
     limit_checks: tuple[LimitCheck, ...] = ()
     outcome: str | None = None
     limits_model: str | None = None
+    limits_note: str = ""
     g_check_n: int | None = None
 
 

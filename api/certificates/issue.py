@@ -22,6 +22,7 @@ from sqlalchemy.orm import Session
 
 from api.certificates.budget import CertificateBudget, TypeBSettings, certificate_budget
 from api.certificates.certificate import certificate_content
+from api.certificates.conformity import limits_choice
 from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.pdf import render_pdf
 from api.settings import Settings
@@ -31,7 +32,6 @@ from bench.diagnosis.result import Diagnosis
 from bench.diagnosis.stored import StoredDiagnosis
 from bench.fitted_model import FittedModel, GCheckSummary, NominalReference
 from bench.limit_check import LimitCheck
-from bench.limits import load_limits
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
 from db.models import Certificate, FitKind, Run, Unit
@@ -228,12 +228,13 @@ def g_check_count(rec: Recording) -> int | None:
 
 def limits_model_name(settings: Settings, model: str | None) -> str | None:
     """The unit model whose limits judge a unit registered as ``model``: ``model`` when the
-    limits file has it, else ``settings.limits_model`` (``None`` when empty).
+    limits file has it; ``settings.limits_model`` only when the registration names no model;
+    else ``None`` (:func:`api.certificates.conformity.limits_choice`).
 
     :raises ValueError: the limits file is unreadable or malformed (named).
     """
-    table = load_limits(settings.limits_file)
-    return model if model in table else (settings.limits_model or None)
+    choice = limits_choice(settings, model, None)
+    return choice.limits.model if choice.limits is not None else None
 
 
 def run_budget(
@@ -321,6 +322,7 @@ def issue_for_run(
         ),
         outcome=run.outcome,
         limits_model=limits_model_name(settings, unit.model) if run.limit_checks else None,
+        limits_note="" if run.limit_checks else limits_choice(settings, unit.model, unit.channel_unit).reason,
         g_check_n=g_check_count(rec) if rec is not None else None,
     )
     now = now or utc_now()

@@ -6,7 +6,8 @@ from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query, status
 
-from api.deps import SettingsDep, ViewerDep
+from api.certificates.conformity import unit_warnings
+from api.deps import SessionDep, SettingsDep, ViewerDep
 from api.schemas import ProcedurePreviewOut
 from bench.procedures import PROCEDURES, build_procedure, preview
 from bench.sequencer.control import SequencerConfig
@@ -21,12 +22,15 @@ def procedure_preview(
     name: str,
     settings: SettingsDep,
     _: ViewerDep,
+    session: SessionDep,
     dwell_s: Annotated[float | None, Query(gt=0, le=86400)] = None,
+    unit_serial: Annotated[str | None, Query(min_length=1, max_length=64)] = None,
 ) -> ProcedurePreviewOut:
     """The procedure walked against the table's limits with the dwell a run started now would
     use (``dwell_s``, else the service's ``run_dwell_s``, else a provisional one that the run's
     noise window replaces): the duration on the bench clock and, on a simulated bench, on the
-    wall clock (bench seconds / ``sim_speed``)."""
+    wall clock (bench seconds / ``sim_speed``). With ``unit_serial``, ``warnings`` says what the
+    operator should know about that unit before starting (e.g. its model has no limits)."""
     if name not in PROCEDURES:
         raise HTTPException(
             status.HTTP_404_NOT_FOUND, f"unknown procedure {name!r}; known: {', '.join(PROCEDURES)}"
@@ -37,6 +41,10 @@ def procedure_preview(
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
     pv = preview(proc, SequencerConfig(temp_band_c=settings.temp_band_c).limits)
+    warnings: list[str] = []
+    if unit_serial is not None:
+        with session.begin():
+            warnings = unit_warnings(session, settings, unit_serial)
     speed = settings.sim_speed if settings.sim and settings.sim_speed > 0 else 1.0
     return ProcedurePreviewOut(
         procedure=name,
@@ -52,4 +60,5 @@ def procedure_preview(
         else "provisional",
         assumptions=list(pv.assumptions),
         problems=list(pv.problems),
+        warnings=warnings,
     )

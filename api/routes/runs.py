@@ -11,6 +11,7 @@ from fastapi import APIRouter, HTTPException, Query, Request, status
 from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
+from api.certificates.conformity import unit_warnings
 from api.deps import OperatorDep, RunnerDep, ServicesDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
 from api.routes.views import live_out, run_out
 from api.runs.events import RunSnapshot, SnapshotCache
@@ -32,15 +33,20 @@ router = APIRouter(prefix="/api/runs", tags=["runs"])
         422: {"description": "a bad procedure, dwell or serial; an unknown bench or one that cannot run it"}
     },
 )
-def start_run(body: RunCreate, runner: RunnerDep, _: OperatorDep) -> RunCreated:
+def start_run(
+    body: RunCreate, runner: RunnerDep, session: SessionDep, settings: SettingsDep, _: OperatorDep
+) -> RunCreated:
     """Queue a procedure for a unit on the bench ``bench`` names, or (without it) on a free bench
     whose agent can run the procedure: the bench's agent starts it as soon as the bench is free
-    (at once when idle; after the runs queued before it when busy)."""
+    (at once when idle; after the runs queued before it when busy). ``warnings`` says, e.g.,
+    that the unit's model has no limits, so its certificate will make no statement of conformity."""
     try:
         live = runner.start(body.unit_serial, body.procedure, dwell_s=body.dwell_s, bench=body.bench)
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
-    return RunCreated(id=live.id, bench=live.extra.get("bench"))
+    with session.begin():
+        warnings = unit_warnings(session, settings, body.unit_serial)
+    return RunCreated(id=live.id, bench=live.extra.get("bench"), warnings=warnings)
 
 
 @router.get("", response_model=list[RunOut])

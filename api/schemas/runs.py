@@ -72,6 +72,11 @@ class RunCreated(BaseModel):
     id: str
     state: RunStateName = "queued"
     bench: str | None = Field(default=None, description="the bench the run is queued on")
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="what the operator should know before the run starts, e.g. that its certificate will "
+        "make no statement of conformity (the unit's model has no limits)",
+    )
 
 
 class BenchOut(BaseModel):
@@ -116,6 +121,11 @@ class ProcedurePreviewOut(BaseModel):
     dwell_source: Literal["given", "service setting", "provisional"]
     assumptions: list[str]
     problems: list[str] = Field(description="table-limit violations; empty when the procedure can run")
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="for the unit named by unit_serial: e.g. that its certificate will make no statement of "
+        "conformity (its model has no limits)",
+    )
 
 
 class LimitCheckOut(BaseModel):

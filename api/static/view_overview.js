@@ -37,10 +37,13 @@ function startForm(session) {
   const proc = h("select", { id: "start-procedure", name: "procedure" }, PROCEDURES.map((p) => h("option", { value: p }, p)));
   const status = h("p", { class: "note", "aria-live": "polite" });
   const pv = h("p", { class: "preview", id: "start-preview", "aria-live": "polite" }, "");
+  const warn = h("p", { class: "note warning", id: "start-warning", role: "alert" }, "");
   const button = h("button", { type: "submit", id: "start-run" }, "Start run");
   const showPreview = async () => {
     try {
-      const p = await getJson(`/api/procedures/${encodeURIComponent(proc.value)}/preview`);
+      const who = serial.value.trim() && serial.checkValidity() ? `?unit_serial=${encodeURIComponent(serial.value.trim())}` : "";
+      const p = await getJson(`/api/procedures/${encodeURIComponent(proc.value)}/preview${who}`);
+      warn.textContent = (p.warnings || []).map((w) => `Unit ${serial.value.trim()}: ${w}.`).join(" ");
       const dwell = p.dwell_s == null ? "dwell decided by a noise window at the start (estimate assumes a provisional one)" : `dwell ${p.dwell_s} s per pose (${p.dwell_source})`;
       const mins = (s) => (s >= 90 ? `${Math.round(s / 60)} min` : `${Math.round(s)} s`);
       pv.textContent = `${p.n_poses} poses, ${p.n_windows} windows, ${dwell}; about ${mins(p.wall_duration_s)}`
@@ -50,6 +53,7 @@ function startForm(session) {
   };
   if (session.role !== "none") {
     proc.addEventListener("change", showPreview);
+    serial.addEventListener("change", showPreview);
     showPreview();
   }
   const details = h("a", { href: "#/units", id: "unit-details", title: "customer, model, date of receipt, nominal values: what the certificate states" }, "unit registration…");
@@ -74,7 +78,7 @@ function startForm(session) {
     for (const c of [serial, proc, button]) c.disabled = true;
     status.textContent = "Starting runs needs an operator token; this view is read-only.";
   }
-  return card("Start a run", form, pv, status);
+  return card("Start a run", form, pv, warn, status);
 }
 
 export async function overviewView(view, session, signal) {

@@ -11,7 +11,7 @@ import pytest
 
 from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
-from bench.limits import Limit, load_limits, verdict
+from bench.limits import Limit, choose_limits, load_limits, verdict
 from bench.records import Outcome
 from tests.support.fits import stored_fit
 from tests.support.limits import SPEC
@@ -123,3 +123,24 @@ def test_a_stored_limit_check_is_read_back_and_a_bad_one_is_named() -> None:
         LimitCheck.from_stored({k: v for k, v in old.items() if k != "name"}, "run R")
     with pytest.raises(ValueError, match=r"^run R: must be an object, got list$"):
         LimitCheck.from_stored([], "run R")
+
+
+def test_a_model_is_judged_only_by_its_own_limits_and_each_refusal_says_why(tmp_path: Path) -> None:
+    table = load_limits(write(tmp_path, {"M": SPEC, "N": {**SPEC, "channel_unit": "count"}}))
+    assert choose_limits(table, "M", "V", "N").limits is table["M"]
+    # a model the file lacks is never judged by the default model's limits
+    other = choose_limits(table, "M-335", "V", "M")
+    assert other.limits is None
+    assert other.reason == "no limits are configured for model M-335 (the limits file has models: M, N)"
+    # the default judges only a unit that names no model
+    assert choose_limits(table, None, "V", "M").limits is table["M"]
+    assert choose_limits(table, "  ", None, "M").limits is table["M"]
+    none = choose_limits(table, None, "V", "")
+    assert none.limits is None and "names no model and no default limits model is set" in none.reason
+    gone = choose_limits(table, None, "V", "X")
+    assert gone.limits is None and "default limits model X is not in the limits file" in gone.reason
+    # limits for other outputs do not apply; an unknown output unit is not held against them
+    wrong = choose_limits(table, "N", "V")
+    assert wrong.limits is None
+    assert wrong.reason == "the limits of model N are for count outputs, the unit's outputs are in V"
+    assert choose_limits(table, "N", None).limits is table["N"]

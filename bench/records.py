@@ -8,17 +8,19 @@ database, the REST service, a progress bar) implements
 samples is safely on disk (:class:`ChunkRecord`) and *that* a window is complete
 (:class:`WindowRecord`), which is what a restart needs to resume.
 
-Life of a run (:class:`RunState`)::
+Life of a run (:class:`RunState`, the one vocabulary of the bench, the database, the REST
+service and the live state)::
 
-    PENDING -> RUNNING <-> PAUSED          (operator)
-                RUNNING <-> SUSPENDED       (interlock open, temperature out of band)
-                RUNNING -> FINISHED         (with an Outcome)
-    any live state -> INTERRUPTED           (the process died; set on the next start)
-    INTERRUPTED -> RUNNING                  (resumed from the window after the last complete one)
+    QUEUED -> RUNNING <-> PAUSED           (operator)
+              RUNNING <-> SUSPENDED        (interlock open, temperature out of band)
+              RUNNING -> COMPLETED | FAILED | ERROR | ABORTED   (by the Outcome)
+    any live state -> INTERRUPTED          (the process died; set on the next start)
+    INTERRUPTED -> QUEUED -> RUNNING       (resumed from the window after the last complete one)
 
-:class:`Outcome` is only set once a run is FINISHED: PASS / FAIL (the *unit* is outside its
+:class:`Outcome` is only set once a run is final: PASS / FAIL (the *unit* is outside its
 limits) are verdicts about the unit; ERROR (the *bench* broke: lost link, timeout, fault)
 and ABORTED (an operator stopped it) say the run gave no verdict.
+:meth:`RunState.finished` maps an outcome to its final state (PASS or none: COMPLETED).
 
 Times are UTC ``datetime`` (timezone-aware) for wall clock and seconds (``*_s``) on the
 recording's clock (the ``t`` column) for everything inside the run.
@@ -41,19 +43,44 @@ if TYPE_CHECKING:
 
 
 class RunState(enum.Enum):
-    """Where a run is in its life (see the module docstring for the transitions)."""
+    """Where a run is in its life (see the module docstring for the transitions).
 
-    PENDING = "pending"
+    Live, with an owner process: ``queued`` (waiting for its bench), ``running``, ``paused``
+    (operator), ``suspended`` (interlock, temperature). Final: ``completed`` (verdict PASS or
+    none), ``failed`` (verdict FAIL: the unit is outside its limits), ``error`` (the bench
+    broke), ``aborted`` (operator stop). ``interrupted``: the owner process died; the run can be
+    resumed. The values are the stored and the wire names.
+    """
+
+    QUEUED = "queued"
     RUNNING = "running"
     PAUSED = "paused"
     SUSPENDED = "suspended"
     INTERRUPTED = "interrupted"
-    FINISHED = "finished"
+    COMPLETED = "completed"
+    FAILED = "failed"
+    ERROR = "error"
+    ABORTED = "aborted"
 
     @property
     def is_live(self) -> bool:
         """A process is (or should be) executing the run right now."""
-        return self in (RunState.PENDING, RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED)
+        return self in ACTIVE_STATES
+
+    @property
+    def is_final(self) -> bool:
+        """A state the run never leaves."""
+        return self in FINAL_STATES
+
+    @property
+    def holds_bench(self) -> bool:
+        """An owner process drives the table (running, paused or suspended)."""
+        return self in HOLDING_STATES
+
+    @classmethod
+    def finished(cls, outcome: Outcome | None) -> RunState:
+        """The final state of a run that ended with ``outcome`` (PASS or none: completed)."""
+        return _FINAL_BY_OUTCOME[outcome]
 
 
 class Outcome(enum.Enum):
@@ -63,6 +90,23 @@ class Outcome(enum.Enum):
     FAIL = "FAIL"
     ERROR = "ERROR"
     ABORTED = "ABORTED"
+
+
+ACTIVE_STATES = frozenset({RunState.QUEUED, RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED})
+"""States that need a live owner process."""
+HOLDING_STATES = frozenset({RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED})
+"""States of a run that holds its bench (an owner process drives the table)."""
+RESUMABLE_STATES = frozenset({RunState.INTERRUPTED})
+"""States from which a new process may take a run over."""
+FINAL_STATES = frozenset({RunState.COMPLETED, RunState.FAILED, RunState.ERROR, RunState.ABORTED})
+"""States a run never leaves."""
+_FINAL_BY_OUTCOME = {
+    None: RunState.COMPLETED,
+    Outcome.PASS: RunState.COMPLETED,
+    Outcome.FAIL: RunState.FAILED,
+    Outcome.ERROR: RunState.ERROR,
+    Outcome.ABORTED: RunState.ABORTED,
+}
 
 
 class WindowKind(enum.Enum):
@@ -310,8 +354,9 @@ class RunRecord:
     """The finished run (or the state it was left in), handed to every observer at the end.
 
     :param start: the run's :class:`RunStart` (of the last process that executed it).
-    :param state: final state: FINISHED, or INTERRUPTED when the caller could not finish.
-    :param outcome: verdict, set when FINISHED.
+    :param state: a final state (:meth:`RunState.finished` of the outcome), or INTERRUPTED when
+        the caller could not finish.
+    :param outcome: verdict, set when final.
     :param windows: every completed window, including those recorded before a resume.
     :param ended_at: wall-clock end (UTC).
     :param error: for ERROR: what broke and where (one line), else ``None``.

@@ -7,9 +7,8 @@ recording, which is what a restart needs to resume. Transient database errors
 (``OperationalError``: a lock held too long, a dropped connection) are retried a few
 times before the error is raised to the sequencer, which then ends the run as ERROR.
 
-State mapping (``bench.records`` -> ``db.models.RunState``): PENDING -> queued,
-RUNNING/PAUSED/SUSPENDED/INTERRUPTED -> same name, FINISHED -> by outcome: PASS or none ->
-completed, FAIL -> failed, ERROR -> error, ABORTED -> aborted.
+The bench and the database share one state vocabulary (``bench.records.RunState``): a run's
+record carries its final state (``RunState.finished`` of its outcome) as it is stored.
 """
 
 from __future__ import annotations
@@ -23,6 +22,7 @@ from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
 from bench import records as br
+from bench.records import HOLDING_STATES
 from bench.run_observer import NullObserver
 from db.models import FINAL_STATES, FitKind, Run, RunState
 from db.notify import notify_run
@@ -34,28 +34,16 @@ if TYPE_CHECKING:
 
 T = TypeVar("T")
 
-_LIVE = {
-    br.RunState.PENDING: RunState.QUEUED,
-    br.RunState.RUNNING: RunState.RUNNING,
-    br.RunState.PAUSED: RunState.PAUSED,
-    br.RunState.SUSPENDED: RunState.SUSPENDED,
-}
-_FINAL = {
-    None: RunState.COMPLETED,
-    br.Outcome.PASS: RunState.COMPLETED,
-    br.Outcome.FAIL: RunState.FAILED,
-    br.Outcome.ERROR: RunState.ERROR,
-    br.Outcome.ABORTED: RunState.ABORTED,
-}
+_LIVE = frozenset({RunState.QUEUED, *HOLDING_STATES})
 
 
 def final_state(outcome: br.Outcome | None) -> RunState:
-    """The stored state of a FINISHED run with ``outcome``."""
-    return _FINAL[outcome]
+    """The stored state of a run that ended with ``outcome``."""
+    return RunState.finished(outcome)
 
 
 def finish_record(s: Session, record: br.RunRecord) -> bool:
-    """Move a FINISHED run to its final state with its outcome and error (False: it was final)."""
+    """Move a finished run to its final state with its outcome and error (False: it was final)."""
     return runs.finish_run(
         s,
         record.run_id,
@@ -186,7 +174,7 @@ class DbRunObserver(NullObserver):
                 lambda s: recovery.mark_run_interrupted(s, run_id, change.reason or "stopped", now=change.at)
             )
         elif change.state in _LIVE:
-            self._tx(lambda s: runs.set_live_state(s, run_id, _LIVE[change.state], now=change.at))
+            self._tx(lambda s: runs.set_live_state(s, run_id, change.state, now=change.at))
 
     def on_progress(self, run_id: str, p: br.Progress) -> None:
         """Progress fraction and heartbeat, at most every ``min_progress_interval_s``."""
@@ -278,7 +266,7 @@ class DbRunObserver(NullObserver):
             if record.dwell is not None:
                 run.params = {**run.params, "dwell": dataclasses.asdict(record.dwell)}
             s.flush()
-            if record.state is not br.RunState.FINISHED:
+            if not record.state.is_final:
                 recovery.mark_run_interrupted(s, run_id, record.error or "the run stopped before finishing")
                 return
             if self._defer_final_state and record.outcome in (br.Outcome.PASS, br.Outcome.FAIL):

@@ -91,7 +91,7 @@ def run_record(
             error = "outside limits: " + "; ".join(describe(c) for c in checks if not c.passed)
     return RunRecord(
         start=seq.start,
-        state=RunState.FINISHED,
+        state=RunState.finished(outcome),
         outcome=outcome,
         windows=tuple(seq.recorder.windows),
         error=error,

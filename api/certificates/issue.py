@@ -34,7 +34,7 @@ from bench.fitted_model import FittedModel, GCheckSummary, NominalReference
 from bench.limit_check import LimitCheck
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
-from db.models import Certificate, FitKind, Run, Unit
+from db.models import Certificate, FitKind, Run, RunState, Unit
 from db.repo.certificates import canonical_sha256, issue_certificate
 from db.repo.results import add_findings, add_fit, list_findings, list_fits
 from db.repo.runs import merge_params
@@ -271,7 +271,7 @@ def issue_for_run(
     if run is None:
         raise LookupError(f"run {run_id} not found")
     stored = run.params.get("calibration")
-    if run.state.value != "completed" or not isinstance(stored, dict):
+    if run.state is not RunState.COMPLETED or not isinstance(stored, dict):
         raise ValueError(f"run {run_id} is {run.state.value} without a fit: no certificate can be issued")
     calibration = FittedModel.from_contract(stored, f"run {run_id}: stored fit")
     unit = s.get(Unit, run.unit_id)

@@ -60,9 +60,7 @@ def runs(
 ) -> list[RunOut]:
     """Runs, newest first (queued ones included: every run is stored from its request on)."""
     with session.begin():
-        rows = list_runs(
-            session, unit_serial=unit_serial, states=[RunState(state)] if state else None, limit=limit
-        )
+        rows = list_runs(session, unit_serial=unit_serial, states=[state] if state else None, limit=limit)
         ids = [r.id for r in rows]
         found = session.execute(
             sa.select(Certificate.run_id, Certificate.number).where(Certificate.run_id.in_(ids))
@@ -104,8 +102,8 @@ def abort(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -
     if runner.abort(run_id):
         with session.begin():
             row = get_run(session, run_id)
-            state = row.state.value if row is not None else "running"
-        return AbortOut(id=run_id, abort_requested=True, state=state)  # type: ignore[arg-type]
+            state = row.state if row is not None else RunState.RUNNING
+        return AbortOut(id=run_id, abort_requested=True, state=state)
     raise _not_live(session, run_id, "nothing to abort")
 
 
@@ -131,7 +129,7 @@ def pause(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -
     when the run continues (``POST /api/runs/{id}/resume``). A run still waiting in the queue
     is held as soon as its agent starts it. Idempotent."""
     if runner.pause(run_id):
-        return RunActionOut(id=run_id, action="pause", state="paused")
+        return RunActionOut(id=run_id, action="pause", state=RunState.PAUSED)
     raise _not_live(session, run_id, "nothing to pause")
 
 
@@ -152,12 +150,13 @@ def resume(run_id: str, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
     with live events on ``/events`` and its certificate issued at the end as for a fresh run."""
     cur = runner.current
     if cur is not None and cur.id == run_id:
-        if cur.state not in ("paused", "suspended"):
+        if cur.state not in (RunState.PAUSED, RunState.SUSPENDED):
             raise HTTPException(
-                status.HTTP_409_CONFLICT, f"run {run_id} is {cur.state} on this bench: nothing to resume"
+                status.HTTP_409_CONFLICT,
+                f"run {run_id} is {cur.state.value} on this bench: nothing to resume",
             )
         runner.continue_run(run_id)
-        return RunActionOut(id=run_id, action="continue", state="running")
+        return RunActionOut(id=run_id, action="continue", state=RunState.RUNNING)
     try:
         live = runner.resume(run_id)
     except LookupError as exc:
@@ -165,7 +164,10 @@ def resume(run_id: str, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
     except NotResumable as exc:
         raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
     return RunActionOut(
-        id=run_id, action="resume", state="queued", resumed_from_window=live.extra.get("resumed_from_window")
+        id=run_id,
+        action="resume",
+        state=RunState.QUEUED,
+        resumed_from_window=live.extra.get("resumed_from_window"),
     )
 
 

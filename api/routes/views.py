@@ -38,14 +38,14 @@ def run_out(
     raw_gaps = run.params.get("sample_gaps")
     gaps = [SampleGapOut(**g) for g in raw_gaps if isinstance(g, dict)] if isinstance(raw_gaps, list) else []
     progress = run.progress
-    if live is not None and run.state.value in ("queued", "running", "paused", "suspended"):
+    if live is not None and run.state.is_live:
         progress = max(progress, live.progress)
     return RunOut(
         id=run.id,
         unit_serial=serial,
         procedure=run.procedure,
         kind=_kind(run, live),  # type: ignore[arg-type]
-        state=run.state.value,  # type: ignore[arg-type]
+        state=run.state,
         progress=min(1.0, max(0.0, progress)),
         outcome=run.outcome,
         error=run.error,
@@ -111,19 +111,14 @@ def _window(w: RunWindow) -> WindowOut:
     )
 
 
-_WIRE_STATE = {"pending": "queued", "finished": "running"}
-"""Bench states with no wire name: ``finished`` is only visible while results are stored."""
-
-
 def live_out(live: LiveRun, bench: str) -> RunOut:
     """A run the runner holds that has no database row (yet, or ever: it failed before)."""
-    state = _WIRE_STATE.get(live.state, live.state)
     return RunOut(
         id=live.id,
         unit_serial=live.unit_serial,
         procedure=live.procedure,
         kind=live.kind,
-        state=state,  # type: ignore[arg-type]
+        state=live.state,
         progress=min(1.0, max(0.0, live.progress)),
         error=live.error,
         bench=bench,

@@ -40,7 +40,7 @@ class RunSnapshot:
     :param gaps: ``gap`` events: every sample gap recorded so far (``run.params["sample_gaps"]``).
     """
 
-    state: str
+    state: RunState
     error: str | None
     live: dict[str, Any] | None
     windows: tuple[dict[str, Any], ...]
@@ -100,7 +100,7 @@ def run_snapshot(
         if after_window is not None and last is not None and last < after_window:
             last = after_window  # a resumed run re-records from an earlier window
         return RunSnapshot(
-            run.state.value,
+            run.state,
             run.error,
             live if isinstance(live, dict) else None,
             tuple(windows),

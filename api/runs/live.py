@@ -20,7 +20,16 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from api.runs.hub import ProgressHub
 from api.runs.resume import SIM_AGE_KEY
-from bench.records import GapRecord, Progress, RunRecord, RunStart, StateChange, WindowRecord, utc_now
+from bench.records import (
+    GapRecord,
+    Progress,
+    RunRecord,
+    RunStart,
+    RunState,
+    StateChange,
+    WindowRecord,
+    utc_now,
+)
 from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl
 from db.repo.runs import merge_params
@@ -41,7 +50,7 @@ class LiveRun:
     age_days: float
     resumed: bool = False
     shutdown: bool = False
-    state: str = "queued"
+    state: RunState = RunState.QUEUED
     progress: float = 0.0
     created_at: dt.datetime = dataclasses.field(default_factory=utc_now)
     record: RunRecord | None = None
@@ -57,15 +66,15 @@ class HubObserver(NullObserver):
         self.live, self.hub = live, hub
 
     def on_start(self, start: RunStart) -> None:
-        self.live.state = "running"
-        self.hub.publish(self.live.id, "state", {"state": "running", "reason": "started"})
+        self.live.state = RunState.RUNNING
+        self.hub.publish(self.live.id, "state", {"state": RunState.RUNNING.value, "reason": "started"})
 
     def on_state(self, run_id: str, change: StateChange) -> None:
-        self.live.state = change.state.value
+        self.live.state = change.state
         self.hub.publish(run_id, "state", {"state": change.state.value, "reason": change.reason})
 
     def on_progress(self, run_id: str, progress: Progress) -> None:
-        self.live.state = "running" if progress.state.value == "running" else progress.state.value
+        self.live.state = progress.state
         self.live.progress = progress.fraction
         self.hub.publish(run_id, "progress", progress_data(progress))
 

@@ -263,7 +263,7 @@ def _live_of(run: Run, serial: str) -> LiveRun:
         kind if kind in ("calibration", "drift_check") else "calibration",
         RunControl(),
         0.0,
-        state=run.state.value,
+        state=run.state,
         progress=run.progress,
         error=run.error,
     )

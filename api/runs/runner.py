@@ -165,7 +165,7 @@ class BenchRunner:
             )
             live.extra["dwell_s"] = dwell_s
             self._claim_bench(live, self._work)
-        self.hub.publish(live.id, "state", {"state": "queued", "reason": "accepted"})
+        self.hub.publish(live.id, "state", {"state": RunState.QUEUED.value, "reason": "accepted"})
         assert self._thread is not None
         self._thread.start()
         return live
@@ -216,7 +216,7 @@ class BenchRunner:
         return live
 
     def _launch_resumed(self, live: LiveRun) -> LiveRun:
-        self.hub.publish(live.id, "state", {"state": "queued", "reason": "resume accepted"})
+        self.hub.publish(live.id, "state", {"state": RunState.QUEUED.value, "reason": "resume accepted"})
         assert self._thread is not None
         self._thread.start()
         return live
@@ -312,11 +312,11 @@ class BenchRunner:
         finally:
             if record is not None and not interrupted:
                 self._finalise(live, record)
-            live.state = "interrupted" if interrupted else _final_state(record)
-            live.progress = 1.0 if live.state == "completed" else live.progress
+            live.state = RunState.INTERRUPTED if interrupted else _final_state(record)
+            live.progress = 1.0 if live.state is RunState.COMPLETED else live.progress
             hidden = ("dwell_s", "claimed")
             finished = {
-                "state": live.state,
+                "state": live.state.value,
                 "outcome": record.outcome.value if record and record.outcome else None,
                 "error": live.error,
                 **{k: v for k, v in live.extra.items() if k not in hidden},
@@ -333,7 +333,7 @@ class BenchRunner:
     def _finalise(self, live: LiveRun, record: RunRecord) -> None:
         """Store the final state of a run whose verdict was left live for the finisher (which
         normally stores it with the certificate); a finisher that failed leaves its error."""
-        if record.state is not RunState.FINISHED:
+        if not record.state.is_final:
             return
         try:
             with self.sessions.begin() as s:
@@ -390,10 +390,7 @@ class BenchRunner:
         return live.id
 
 
-def _final_state(record: RunRecord | None) -> str:
+def _final_state(record: RunRecord | None) -> RunState:
     if record is None or record.outcome is None:
-        return "error"
-    return _FINAL_STATE[record.outcome.value]
-
-
-_FINAL_STATE = {"PASS": "completed", "FAIL": "failed", "ERROR": "error", "ABORTED": "aborted"}
+        return RunState.ERROR
+    return RunState.finished(record.outcome)

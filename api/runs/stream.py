@@ -17,6 +17,7 @@ from collections.abc import AsyncIterator, Awaitable, Callable, Mapping
 from api.runs.events import RunSnapshot
 from api.runs.hub import CLOSED_EVENT, TERMINAL_EVENT
 from api.runs.wakeup import Waiter
+from bench.records import RunState
 
 KEEPALIVE_S = 15.0
 """Silence after which a stream sends a keep-alive comment and checks the client is there (s)."""
@@ -48,7 +49,7 @@ async def run_events(
     """
     loop = asyncio.get_running_loop()
     snap: RunSnapshot | None = first
-    state: str | None = None
+    state: RunState | None = None
     live: dict[str, object] | None = None
     last_window = first.last_window
     n_gaps = 0  # every gap is news: the run page counts the lost samples from them
@@ -60,7 +61,7 @@ async def run_events(
         n_gaps = len(snap.gaps)
         if snap.state != state:
             state = snap.state
-            yield sse("state", {"state": state, "reason": snap.error or ""})
+            yield sse("state", {"state": state.value, "reason": snap.error or ""})
             last_sent = loop.time()
         for window in snap.windows:
             if last_window is None or window["index"] > last_window:

@@ -1,15 +1,13 @@
-"""What the wire models of every resource share: run state names, the serial pattern, the
+"""What the wire models of every resource share: the run state vocabulary, the serial pattern, the
 shortest dwell, and the text rule of stored text (:func:`bench.inputs.check_text`)."""
 
 from __future__ import annotations
 
-from typing import Literal
-
 from bench.inputs import InputError, check_text
+from bench.records import RunState
 
-RunStateName = Literal[
-    "queued", "running", "paused", "suspended", "completed", "failed", "error", "aborted", "interrupted"
-]
+RunStateName = RunState
+"""A run's state on the wire: the values of the one run vocabulary (``bench.records.RunState``)."""
 SERIAL_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"
 MIN_DWELL_S = 0.5
 """Shortest static dwell a run may ask for (s): shorter windows hold too few samples to fit."""

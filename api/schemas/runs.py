@@ -70,7 +70,7 @@ class RunCreated(BaseModel):
     """The id of the run just queued; follow it at ``/api/runs/{id}`` and ``/api/runs/{id}/events``."""
 
     id: str
-    state: RunStateName = "queued"
+    state: RunStateName = RunStateName.QUEUED
     bench: str | None = Field(default=None, description="the bench the run is queued on")
     warnings: list[str] = Field(
         default_factory=list,

@@ -104,7 +104,7 @@ class Sequencer:
         self.dwell = dwell
         self.start_window = start_window
         self.next_window = start_window
-        self.state = RunState.PENDING
+        self.state = RunState.QUEUED
         self.window: WindowCollector | None = None
         self.now_s = recorder.last_t_s or 0.0
         self.held_s = 0.0

@@ -10,12 +10,12 @@ is truncated to the last chunk's ``end_byte`` and the run resumes at window
 from __future__ import annotations
 
 import datetime as dt
-import enum
 from typing import TYPE_CHECKING, Any
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
+from bench.records import ACTIVE_STATES, FINAL_STATES, RESUMABLE_STATES, RunState
 from db.base import Base, IntId
 from db.models._enum import value_enum
 
@@ -23,33 +23,7 @@ if TYPE_CHECKING:
     from db.models.units import Bench, Unit
 
 
-class RunState(enum.Enum):
-    """Life cycle of a run as stored (``bench.records.RunState`` + ``Outcome`` folded in).
-
-    Live, with an owner process: ``queued`` (bench ``pending``), ``running``, ``paused``
-    (operator), ``suspended`` (interlock, temperature). Final: ``completed`` (finished,
-    verdict PASS or none), ``failed`` (finished, verdict FAIL: the unit is outside its
-    limits), ``error`` (the bench broke), ``aborted`` (operator stop).
-    ``interrupted``: the owner process died; the run can be resumed.
-    """
-
-    QUEUED = "queued"
-    RUNNING = "running"
-    PAUSED = "paused"
-    COMPLETED = "completed"
-    FAILED = "failed"
-    ERROR = "error"
-    ABORTED = "aborted"
-    INTERRUPTED = "interrupted"
-    SUSPENDED = "suspended"
-
-
-ACTIVE_STATES = frozenset({RunState.QUEUED, RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED})
-"""States that need a live owner process."""
-RESUMABLE_STATES = frozenset({RunState.INTERRUPTED})
-"""States from which a new process may take a run over."""
-FINAL_STATES = frozenset({RunState.COMPLETED, RunState.FAILED, RunState.ERROR, RunState.ABORTED})
-"""States a run never leaves."""
+__all__ = ["ACTIVE_STATES", "FINAL_STATES", "RESUMABLE_STATES", "Run", "RunState", "RunWindow", "SampleChunk"]
 
 
 class Run(Base):
@@ -57,7 +31,7 @@ class Run(Base):
 
     :param id: the bench's run id (``bench.records.new_run_id``), shared by the recording's
         file name, this row and the REST resource.
-    :param state: :class:`RunState`.
+    :param state: :class:`bench.records.RunState` (the one run vocabulary).
     :param outcome: ``PASS``/``FAIL``/``ERROR``/``ABORTED`` once finished, else ``None``.
     :param progress: fraction done, 0..1.
     :param params: procedure parameters (JSON), including the dwell choice and its reason.

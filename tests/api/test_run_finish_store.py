@@ -13,7 +13,7 @@ from bench.records import Outcome, RunRecord, RunStart, RunState
 from bench.run_observer import NullObserver
 
 START = RunStart("run-x", "SN-X", "static-12", "bench-a", "/tmp/r.csv", 100.0, 3, 12, 100.0)
-RECORD = RunRecord(START, RunState.FINISHED, Outcome.ERROR, (), error="recording: disk full")
+RECORD = RunRecord(START, RunState.ERROR, Outcome.ERROR, (), error="recording: disk full")
 
 
 class Flaky(NullObserver):

@@ -13,12 +13,15 @@ import pytest
 from api.runs.events import RunSnapshot
 from api.runs.stream import run_events
 from api.runs.wakeup import EVENT_POLL_S, FALLBACK_POLL_S, RunWakeups
+from bench.records import RunState
 
 LONG_S = 60.0
 """A poll period no test waits out: a stream that returns before it was woken."""
 
 
-def _snap(state: str = "running", live: dict[str, Any] | None = None, finished: bool = False) -> RunSnapshot:
+def _snap(
+    state: RunState = RunState.RUNNING, live: dict[str, Any] | None = None, finished: bool = False
+) -> RunSnapshot:
     return RunSnapshot(
         state=state,
         error=None,
@@ -130,7 +133,7 @@ def test_a_notified_stream_reads_at_once_instead_of_after_its_poll_period() -> N
         _snap(),
         _snap(live={"progress": 0.5}),
         _snap(live={"progress": 1.0}),
-        _snap("completed", finished=True),
+        _snap(RunState.COMPLETED, finished=True),
     ]
     names, elapsed = _collect(RunWakeups(), snaps, notify_after_s=0.05)
     assert names == ["state", "progress", "progress", "state", "finished"]

@@ -89,7 +89,7 @@ def test_fresh_run_to_pass(db_session_factory):
     obs.on_finish(
         br.RunRecord(
             start,
-            br.RunState.FINISHED,
+            br.RunState.COMPLETED,
             br.Outcome.PASS,
             tuple(_window(i) for i in range(4)),
             ended_at=T0 + dt.timedelta(minutes=7),
@@ -169,7 +169,7 @@ def test_killed_run_is_interrupted_then_resumed_from_its_next_window(db_session_
     _play(second, start.run_id, range(2, 4))
     second.on_finish(
         br.RunRecord(
-            resumed, br.RunState.FINISHED, br.Outcome.FAIL, tuple(_window(i) for i in range(4)), error=None
+            resumed, br.RunState.FAILED, br.Outcome.FAIL, tuple(_window(i) for i in range(4)), error=None
         )
     )
     with db_session_factory() as s:
@@ -184,7 +184,7 @@ def test_finished_run_cannot_start_again(db_session_factory):
     obs = DbRunObserver(db_session_factory)
     start = _start(pid=1)
     obs.on_start(start)
-    obs.on_finish(br.RunRecord(start, br.RunState.FINISHED, br.Outcome.ABORTED, (), error="operator stop"))
+    obs.on_finish(br.RunRecord(start, br.RunState.ABORTED, br.Outcome.ABORTED, (), error="operator stop"))
     with pytest.raises(ValueError, match="aborted"):
         obs.on_start(start)
 
@@ -297,7 +297,9 @@ def test_sample_gaps_are_stored_as_they_happen_and_the_finished_list_replaces_th
     ]
     # A resume cut the rows after 800: the run's final list is the recording's, not the union.
     kept = (_gap(500, 40, 1),)
-    obs.on_finish(br.RunRecord(start, br.RunState.FINISHED, br.Outcome.PASS, (), n_samples=40_000, gaps=kept))
+    obs.on_finish(
+        br.RunRecord(start, br.RunState.COMPLETED, br.Outcome.PASS, (), n_samples=40_000, gaps=kept)
+    )
     with db_session_factory() as s:
         final = s.get(Run, start.run_id).params["sample_gaps"]
     assert final == [dataclasses.asdict(kept[0])]

@@ -15,6 +15,34 @@ from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 
+_PLACEHOLDER_WORDS = frozenset(
+    {
+        "n/a", "na", "none", "null", "unknown", "tbd", "tba", "todo", "fixme", "xxx", "changeme",
+        "change me", "placeholder", "example", "test", "default", "lorem ipsum", "not set",
+        "not configured", "not stated", "unset", "to be set", "to be configured", "set me",
+    }
+)  # fmt: skip
+_PLACEHOLDER_PHRASES = ("not configured", "not set", "to be set", "placeholder", "change me", "changeme")
+
+
+def placeholder_reason(value: str) -> str | None:
+    """Why ``value`` is not a real entry of a certificate's identity, or ``None`` when it is one:
+    empty or blank; a stand-in (``not configured``, ``address not configured``, ``TBD``,
+    ``n/a``, ``changeme``, ``<your lab>``, ...); no letter or digit at all (``-``, ``...``)."""
+    text = " ".join(value.split()).lower()
+    if not text:
+        return "it is empty"
+    if (
+        text.strip(".!") in _PLACEHOLDER_WORDS
+        or any(p in text for p in _PLACEHOLDER_PHRASES)
+        or (text.startswith("<") and text.endswith(">"))
+        or (text.startswith("${") and text.endswith("}"))
+        or not any(c.isalnum() for c in text)
+    ):
+        return f"{value.strip()!r} is a placeholder"
+    return None
+
+
 class Settings(BaseSettings):
     """Where the bench's devices, data and database are.
 
@@ -60,8 +88,9 @@ class Settings(BaseSettings):
         limits file lacks is judged by no limits (its certificate makes no statement of conformity).
     :param upload_workers: worker processes that fit and diagnose uploaded recordings
         (``POST /api/recordings``); 0: a thread of the server (never the event loop).
-        :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c);
-        a real (non-simulated) bench issues no certificate while the name or address is empty.
+    :param lab_name, lab_address, lab_location: certificate header (ISO/IEC 17025 7.8.2.1 b, c:
+        the laboratory and the place of calibration); a real (non-simulated) bench issues no
+        certificate while one is empty or a placeholder (:func:`placeholder_reason`).
     :param authorized_by: who authorises certificates (7.8.2.1 o); required as the lab identity is.
     :param reference_equipment: the bench's reference standards and their calibration status,
         ``CALBENCH_REFERENCE_EQUIPMENT="rotary table T-3 s/n 42, cal. PTB-1234, due 2027-03;
@@ -100,7 +129,7 @@ class Settings(BaseSettings):
     upload_workers: int = Field(1, ge=0, le=32)
     lab_name: str = ""
     lab_address: str = ""
-    lab_location: str = "bench room"
+    lab_location: str = ""
     authorized_by: str = ""
     reference_equipment: Annotated[list[str], NoDecode] = Field(default_factory=list)
     ambient_conditions: str = ""
@@ -134,17 +163,19 @@ class Settings(BaseSettings):
 
     def certificate_gaps(self) -> tuple[list[str], list[str]]:
         """What a certificate of this bench lacks: (``blocking``, ``warnings``), each item naming
-        its environment variable. ``blocking`` items (laboratory name and address, the
-        authorising person) stop a real bench from issuing certificates; a simulated one issues
-        them marked not traceable."""
+        its environment variable. ``blocking`` items (laboratory name and address, the place of
+        calibration, the authorising person: empty or a placeholder, :func:`placeholder_reason`)
+        stop a real bench from issuing certificates; a simulated one issues them marked not
+        traceable, each such item reading "not configured (ENV)"."""
         blocking = [
-            f"{what} is not configured ({env})"
+            f"{what} is not configured ({env}: {why})"
             for what, env, value in (
                 ("the laboratory's name", "CALBENCH_LAB_NAME", self.lab_name),
                 ("the laboratory's address", "CALBENCH_LAB_ADDRESS", self.lab_address),
+                ("the place of calibration", "CALBENCH_LAB_LOCATION", self.lab_location),
                 ("the person who authorises certificates", "CALBENCH_AUTHORIZED_BY", self.authorized_by),
             )
-            if not value.strip()
+            if (why := placeholder_reason(value)) is not None
         ]
         warnings = []
         if not self.reference_equipment:

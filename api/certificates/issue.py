@@ -25,7 +25,7 @@ from api.certificates.certificate import certificate_content
 from api.certificates.conformity import limits_choice
 from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.pdf import render_pdf
-from api.settings import Settings
+from api.settings import Settings, placeholder_reason
 from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording, select_windows
 from bench.calibration.dynamic import is_dynamic
 from bench.diagnosis.result import Diagnosis
@@ -63,7 +63,7 @@ class CertificateRefused(ValueError):
 
 
 def _configured(value: str, env: str) -> str:
-    return value.strip() or f"not configured ({env})"
+    return f"not configured ({env})" if placeholder_reason(value) is not None else value.strip()
 
 
 def laboratory(settings: Settings) -> Laboratory:
@@ -72,7 +72,7 @@ def laboratory(settings: Settings) -> Laboratory:
     return Laboratory(
         _configured(settings.lab_name, "CALBENCH_LAB_NAME"),
         _configured(settings.lab_address, "CALBENCH_LAB_ADDRESS"),
-        settings.lab_location,
+        _configured(settings.lab_location, "CALBENCH_LAB_LOCATION"),
         _configured(settings.authorized_by, "CALBENCH_AUTHORIZED_BY"),
         settings.customer_name,
         settings.customer_address,

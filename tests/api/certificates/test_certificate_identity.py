@@ -10,7 +10,7 @@ import pytest
 from sqlalchemy.orm import Session
 
 from api.certificates.issue import CertificateRefused, issue_for_run
-from api.settings import Settings
+from api.settings import Settings, placeholder_reason
 from bench.fitted_model import ContractError
 from db.engine import make_session_factory
 from db.migrate import open_database
@@ -19,7 +19,12 @@ from db.repo.runs import merge_params
 from tests.api.certificates.test_certificate_conformity import CAL
 from tests.db._factories import make_run
 
-IDENTITY = {"lab_name": "Acme Metrology", "lab_address": "1 Lab Road, Town", "authorized_by": "A. Person"}
+IDENTITY = {
+    "lab_name": "Acme Metrology",
+    "lab_address": "1 Lab Road, Town",
+    "lab_location": "Acme Metrology, room B12",
+    "authorized_by": "A. Person",
+}
 
 
 def _completed_run(s: Session, run_id: str, *, sim: bool) -> None:
@@ -37,9 +42,10 @@ def _sessions(tmp_path: Path):
 def test_settings_name_each_missing_item_with_its_variable() -> None:
     blocking, warnings = Settings().certificate_gaps()
     assert [b.split("(")[-1] for b in blocking] == [
-        "CALBENCH_LAB_NAME)",
-        "CALBENCH_LAB_ADDRESS)",
-        "CALBENCH_AUTHORIZED_BY)",
+        "CALBENCH_LAB_NAME: it is empty)",
+        "CALBENCH_LAB_ADDRESS: it is empty)",
+        "CALBENCH_LAB_LOCATION: it is empty)",  # no default place of calibration
+        "CALBENCH_AUTHORIZED_BY: it is empty)",
     ]
     assert any("CALBENCH_REFERENCE_EQUIPMENT" in w for w in warnings)
     full = Settings(
@@ -84,6 +90,7 @@ def test_a_simulated_bench_issues_and_says_what_is_not_configured(tmp_path: Path
             _completed_run(s, "r-sim", sim=True)
             c = issue_for_run(s, Settings(), "r-sim").content
         assert c["laboratory"]["address"] == "not configured (CALBENCH_LAB_ADDRESS)"
+        assert c["location"] == "not configured (CALBENCH_LAB_LOCATION)"
         assert c["authorized_by"] == "not configured (CALBENCH_AUTHORIZED_BY)"
         assert c["traceability"].startswith("SIMULATED BENCH")
         assert all("simulated" in e for e in c["reference_equipment"])
@@ -194,3 +201,66 @@ def test_a_stored_diagnosis_is_read_into_the_certificate_and_a_renamed_key_is_na
         assert str(info.value) == message
     finally:
         engine.dispose()
+
+
+@pytest.mark.parametrize(
+    "value",
+    ["address not configured", "not configured", "  Not Configured ", "TBD", "n/a", "-", "...", "<lab address>",
+     "${CALBENCH_LAB_ADDRESS}", "CHANGEME", "placeholder address", "to be set"],
+)  # fmt: skip
+def test_placeholders_are_refused_like_empty_values(value: str) -> None:
+    assert placeholder_reason(value) == f"{value.strip()!r} is a placeholder"
+    blocking, _ = Settings(**{**IDENTITY, "lab_address": value}).certificate_gaps()
+    assert blocking == [
+        f"the laboratory's address is not configured (CALBENCH_LAB_ADDRESS: {value.strip()!r} is a placeholder)"
+    ]
+
+
+@pytest.mark.parametrize(
+    "value", ["1 Lab Road, Town", "Testing Lab GmbH", "Unit 7, Sunset Blvd", "N. A. Smith"]
+)
+def test_real_entries_are_not_taken_for_placeholders(value: str) -> None:
+    assert placeholder_reason(value) is None
+    assert Settings(**{**IDENTITY, "lab_name": value, "authorized_by": value}).certificate_gaps()[0] == []
+
+
+def test_the_compose_files_placeholders_issue_no_certificate_and_a_simulated_one_does_not_carry_them(
+    tmp_path: Path,
+) -> None:
+    placeholders = {
+        "lab_name": "calbench calibration laboratory",
+        "lab_address": "address not configured",
+        "authorized_by": "not configured",
+    }
+    settings = Settings(**placeholders)
+    engine, sessions = _sessions(tmp_path)
+    try:
+        with sessions.begin() as s:
+            _completed_run(s, "r-real", sim=False)
+            _completed_run(s, "r-sim", sim=True)
+        with sessions.begin() as s, pytest.raises(CertificateRefused) as info:
+            issue_for_run(s, settings, "r-real")
+        msg = str(info.value)
+        for env in ("CALBENCH_LAB_ADDRESS", "CALBENCH_LAB_LOCATION", "CALBENCH_AUTHORIZED_BY"):
+            assert env in msg
+        assert "CALBENCH_LAB_NAME" not in msg  # a name that is no stand-in is accepted
+        with sessions.begin() as s:
+            c = issue_for_run(s, settings, "r-sim").content
+        assert c["laboratory"]["address"] == "not configured (CALBENCH_LAB_ADDRESS)"
+        assert c["authorized_by"] == "not configured (CALBENCH_AUTHORIZED_BY)"
+    finally:
+        engine.dispose()
+
+
+def test_the_compose_file_leaves_the_laboratory_identity_to_be_set() -> None:
+    compose = (Path(__file__).resolve().parents[3] / "docker-compose.yml").read_text()
+    for env in (
+        "CALBENCH_LAB_NAME",
+        "CALBENCH_LAB_ADDRESS",
+        "CALBENCH_LAB_LOCATION",
+        "CALBENCH_AUTHORIZED_BY",
+    ):
+        line = next(x for x in compose.splitlines() if x.strip().startswith(f"{env}:"))
+        assert f"${{{env}:?" in line, line  # required: compose refuses to start without it
+        assert ":-" not in line, line  # no default stands in for it
+    assert "bench room" not in compose

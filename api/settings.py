@@ -14,7 +14,6 @@ from typing import Annotated, Literal
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
-
 _PLACEHOLDER_WORDS = frozenset(
     {
         "n/a", "na", "none", "null", "unknown", "tbd", "tba", "todo", "fixme", "xxx", "changeme",

@@ -205,14 +205,15 @@ def test_a_stored_diagnosis_is_read_into_the_certificate_and_a_renamed_key_is_na
 
 @pytest.mark.parametrize(
     "value",
-    ["address not configured", "not configured", "  Not Configured ", "TBD", "n/a", "-", "...", "<lab address>",
-     "${CALBENCH_LAB_ADDRESS}", "CHANGEME", "placeholder address", "to be set"],
+    ["address not configured", "not configured", "  Not Configured ", "TBD", "n/a", "-", "...",
+     "<lab address>", "${CALBENCH_LAB_ADDRESS}", "CHANGEME", "placeholder address", "to be set"],
 )  # fmt: skip
 def test_placeholders_are_refused_like_empty_values(value: str) -> None:
     assert placeholder_reason(value) == f"{value.strip()!r} is a placeholder"
     blocking, _ = Settings(**{**IDENTITY, "lab_address": value}).certificate_gaps()
     assert blocking == [
-        f"the laboratory's address is not configured (CALBENCH_LAB_ADDRESS: {value.strip()!r} is a placeholder)"
+        "the laboratory's address is not configured "
+        f"(CALBENCH_LAB_ADDRESS: {value.strip()!r} is a placeholder)"
     ]
 
 

@@ -4,8 +4,14 @@ Allan deviation of a static stretch of a recording, the noise terms fitted to it
 dwell it recommends. The stretch is ``--window-s``, else the longest sidecar segment, else
 the longest static window found in the data, else the whole file (``--whole`` forces it).
 Channels in ``g`` are converted to m/s²; ``V`` and ``count`` stay in their own unit.
-Human output: a τ / σ_A table with intervals, the noise terms and the dwell. ``--json``:
-one object (fields in ``shared/cli-contract.md`` style). Bad input: exit 2, one line.
+Periodic lines (``bench.estimation.spectral_lines``) are found first and reported with
+channel, frequency and amplitude; they are subtracted before the Allan deviation, so a 0.5 Hz
+vibration is not read as white noise nor a 23.4 Hz one as quantisation noise. A warning
+names each channel whose Allan curve the noise model does not describe (χ² above its 95 %
+point: its sigmas then carry the model allowance).
+Human output: a τ / σ_A table with intervals, the lines, the noise terms, the dwell and the
+warnings. ``--json``: one object (fields in ``shared/cli-contract.md`` style). Bad input: exit
+2, one line.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from api.cli import BadInput, decimal_arg
 from bench.estimation.allan import AllanResult, overlapping_allan
 from bench.estimation.dwell import DwellRecommendation, recommend_dwell_s
 from bench.estimation.noise_terms import NoiseTerms, fit_noise_model, slope_method
+from bench.estimation.spectral_lines import SpectralLine, find_lines, remove_lines
 from bench.estimation.windows import detect_static_windows
 from bench.recording import G0_M_S2, Recording, read_recording
 
@@ -136,6 +143,8 @@ def to_json(
     fits: tuple[NoiseTerms, ...],
     slopes: tuple[NoiseTerms, ...],
     dwell: DwellRecommendation,
+    lines: tuple[SpectralLine, ...] = (),
+    warnings: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """The ``--json`` object."""
     by_ch = dict(zip(CHANNELS, range(3), strict=True))
@@ -157,6 +166,17 @@ def to_json(
             "adev_lo": {n: r.adev_lo[:, c] for n, c in by_ch.items()},
             "adev_hi": {n: r.adev_hi[:, c] for n, c in by_ch.items()},
             "edf": {n: r.edf[:, c] for n, c in by_ch.items()},
+            "lines": [
+                {
+                    "channel": CHANNELS[ln.channel],
+                    "frequency_hz": ln.frequency_hz,
+                    "amplitude": ln.amplitude,
+                    "ratio_to_median": ln.ratio_to_median,
+                }
+                for ln in lines
+            ],
+            "lines_removed": bool(lines),
+            "warnings": list(warnings),
             "noise_terms": {
                 "model": NOISE_MODEL,
                 "units": noise_units(unit),
@@ -198,8 +218,10 @@ def format_human(
     r: AllanResult,
     fits: tuple[NoiseTerms, ...],
     dwell: DwellRecommendation,
+    found: tuple[SpectralLine, ...] = (),
+    warnings: tuple[str, ...] = (),
 ) -> str:
-    """Readable report: τ table with intervals, noise terms, dwell."""
+    """Readable report: τ table with intervals, lines, noise terms, dwell, warnings."""
     t = rec.t_s[sl]
     lines = [
         f"{rec.sidecar.unit_serial}: Allan deviation of {r.n_samples} samples at {r.sample_rate_hz:g} Hz, "
@@ -213,6 +235,13 @@ def format_human(
             row += f"  {r.adev[k, c]:<10.4g} [{r.adev_lo[k, c]:.3g}, {r.adev_hi[k, c]:.3g}]".ljust(36)
         lines.append(row)
     units = noise_units(unit)
+    if found:
+        lines += ["", f"periodic lines (subtracted before the Allan deviation; amplitude in {unit}):"]
+        lines += [
+            f"  {CHANNELS[ln.channel]}  {ln.frequency_hz:.6g} Hz  amplitude {ln.amplitude:.3g}"
+            f"  ({ln.ratio_to_median:.0f}× the local median spectrum)"
+            for ln in found
+        ]
     lines += ["", f"noise terms (fit of {NOISE_MODEL}):"]
     names = {
         "white_n": "N white / velocity random walk",
@@ -228,7 +257,20 @@ def format_human(
     lines += ["", dwell.reason, *[f"  {p.reason}" for p in dwell.per_channel]]
     if not dwell.floor_reached:
         lines.append("the noise floor was not reached: record a longer static stretch to find it")
+    if warnings:
+        lines += [""] + [f"WARNING: {text}" for text in warnings]
     return "\n".join(lines)
+
+
+def fit_warnings(fits: tuple[NoiseTerms, ...]) -> tuple[str, ...]:
+    """One sentence per channel whose Allan curve the noise model does not describe."""
+    return tuple(
+        f"{CHANNELS[c]}: the noise model does not describe the Allan curve (chi2/dof {f.chi2_dof:.3g} "
+        f"above its 95 % point); the noise-term sigmas include a {100 * f.model_floor_rel:.2g} % "
+        "allowance on every point and the model's own misfit"
+        for c, f in enumerate(fits)
+        if math.isfinite(f.model_floor_rel) and f.model_floor_rel > 0.0
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -245,11 +287,17 @@ def run(args: argparse.Namespace) -> int:
         raise BadInput(
             f"{path}: the analysed stretch ({source}) has {n} samples; the noise fit needs at least 16"
         )
-    r = overlapping_allan(data[sl], rec.sidecar.sample_rate_hz, args.taus)
+    fs = rec.sidecar.sample_rate_hz
+    stretch = data[sl]
+    lines = find_lines(stretch, fs) if n >= 64 else ()
+    if lines:
+        stretch, lines = remove_lines(stretch, fs, lines)
+    r = overlapping_allan(stretch, fs, args.taus)
     if r.taus_s.size < 6:
         raise BadInput(f"{path}: {n} samples give only {r.taus_s.size} τ values; the noise fit needs 6")
     fits = fit_noise_model(r)
     slopes = slope_method(r)
+    warnings = fit_warnings(fits)
     dwell = recommend_dwell_s(r, fits, CHANNELS)
     if args.plot is not None:
         from api.plots.allan import allan_figure, save_allan_png
@@ -257,7 +305,7 @@ def run(args: argparse.Namespace) -> int:
         title = f"{rec.sidecar.unit_serial}: {path.name}, {source}"
         save_allan_png(allan_figure(r, CHANNELS, unit, fits, dwell, title), args.plot)
     if args.json:
-        print(json.dumps(to_json(rec, unit, source, sl, r, fits, slopes, dwell)))
+        print(json.dumps(to_json(rec, unit, source, sl, r, fits, slopes, dwell, lines, warnings)))
     else:
-        print(format_human(rec, unit, source, sl, r, fits, dwell))
+        print(format_human(rec, unit, source, sl, r, fits, dwell, lines, warnings))
     return 0

@@ -188,6 +188,7 @@ def format_human(r: CalibrationResult) -> str:
         lines.append(f"model: {' + '.join(r.terms)}, chosen by {selection['rule']}: {selection['text']}")
     for term, why in getattr(r, "not_fitted", {}).items():
         lines.append(f"  not fitted {term}: {why}")
+    scalar = r.method == "scalar"
     lines += [
         "",
         "correction: f = K⁻¹ (raw − bias)   (m/s²)",
@@ -197,12 +198,14 @@ def format_human(r: CalibrationResult) -> str:
         + ("" if r.method == "dynamic" else f"   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}")
         + ("   ZERO REDUNDANCY" if r.zero_redundancy else ""),
         "",
-        f"{'window':<10}{'t (s)':>17}{'n':>7}  {'residual x,y,z (' + u + ')':<36}{'z-scores':<20}"
-        f"{'|g| err after':>14}{'before':>11}",
+        f"{'window':<10}{'t (s)':>17}{'n':>7}  {'residual x,y,z (' + u + ')':<36}"
+        f"{'|g| z-score' if scalar else 'z-scores x,y,z':<20}{'|g| err after':>14}{'before':>11}",
     ]
     for w in r.windows:
         res = " ".join(f"{v: .2e}" for v in w.residual)
-        z = " ".join(f"{v: .1f}" for v in w.normalized_residual)
+        # the scalar fit has one residual per window, (|f̂| − g)/σ, stored on all three axes
+        zs = w.normalized_residual[:1] if scalar else w.normalized_residual
+        z = " ".join(f"{v: .1f}" for v in zs)
         before = "" if w.g_error_before_m_s2 is None else f"{w.g_error_before_m_s2: .3e}"
         lines.append(
             f"{w.label:<10}{w.start_s:>8.2f}-{w.end_s:<8.2f}{w.n_samples:>7}  {res:<36}{z:<20}"

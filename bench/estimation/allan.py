@@ -23,7 +23,11 @@ edf comes from the *simple* formulas of SP1065 Table 5 (Howe, Allan & Barnes), w
 the power-law noise type α (S_y(f) ∝ f^α) at each τ. α is identified per τ and channel by
 the lag-1 autocorrelation method of Riley & Greenhall (2004), applied to the non-overlapping
 τ-averages of y (needs ≥ 30 averages; at most 8 runs of 16384 of them, spread over the
-record); at longer τ the last identified α is carried over.
+record); at longer τ the last identified α is carried over. The edf is then made
+non-increasing in τ (running minimum from short τ to long): a longer τ averages the same
+record into fewer independent differences whatever the noise, while a change of identified α
+between neighbouring τ can make the Table 5 value jump up (…185, 580, 36…); the smaller,
+earlier value is kept.
 """
 
 from __future__ import annotations
@@ -59,7 +63,7 @@ class AllanResult:
     :param adev_lo: (m, c) lower end of the confidence interval.
     :param adev_hi: (m, c) upper end of the confidence interval.
     :param n_pairs: (m,) number of overlapping differences N − 2m in the sum.
-    :param edf: (m, c) equivalent degrees of freedom used for the interval.
+    :param edf: (m, c) equivalent degrees of freedom used for the interval, non-increasing in τ.
     :param alpha: (m, c) power-law exponent α identified at each τ (2 … −2).
     :param sample_rate_hz: sampling rate of the input (Hz).
     :param n_samples: number of input samples M.
@@ -279,6 +283,7 @@ def overlapping_allan(
             last_alpha = _lag1_alpha(_block_means(x, int(m)))
         alpha[k] = last_alpha
         edf[k] = edf_simple(n_phase, int(m), last_alpha)
+    edf = np.minimum.accumulate(edf, axis=0)
     lo, hi = chi2_interval(adev, edf, ci_level)
     return AllanResult(
         taus_s=ms / float(sample_rate_hz),

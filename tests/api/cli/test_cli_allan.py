@@ -71,6 +71,8 @@ def test_json_has_the_promised_fields_and_recovers_the_noise(
         "adev_hi",
         "noise_terms",
         "dwell",
+        "lines",
+        "warnings",
     ):
         assert key in out
     assert out["unit"] == "SN-ALLAN" and out["channel_unit"] == "m/s2" and out["sample_rate_hz"] == FS_HZ
@@ -85,6 +87,36 @@ def test_json_has_the_promised_fields_and_recovers_the_noise(
     assert out["dwell"]["dwell_s"] == pytest.approx(math.sqrt(3) * N_TRUE / K_TRUE, rel=0.35)
     assert out["dwell"]["floor_reached"] is True
     assert "dwell" in out["dwell"]["reason"]
+    assert out["lines"] == [] and out["lines_removed"] is False
+
+
+def test_lines_are_reported_and_kept_out_of_the_noise_terms(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 0.5 Hz line on ax and a 23.4 Hz line on ay (sampled at 50 Hz) are found
+    with their amplitudes; N stays within 4 sigma of the truth and no quantisation term appears."""
+    rng = np.random.default_rng(78)
+    n = 180_000
+    a = white(rng, n, FS_HZ, N_TRUE, 3) + rate_random_walk(rng, n, FS_HZ, K_TRUE, 3)
+    t = np.arange(n) / FS_HZ
+    a[:, 0] += 0.05 * np.sin(2 * np.pi * 0.5 * t + 0.3)
+    a[:, 1] += 0.03 * np.sin(2 * np.pi * 23.4 * t)
+    path = _write(tmp_path, a, name="lines")
+    assert main(["allan", str(path), "--json", "--whole"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    found = {(ln["channel"], round(ln["frequency_hz"], 3)): ln["amplitude"] for ln in out["lines"]}
+    assert set(found) == {("ax", 0.5), ("ay", 23.4)}, out["lines"]
+    assert found[("ax", 0.5)] == pytest.approx(0.05, rel=0.1)
+    assert found[("ay", 23.4)] == pytest.approx(0.03, rel=0.1)
+    # left in, the 0.5 Hz line reads as N several times the truth, the 23.4 Hz one as Q at 5.6 sigma
+    for ch in ("ax", "ay", "az"):
+        terms = out["noise_terms"]["channels"][ch]
+        assert terms["white_n"] == pytest.approx(N_TRUE, abs=4 * terms["white_n_sigma"]), ch
+        assert terms["white_n"] == pytest.approx(N_TRUE, rel=0.1), ch
+        assert terms["quantization_q"] <= 4 * terms["quantization_q_sigma"], ch
+    assert main(["allan", str(path), "--whole"]) == 0
+    text = capsys.readouterr().out
+    assert "periodic lines" in text and "ax  0.5 Hz" in text and "ay  23.4 Hz" in text
 
 
 def test_human_table_and_plot(

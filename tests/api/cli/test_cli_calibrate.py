@@ -112,3 +112,34 @@ def test_imucal_annotated_session_prints_per_window_residuals(shared_dir, tmp_pa
     # columns: label, t, n, residual x y z (counts), z-scores x y z, |g| error after
     assert rows["z_p"][2] == "881" and float(rows["z_p"][4]) == pytest.approx(-24.85, abs=0.1)
     assert abs(float(rows["z_p"][-1])) < 1e-3
+
+
+def test_orientation_free_rows_print_one_z_score() -> None:
+    """The scalar fit has one residual per window, (|f̂| − g)/σ: one z column, under a |g| header."""
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from api.cli.calibrate import format_human
+    from bench.calibration import calibrate_recording
+    from tests.bench.calibration.test_calibration import _hand_recording
+    from tests.support.static_sim import G_LOCAL, random_truth
+
+    rng = np.random.default_rng(4)
+    b, K = random_truth(rng)
+    f = Rotation.random(16, random_state=9).inv().apply([0.0, 0.0, G_LOCAL])
+    res = calibrate_recording(
+        _hand_recording(f, b, K, rng), nominal_scale=0.0176, nominal_bias=np.full(3, 1.5)
+    )
+    text = format_human(res).splitlines()
+    header = next(line for line in text if line.startswith("window"))
+    assert "|g| z-score" in header and "x,y,z" not in header.split("(")[-1]
+    rows = [
+        line.split()
+        for line in text
+        if line.split()[:1] and line.split()[0] in {w.label for w in res.windows}
+    ]
+    assert len(rows) == len(res.windows) == 16
+    # label, t-range, n, 3 residuals, 1 z, |g| after, before
+    for row, w in zip(rows, res.windows, strict=True):
+        assert len(row) == 9
+        assert float(row[6]) == pytest.approx(w.normalized_residual[0], abs=0.051)

@@ -141,3 +141,23 @@ def test_octave_taus_stop_where_two_differences_remain() -> None:
 def test_bad_input_is_named(y: np.ndarray, fs: float, taus: object, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         overlapping_allan(y, fs, taus)  # type: ignore[arg-type]
+
+
+def test_edf_never_rises_with_tau() -> None:
+    """White + flicker + random walk, identified α 0 → −1 → 0: Table 5 alone rises, the edf does not."""
+    from tests.support.noise import flicker, rate_random_walk, white
+
+    rng = np.random.default_rng(3)
+    n = 100_000
+    y = (
+        white(rng, n, 100.0, 1e-3, 2)
+        + flicker(rng, n, 100.0, 3e-4, 2)
+        + rate_random_walk(rng, n, 100.0, 3e-5, 2)
+    )
+    r = overlapping_allan(y, 100.0)
+    ms = np.rint(r.taus_s * 100.0).astype(int)
+    own = np.array([edf_simple(n + 1, int(m), r.alpha[k]) for k, m in enumerate(ms)])
+    assert np.any(np.diff(own, axis=0) > 0)  # the case the rule is for
+    assert np.all(np.diff(r.edf, axis=0) <= 0.0)
+    assert np.all(r.edf <= own + 1e-9)  # each value is its own α's, or a shorter τ's smaller one
+    np.testing.assert_allclose(r.edf, np.minimum.accumulate(own, axis=0))

@@ -234,3 +234,16 @@ def test_step_kinds_are_distinct() -> None:
     }
     assert len(kinds) == 4
     assert all(a != b for a, b in itertools.combinations(kinds, 2))
+
+
+def test_static12_antipodes_follow_each_other_and_a_trend_stays_out_of_k() -> None:
+    """A bias ramp over the run changes the least-squares K by ≤ 0.06 of its rise / g (ring order: 1.06)."""
+    f = np.array([gravity_in_sensor(p) for p in static_poses()])
+    for i in range(0, 12, 2):
+        np.testing.assert_allclose(f[i], -f[i + 1], atol=1e-9)
+    design = np.hstack([np.ones((12, 1)), f])
+    ramp = np.linspace(-0.5, 0.5, 12)  # one unit of bias change from the first pose to the last
+    k_leak = np.linalg.lstsq(design, ramp, rcond=None)[0][1:]
+    assert np.linalg.norm(k_leak) < 0.06
+    ring = np.hstack([np.ones((12, 1)), f[np.argsort(-f[:, 2], kind="stable")]])
+    assert np.linalg.norm(np.linalg.lstsq(ring, ramp, rcond=None)[0][1:]) > 0.5

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench.diagnosis.confounding import confounded, discovery, why
-from bench.diagnosis.effects import CATALOGUE, NEEDS_TABLE, Candidate, pose_response
+from bench.diagnosis.effects import EFFECTS, NEEDS_TABLE, Candidate, pose_response
 from bench.diagnosis.effects.base import first_order_design
 from bench.diagnosis.effects.settling import settling_duration, settling_test
 from bench.diagnosis.evidence import StaticEvidence
@@ -113,7 +113,7 @@ def diagnose(
     unobservable: dict[str, str] = {}
     pool: list[Candidate] = []
     pose_ok = settle_ok = False
-    for eff in CATALOGUE:
+    for eff in EFFECTS:
         ok, reason = eff.observable(ev)
         if eff.id in NEEDS_TABLE and not ev.has_table:
             ok, reason = False, NO_TABLE_REASON
@@ -222,7 +222,7 @@ def diagnose(
                 ),
                 lr=float(sum(s.lr for s in state.steps if s.effect == effect)),
                 residual_rms_after=float(np.sqrt(np.mean(seq[k + 1].resid ** 2))),
-                explanation=next(e.explanation for e in CATALOGUE if e.id == effect),
+                explanation=next(e.explanation for e in EFFECTS if e.id == effect),
                 confounded_with=tuple(sorted(conf)),
             )
         )
@@ -257,7 +257,7 @@ def diagnose(
                     delta_bic=float(-lr_s + 2.0 * np.log(st.n_obs)),
                     lr=lr_s,
                     residual_rms_after=float(np.sqrt(np.mean(final.resid**2))),
-                    explanation=next(e.explanation for e in CATALOGUE if e.id == "settling"),
+                    explanation=next(e.explanation for e in EFFECTS if e.id == "settling"),
                 )
             )
     base = _summary(seq[0])

@@ -61,6 +61,19 @@ def summary(
         o, s = np.asarray(params["offset_deg"]), np.asarray(sigma["offset_deg"])
         parts = [f"axis {j + 1} by {o[j]:.4f}° ± {s[j]:.4f}°" for j in range(o.size) if o[j] != 0]
         return "encoder zero off the axis's true zero: " + "; ".join(parts)
+    if effect == "table_axis_error":
+        a, s = np.asarray(params["angles_rad"]), np.asarray(sigma["angles_rad"])
+        parts = [
+            f"axis {j + 1} turned by {'ab'[q]} = {a[j, q] * 1e3:.3f} ± {s[j, q] * 1e3:.3f} mrad "
+            f"({np.rad2deg(a[j, q]):.3f}°)"
+            for j in range(a.shape[0])
+            for q in range(2)
+            if a[j, q] != 0
+        ]
+        return (
+            "the table's axes are not where its geometry says (the bench's physics, not the unit's): "
+            + "; ".join(parts)
+        )
     if effect == "pose_error":
         a = np.asarray(params["angles_rad"])
         mag = np.rad2deg(np.hypot(a[:, 0], a[:, 1]))

@@ -161,7 +161,8 @@ def _run(
         raise ValueError(f"sample_rate_hz must be > 0, got {sample_rate_hz!r}")
     profile = timeline.profile()
     t = np.arange(math.floor(timeline.t_s * sample_rate_hz) + 1) / sample_rate_hz
-    if "pose_error" in physics.truth.effects and physics.windows_s is None:
+    needs_windows = {"pose_error", "encoder_hold"} & set(physics.truth.effects)
+    if needs_windows and physics.windows_s is None:
         physics = physics.with_windows([(a, b) for a, b, _ in windows])
     samples = physics.sample(t, profile)
     return SimulatedRun(

@@ -28,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.signal import lfilter
 
+from drivers.sim import bench_effects as bench_fx
 from drivers.sim.motion import TableKinematics
 from drivers.sim.noise import NoiseSpec, NoiseStream
 from drivers.sim.rigid_body import chain_state, rot_xy, specific_force_at
@@ -116,6 +117,16 @@ class SensorPhysics:
         k = axes.shape[0]
         if "encoder_offset" in self._fx and self._fx["encoder_offset"]["offset_deg"].shape != (k,):
             raise ValueError(f"effect 'encoder_offset': offset_deg needs {k} values, one per table axis")
+        self._true_axes = (
+            bench_fx.true_axes(axes, self._fx["table_axis_error"]["angles_rad"])
+            if "table_axis_error" in self._fx
+            else axes
+        )
+        for eff in ("angle_harmonic", "hysteresis"):
+            if eff in self._fx:
+                bench_fx.axis_index(self._fx[eff], k, eff)
+        self._last_dir = 0.0  # hysteresis: direction of the axis's last move, across blocks
+        self._lag_state: tuple[float, float] | None = None  # thermal_lag: (t, T_e) of the last sample
         self._window_ends: FloatArray | None = None
         if windows_s is not None:
             self._window_ends = np.array([end for _, end in windows_s], dtype=float)
@@ -159,6 +170,18 @@ class SensorPhysics:
         accels = kin.accels_rad_s2.copy()
         if "encoder_offset" in self._fx:
             angles += np.deg2rad(self._fx["encoder_offset"]["offset_deg"])
+        if "encoder_hold" in self._fx:
+            if self._window_ends is None:
+                raise ValueError(
+                    "effect 'encoder_hold' needs the run's static windows (SensorPhysics windows_s)"
+                )
+            u = bench_fx.hold_offsets_rad(
+                float(self._fx["encoder_hold"]["step_deg"]),
+                self._window_ends.size,
+                angles.shape[1],
+                self._args[0],
+            )
+            angles += u[np.clip(np.searchsorted(self._window_ends, kin.t_s, side="left"), 0, u.shape[0] - 1)]
         if "settling" in self._fx:
             if kin.since_rest_s is None:
                 raise ValueError(
@@ -192,7 +215,7 @@ class SensorPhysics:
         Axis i is evaluated at its proof mass r_m + rho_m[i] (innermost table frame).
         """
         angles, rates, accels = self.true_table_state(kin)
-        r_inner, omega, omega_dot = chain_state(self.axis_vectors, angles, rates, accels)
+        r_inner, omega, omega_dot = chain_state(self._true_axes, angles, rates, accels)
         g = self.gravity_base(kin.t_s)
         r = self._fx["lever_arm"]["r_m"] if "lever_arm" in self._fx else np.zeros(3)
         if "proof_mass_offsets" not in self._fx:
@@ -227,6 +250,22 @@ class SensorPhysics:
         if "bias_drift" in fx:
             extra += fx["bias_drift"]["drift_m_s2_per_s"] * np.asarray(t_s)[:, None]
         return self.truth.bias + f @ K.T + extra * np.diag(K)
+
+    def _bench_terms(
+        self, t: FloatArray, kin_enc: TableKinematics, kin_sensor: TableKinematics
+    ) -> FloatArray:
+        """(n, 3) input-referred bench terms (``bench_effects``): disturbances locked to an axis
+        angle or to time, and the bias that remembers the direction of the last move (m/s²)."""
+        fx = self._fx
+        out = np.zeros((t.shape[0], 3))
+        if "angle_harmonic" in fx or "periodic_line" in fx:
+            out += bench_fx.disturbance(fx, t, self.true_table_state(kin_sensor)[0])
+        if "hysteresis" in fx and t.shape[0]:
+            j = bench_fx.axis_index(fx["hysteresis"], kin_enc.rates_rad_s.shape[1], "hysteresis")
+            s = bench_fx.last_direction(kin_enc.rates_rad_s[:, j], self._last_dir)
+            self._last_dir = float(s[-1])
+            out += s[:, None] * fx["hysteresis"]["bias_m_s2"]
+        return out
 
     def _lowpass(self, t: FloatArray, x: FloatArray) -> FloatArray:
         """First-order low-pass, exact for input linear between samples, continued across blocks."""
@@ -273,10 +312,14 @@ class SensorPhysics:
             raise ValueError("SensorPhysics.sample: time stamps must be finite and strictly increasing")
         if self._lp_state is not None and t.shape[0] and t[0] <= self._lp_state[0]:
             raise ValueError(f"SensorPhysics.sample: block starts at {t[0]} s, not after the last block")
-        delay = float(self._fx["time_skew"]["delay_s"]) if "time_skew" in self._fx else 0.0
+        delay: FloatArray = np.full(
+            t.shape, float(self._fx["time_skew"]["delay_s"]) if "time_skew" in self._fx else 0.0
+        )
+        if "clock_drift" in self._fx:
+            delay = delay + float(self._fx["clock_drift"]["delay_s_per_s"]) * t
         kin_enc = kinematics(t)
-        kin_sensor = kinematics(t - delay) if delay else kin_enc
-        f = self.specific_force(kin_sensor)
+        kin_sensor = kinematics(t - delay) if np.any(delay) else kin_enc
+        f = self.specific_force(kin_sensor) + self._bench_terms(t, kin_enc, kin_sensor)
         if "sensor_lowpass" in self._fx:
             f = self._lowpass(t, f)
         elif t.shape[0]:
@@ -291,13 +334,21 @@ class SensorPhysics:
             temp_read = self.temperature.reading_c(t, self._temp_rng)
         else:
             temp_true = temp_read = np.asarray(temp_c, dtype=float).reshape(-1)
+        if "thermal_lag" in self._fx and t.shape[0]:
+            temp_true = bench_fx.lagged(
+                t, temp_true, float(self._fx["thermal_lag"]["tau_s"]), self._lag_state
+            )
+            self._lag_state = (float(t[-1]), float(temp_true[-1]))
         raw = self.convert(f, t, temp_true)
         lsb = self.truth.noise.quantization_lsb
         if lsb > 0:
             raw = np.round(raw / lsb) * lsb
         enc = wrap_deg(np.rad2deg(kin_enc.angles_rad))
-        if self.encoder_resolution_deg > 0:
-            enc = wrap_deg(np.round(enc / self.encoder_resolution_deg) * self.encoder_resolution_deg)
+        step = self.encoder_resolution_deg
+        if "encoder_hold" in self._fx:
+            step = float(self._fx["encoder_hold"]["step_deg"])
+        if step > 0:
+            enc = wrap_deg(np.round(enc / step) * step)
         return SensorSamples(raw=raw, encoder_deg=enc, temp_c=temp_read, bias_wander_m_s2=wander)
 
 

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from drivers.sim.bench_effects import BENCH_EFFECT_PARAMETERS
 from drivers.sim.noise import NoiseSpec
 
 FloatArray = npt.NDArray[np.float64]
@@ -49,8 +50,10 @@ EFFECT_PARAMETERS: dict[str, dict[str, tuple[int, ...]]] = {
     "encoder_offset": {"offset_deg": (-1,)},
     "sensor_lowpass": {"tau_s": ()},
     "settling": {"duration_s": ()},
+    **BENCH_EFFECT_PARAMETERS,
 }
-"""Catalogue of ``cli-contract.md``: effect id -> parameter name -> shape (−1: any length)."""
+"""Catalogue of ``cli-contract.md`` and the bench physics beyond it (``bench_effects``):
+effect id -> parameter name -> shape (−1: any length)."""
 
 _NOMINAL = {
     # channel unit: (nominal scale per m/s², nominal zero-g output, converter step)
@@ -89,7 +92,12 @@ def check_effects(effects: dict[str, dict[str, Any]]) -> dict[str, dict[str, Flo
             if not np.all(np.isfinite(value)):
                 raise ValueError(f"effect {effect!r}: {name} must be finite, got {params[name]!r}")
             out[effect][name] = value
-    for effect, name in (("sensor_lowpass", "tau_s"), ("settling", "duration_s")):
+    for effect, name in (
+        ("sensor_lowpass", "tau_s"),
+        ("settling", "duration_s"),
+        ("thermal_lag", "tau_s"),
+        ("encoder_hold", "step_deg"),
+    ):
         if effect in out and out[effect][name] <= 0:
             raise ValueError(f"effect {effect!r}: {name} must be > 0, got {float(out[effect][name])}")
     return out

@@ -7,6 +7,7 @@ from bench.diagnosis.effects.geometry import ENCODER_OFFSET, POSE_ERROR, TILT, p
 from bench.diagnosis.effects.motion import LEVER_ARM, LOWPASS, PROOF_MASS, TIME_SKEW
 from bench.diagnosis.effects.sensor import ASYMMETRY, CROSS_COUPLING, DRIFT, NONLINEARITY, TEMPERATURE
 from bench.diagnosis.effects.settling import SETTLING
+from bench.diagnosis.effects.table_axes import TABLE_AXIS_ERROR
 
 CATALOGUE: tuple[Effect, ...] = (
     LEVER_ARM,
@@ -25,7 +26,14 @@ CATALOGUE: tuple[Effect, ...] = (
 )
 """Every effect of the contract's table, in its order."""
 
-BY_ID = {e.id: e for e in CATALOGUE}
+BENCH_EFFECTS: tuple[Effect, ...] = (TABLE_AXIS_ERROR,)
+"""Effects of the bench beyond the contract's first table (docs/diagnose.md, "Bench physics
+beyond the catalogue"), searched beside it."""
+
+EFFECTS: tuple[Effect, ...] = (*CATALOGUE, *BENCH_EFFECTS)
+"""Every effect a static diagnosis tries."""
+
+BY_ID = {e.id: e for e in EFFECTS}
 
 NEEDS_TABLE = frozenset(
     {
@@ -36,14 +44,17 @@ NEEDS_TABLE = frozenset(
         "encoder_offset",
         "sensor_lowpass",
         "settling",
+        "table_axis_error",
     }
 )
 """Effects whose physics is the table's (its motion, its encoders, its base, its ringing after a
 move): never a candidate on a recording without a table, whatever the data look like."""
 
 __all__ = [
+    "BENCH_EFFECTS",
     "BY_ID",
     "CATALOGUE",
+    "EFFECTS",
     "NEEDS_TABLE",
     "Candidate",
     "Effect",

@@ -37,6 +37,11 @@ MODULE_ID = 0x6017
 MAX_READ_REGS = 125
 """Modbus application limit for one read (FC03: 125 registers)."""
 
+LINK_MAX_SAMPLES_S = 20_000.0
+"""What one reader of this map over Modbus TCP carries at most (samples/s): one FC03 read of
+:data:`MAX_READ_REGS` registers takes ~0.4 ms on loopback (≈2600 round trips/s), measured in
+docs/daq-registers.md ("Measured throughput"); a stream faster than this overflows the ring."""
+
 N_CHANNELS = 8
 ACCEL_CHANNELS = (0, 1, 2)
 CHANNEL_NAMES = ("ax", "ay", "az")

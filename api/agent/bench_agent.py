@@ -114,12 +114,20 @@ class BenchAgent:
     :param settings: the bench (``bench_name``, devices or ``sim``) and its database.
     :param clock: wall clock of the runner (ages simulated units; tests move it).
     :param poll_s: interval of the queue and control polls (s).
+    :param lease_token: the fencing token of the bench's lease this process holds
+        (:class:`api.agent.bench_lock.BenchLock`): runs are claimed only while it is the
+        bench's; ``None``: no lease (an agent embedded in a test's app).
     """
 
     def __init__(
-        self, settings: Settings, *, clock: Callable[[], dt.datetime] = utc_now, poll_s: float = POLL_S
+        self,
+        settings: Settings,
+        *,
+        clock: Callable[[], dt.datetime] = utc_now,
+        poll_s: float = POLL_S,
+        lease_token: int | None = None,
     ) -> None:
-        self.settings, self.poll_s = settings, poll_s
+        self.settings, self.poll_s, self.lease_token = settings, poll_s, lease_token
         self.engine = open_database(settings.effective_database_url)
         self.sessions = make_session_factory(self.engine)
         self.read_sessions = make_session_factory(self.engine, read_only=True)
@@ -173,7 +181,9 @@ class BenchAgent:
             return None
         self.end_orphans()
         with self.sessions.begin() as s:
-            claimed = claim_next_run(s, self.bench_id, owner_pid=self.pid, owner_host=self.host)
+            claimed = claim_next_run(
+                s, self.bench_id, owner_pid=self.pid, owner_host=self.host, lease_token=self.lease_token
+            )
         if claimed is None:
             return None
         self._start(claimed)

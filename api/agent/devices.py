@@ -12,6 +12,7 @@ import numpy as np
 from api.settings import Settings
 from bench.bench_config import SIM_BENCH_FILE, BenchConfig, apply_to_daq, load_bench_config
 from bench.recording.model import Sidecar
+from drivers.daq_registers import LINK_MAX_SAMPLES_S
 from drivers.factory import BenchDevices, open_bench
 from drivers.sim.physics import SensorTruth
 
@@ -20,6 +21,24 @@ def sim_url(settings: Settings, speed: float | None, seed: int, unit: str = "V")
     """The ``sim://`` URL of a simulated bench with this speed, seed and channel unit."""
     speed = speed or settings.sim_speed
     return f"sim://?speed={speed:g}&rate={settings.sim_sample_rate_hz:g}&seed={seed}&unit={unit}"
+
+
+def check_sim_link(speed: float, sample_rate_hz: float) -> None:
+    """A simulated bench at ``speed`` with its DAQ at ``sample_rate_hz`` asks ``speed ·
+    sample_rate_hz`` samples per wall second of the DAQ's Modbus link, which carries at most
+    :data:`~drivers.daq_registers.LINK_MAX_SAMPLES_S`; beyond it every run loses samples
+    until it ends in error, so it is refused.
+
+    :raises ValueError: the demand exceeds the link (the limit and the largest speed named).
+    """
+    demand = speed * sample_rate_hz
+    if demand > LINK_MAX_SAMPLES_S:
+        raise ValueError(
+            f"simulation speed {speed:g} with the simulated DAQ at {sample_rate_hz:g} Hz asks "
+            f"{demand:,.0f} samples/s of the DAQ's Modbus link, which carries at most "
+            f"{LINK_MAX_SAMPLES_S:,.0f}: use a speed of at most {LINK_MAX_SAMPLES_S / sample_rate_hz:g} "
+            "(or a lower CALBENCH_SIM_SAMPLE_RATE_HZ)"
+        )
 
 
 def bench_config_for(settings: Settings, sim: bool) -> BenchConfig:
@@ -64,6 +83,7 @@ def open_devices(
     config = config or bench_config_for(settings, sim)
     n_axes = len(config.axes)
     if sim or config.simulated:
+        check_sim_link(sim_speed or settings.sim_speed, settings.sim_sample_rate_hz)
         url = sim_url(settings, sim_speed, seed, config.channel_unit)
         if not sim and settings.bench_file is None and settings.table_url.lower().startswith("sim:"):
             url = settings.table_url  # a sim:// table URL with its own parameters

@@ -1,11 +1,15 @@
 """``calbench serve`` keeps its bench's agent running as a child process.
 
 :class:`AgentSupervisor` starts ``calbench agent`` (same interpreter, same environment, the
-service's ``--sim``/``--sim-speed``) and starts it again if it dies. If an agent of this
-bench is already running — e.g. the one a previous ``calbench serve`` started before it was
-killed, still recording its run — none is started until that one is gone: the run goes on
-while the API restarts. On :meth:`stop` the agent gets SIGTERM (it leaves its run
-``interrupted``, table safe, recording closed) and up to ``stop_timeout_s`` to end.
+service's ``--sim``/``--sim-speed``) and starts it again if it dies. If another process
+drives the bench (its lock is held, :mod:`api.agent.bench_lock`) — the agent of another live
+``calbench serve``, ``calbench run``, or the agent a previous ``calbench serve`` started
+before it was killed, still recording its run — none is started until that one is gone: the
+run goes on while the API restarts. On :meth:`stop` the agent this supervisor started gets
+SIGTERM (it leaves its run ``interrupted``, table safe, recording closed) and up to
+``stop_timeout_s`` to end. Of the processes it did not start it stops only an agent whose own
+``calbench serve`` is gone (an orphan it adopted); it never touches one a live service or an
+operator runs.
 """
 
 from __future__ import annotations
@@ -19,8 +23,9 @@ import threading
 import time
 from pathlib import Path
 
-from api.cli.agent import ALREADY_RUNNING, lock_holder, lock_path
+from api.agent.bench_lock import HELD_EXIT, SUPERVISOR_ENV, lock_path, read_holder
 from api.settings import Settings
+from db.process import process_start_ticks
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +68,7 @@ class AgentSupervisor:
                 "CALBENCH_BENCH_NAME": self.settings.bench_name,
                 "CALBENCH_DATA_DIR": str(self.settings.data_dir),
                 "CALBENCH_DATABASE_URL": self.settings.effective_database_url,
+                SUPERVISOR_ENV: f"{os.getpid()}:{process_start_ticks(os.getpid()) or ''}",
             }
             if self.settings.bench_file is not None:  # the bench file the service was given
                 env["CALBENCH_BENCH_FILE"] = str(self.settings.bench_file)
@@ -80,8 +86,8 @@ class AgentSupervisor:
 
     def _loop(self) -> None:
         while not self._stop.is_set():
-            holder = lock_holder(lock_path(self.settings))
-            if holder is not None:  # another agent has the bench (a previous service's): let it be
+            holder = read_holder(lock_path(self.settings))
+            if holder is not None:  # another process drives the bench: let it be
                 self._stop.wait(self.restart_s)
                 continue
             self.proc = self._spawn()
@@ -92,7 +98,7 @@ class AgentSupervisor:
             if self._stop.is_set():
                 return
             code = self.proc.returncode
-            if code != ALREADY_RUNNING:
+            if code != HELD_EXIT:
                 log.error("bench agent %s ended with %s; starting it again", self.proc.pid, code)
             self._stop.wait(self.restart_s)
 
@@ -103,7 +109,7 @@ class AgentSupervisor:
 
     def stop(self) -> None:
         """Stop the bench's agent: the one this supervisor started (SIGTERM, then SIGKILL after
-        the timeout), or the one it found running (a previous service's, adopted: SIGTERM)."""
+        the timeout), or an orphan it found running (a killed service's, adopted: SIGTERM)."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
@@ -120,14 +126,18 @@ class AgentSupervisor:
             proc.wait(10)
 
     def _stop_adopted(self) -> None:
+        """SIGTERM to an agent left by a killed ``calbench serve`` (orphaned), and wait for it; any
+        other holder of the bench (a live service's agent, ``calbench run``) is left alone."""
         path = lock_path(self.settings)
-        holder = lock_holder(path)
-        if holder is None or holder <= 0 or holder == os.getpid():
+        holder = read_holder(path)
+        if holder is None or holder.pid <= 0 or holder.pid == os.getpid():
+            return
+        if holder.kind != "calbench agent" or not holder.orphaned():
             return
         try:
-            os.kill(holder, signal.SIGTERM)
+            os.kill(holder.pid, signal.SIGTERM)
         except ProcessLookupError:
             return
         deadline = time.monotonic() + self.stop_timeout_s
-        while lock_holder(path) is not None and time.monotonic() < deadline:
+        while read_holder(path) is not None and time.monotonic() < deadline:
             time.sleep(0.2)

@@ -4,29 +4,29 @@ sequencer, recording) and executes the runs queued for it in the database.
 Settings come from ``CALBENCH_*`` like the service's (``CALBENCH_BENCH_NAME`` names the
 bench, ``CALBENCH_DATABASE_URL`` the shared database, ``CALBENCH_TABLE_URL`` /
 ``CALBENCH_DAQ_URL`` the devices). One agent per bench: a second one on the same host and
-data directory exits with code 3 and names the first one's pid (the lock file
-``<data_dir>/agent-<bench>.lock``). SIGTERM or SIGINT stop it with the run it holds
+data directory, or sharing its database from another host, exits with code 3 and one line
+naming the process that drives the bench — an agent, or ``calbench run`` — (the OS lock
+``<data_dir>/bench-<bench>.lock`` and the database lease, :mod:`api.agent.bench_lock`). If
+the lease is taken from it (it stalled past the lease), it stops, leaving its run
+``interrupted``. SIGTERM or SIGINT stop it with the run it holds
 ``interrupted`` (table safe, recording closed, resumable).
 """
 
 from __future__ import annotations
 
 import argparse
-import fcntl
 import logging
 import os
-import re
 import signal
 import sys
 import threading
-from pathlib import Path
-from typing import IO
 
+from api.agent.bench_lock import HELD_EXIT, BenchHeld, BenchLock
 from api.cli import BadInput
 from api.settings import Settings
 
-ALREADY_RUNNING = 3
-"""Exit code when another agent holds the bench."""
+ALREADY_RUNNING = HELD_EXIT
+"""Exit code when another process (an agent, ``calbench run``) holds the bench."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def agent_settings(args: argparse.Namespace) -> Settings:
     """Settings from the environment and the flags.
 
-    :raises BadInput: a bad speed or environment value.
+    :raises BadInput: a bad speed or environment value, or a simulation the DAQ link cannot carry.
     """
     try:
         settings = Settings()
@@ -54,45 +54,15 @@ def agent_settings(args: argparse.Namespace) -> Settings:
         if not args.sim_speed > 0:
             raise BadInput(f"--sim-speed {args.sim_speed}: expected a positive number")
         update["sim_speed"] = args.sim_speed
-    return settings.model_copy(update=update)
+    final = settings.model_copy(update=update)
+    if final.sim:
+        from api.agent.devices import check_sim_link
 
-
-def lock_path(settings: Settings) -> Path:
-    """The bench's agent lock file: ``<data_dir>/agent-<bench>.lock`` (it holds the agent's pid)."""
-    safe = re.sub(r"[^A-Za-z0-9._-]", "_", settings.bench_name)[:100]
-    return settings.data_dir / f"agent-{safe}.lock"
-
-
-def take_lock(path: Path, *, write_pid: bool = True) -> IO[str] | None:
-    """Hold the lock file (it stays held while the returned file is open) and write this
-    process's pid into it; ``None`` when another process holds it."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle = path.open("a+")
-    try:
-        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        handle.close()
-        return None
-    if write_pid:
-        handle.seek(0)
-        handle.truncate()
-        handle.write(f"{os.getpid()}\n")
-        handle.flush()
-    return handle
-
-
-def lock_holder(path: Path) -> int | None:
-    """The pid written in the lock file, if the lock is held; ``None`` when it is free (the
-    check holds the lock for an instant: an agent starting just then exits with
-    :data:`ALREADY_RUNNING`, and its supervisor starts it again)."""
-    handle = take_lock(path, write_pid=False)
-    if handle is not None:
-        handle.close()
-        return None
-    try:
-        return int(path.read_text().split()[0])
-    except (OSError, ValueError, IndexError):
-        return -1
+        try:
+            check_sim_link(final.sim_speed, final.sim_sample_rate_hz)
+        except ValueError as exc:
+            raise BadInput(str(exc)) from None
+    return final
 
 
 def run(args: argparse.Namespace) -> int:
@@ -100,23 +70,21 @@ def run(args: argparse.Namespace) -> int:
     from api.agent.bench_agent import BenchAgent
 
     settings = agent_settings(args)
-    logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(levelname)s %(message)s")
-    lock = take_lock(lock_path(settings))
-    if lock is None:
-        print(
-            f"calbench agent: bench {settings.bench_name!r} already has an agent "
-            f"(pid {lock_holder(lock_path(settings))}, lock {lock_path(settings)})",
-            file=sys.stderr,
-        )
-        return ALREADY_RUNNING
     stop = threading.Event()
+    lock = BenchLock(settings, "calbench agent", on_lost=lambda why: stop.set())
+    try:
+        lock.acquire()
+    except BenchHeld as exc:
+        print(f"calbench agent: {exc}", file=sys.stderr)
+        return ALREADY_RUNNING
+    logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(levelname)s %(message)s")
 
     def handler(signum: int, frame: object) -> None:
         stop.set()
 
     previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGTERM, signal.SIGINT)}
     try:
-        agent = BenchAgent(settings)
+        agent = BenchAgent(settings, lease_token=lock.token)
         print(
             f"calbench agent: bench {settings.bench_name!r}, pid {os.getpid()}, database "
             f"{settings.effective_database_url}, {'simulated bench' if settings.sim else settings.table_url}",
@@ -130,5 +98,5 @@ def run(args: argparse.Namespace) -> int:
     finally:
         for sig, prev in previous.items():
             signal.signal(sig, prev)
-        lock.close()
+        lock.release()
     return 0

@@ -8,8 +8,16 @@ from __future__ import annotations
 
 import argparse
 
+from api.agent.bench_lock import HELD_EXIT
 from api.agent.session import resume_run
-from api.cli.run import ProgressBar, add_device_arguments, install_abort_handler, report, settings_for
+from api.cli.run import (
+    ProgressBar,
+    add_device_arguments,
+    holding_bench,
+    install_abort_handler,
+    report,
+    settings_for,
+)
 from bench.sequencer.control import RunControl
 
 
@@ -20,15 +28,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Execute ``calbench resume``."""
-    control = RunControl()
-    install_abort_handler(control)
-    record = resume_run(
-        settings_for(args),
-        args.run_id,
-        sim=args.sim,
-        sim_speed=args.sim_speed,
-        observers=[] if args.json else [ProgressBar()],
-        control=control,
-    )
-    return report(record, args.json)
+    """Execute ``calbench resume`` (exit code 3, one line, when another process drives the bench)."""
+    settings = settings_for(args)
+    lock = holding_bench(settings, "calbench resume")
+    if lock is None:
+        return HELD_EXIT
+    try:
+        control = RunControl()
+        install_abort_handler(control)
+        record = resume_run(
+            settings,
+            args.run_id,
+            sim=args.sim,
+            sim_speed=args.sim_speed,
+            observers=[] if args.json else [ProgressBar()],
+            control=control,
+        )
+        return report(record, args.json)
+    finally:
+        lock.release()

@@ -3,7 +3,8 @@
 Shows a progress bar on stderr while the run records, then prints the fit and the |g|
 table (or, with ``--json``, one object: run id, outcome, error, calibration). Ctrl-C
 aborts the run cleanly (table to its safe state, recording kept). Exit code 0 for PASS,
-1 for FAIL, ERROR or ABORTED, 2 for bad input.
+1 for FAIL, ERROR or ABORTED, 2 for bad input, 3 when another process drives the bench (an
+agent, another ``calbench run``: one line names it; :mod:`api.agent.bench_lock`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, TextIO
 
+from api.agent.bench_lock import HELD_EXIT, BenchHeld, BenchLock
 from api.agent.session import start_run
 from api.cli import decimal_arg
 from api.settings import Settings
@@ -161,12 +163,33 @@ def install_abort_handler(control: RunControl) -> None:
     signal.signal(signal.SIGTERM, handler)
 
 
+def holding_bench(settings: Settings, command: str) -> BenchLock | None:
+    """This process's hold on the bench (:class:`~api.agent.bench_lock.BenchLock`), or ``None``
+    after printing one line naming the process that drives it."""
+    try:
+        return BenchLock(settings, command).acquire()
+    except BenchHeld as exc:
+        print(f"{command}: {exc}", file=sys.stderr)
+        return None
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``calbench run``."""
+    settings = settings_for(args)
+    lock = holding_bench(settings, "calbench run")
+    if lock is None:
+        return HELD_EXIT
+    try:
+        return _run(args, settings)
+    finally:
+        lock.release()
+
+
+def _run(args: argparse.Namespace, settings: Settings) -> int:
     control = RunControl()
     install_abort_handler(control)
     record = start_run(
-        settings_for(args),
+        settings,
         args.procedure,
         args.unit,
         sim=args.sim,

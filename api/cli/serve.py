@@ -21,8 +21,10 @@ dashboard of a development bench opens without a token.
 from __future__ import annotations
 
 import argparse
+import errno
 import json
 import os
+import socket
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -103,7 +105,7 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         if not args.sim_speed > 0:
             raise BadInput(f"--sim-speed {args.sim_speed}: expected a positive number")
         update["sim_speed"] = args.sim_speed
-    from api.agent.devices import bench_config_for
+    from api.agent.devices import bench_config_for, check_sim_link
 
     if getattr(args, "bench_file", None) is not None:
         update["bench_file"] = Path(args.bench_file)
@@ -118,6 +120,8 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
     try:  # device URLs and database file first, then the bench file (naming the file and the key)
         check_configuration(final)
         bench_config_for(final, bool(args.sim or settings.sim))
+        if final.sim:
+            check_sim_link(final.sim_speed, final.sim_sample_rate_hz)
     except ValueError as exc:
         raise BadInput(str(exc)) from None
     return final, generated
@@ -144,13 +148,51 @@ def worker_app() -> FastAPI:
     return create_app(settings, extra_tokens=extra_tokens)
 
 
+def listen_socket(host: str, port: int) -> socket.socket:
+    """The service's listening socket, bound before anything else starts.
+
+    :raises BadInput: the address cannot be bound (in use: another service), one line.
+    """
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except OSError as exc:
+        raise BadInput(f"--host {host}: {exc.strerror or exc}") from None
+    family, _type, _proto, _name, address = infos[0]
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind(address)
+    except OSError as exc:
+        sock.close()
+        why = "address already in use (another calbench serve?)" if exc.errno == errno.EADDRINUSE else exc
+        raise BadInput(f"cannot listen on {host}:{port}: {why}") from None
+    sock.set_inheritable(True)
+    return sock
+
+
 def run(args: argparse.Namespace) -> int:
-    """Execute ``calbench serve``."""
+    """Execute ``calbench serve``.
+
+    The port is bound first: a service that cannot listen exits at once (code 2, one line)
+    before it starts or touches any agent. With ``--agent embedded`` this process drives the
+    table and holds the bench's lock (:mod:`api.agent.bench_lock`); a bench already driven is
+    refused (code 3, one line naming the holder)."""
     import uvicorn
 
+    from api.agent.bench_lock import HELD_EXIT, BenchHeld, BenchLock
     from api.main import create_app
 
     settings, generated = serve_settings(args)
+    sock = listen_socket(args.host, args.port)
+    lock = None
+    if args.agent == "embedded":
+        lock = BenchLock(settings, "calbench serve")
+        try:
+            lock.acquire()
+        except BenchHeld as exc:
+            sock.close()
+            print(f"calbench serve: {exc}", file=sys.stderr)
+            return HELD_EXIT
     for secret, role in generated.items():
         print(f"calbench serve: no CALBENCH_TOKENS; {role} token of this process: {secret}", file=sys.stderr)
     if settings.public_read:
@@ -170,6 +212,7 @@ def run(args: argparse.Namespace) -> int:
         supervisor.start()
     try:
         if workers > 1:
+            sock.close()  # uvicorn's worker manager binds its own
             config = {"settings": settings.model_dump(mode="json"), "extra_tokens": generated}
             os.environ[SERVE_CONFIG_ENV] = json.dumps(config)
             uvicorn.run(
@@ -183,8 +226,12 @@ def run(args: argparse.Namespace) -> int:
         else:
             stop_agent = supervisor.stop if supervisor is not None else None
             app = create_app(settings, extra_tokens=generated, on_shutdown=stop_agent)
-            uvicorn.run(app, host=args.host, port=args.port, log_level=args.log_level)
+            server_config = uvicorn.Config(app, host=args.host, port=args.port, log_level=args.log_level)
+            uvicorn.Server(server_config).run(sockets=[sock])
     finally:  # also when the app never started; stopping twice is harmless
         if supervisor is not None:
             supervisor.stop()
+        sock.close()
+        if lock is not None:
+            lock.release()
     return 0

@@ -79,6 +79,8 @@ def agent_alive(
         raise LookupError(f"bench {bench_id} not found")
     bench.agent_seen_at, bench.agent_pid, bench.agent_host = now or utc_now(), pid, host
     info = {"procedures": list(procedures), "bench_file": bench_file, START_KEY: start_ticks}
+    if bench.info and "lease" in bench.info:  # the bench's lease (db.repo.lease) is not the agent's report
+        info["lease"] = bench.info["lease"]
     if bench.info != info:
         bench.info = info
     session.flush()

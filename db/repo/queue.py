@@ -30,6 +30,7 @@ from sqlalchemy.orm import Session
 
 from db.models import Bench, Run, RunState, SampleChunk, Unit
 from db.notify import notify_run
+from db.repo.lease import lease_is_current
 from db.repo.recovery import ResumePoint, resume_point
 from db.types import utc_now
 
@@ -108,10 +109,17 @@ def queued_runs(session: Session, bench_id: int) -> list[Run]:
 
 
 def claim_next_run(
-    session: Session, bench_id: int, *, owner_pid: int, owner_host: str, now: dt.datetime | None = None
+    session: Session,
+    bench_id: int,
+    *,
+    owner_pid: int,
+    owner_host: str,
+    now: dt.datetime | None = None,
+    lease_token: int | None = None,
 ) -> ClaimedRun | None:
     """Claim the bench's oldest queued run for ``owner_pid@owner_host``; ``None`` when the
-    bench holds a run already or nothing is queued.
+    bench holds a run already, nothing is queued, or ``lease_token`` (the claimer's fencing
+    token, :mod:`db.repo.lease`) is no longer the bench's.
 
     :raises LookupError: no bench ``bench_id``.
     """
@@ -119,6 +127,8 @@ def claim_next_run(
     locked = session.scalar(sa.select(Bench.id).where(Bench.id == bench_id).with_for_update())
     if locked is None:
         raise LookupError(f"bench {bench_id} not found")
+    if lease_token is not None and not lease_is_current(session, bench_id, lease_token, now=now):
+        return None
     if holding_run(session, bench_id) is not None:
         return None
     stmt = (

@@ -11,9 +11,11 @@ from pathlib import Path
 import pytest
 
 from api.agent.bench_agent import BenchAgent
+from api.agent.bench_lock import BenchLock, read_holder
 from api.cli import main
-from api.cli.agent import ALREADY_RUNNING, lock_holder, take_lock
+from api.cli.agent import ALREADY_RUNNING
 from api.runs.queue import RunQueue
+from api.settings import Settings
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Run, RunState
@@ -86,17 +88,19 @@ def test_a_second_agent_for_the_bench_exits_naming_the_first(
     monkeypatch.setenv("CALBENCH_DATA_DIR", str(tmp_path))
     monkeypatch.setenv("CALBENCH_DATABASE_URL", f"sqlite:///{tmp_path / 'calbench.db'}")
     monkeypatch.setenv("CALBENCH_BENCH_NAME", "bench/one")
-    path = tmp_path / "agent-bench_one.lock"
-    held = take_lock(path)  # the first agent
-    assert held is not None
+    path = tmp_path / "bench-bench_one.lock"
+    held = BenchLock(Settings(), "calbench agent").acquire()  # the first agent
     try:
-        assert lock_holder(path) == os.getpid()
+        holder = read_holder(path)
+        assert holder is not None and holder.pid == os.getpid() and holder.kind == "calbench agent"
         assert main(["agent", "--sim"]) == ALREADY_RUNNING
         err = capsys.readouterr().err
-        assert f"already has an agent (pid {os.getpid()}" in err and "bench/one" in err
+        assert err.count("\n") == 1, err
+        assert f"calbench agent pid {os.getpid()} on host {socket.gethostname()} since " in err
+        assert "bench/one" in err
     finally:
-        held.close()
-    assert lock_holder(path) is None
+        held.release()
+    assert read_holder(path) is None
 
 
 def test_a_pause_asked_while_the_run_waits_in_the_queue_holds_it_once_claimed(tmp_path: Path) -> None:

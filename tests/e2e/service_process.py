@@ -16,7 +16,7 @@ from typing import Any
 
 import httpx
 
-from api.cli.agent import lock_holder
+from api.agent.bench_lock import read_holder
 from tests.e2e.helpers import RATE_HZ
 
 CALBENCH = str(Path(sys.executable).with_name("calbench"))
@@ -110,8 +110,8 @@ class ServiceProcess:
 
     def agent_pid(self) -> int | None:
         """The pid of the bench's agent process (from its lock file), ``None`` if none runs."""
-        holder = lock_holder(self.tmp_path / f"agent-{BENCH}.lock")
-        return holder if holder is not None and holder > 0 else None
+        holder = read_holder(self.tmp_path / f"bench-{BENCH}.lock")
+        return holder.pid if holder is not None and holder.pid > 0 else None
 
     def kill(self) -> None:
         """End the service and its bench agent if they still run (test clean-up)."""

@@ -166,7 +166,8 @@ def pick_noise_span(
 def allan_series(rec: Recording, start_s: float, end_s: float, source: str) -> dict[str, Any]:
     """Overlapping Allan deviation of the accelerometer channels between ``start_s`` and ``end_s``.
 
-    :returns: ``{"unit", "source", "start_s", "end_s", "n_samples", "ci_level", "taus_s": (m,),
+    :returns: ``{"unit", "source", "start_s", "end_s", "n_samples", "sample_rate_hz" (the
+        recording's nominal rate), "ci_level", "taus_s": (m,),
         "channels", "adev", "adev_lo", "adev_hi": (c, m) lists}``; σ in channel units.
     :raises ValueError: fewer than :data:`MIN_ALLAN_SAMPLES` samples in the span.
     """
@@ -185,6 +186,7 @@ def allan_series(rec: Recording, start_s: float, end_s: float, source: str) -> d
         "start_s": float(rec.t_s[s]),
         "end_s": float(rec.t_s[e - 1]),
         "n_samples": e - s,
+        "sample_rate_hz": rec.sidecar.sample_rate_hz,
         "ci_level": res.ci_level,
         "taus_s": res.taus_s.tolist(),
         "channels": list(CHANNELS),

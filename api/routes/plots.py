@@ -15,13 +15,14 @@ from fastapi import APIRouter, HTTPException, Query, Response, status
 from sqlalchemy.orm import Session
 
 from api.deps import SessionDep, ViewerDep, ViewerLinkDep
-from api.exports import export_text
+from api.exports import certified_uncertainty, export_text
 from api.plots.history_series import HistoryPoint, coefficient_history
 from api.plots.run_bundle import BundleCache, RunBundle, build_bundle
 from api.plots.run_series import PreviousCalibration
 from bench.export import FORMATS, MEDIA_TYPES, SUFFIX
 from bench.fitted_model import ContractError, FittedModel
 from db.models import ACTIVE_STATES, Run
+from db.repo.certificates import certificate_of_run
 from db.repo.progress import list_windows
 from db.repo.runs import get_run, list_runs
 from db.repo.units import get_unit_by_serial
@@ -191,7 +192,8 @@ def history(serial: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
 def export(run_id: str, fmt: str, session: SessionDep, _: ViewerLinkDep) -> Response:
     """The run's stored fit (the certificate's values) for another tool: ``imucal`` (imucal's
     calibration JSON), ``kalibr`` (Kalibr-style IMU YAML with noise from the run's Allan
-    curve), ``c-header`` (C99 firmware header) or ``json`` (``calbench-correction/1``)."""
+    curve), ``c-header`` (C99 firmware header) or ``json`` (``calbench-correction/1``); a certified
+    run's export states the certificate's number, date and expanded uncertainties."""
     if fmt not in FORMATS:
         raise HTTPException(
             status.HTTP_404_NOT_FOUND, f"unknown export format {fmt!r}; known: {', '.join(FORMATS)}"
@@ -202,10 +204,13 @@ def export(run_id: str, fmt: str, session: SessionDep, _: ViewerLinkDep) -> Resp
             fit = stored_fit(run)
         except ContractError as exc:
             raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
+        cert = certificate_of_run(session, run_id)
+        certified = (cert.number, cert.issued_at, cert.content) if cert is not None else None
     fit = replace(fit, unit_serial=fit.unit_serial or run_id)
     allan = _bundle(session, run_id)[1].allan if fmt == "kalibr" else None
     try:
-        text = export_text(fmt, fit, allan, f"run {run_id}")
+        u = certified_uncertainty(*certified) if certified is not None else None
+        text = export_text(fmt, fit, allan, f"run {run_id}", u)
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id}: {exc}") from None
     name = f"{run_id}{SUFFIX[fmt]}"

@@ -83,6 +83,11 @@ def get_certificate_by_number(session: Session, number: str) -> Certificate | No
     return session.scalars(sa.select(Certificate).where(Certificate.number == number)).one_or_none()
 
 
+def certificate_of_run(session: Session, run_id: str) -> Certificate | None:
+    """The certificate issued for run ``run_id``, if any."""
+    return session.scalars(sa.select(Certificate).where(Certificate.run_id == run_id)).first()
+
+
 def latest_certificate(session: Session, unit_id: int) -> Certificate | None:
     """The unit's most recently issued certificate, or ``None``."""
     return session.scalars(

@@ -34,6 +34,7 @@ part of "the bias this run saw".
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -50,6 +51,13 @@ TARGET_BLOCKS = 50
 NW_LAGS = 2
 MAX_ITER = 40
 
+BiasReference = Literal["run_mean", "long_run"]
+"""What a bias sigma describes: ``"run_mean"``, the error of the estimate against the mean
+over the run of a wandering bias; ``"long_run"``, against the unit's long-run (ensemble) bias,
+which a certificate carries. The two differ by the wander's own average over the run, whose
+variance ≈ 2τ_w²T_c/T for a Gauss–Markov wander of level τ_w and correlation time T_c over a
+run of T ≫ T_c (Papoulis, variance of a time average)."""
+
 
 @dataclass(frozen=True)
 class DynamicFit:
@@ -63,6 +71,9 @@ class DynamicFit:
     :param residual_rms: RMS of all residuals (channel units).
     :param n_used: samples used; :param n_blocks: score blocks of the sandwich.
     :param iterations: Gauss-Newton iterations; :param converged: the step became negligible.
+    :param bias_reference: what the bias sigma describes (:data:`BiasReference`): the
+        sandwich over blocks of the run measures the scatter of the bias about the run's
+        mean, not the wander's own average over the run (docs/noise-model.md).
     """
 
     spec: ModelSpec
@@ -76,6 +87,7 @@ class DynamicFit:
     n_blocks: int
     iterations: int
     converged: bool
+    bias_reference: BiasReference = "run_mean"
 
     @property
     def sigma(self) -> FloatArray:

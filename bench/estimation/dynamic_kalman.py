@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from bench.estimation.dynamic_batch import BiasReference
 from bench.estimation.dynamic_model import ModelSpec, predict
 from bench.estimation.kalman import KalmanState, rts_smooth, update_diagonal
 from bench.estimation.kalman import predict as kf_predict
@@ -85,6 +86,9 @@ class KalmanRun:
     :param filtered: (N, p) filtered means; :param filtered_sigma: (N, p) their one-sigma.
     :param smoothed: (N, p) smoothed means; :param smoothed_sigma: (N, p).
     :param final: the last filtered state (the estimate from all data).
+    :param bias_reference: what the bias sigma describes
+        (:data:`bench.estimation.dynamic_batch.BiasReference`): the filter's covariance is the
+        white bound of the run, so the run's mean bias.
     """
 
     names: tuple[str, ...]
@@ -94,6 +98,7 @@ class KalmanRun:
     smoothed: FloatArray
     smoothed_sigma: FloatArray
     final: KalmanState
+    bias_reference: BiasReference = "run_mean"
 
 
 def run_dynamic_kalman(

@@ -24,13 +24,17 @@ depart from the model: when χ² exceeds its 95 % quantile, a relative allowance
 points at short τ, whose edf run to 10⁵, would decide every term. Points before the curve's
 first maximum are left out when the curve *rises* from τ0 (a sensor low-pass filter
 correlates neighbouring samples; no term of the model rises at short τ). Uncertainties come
-from the generalised normal matrix of the active terms. On simulated noise of known N, B,
-K (tests), (estimate − truth)/sigma has a spread of 0.8-1 for each term. Fitting Q and R
-as well when they are truly zero moves N and K by about −0.4 σ (the non-negativity bound).
+from the generalised normal matrix of the active terms, and are never smaller than those of
+the fit without the allowance scaled by its χ²/dof (the misfit is carried into the sigmas).
+On simulated noise of known N, B, K (tests), (estimate − truth)/sigma has a spread of 0.8-1
+for each term. Fitting Q and R as well when they are truly zero moves N and K by about
+−0.4 σ (the non-negativity bound).
 
 :func:`slope_method` is the graphical reading of Annex C: N from the points on the −1/2
 line (read at τ = 1 s), K from the points on the +1/2 line (read at τ = 3 s), B from the
-curve's minimum / 0.664.
+curve's minimum / 0.664. Its sigmas count the correlation of the overlapping estimates
+between τ, the 5-term fit's model allowance as an error common to a line, and the points'
+scatter about the line (docs/noise-model.md has the spread between recordings).
 """
 
 from __future__ import annotations
@@ -267,6 +271,19 @@ def _floor_for_unit_chi2(
     return math.exp(hi)
 
 
+def _term_variances(p: FloatArray, As: FloatArray, inflate: float) -> FloatArray:
+    """(k,) variances of the squared coefficients from the whitened design (a term at 0: its limit's)."""
+    positive = p > 0
+    var_p = np.zeros(p.size)
+    if positive.any():
+        J = As[:, positive]
+        var_p[positive] = np.diag(np.linalg.pinv(J.T @ J)) * inflate
+    for j in np.flatnonzero(~positive):
+        J = As[:, np.append(np.flatnonzero(positive), j)]
+        var_p[j] = np.linalg.pinv(J.T @ J)[-1, -1] * inflate
+    return var_p
+
+
 def fit_noise_model_curve(
     taus_s: npt.ArrayLike,
     adev: npt.ArrayLike,
@@ -314,20 +331,12 @@ def fit_noise_model_curve(
     floor = 0.0 if floor_rel is None else float(floor_rel)
     if floor_rel is None and chi2 > stats.chi2.ppf(MISFIT_LEVEL, dof):
         floor = _floor_for_unit_chi2(t, s2, nu, A, active, tau0, n_iterations)
+    var_p = _term_variances(p, As, max(1.0, chi2_dof))
     if floor > 0.0:
+        # the allowance keeps the many short-τ points from deciding every term; the misfit's
+        # χ²/dof of the fit without it still bounds the sigmas from below (Birge ratio)
         chi2_f, dof, p, As = _gls(t, s2, nu, A, active, tau0, floor, n_iterations)
-        inflate = max(1.0, chi2_f / dof)
-    else:
-        inflate = max(1.0, chi2_dof)
-    positive = p > 0
-    var_p = np.zeros(len(active))
-    if positive.any():
-        J = As[:, positive]
-        var_p[positive] = np.diag(np.linalg.pinv(J.T @ J)) * inflate
-    for j in np.flatnonzero(~positive):
-        cols = np.append(np.flatnonzero(positive), j)
-        J = As[:, cols]
-        var_p[j] = np.linalg.pinv(J.T @ J)[-1, -1] * inflate
+        var_p = np.maximum(_term_variances(p, As, max(1.0, chi2_f / dof)), var_p)
     values = [math.nan] * 5
     sigmas = [math.nan] * 5
     for k, idx in enumerate(active):
@@ -352,18 +361,30 @@ def _line_reading(
     exponent: float,
     tau_read_s: float,
     mask: npt.NDArray[np.bool_],
+    corr: FloatArray,
+    floor_rel: float,
 ) -> tuple[float, float]:
     """Value at tau_read_s of the line σ ∝ τ^exponent through the masked points, and its sigma.
 
-    Weighted mean in log space, var(ln σ̂) ≈ 1/(2·edf) per point.
+    Generalised mean in log space: Cov(ln σ̂_a, ln σ̂_b) = ρ_ab/(2√(ν_a ν_b)) + floor² (ρ the
+    correlation of the overlapping estimates, :func:`allan_correlation`; floor the fit's
+    relative model allowance, the same for every point of one line), variance 1/(1ᵀC⁻¹1),
+    times the points' own χ²/dof about the line when above 1.
     """
     if not mask.any():
         return math.nan, math.nan
     logs = np.log(dev[mask]) - exponent * np.log(t[mask] / tau_read_s)
-    w = 2.0 * nu[mask]
-    mean = float(np.sum(w * logs) / np.sum(w))
+    inv_sd = np.sqrt(2.0 * nu[mask])
+    cov = corr[np.ix_(mask, mask)] / inv_sd[:, None] / inv_sd[None, :] + floor_rel**2
+    L = _cholesky(cov)
+    white = _forward_solve(L, np.column_stack([np.ones(logs.size), logs]))
+    one_w, logs_w = white[:, 0], white[:, 1]
+    info = float(one_w @ one_w)
+    mean = float(one_w @ logs_w) / info
+    resid = logs_w - one_w * mean
+    birge = float(resid @ resid) / (logs.size - 1) if logs.size > 1 else 1.0
     value = math.exp(mean)
-    return value, value / math.sqrt(float(np.sum(w)))
+    return value, value * math.sqrt(max(1.0, birge) / info)
 
 
 def slope_method_curve(taus_s: npt.ArrayLike, adev: npt.ArrayLike, edf: npt.ArrayLike) -> NoiseTerms:
@@ -381,8 +402,11 @@ def slope_method_curve(taus_s: npt.ArrayLike, adev: npt.ArrayLike, edf: npt.Arra
     parts = basis(t) * fit.coefficients**2
     share = parts / np.maximum(parts.sum(axis=1, keepdims=True), np.finfo(float).tiny)
     usable = np.arange(t.size) >= first_fit_index(dev)
-    n, n_sigma = _line_reading(t, dev, nu, -0.5, 1.0, usable & (share[:, 1] >= DOMINANT_SHARE))
-    k, k_sigma = _line_reading(t, dev, nu, +0.5, 3.0, usable & (share[:, 3] >= DOMINANT_SHARE))
+    corr = allan_correlation(t, fit.coefficients**2, float(t.min()))
+    floor = fit.model_floor_rel if math.isfinite(fit.model_floor_rel) else 0.0
+    line = (t, dev, nu)
+    n, n_sigma = _line_reading(*line, -0.5, 1.0, usable & (share[:, 1] >= DOMINANT_SHARE), corr, floor)
+    k, k_sigma = _line_reading(*line, +0.5, 3.0, usable & (share[:, 3] >= DOMINANT_SHARE), corr, floor)
     i_min = int(np.argmin(dev))
     b = float(dev[i_min]) / BI_FACTOR
     b_sigma = b / math.sqrt(2.0 * float(nu[i_min]))

@@ -78,7 +78,8 @@ def _blocks(t: FloatArray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     blk = np.where(valid, blk, -1)
     ids, inv, counts = np.unique(blk[valid], return_inverse=True, return_counts=True)
     keep = counts >= 10
-    return ids[keep], np.where(keep[inv], inv, -1)
+    kept_index = np.cumsum(keep) - 1  # a block's index among the kept ones
+    return ids[keep], np.where(keep[inv], kept_index[inv], -1)
 
 
 def _bmean(v: FloatArray, inv: np.ndarray, nb: int) -> FloatArray:

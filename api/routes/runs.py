@@ -20,6 +20,7 @@ from api.runs.stream import run_events
 from api.schemas import AbortOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
 from db.models import Certificate, RunState
 from db.repo.progress import list_windows
+from db.repo.queue import finishing_since
 from db.repo.runs import get_run, list_runs
 
 router = APIRouter(prefix="/api/runs", tags=["runs"])
@@ -119,7 +120,15 @@ def _not_live(session: SessionDep, run_id: str, what: str) -> HTTPException:
         if row is None:
             return HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
         state = row.state.value
-    detail = f"run {run_id} is {state}, not running on this bench: {what}"
+        since = finishing_since(session, run_id) if state == "running" else None
+    if since is not None:
+        detail = (
+            f"run {run_id} is finishing (every step done since {since}; safe state, fit and results "
+            f"being stored): {what}"
+        )
+    else:
+        where = "" if state == "running" else ", not running on this bench"
+        detail = f"run {run_id} is {state}{where}: {what}"
     return HTTPException(status.HTTP_409_CONFLICT, detail)
 
 
@@ -142,7 +151,7 @@ def pause(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -
         409: {"description": "the run cannot be resumed (its state or recording says why)"},
     },
 )
-def resume(run_id: str, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
+def resume(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
     """Continue a run. A paused or suspended run holding the bench goes on (for a suspension,
     the operator's go-ahead: the table is prepared again once the interlock has closed). An
     ``interrupted`` run (its process died or the service shut down) is queued on its bench and
@@ -150,12 +159,9 @@ def resume(run_id: str, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
     with live events on ``/events`` and its certificate issued at the end as for a fresh run."""
     cur = runner.current
     if cur is not None and cur.id == run_id:
-        if cur.state not in (RunState.PAUSED, RunState.SUSPENDED):
-            raise HTTPException(
-                status.HTTP_409_CONFLICT,
-                f"run {run_id} is {cur.state.value} on this bench: nothing to resume",
-            )
-        runner.continue_run(run_id)
+        # accepted while paused or suspended, or right after a pause its agent has not applied yet
+        if not runner.continue_run(run_id):
+            raise _not_live(session, run_id, "nothing to resume (no pause in effect or asked)")
         return RunActionOut(id=run_id, action="continue", state=RunState.RUNNING)
     try:
         live = runner.resume(run_id)

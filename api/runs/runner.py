@@ -39,6 +39,7 @@ from bench.sequencer.control import RunControl, SequencerConfig
 from db.models import Run
 from db.models import RunState as DbRunState
 from db.observer import finish_record
+from db.repo.queue import enter_finishing
 from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
 from db.repo.runs import finish_run, merge_params
 from db.repo.units import get_unit_by_serial
@@ -230,8 +231,7 @@ class BenchRunner:
         live = self._held(run_id)
         if live is None:
             return False
-        live.control.abort(reason)
-        return True
+        return live.control.abort(reason)
 
     def pause(self, run_id: str) -> bool:
         """Hold the live run: the window in progress is dropped and recorded again on continue;
@@ -239,8 +239,7 @@ class BenchRunner:
         live = self._held(run_id)
         if live is None:
             return False
-        live.control.pause()
-        return True
+        return live.control.pause()
 
     def continue_run(self, run_id: str) -> bool:
         """Release a pause; for a run suspended by an interlock or the temperature band, the
@@ -290,9 +289,17 @@ class BenchRunner:
             defer_final_state=True,
         )
 
+    def _finishing_gate(self, run_id: str) -> str | None:
+        """The stored abort of ``run_id``, else the run marked finishing in the database in the
+        same transaction (:func:`db.repo.queue.enter_finishing`): a request either took effect
+        or is refused from here on."""
+        with self.sessions.begin() as s:
+            return enter_finishing(s, run_id)
+
     def _work(self, live: LiveRun) -> None:
         record: RunRecord | None = None
         interrupted = False
+        live.control.finishing_gate = lambda: self._finishing_gate(live.id)
         try:
             record = self._acquire(live)
             live.record = record

@@ -3,11 +3,15 @@
 :class:`RunControl` is the thread-safe handle an operator (CLI signal handler, REST route)
 uses: :meth:`~RunControl.abort`, :meth:`~RunControl.pause`, :meth:`~RunControl.resume`.
 The sequencer polls it between sample blocks, so a request takes effect within one block.
+Once every step is done the run is *finishing* (safe state, fit, results): the sequencer asks
+:meth:`~RunControl.enter_finishing`, which ends the run ABORTED if an abort came first and
+otherwise refuses every later request, so a request either takes effect or is refused.
 """
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits
@@ -43,18 +47,52 @@ class RunControl:
         self._abort = threading.Event()
         self._pause = False
         self._resume = threading.Event()
+        self._finishing = False
         self.abort_reason = ""
+        self.finishing_gate: Callable[[], str | None] | None = None
+        """Called once by :meth:`enter_finishing` (the service's: in one database transaction,
+        the abort stored for the run, else the run marked finishing so later requests are
+        refused): an abort reason, or ``None``."""
 
-    def abort(self, reason: str = "operator abort") -> None:
-        """Stop the run: table to its safe state, recording kept, outcome ABORTED."""
+    def abort(self, reason: str = "operator abort") -> bool:
+        """Stop the run: table to its safe state, recording kept, outcome ABORTED. False (and
+        nothing done) once the run is finishing."""
         with self._lock:
+            if self._finishing:
+                return False
             self.abort_reason = reason
-        self._abort.set()
+            self._abort.set()
+        return True
 
-    def pause(self) -> None:
-        """Hold the run: the window in progress is discarded and recorded again on resume."""
+    def enter_finishing(self) -> str | None:
+        """Every step is done: the abort reason if an abort came first (the run then ends
+        ABORTED), else ``None`` and from now on abort and pause are refused."""
+        reason = self.finishing_gate() if self.finishing_gate is not None else None
         with self._lock:
+            if self._abort.is_set():
+                return self.abort_reason
+            if reason is not None:
+                self.abort_reason = reason
+                self._abort.set()
+                return reason
+            self._finishing = True
+            self._pause = False
+        return None
+
+    @property
+    def finishing(self) -> bool:
+        """Every step is done and the run is being finished; requests are refused."""
+        with self._lock:
+            return self._finishing
+
+    def pause(self) -> bool:
+        """Hold the run: the window in progress is discarded and recorded again on resume.
+        False (and nothing done) once the run is finishing."""
+        with self._lock:
+            if self._finishing:
+                return False
             self._pause = True
+        return True
 
     def resume(self) -> None:
         """Continue a paused run; for a suspended one, the operator's go-ahead: the table is

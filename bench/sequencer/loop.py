@@ -364,6 +364,10 @@ class Sequencer:
                 "resumed from window " + str(self.start_window) if self.start_window else "started",
             )
             execute_steps(self)
+            aborted = self.control.enter_finishing()
+            if aborted is not None:
+                self.where = "the end of the last step"
+                raise AbortRequested(aborted)
         except AbortRequested as exc:
             outcome, error = Outcome.ABORTED, f"aborted at {self.where}: {exc}"
         except (DriverError, TimeoutError, OSError, ObserverError, ValueError) as exc:

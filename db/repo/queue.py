@@ -40,6 +40,9 @@ HOLDING_STATES = (RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED)
 RESUME_KEY = "resume_requested"
 ABORT_KEY = "abort_requested"
 CONTROL_KEY = "control"
+FINISHING_KEY = "finishing_since"
+"""``params`` key set by the owner when every step is done (:func:`enter_finishing`): from then
+on abort, pause and continue are refused."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -170,7 +173,7 @@ def claim_next_run(
         )
         run.resume_count += 1
         run.error = None
-        run.params = {k: v for k, v in params.items() if k not in (RESUME_KEY, ABORT_KEY)}
+        run.params = {k: v for k, v in params.items() if k not in (RESUME_KEY, ABORT_KEY, FINISHING_KEY)}
         session.flush()
     return ClaimedRun(
         run_id,
@@ -192,7 +195,8 @@ def queue_resume(session: Session, run_id: str, *, now: dt.datetime | None = Non
     run = session.get(Run, run_id, with_for_update=True)
     if run is None or run.state is not RunState.INTERRUPTED:
         return None
-    params = {k: v for k, v in run.params.items() if k not in (ABORT_KEY, CONTROL_KEY, "service_finished")}
+    dropped = (ABORT_KEY, CONTROL_KEY, FINISHING_KEY, "service_finished")
+    params = {k: v for k, v in run.params.items() if k not in dropped}
     run.params = {**params, RESUME_KEY: True}
     run.state = RunState.QUEUED
     run.owner_pid, run.owner_host = None, None
@@ -209,8 +213,10 @@ def request_control(
 
     A queued run nobody has claimed is aborted at once (it never touched the table); a pause or
     continue asked of it is stored for its agent, which applies it once it has claimed the run.
-    Returns the run's state after the request, or ``None`` when the request does not apply
-    (the run is final or interrupted; pause of a paused run is accepted, idempotent).
+    Returns the run's state after the request, or ``None`` when the request does not apply:
+    the run is final or interrupted, or finishing (every step done, :func:`enter_finishing`), or
+    a continue with no pause in effect or asked (a continue right after a pause the owner has
+    not applied yet is accepted and undoes it); pause of a paused run is accepted, idempotent.
 
     :raises LookupError: no such run.
     """
@@ -224,16 +230,44 @@ def request_control(
         session.flush()
         notify_run(session, run_id)
         return run.state
-    if run.state not in (RunState.QUEUED, *HOLDING_STATES):
+    if run.state not in (RunState.QUEUED, *HOLDING_STATES) or run.params.get(FINISHING_KEY):
         return None
+    prev = run.params.get(CONTROL_KEY)
+    newest = prev.get("action") if isinstance(prev, dict) else None
+    if action == "continue" and run.state not in (RunState.PAUSED, RunState.SUSPENDED) and newest != "pause":
+        return None  # nothing holds the run: no pause in effect, none asked
     if action == "abort":
         run.params = {**run.params, ABORT_KEY: reason or "operator abort"}
     else:
-        prev = run.params.get(CONTROL_KEY)
         seq = int(prev["seq"]) + 1 if isinstance(prev, dict) else 1
         run.params = {**run.params, CONTROL_KEY: {"seq": seq, "action": action}}
     session.flush()
     return run.state
+
+
+def enter_finishing(session: Session, run_id: str, *, now: dt.datetime | None = None) -> str | None:
+    """The owner has done every step of ``run_id``: the abort stored for it, if any (the run
+    then ends ABORTED), else ``None`` with the run marked finishing, so that from this
+    transaction on :func:`request_control` refuses abort, pause and continue.
+
+    :raises LookupError: no such run.
+    """
+    run = session.get(Run, run_id, with_for_update=True, populate_existing=True)
+    if run is None:
+        raise LookupError(f"run {run_id} not found")
+    abort = run.params.get(ABORT_KEY)
+    if abort:
+        return str(abort)
+    run.params = {**run.params, FINISHING_KEY: (now or utc_now()).isoformat()}
+    session.flush()
+    return None
+
+
+def finishing_since(session: Session, run_id: str) -> str | None:
+    """When the run's owner began finishing it (ISO 8601), ``None`` when it has not."""
+    params = session.scalar(sa.select(Run.params).where(Run.id == run_id)) or {}
+    since = params.get(FINISHING_KEY)
+    return str(since) if since else None
 
 
 @dataclasses.dataclass(frozen=True)

@@ -21,6 +21,8 @@ Text
     character except tab and newline where a field allows several lines, and no Unicode
     bidirectional control (U+202A–U+202E, U+2066–U+2069, U+200E, U+200F, U+061C): those
     reorder what a certificate shows (an address printed reversed) without being visible.
+    JSON text decodes to no lone UTF-16 surrogate (``"\\ud800"`` unpaired): such a string has
+    no UTF-8 form, so it could be neither stored nor sent back.
 """
 
 from __future__ import annotations
@@ -53,6 +55,8 @@ BIDI_CONTROLS = "\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069\u200e\u2
 _BIDI = frozenset(BIDI_CONTROLS)
 _UNPRINTABLE = re.compile(f"[{BIDI_CONTROLS}\\x00-\\x08\\x0b-\\x1f\\x7f-\\x9f]")
 _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+_SURROGATE = re.compile("[\ud800-\udfff]")
+_SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F][0-9a-fA-F]{2}")
 _JSON_NESTING = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', re.DOTALL)
 
 
@@ -177,9 +181,48 @@ def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def _lone_surrogate(value: Any, where: str = "") -> str | None:
+    """Where in a decoded JSON value a string (key or value) holds a lone surrogate, or ``None``.
+
+    ``json`` joins an escaped pair (``\\ud83d\\ude00``) into one code point, so every surrogate
+    left in a decoded string is unpaired."""
+    if isinstance(value, str):
+        m = _SURROGATE.search(value)
+        return f"{where or 'the document'} character {m.start() + 1}" if m else None
+    if isinstance(value, dict):
+        for k, v in value.items():
+            at = f"{where}.{k}" if where else str(k)
+            if _SURROGATE.search(k):
+                return f"a key in {where or 'the document'}"
+            found = _lone_surrogate(v, at)
+            if found:
+                return found
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            found = _lone_surrogate(v, f"{where}[{i}]")
+            if found:
+                return found
+    return None
+
+
+def check_no_surrogates(value: Any) -> Any:
+    """``value`` (decoded JSON) if no string in it holds a lone UTF-16 surrogate.
+
+    :raises InputError: naming the key path and character of the first one.
+    """
+    found = _lone_surrogate(value)
+    if found is not None:
+        raise InputError(f"lone UTF-16 surrogate at {_ascii(found)}; expected text that has a UTF-8 form")
+    return value
+
+
+def _ascii(text: str) -> str:
+    return text.encode("ascii", "backslashreplace").decode("ascii")
+
+
 def loads_json(text: str, *, max_bytes: int = MAX_JSON_BYTES, finite: bool = True) -> Any:
     """Decode JSON text under the size rules: length, nesting, integer digits, finite numbers,
-    no duplicate keys, no ``NaN``/``Infinity``.
+    no duplicate keys, no ``NaN``/``Infinity``, no lone UTF-16 surrogate in a string.
 
     :param finite: refuse ``NaN``, ``Infinity`` and overflowing literals here; ``False`` leaves
         them to a later validator that names the field (the service's request models).
@@ -191,11 +234,15 @@ def loads_json(text: str, *, max_bytes: int = MAX_JSON_BYTES, finite: bool = Tru
         raise InputError(f"document of {len(text)} characters; expected at most {max_bytes}")
     check_json_nesting(text)
     if not finite:
-        return json.loads(text, parse_int=_parse_int, object_pairs_hook=_no_duplicates)
-    return json.loads(
-        text,
-        parse_int=_parse_int,
-        parse_float=_parse_float,
-        parse_constant=_parse_constant,
-        object_pairs_hook=_no_duplicates,
-    )
+        value = json.loads(text, parse_int=_parse_int, object_pairs_hook=_no_duplicates)
+    else:
+        value = json.loads(
+            text,
+            parse_int=_parse_int,
+            parse_float=_parse_float,
+            parse_constant=_parse_constant,
+            object_pairs_hook=_no_duplicates,
+        )
+    if _SURROGATE_ESCAPE.search(text) or _SURROGATE.search(text):
+        check_no_surrogates(value)
+    return value

@@ -3,7 +3,9 @@
 A naming convention gives every index and constraint a stable name, which Alembic's
 batch mode needs to alter SQLite tables and which keeps autogenerate diffs empty on both
 dialects. ``type_annotation_map`` maps ``datetime`` to :class:`db.types.UtcDateTime` and
-``dict``/``list`` to portable JSON, so models use ``Mapped[...]`` annotations only.
+``dict``/``list`` to portable JSON (:class:`db.types.TolerantJSON`: a stored value that is
+not JSON loads as an unreadable marker instead of failing the query), so models use
+``Mapped[...]`` annotations only.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from typing import Any, ClassVar
 import sqlalchemy as sa
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
-from db.types import UtcDateTime, utc_now
+from db.types import TolerantJSON, UtcDateTime, utc_now
 
 NAMING_CONVENTION: dict[str, str] = {
     "ix": "ix_%(table_name)s__%(column_0_N_name)s",
@@ -31,8 +33,8 @@ class Base(DeclarativeBase):
     metadata = sa.MetaData(naming_convention=NAMING_CONVENTION)
     type_annotation_map: ClassVar[dict[Any, Any]] = {
         dt.datetime: UtcDateTime(),
-        dict[str, Any]: sa.JSON(),
-        list[Any]: sa.JSON(),
+        dict[str, Any]: TolerantJSON(),
+        list[Any]: TolerantJSON(array=True),
     }
 
     created_at: Mapped[dt.datetime] = mapped_column(

@@ -10,6 +10,7 @@ from bench.diagnosis.stored import StoredDiagnosis
 from bench.fitted_model import ContractError
 from bench.limits import DECISION_RULES
 from db.models import Certificate, DriftCheck, Run, RunWindow
+from db.types import unreadable_reason
 
 
 def _kind(run: Run, live: LiveRun | None) -> str:
@@ -28,7 +29,8 @@ def run_out(
     with_diagnosis: bool = False,
     windows: list[RunWindow] | None = None,
 ) -> RunOut:
-    """A stored run; a live one shows the runner's fresher progress.
+    """A stored run; a live one shows the runner's fresher progress. A stored value that cannot
+    be parsed is shown empty and named in ``unreadable`` (:func:`unreadable_fields`).
 
     :param with_diagnosis: include the whole diagnosis object (one run's view, not lists).
     :param windows: the run's stored windows (one run's view), ``None`` in lists.
@@ -50,9 +52,9 @@ def run_out(
         outcome=run.outcome,
         error=run.error,
         bench=run.params.get("bench"),
-        created_at=run.created_at,
-        started_at=run.started_at,
-        finished_at=run.finished_at,
+        created_at=_readable(run.created_at),
+        started_at=_readable(run.started_at),
+        finished_at=_readable(run.finished_at),
         n_samples=run.n_samples,
         last_complete_window=run.last_complete_window,
         calibration=cal if isinstance(cal, dict) else None,
@@ -68,7 +70,22 @@ def run_out(
         limit_checks=[_check(c) for c in (run.limit_checks or [])],
         decision_rule=_rule(run.limit_checks),
         windows=[_window(w) for w in windows] if windows is not None else None,
+        unreadable=unreadable_fields(run),
     )
+
+
+_RUN_FIELDS = ("params", "created_at", "started_at", "finished_at", "limit_checks")
+
+
+def unreadable_fields(run: Run) -> str | None:
+    """``"params: not JSON: ... ; created_at: not a time: ..."`` for the run's stored values that
+    cannot be parsed, ``None`` when every one reads."""
+    found = [f"{name}: {why}" for name in _RUN_FIELDS if (why := unreadable_reason(getattr(run, name)))]
+    return "; ".join(found) or None
+
+
+def _readable(value: Any) -> Any:
+    return None if unreadable_reason(value) is not None else value
 
 
 def _diagnosis(run: Run) -> tuple[dict[str, Any] | None, StoredDiagnosis | None, object]:

@@ -207,6 +207,11 @@ class RunOut(BaseModel):
     windows: list[WindowOut] | None = Field(
         default=None, description="the completed windows (in `GET /api/runs/{id}`; null in lists)"
     )
+    unreadable: str | None = Field(
+        default=None,
+        description="stored values of the run that cannot be parsed, each named with the parser's message "
+        "(those fields are shown empty); null when the whole row reads",
+    )
 
 
 class AbortOut(BaseModel):

@@ -161,3 +161,22 @@ def test_recording_error_is_one_line(tmp_path: Path) -> None:
     with pytest.raises(RecordingError) as info:
         read_recording(write(tmp_path, rows))
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("text", "where"),
+    [
+        ('{"a": "x\\ud800"}', "a character 2"),
+        ('{"a": [1, {"b": "\\udfff"}]}', "a[1].b character 1"),
+        ('{"\\ud800": 1}', "a key in the document"),
+        ('["\\ude00\\ud83d"]', "[0] character 1"),  # a pair in the wrong order is two lone halves
+    ],
+)
+def test_json_with_a_lone_surrogate_is_refused_naming_where(text: str, where: str) -> None:
+    with pytest.raises(InputError, match="lone UTF-16 surrogate") as info:
+        loads_json(text)
+    assert where in str(info.value)
+
+
+def test_json_with_a_surrogate_pair_is_one_character() -> None:
+    assert loads_json('{"a": "\\ud83d\\ude00"}') == {"a": "\U0001f600"}

@@ -29,6 +29,7 @@ from bench.calibration.windows import (
 )
 from bench.diagnosis import Diagnosis, StaticEvidence, diagnose
 from bench.diagnosis.dynamic import diagnose_dynamic
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.scalar_fit import fit_scalar
 from bench.estimation.windows import StaticWindow
 from bench.recording import Recording
@@ -115,7 +116,7 @@ def _scalar_force(rec: Recording, y: np.ndarray, V: np.ndarray, g: float) -> np.
     return np.asarray(g * u / np.linalg.norm(u, axis=1, keepdims=True), dtype=float)
 
 
-def _diagnose_moving(rec: Recording) -> Diagnosis:
+def _diagnose_moving(rec: Recording, th: Thresholds) -> Diagnosis:
     geo = rec.sidecar.table
     assert geo is not None
     m, y = moving_samples(rec)
@@ -128,22 +129,28 @@ def _diagnose_moving(rec: Recording) -> Diagnosis:
         unit=rec.sidecar.unit_serial,
         channel_unit=rec.sidecar.channel_unit,
         source=rec.source,
+        thresholds=th,
     )
 
 
-def diagnose_recording(rec: Recording) -> Diagnosis:
+def diagnose_recording(rec: Recording, thresholds: Thresholds = THRESHOLDS) -> Diagnosis:
     """Diagnose one recording; every error message starts with the recording's path.
 
     A moving-table recording (``dynamic.is_dynamic``) goes to
     ``bench.diagnosis.dynamic.diagnose_dynamic``; every other one to the static diagnosis.
+    ``thresholds``: the diagnosis's knobs (``bench.diagnosis.thresholds``).
     """
     try:
         if rec.sidecar.table is not None and rec.table_deg is not None and is_dynamic(rec):
-            return _diagnose_moving(rec)
+            return _diagnose_moving(rec, thresholds)
         chosen = choose_windows(rec)
         ev = _evidence(rec, list(chosen.used))
         d = diagnose(
-            ev, unit=rec.sidecar.unit_serial, channel_unit=rec.sidecar.channel_unit, source=rec.source
+            ev,
+            unit=rec.sidecar.unit_serial,
+            channel_unit=rec.sidecar.channel_unit,
+            source=rec.source,
+            thresholds=thresholds,
         )
         unused = unused_warning(chosen.unused)
         return d if unused is None else replace(d, notes=(unused, *d.notes))

@@ -38,12 +38,13 @@ from bench.diagnosis.refit import ModelFit, effect_parameters, model_sequence
 from bench.diagnosis.regressors import correlations
 from bench.diagnosis.residuals import summarise, where
 from bench.diagnosis.result import Diagnosis, Finding, ModelSummary
-from bench.diagnosis.selection import FALSE_ALARM, select
+from bench.diagnosis.selection import select
 from bench.diagnosis.summaries import summary
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.diagnosis.unexplained import unexplained
 from bench.diagnosis.within_window import refit_within_window
 
-__all__ = ["Diagnosis", "StaticEvidence", "diagnose"]
+__all__ = ["Diagnosis", "StaticEvidence", "Thresholds", "diagnose"]
 
 NO_TABLE_REASON = (
     "needs a table (its motion, encoders, base or ringing after a move); this recording has no table"
@@ -81,23 +82,22 @@ def diagnose(
     unit: str = "",
     channel_unit: str = "",
     source: str = "",
-    false_alarm: float = FALSE_ALARM,
-    free_orientation_rad: float = 0.1,
     use_library: bool = True,
+    thresholds: Thresholds = THRESHOLDS,
 ) -> Diagnosis:
     """Diagnose a static recording (module docstring).
 
     :param ev: the recording's static evidence.
-    :param false_alarm: false-alarm probability of one selection step (``selection.FALSE_ALARM``);
-        the within-window settling test runs at a tenth of it.
     :param use_library: search the term library beyond the catalogue (``library``).
-    :param free_orientation_rad: for ``orientation_known=False`` evidence (f taken from the
-        data), the standard deviation given to each window's orientation about the two axes
-        perpendicular to gravity, so that only the magnitude of each reading is evidence.
+    :param thresholds: the diagnosis's knobs (``thresholds``): the selection's false-alarm
+        probability per step, the settling test's share of it, and, for
+        ``orientation_known=False`` evidence, ``free_orientation_rad``, the standard deviation
+        given to each window's orientation about the two axes perpendicular to gravity.
     :returns: :class:`~bench.diagnosis.result.Diagnosis`.
     :raises ValueError: fewer than 5 windows (10 orientation-free), or a pose set that cannot
         identify bias and K.
     """
+    th = thresholds
     if ev.m < 5:
         raise ValueError(
             f"a diagnosis needs at least 5 static windows (first-order model + 1 dof), got {ev.m}"
@@ -114,13 +114,13 @@ def diagnose(
     pool: list[Candidate] = []
     pose_ok = settle_ok = False
     for eff in EFFECTS:
-        ok, reason = eff.observable(ev)
+        ok, reason = eff.observable(ev, th)
         if eff.id in NEEDS_TABLE and not ev.has_table:
             ok, reason = False, NO_TABLE_REASON
         if not ok:
             unobservable[eff.id] = reason
         elif eff.kind == "columns":
-            pool.extend(eff.candidates(ev))
+            pool.extend(eff.candidates(ev, th))
         elif eff.kind == "variance":
             pose_ok = True
         elif eff.kind == "window":
@@ -129,10 +129,10 @@ def diagnose(
     if not ev.orientation_known:
         K0 = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
         J = pose_response(ev, K0)
-        fixed = free_orientation_rad**2 * np.einsum("wik,wjk->wij", J, J)
+        fixed = th.free_orientation_rad**2 * np.einsum("wik,wjk->wij", J, J)
     lib_terms: dict[str, LibraryTerm] = {}
     if ev.orientation_known and use_library:
-        terms, _ = library_terms(ev)
+        terms, _ = library_terms(ev, th)
         lib_terms = {f"{EFFECT}:{t.label}": t for t in terms}
     elif not ev.orientation_known:
         unobservable[EFFECT] = (
@@ -148,42 +148,44 @@ def diagnose(
             [c for c in pool if c.effect not in excluded],
             pose_allowed=pose_ok,
             fixed=fixed,
-            false_alarm=false_alarm,
             library=library,
             simplicity=simplicity,
+            th=th,
         )
 
     state, notes = select_without(set())
     assert state.fit is not None and state.noise is not None
-    dropped = prune_catalogue(ev, state, pool, fixed, false_alarm, notes)
+    dropped = prune_catalogue(ev, state, pool, fixed, notes, th)
     if dropped:
         # the library's terms were chosen beside the dropped effects: choose them again without
         state, notes2 = select_without(set(dropped))
         notes.update({k: v for k, v in notes2.items() if k not in notes})
-    refused = [e for e in referee(ev, state, fixed, notes) if not e.startswith(EFFECT + ":")]
+    refused = [e for e in referee(ev, state, fixed, notes, th) if not e.startswith(EFFECT + ":")]
     if refused:
         # a catalogue effect that fails the out-of-sample check is not a candidate: it may have
         # entered before, and bent the search of, a library term that explains what it mimicked
         excluded = {*dropped, *refused}
         state, notes2 = select_without(excluded)
         notes = {**notes2, **{k: v for k, v in notes.items() if k in excluded}}
-        referee(ev, state, fixed, notes)
+        referee(ev, state, fixed, notes, th)
     # a library term that changes within a window (in temp or t) is not window noise: the
     # final model is refitted under the window noise without it (``within_window``)
-    ev_final, state = refit_within_window(ev, state, lib_terms, fixed)
+    ev_final, state = refit_within_window(ev, state, lib_terms, fixed, th)
     assert state.fit is not None and state.noise is not None
     K = scale_matrix(state.fit)
     order = list(dict.fromkeys(s.effect for s in state.steps))
     seq = model_sequence(ev_final, order, state.candidates, state.pose, state.noise, K, fixed)
     final = seq[-1]
     span = float(np.ptp(ev.mid_s))
-    alike = confounded(ev, K, state.candidates, pool)
+    alike = confounded(ev, K, state.candidates, pool, th)
     findings = []
     discovered = []
     for k, effect in enumerate(order):
         if effect in lib_terms:
             discovered.append(
-                discovery(ev_final, lib_terms[effect], final, seq, k, K, state, channel_unit, lib_terms, pool)
+                discovery(
+                    ev_final, lib_terms[effect], final, seq, k, K, state, channel_unit, lib_terms, pool, th
+                )
             )
             continue
         if effect == "pose_error":
@@ -235,15 +237,15 @@ def diagnose(
             )
     if settle_ok:
         assert ev.window_samples is not None and ev.sample_rate_hz is not None
-        st = settling_test(ev.window_samples, ev.sample_rate_hz)
-        if st.p_value < false_alarm / 10:
+        st = settling_test(ev.window_samples, ev.sample_rate_hz, th)
+        if st.p_value < th.settling_share * th.false_alarm:
             params_s: dict[str, object] = {
                 "frequency_hz": st.frequency_hz,
                 "early_power_ratio": st.early_power_ratio,
             }
             sigma_s: dict[str, object] = {}
             try:
-                dur, dur_sigma = settling_duration(ev.window_samples, ev.sample_rate_hz, st.frequency_hz)
+                dur, dur_sigma = settling_duration(ev.window_samples, ev.sample_rate_hz, st.frequency_hz, th)
                 params_s["duration_s"], sigma_s["duration_s"] = dur, dur_sigma
             except ValueError as exc:
                 note_list.append(str(exc))
@@ -271,7 +273,7 @@ def diagnose(
         findings=tuple(findings),
         channel_ratio=rs.channel_ratio,
         where=where(ev_final, rs),
-        correlations=tuple(correlations(ev_final, seq[0].resid, seq[0].sigma)),
+        correlations=tuple(correlations(ev_final, seq[0].resid, seq[0].sigma, th)),
         unobservable=unobservable,
         notes=(*note_list, _noise_text(state.noise)),
         noise_text=_noise_text(state.noise),
@@ -281,5 +283,5 @@ def diagnose(
         K=K,
         source=source,
         discovered=tuple(discovered),
-        unexplained=unexplained(ev_final, final, state, K, fixed),
+        unexplained=unexplained(ev_final, final, state, K, fixed, th),
     )

@@ -22,7 +22,7 @@ The pose error gives every window two free angles, held together only by one var
    C₀) and D_i the diagonal that picks channel i weighted by 1/C₀, q_i = rᵀ D_i r has,
    under the pose model, E[q_i] = tr(D_i M) and Var[q_i] = 2 tr(D_i M D_i M), M = R C Rᵀ,
    R = I − X (Xᵀ C₀⁻¹ X)⁻¹ Xᵀ C₀⁻¹. Judged as a scaled χ² of the same mean and variance
-   (Satterthwaite), a channel whose q_i lies below the lower ``PHYSICS_ALPHA`` quantile
+   (Satterthwaite), a channel whose q_i lies below the lower ``Thresholds.physics_alpha`` quantile
    shows far less than the angles must move it: the pose error is then not the physics,
    whatever its likelihood.
 """
@@ -37,10 +37,9 @@ from scipy.stats import chi2 as chi2_dist
 
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.likelihood import NoiseParams, covariance, without_pose
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.window_covariance import WindowCovariance
 
-PHYSICS_ALPHA = 1e-3
-"""Lower-tail level at which a channel is said not to show the pose error's implied scatter."""
 CHANNELS = ("ax", "ay", "az")
 
 
@@ -51,6 +50,7 @@ class PoseCheck:
     :param edf: effective degrees of freedom of the pose offsets.
     :param expected: (3,) E[q_i] under the pose model; :param observed: (3,) q_i.
     :param p_low: (3,) lower-tail probability of each observed q_i under the pose model.
+    :param alpha: the level below which a channel does not show it (``Thresholds.physics_alpha``).
     """
 
     edf: float
@@ -58,15 +58,16 @@ class PoseCheck:
     expected: FloatArray
     observed: FloatArray
     p_low: FloatArray
+    alpha: float
 
     @property
     def consistent(self) -> bool:
-        """Every channel shows at least what the pose error implies (at ``PHYSICS_ALPHA``)."""
-        return bool(np.all(self.p_low >= PHYSICS_ALPHA))
+        """Every channel shows at least what the pose error implies (at ``alpha``)."""
+        return bool(np.all(self.p_low >= self.alpha))
 
     def text(self) -> str:
         """Why a pose error was not claimed (for ``notes``)."""
-        bad = [i for i in range(3) if self.p_low[i] < PHYSICS_ALPHA]
+        bad = [i for i in range(3) if self.p_low[i] < self.alpha]
         parts = ", ".join(
             f"{CHANNELS[i]} shows chi2 {self.observed[i]:.1f} where the pose error implies "
             f"{self.expected[i]:.1f} (p = {self.p_low[i]:.1e})"
@@ -153,6 +154,7 @@ def pose_check(
     X: FloatArray,
     z: FloatArray,
     fixed: FloatArray | None = None,
+    th: Thresholds = THRESHOLDS,
 ) -> PoseCheck:
     """Effective dof and per-channel evidence of a fitted pose error (module docstring).
 
@@ -176,4 +178,6 @@ def pose_check(
     ll_c = -0.5 * (float(r_c @ cho_solve(f0, r_c)) + logdet0 + n * np.log(2.0 * np.pi))
     q, e, v = channel_forms(C1, C0, X, z)
     p_low, _ = satterthwaite_tails(q, e, v)
-    return PoseCheck(edf=edf, loglik_conditional=ll_c, expected=e, observed=q, p_low=p_low)
+    return PoseCheck(
+        edf=edf, loglik_conditional=ll_c, expected=e, observed=q, p_low=p_low, alpha=th.physics_alpha
+    )

@@ -1,6 +1,6 @@
 """What a diagnosis says of its claims beside the model: which effects and library terms fit
 the recording about as well (|cos| of their signatures beyond the first-order model above
-``CONFOUND_COSINE``), why two effects cannot be told apart, and a discovered term's report
+``Thresholds.confound_cosine``), why two effects cannot be told apart, and a discovered term's report
 (coefficient and sigma in channel units per unit of the term, ΔBIC, residual after, the
 physics sentence of ``library.physics``; ``cli-contract.md``, "Beyond the catalogue")."""
 
@@ -17,15 +17,18 @@ from bench.diagnosis.model_state import ModelState
 from bench.diagnosis.refit import ModelFit, effect_parameters
 from bench.diagnosis.residuals import CHANNELS
 from bench.diagnosis.result import Discovery
-
-CONFOUND_COSINE = 0.8
-"""Two effects whose signatures (beyond the first-order model) have |cos| above this are
-reported as indistinguishable on the recording."""
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
 
 def confounded(
-    ev: StaticEvidence, K: FloatArray, chosen: list[Candidate], pool: list[Candidate]
+    ev: StaticEvidence,
+    K: FloatArray,
+    chosen: list[Candidate],
+    pool: list[Candidate],
+    th: Thresholds = THRESHOLDS,
 ) -> dict[str, dict[str, float]]:
+    """Per chosen effect, the pool's effects whose signatures lie within
+    ``th.confound_cosine`` of its own (|cos| beyond the first-order model)."""
     X0 = first_order_design(ev.f_m_s2)
     Q, _ = np.linalg.qr(X0)
 
@@ -42,7 +45,7 @@ def confounded(
             if d.effect == c.effect or d in chosen:
                 continue
             cos = float(np.max(np.abs(sc.T @ sig(d))))
-            if cos > CONFOUND_COSINE:
+            if cos > th.confound_cosine:
                 prev = out.setdefault(c.effect, {}).get(d.effect, 0.0)
                 out[c.effect][d.effect] = max(prev, cos)
     return out
@@ -69,6 +72,7 @@ def discovery(
     channel_unit: str,
     lib_terms: dict[str, LibraryTerm],
     pool: list[Candidate],
+    th: Thresholds = THRESHOLDS,
 ) -> Discovery:
     """The contract entry of one library term in the final model."""
     key = f"{EFFECT}:{t.label}"
@@ -85,7 +89,7 @@ def discovery(
         a = library_candidate(other).columns(ev, K)[:, 0]
         a = a - Q @ (Q.T @ a)
         cos = abs(float(mine @ a)) / max(float(np.linalg.norm(a)), 1e-300)
-        if cos > CONFOUND_COSINE:
+        if cos > th.confound_cosine:
             alike.append((cos, other.term))
     for c in pool:
         if t.channel not in c.channels:
@@ -94,7 +98,7 @@ def discovery(
         a = a - Q @ (Q.T @ a)
         nrm = np.linalg.norm(a, axis=0)
         cos = float(np.max(np.abs(mine @ a) / np.maximum(nrm, 1e-300)))
-        if cos > CONFOUND_COSINE:
+        if cos > th.confound_cosine:
             alike.append((cos, c.label))
     alike.sort(reverse=True)
     text = physics(t)

@@ -46,7 +46,7 @@ from bench.diagnosis.library_motion_search import (
 )
 from bench.diagnosis.library_motion_swap import cut_catalogue, fit_bic
 from bench.diagnosis.result import Diagnosis, Finding, Unexplained
-from bench.diagnosis.selection import FALSE_ALARM
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_model import TERM_ORDER, ModelSpec, initial_theta
 from bench.estimation.motion_data import MotionData
@@ -54,12 +54,6 @@ from bench.estimation.observability import fisher_information, information_repor
 
 FloatArray = np.ndarray
 CHANNELS = ("ax", "ay", "az")
-DYNAMIC_RATIO_LIMIT = 1.3
-"""A moving recording's final model fails its noise when a channel's Σ (r/σ_w)² / dof exceeds
-this. Not a χ² quantile: σ_w comes from the samples' second differences and the residual
-carries the bias wander and the motion's own high-frequency content, so clean recordings
-scatter between 0.93 and 1.10 (measured, docs/diagnose.md) where a χ² of 27 000 dof would
-allow ±0.03."""
 PARAM = {
     "lever_arm": ("r_m", "m"),
     "proof_mass_offsets": ("rho_m", "m"),
@@ -172,7 +166,7 @@ def _warm_start(fit: DynamicFit, spec: ModelSpec, lever: FloatArray) -> FloatArr
 
 
 def select_terms(
-    m: MotionData, y: FloatArray, g_m_s2: float, lever: FloatArray, *, false_alarm: float = FALSE_ALARM
+    m: MotionData, y: FloatArray, g_m_s2: float, lever: FloatArray, *, th: Thresholds = THRESHOLDS
 ) -> TermSelection:
     """Greedy forward selection of the terms the recording supports (module docstring).
 
@@ -201,7 +195,7 @@ def select_terms(
         tried = [t for t in pool if t not in chosen and (t != "proof_mass_offsets" or "lever_arm" in chosen)]
         if not tried:
             break
-        alpha = false_alarm / len(tried)
+        alpha = th.false_alarm / len(tried)
         best: tuple[float, str, float, DynamicFit] | None = None
         rejected = {}
         for t in tried:
@@ -236,7 +230,7 @@ def select_terms(
         steps=tuple(steps),
         fits=tuple(fits),
         rejected=rejected,
-        false_alarm=false_alarm,
+        false_alarm=th.false_alarm,
     )
 
 
@@ -250,8 +244,8 @@ def diagnose_dynamic(
     unit: str = "",
     channel_unit: str = "",
     source: str = "",
-    false_alarm: float = FALSE_ALARM,
     library: bool = True,
+    thresholds: Thresholds = THRESHOLDS,
 ) -> Diagnosis:
     """Diagnose a moving-table recording (module docstring).
 
@@ -259,25 +253,27 @@ def diagnose_dynamic(
     :param lever_arm_m: (3,) the lever arm the recording believes (m).
     :param temp_c: (n,) temperature (°C) or ``None``.
     :param library: search the moving library after the catalogue (``library_motion``).
+    :param thresholds: the diagnosis's knobs (``thresholds``).
     :raises ValueError: a motion that cannot determine bias and K.
     """
     lever = np.asarray(lever_arm_m, dtype=float).reshape(3)
     sig_w = np.maximum(white_sigma(y[m.valid]), 1e-12)
-    sel = select_terms(m, y, g_m_s2, lever, false_alarm=false_alarm)
+    th = thresholds
+    sel = select_terms(m, y, g_m_s2, lever, th=th)
     unobservable = {**STATIC_ONLY, **sel.unobservable}
     n_obs = 3 * int(m.valid.sum())
 
     def search(k: int) -> tuple[MotionLibraryResult, dict[str, FloatArray]]:
         span = _catalogue_span(sel, lever, k)
-        return search_motion_library(m, y, g_m_s2, lever, sel.fits[k], temp_c, span, false_alarm=false_alarm)
+        return search_motion_library(m, y, g_m_s2, lever, sel.fits[k], temp_c, span, th=th)
 
     def rescore(k: int, full: MotionLibraryResult, vals: dict[str, FloatArray]) -> float:
         coef = np.array([i.coefficient for i in full.included])
         terms = [i.term for i in full.included]
-        return fit_bic(refit_terms(m, y, g_m_s2, lever, sel.fits[k], terms, coef, vals)[0], len(terms))
+        return fit_bic(refit_terms(m, y, g_m_s2, lever, sel.fits[k], terms, coef, vals, th)[0], len(terms))
 
     if library:
-        k_cut, lib, vals, cut_note = cut_catalogue(search, rescore, len(sel.steps), sel.chosen)
+        k_cut, lib, vals, cut_note = cut_catalogue(search, rescore, len(sel.steps), sel.chosen, th)
     else:
         k_cut, lib, vals, cut_note = len(sel.steps), MotionLibraryResult((), sel.fits[-1:], 0, ()), {}, None
     fits = [*sel.fits[: k_cut + 1], *lib.fits[1:]]
@@ -311,7 +307,7 @@ def diagnose_dynamic(
     bs = block_summary(
         m, y, fits, g_m_s2, lever, sig_w, regs, n_obs,
         library=lib.adjustment(vals) if lib.included else None,
-        library_terms=tuple(i.term.label for i in lib.included),
+        library_terms=tuple(i.term.label for i in lib.included), th=th,
     )  # fmt: skip
     notes = (
         "sensor_lowpass: a low-pass of time constant τ looks like a delay of τ at these rates; "
@@ -321,7 +317,7 @@ def diagnose_dynamic(
         *lib.notes,
         *((cut_note,) if cut_note else ()),
     )
-    unexplained = _unexplained(bs, final)
+    unexplained = _unexplained(bs, final, th)
     return Diagnosis(
         unit=unit,
         channel_unit=channel_unit,
@@ -357,12 +353,12 @@ def _catalogue_span(sel: TermSelection, lever: FloatArray, k: int) -> tuple[Mode
     return spec, _warm_start(final, spec, lever)
 
 
-def _unexplained(bs: BlockSummary, final: DynamicFit) -> Unexplained | None:
-    """The final model against the samples' white noise, per channel (``DYNAMIC_RATIO_LIMIT``)."""
+def _unexplained(bs: BlockSummary, final: DynamicFit, th: Thresholds) -> Unexplained | None:
+    """The final model against the samples' white noise, per channel (``th.dynamic_ratio_limit``)."""
     assert bs.final_ratio is not None
     ratio = bs.final_ratio
     ch = int(np.argmax(ratio))
-    if ratio[ch] <= DYNAMIC_RATIO_LIMIT:
+    if ratio[ch] <= th.dynamic_ratio_limit:
         return None
     z = bs.final.z
     w = int(np.argmax(np.abs(z[:, ch])))
@@ -374,13 +370,13 @@ def _unexplained(bs: BlockSummary, final: DynamicFit) -> Unexplained | None:
     return Unexplained(
         chi2_dof=float(bs.final.chi2_dof),
         test=(
-            f"per-channel sum of (residual / white sigma)^2 over its dof above {DYNAMIC_RATIO_LIMIT:g} "
+            f"per-channel sum of (residual / white sigma)^2 over its dof above {th.dynamic_ratio_limit:g} "
             "(clean simulated moving recordings: 0.93-1.10)"
         ),
         p_value=float("nan"),
         where=(
-            f"{CHANNELS[ch]}: {ratio[ch]:.2f} times the white noise ({others}), strongest in the 1 s block "
-            f"{bs.labels[w]} (block mean {z[w, ch]:+.1f} sigma)"
+            f"{CHANNELS[ch]}: {ratio[ch]:.2f} times the white noise ({others}), strongest in the "
+            f"{th.block_s:g} s block {bs.labels[w]} (block mean {z[w, ch]:+.1f} sigma)"
         ),
         correlates_with=tuple(names),
         channels={CHANNELS[i]: float(ratio[i]) for i in range(3)},

@@ -18,16 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import t as t_dist
 
-from bench.diagnosis.regressors import SIGNIFICANCE, Correlation
+from bench.diagnosis.regressors import Correlation
 from bench.diagnosis.result import ModelSummary
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit
 from bench.estimation.dynamic_model import predict, specific_force
 from bench.estimation.motion_data import MotionData, sample_chunks
 
 FloatArray = np.ndarray
-BLOCK_S = 1.0
-WHERE_Z = 4.0
-"""A block residual beyond this many sigmas is named in ``where``."""
 
 
 @dataclass(frozen=True)
@@ -73,8 +71,8 @@ def motion_regressors(
     return out
 
 
-def _blocks(t: FloatArray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    blk = np.floor((t - t[0]) / BLOCK_S).astype(np.int64)
+def _blocks(t: FloatArray, valid: np.ndarray, block_s: float) -> tuple[np.ndarray, np.ndarray]:
+    blk = np.floor((t - t[0]) / block_s).astype(np.int64)
     blk = np.where(valid, blk, -1)
     ids, inv, counts = np.unique(blk[valid], return_inverse=True, return_counts=True)
     keep = counts >= 10
@@ -104,6 +102,7 @@ def block_summary(
     *,
     library: FloatArray | None = None,
     library_terms: tuple[str, ...] = (),
+    th: Thresholds = THRESHOLDS,
 ) -> BlockSummary:
     """Baseline and final model summaries, mismatch and correlates (module docstring).
 
@@ -111,7 +110,7 @@ def block_summary(
         of the final model only; :param library_terms: their labels, ``term[channel]``.
     """
     v = m.valid
-    ids, inv = _blocks(m.t_s[v], np.ones(int(v.sum()), dtype=bool))
+    ids, inv = _blocks(m.t_s[v], np.ones(int(v.sum()), dtype=bool), th.block_s)
     nb = ids.size
     cnt = np.bincount(inv[inv >= 0], minlength=nb)
     summaries = []
@@ -143,11 +142,11 @@ def block_summary(
     ratio = np.sum((resid0 / sig_w) ** 2, axis=0) / max(resid0.shape[0] - 4, 1)
     base = summaries[0]
     w, i = np.unravel_index(int(np.argmax(np.abs(base.z))), base.z.shape)
-    mid = (ids + 0.5) * BLOCK_S + float(m.t_s[v][0])
+    mid = (ids + 0.5) * th.block_s + float(m.t_s[v][0])
     where = (
-        f"a{'xyz'[i]}, strongest in the 1 s block at t = {mid[w]:.0f} s "
+        f"a{'xyz'[i]}, strongest in the {th.block_s:g} s block at t = {mid[w]:.0f} s "
         f"(block mean {base.z[w, i]:+.1f} sigma)"
-        if abs(base.z[w, i]) > WHERE_Z
+        if abs(base.z[w, i]) > th.where_z
         else "nowhere beyond the noise"
     )
     breg = {k: _bmean(x[v], inv, nb) for k, x in regs.items() if not k.startswith("f_") or k.endswith("^2")}
@@ -158,21 +157,25 @@ def block_summary(
         final=summaries[1],
         channel_ratio=ratio,
         where=where,
-        correlations=tuple(_block_correlations(base.resid, breg, F)),
+        correlations=tuple(_block_correlations(base.resid, breg, F, th.correlation_significance)),
         labels=tuple(f"t={x:.0f}s" for x in mid),
         mid_s=mid,
         final_ratio=np.sum((resid1 / sig_w) ** 2, axis=0) / max(resid1.shape[0] - 4, 1),
-        final_correlations=tuple(_block_correlations(summaries[1].resid, breg, F)),
+        final_correlations=tuple(
+            _block_correlations(summaries[1].resid, breg, F, th.correlation_significance)
+        ),
     )
 
 
-def _block_correlations(resid: FloatArray, breg: dict[str, FloatArray], F: FloatArray) -> list[Correlation]:
+def _block_correlations(
+    resid: FloatArray, breg: dict[str, FloatArray], F: FloatArray, significance: float
+) -> list[Correlation]:
     """Correlations of (nb, 3) block residuals with each block regressor, after [1, f̄] (module docstring)."""
     nb = resid.shape[0]
     corr: list[Correlation] = []
     dof = nb - 5
     if dof >= 1:
-        crit = float(t_dist.ppf(1.0 - SIGNIFICANCE / (2.0 * 3 * len(breg)), dof))
+        crit = float(t_dist.ppf(1.0 - significance / (2.0 * 3 * len(breg)), dof))
         Q, _ = np.linalg.qr(F)
         rr = resid - Q @ (Q.T @ resid)
         for name, x in breg.items():

@@ -11,9 +11,11 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from bench.estimation.dynamic_model import G0_M_S2
+
+__all__ = ["G0_M_S2", "FloatArray", "StaticEvidence"]
+
 FloatArray = npt.NDArray[np.float64]
-G0_M_S2 = 9.80665
-"""Standard gravity (m/s²): the g0 of the catalogue's formulas."""
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,8 @@ of abs(·) above one (abs(f)² = f²), and the catalogue's regressors on the cha
 act on (f_i² and abs(f_i) on channel i, f_j·f_k on any channel, temp and t on any
 channel): a catalogue effect is tested first, by the catalogue. A monomial whose
 signature on this pose set lies within the first-order model's span (relative leverage
-< ``RELATIVE_LEVERAGE_MIN``: f_x³ on the six ±g poses is f_x) or coincides with a simpler
-monomial's (|cos| > 1 − ``ALIAS_TOL`` after projecting out the first-order model: f_x·f_y²
+< ``Thresholds.relative_leverage_min``: f_x³ on the six ±g poses is f_x) or coincides with a simpler
+monomial's (|cos| > 1 − ``Thresholds.alias_tol`` after projecting out the first-order model: f_x·f_y²
 on a pose set where every f_y ≠ 0 has f_x = 0) is not a candidate: the recording cannot
 tell it from what is already there. ``LibraryTerm.aliases`` lists the dropped twins.
 
@@ -37,17 +37,14 @@ import numpy as np
 
 from bench.diagnosis.effects.base import (
     AXES,
-    RELATIVE_LEVERAGE_MIN,
     Candidate,
     FloatArray,
     channel_column,
 )
-from bench.diagnosis.effects.sensor import MIN_TEMPERATURE_SPAN_C, REFERENCE_TEMP_C
+from bench.diagnosis.effects.sensor import REFERENCE_TEMP_C
 from bench.diagnosis.evidence import G0_M_S2, StaticEvidence
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
-MAX_DEGREE = 3
-ALIAS_TOL = 1e-6
-"""Two monomials whose signatures beyond the first-order model have |cos| above 1 − this are one term."""
 EFFECT = "discovered"
 CHANNELS = ("ax", "ay", "az")
 
@@ -104,13 +101,13 @@ class LibraryTerm(NamedTerm):
     aliases: tuple[str, ...] = field(default=())
 
 
-def bases(ev: StaticEvidence) -> tuple[Base, ...]:
+def bases(ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[Base, ...]:
     """The base quantities this static recording offers (module docstring)."""
     out = [Base(f"f_{a}", "g", i, "f") for i, a in enumerate(AXES)]
     out += [Base(f"abs(f_{a})", "g", i, "abs") for i, a in enumerate(AXES)]
     if ev.has_temperature:
         assert ev.temp_c is not None
-        if float(np.ptp(ev.temp_c)) >= MIN_TEMPERATURE_SPAN_C:
+        if float(np.ptp(ev.temp_c)) >= th.min_temperature_span_c:
             out.append(Base("temp", "°C", -1, "temp"))
     out.append(Base("t", "s", -1, "t"))
     return tuple(out)
@@ -180,10 +177,10 @@ def admissible(factors: tuple[Base, ...]) -> bool:
     return len(abs_axes) == len(set(abs_axes))
 
 
-def library_terms(ev: StaticEvidence) -> tuple[list[LibraryTerm], int]:
+def library_terms(ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[list[LibraryTerm], int]:
     """The library's candidate terms on this recording, simplest first, and how many
     monomials were dropped as not determined by the pose set (module docstring)."""
-    bs = bases(ev)
+    bs = bases(ev, th)
     vals = {b: base_values(ev, b) for b in bs}
     m = ev.m
     F = np.column_stack([np.ones(m), ev.f_m_s2 / G0_M_S2])
@@ -191,7 +188,7 @@ def library_terms(ev: StaticEvidence) -> tuple[list[LibraryTerm], int]:
     kept: list[list[tuple[LibraryTerm, FloatArray]]] = [[], [], []]
     aliases: dict[tuple[int, str], list[str]] = {}
     dropped = 0
-    for degree in range(1, MAX_DEGREE + 1):
+    for degree in range(1, th.max_degree + 1):
         for combo in combinations_with_replacement(range(len(bs)), degree):
             factors = tuple(bs[k] for k in combo)
             if not admissible(factors):
@@ -204,11 +201,11 @@ def library_terms(ev: StaticEvidence) -> tuple[list[LibraryTerm], int]:
             for ch in range(3):
                 if in_catalogue(factors, ch):
                     continue
-                if nrm == 0 or rn < RELATIVE_LEVERAGE_MIN * nrm:
+                if nrm == 0 or rn < th.relative_leverage_min * nrm:
                     dropped += 1
                     continue
                 u = resid / rn
-                twin = next((t for t, v in kept[ch] if abs(float(u @ v)) > 1.0 - ALIAS_TOL), None)
+                twin = next((t for t, v in kept[ch] if abs(float(u @ v)) > 1.0 - th.alias_tol), None)
                 if twin is not None:
                     aliases.setdefault((ch, twin.term), []).append(name)
                     continue

@@ -30,8 +30,8 @@ i (raw_i += c·x, c in channel units per unit of x). Left out:
   masses, the common time skew K·ḟ, the tilt): not by name but by signature, in the search
   (``library_motion_search``): a term whose signature beyond the fitted model lies within
   |cos| 0.8 of the span of the catalogue terms not in the model is the catalogue's, and one
-  with relative leverage < ``RELATIVE_LEVERAGE_MIN`` beyond the fitted model is not
-  determined; a term identical to a simpler one beyond the model (|cos| > 1 − ``ALIAS_TOL``)
+  with relative leverage < ``Thresholds.relative_leverage_min`` beyond the fitted model is not
+  determined; a term identical to a simpler one beyond the model (|cos| > 1 − ``Thresholds.alias_tol``)
   is its alias.
 """
 
@@ -42,10 +42,8 @@ from itertools import combinations_with_replacement
 
 import numpy as np
 
-from bench.diagnosis.effects.sensor import MIN_TEMPERATURE_SPAN_C, REFERENCE_TEMP_C
+from bench.diagnosis.effects.sensor import REFERENCE_TEMP_C
 from bench.diagnosis.library import (
-    ALIAS_TOL,
-    MAX_DEGREE,
     Base,
     LibraryTerm,
     NamedTerm,
@@ -55,6 +53,7 @@ from bench.diagnosis.library import (
     term_unit,
 )
 from bench.diagnosis.library import physics as static_physics
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit
 from bench.estimation.dynamic_model import G0_M_S2, gravity_base, positions, specific_force
 from bench.estimation.motion_data import MotionData, sample_chunks
@@ -63,7 +62,7 @@ FloatArray = np.ndarray
 AXES = "xyz"
 CHANNELS = ("ax", "ay", "az")
 SLOW_KINDS = frozenset({"t", "temp"})
-__all__ = ["ALIAS_TOL", "MotionTerm", "base_values", "motion_bases", "motion_monomials", "motion_physics"]
+__all__ = ["MotionTerm", "base_values", "motion_bases", "motion_monomials", "motion_physics"]
 
 
 def _axial(S: FloatArray) -> FloatArray:
@@ -100,7 +99,12 @@ def force_rate(fit: DynamicFit, m: MotionData, g_m_s2: float, lever: FloatArray)
 
 
 def motion_bases(
-    m: MotionData, fit: DynamicFit, g_m_s2: float, lever: FloatArray, temp_c: FloatArray | None
+    m: MotionData,
+    fit: DynamicFit,
+    g_m_s2: float,
+    lever: FloatArray,
+    temp_c: FloatArray | None,
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[tuple[Base, ...], dict[str, FloatArray]]:
     """The base quantities this moving recording offers and their (n,) values (module docstring).
 
@@ -124,7 +128,7 @@ def motion_bases(
     if temp_c is not None:
         tc = np.asarray(temp_c, dtype=float)
         ok = tc[m.valid]
-        if np.all(np.isfinite(ok)) and float(np.ptp(ok)) >= MIN_TEMPERATURE_SPAN_C:
+        if np.all(np.isfinite(ok)) and float(np.ptp(ok)) >= th.min_temperature_span_c:
             add(Base("temp", "°C", -1, "temp"), np.where(np.isfinite(tc), tc - REFERENCE_TEMP_C, 0.0))
     add(Base("t", "s", -1, "t"), m.t_s - m.t_s[0])
     for i, a in enumerate(AXES):
@@ -158,10 +162,10 @@ def _admissible(factors: tuple[Base, ...]) -> bool:
     return admissible(factors)
 
 
-def motion_monomials(bases: tuple[Base, ...]) -> list[tuple[Base, ...]]:
-    """Admissible monomials of degree 1..``MAX_DEGREE`` of ``bases``, simplest first."""
+def motion_monomials(bases: tuple[Base, ...], th: Thresholds = THRESHOLDS) -> list[tuple[Base, ...]]:
+    """Admissible monomials of degree 1..``th.max_degree`` of ``bases``, simplest first."""
     out = []
-    for degree in range(1, MAX_DEGREE + 1):
+    for degree in range(1, th.max_degree + 1):
         for combo in combinations_with_replacement(range(len(bases)), degree):
             factors = tuple(bases[k] for k in combo)
             if _admissible(factors):
@@ -169,10 +173,10 @@ def motion_monomials(bases: tuple[Base, ...]) -> list[tuple[Base, ...]]:
     return out
 
 
-def candidate_terms(bases: tuple[Base, ...]) -> list[MotionTerm]:
+def candidate_terms(bases: tuple[Base, ...], th: Thresholds = THRESHOLDS) -> list[MotionTerm]:
     """Every (monomial, channel) pair the library may try, before the recording's own checks."""
     out = []
-    for factors in motion_monomials(bases):
+    for factors in motion_monomials(bases, th):
         name, unit = term_name(factors), term_unit(factors)
         for ch in range(3):
             if not in_catalogue(factors, ch):

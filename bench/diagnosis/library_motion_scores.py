@@ -22,8 +22,8 @@ a Bartlett long-run variance from n_b blocks (Var Ŝ / S² ≈ 2 Σ w_k² / n_b,
 Rev. Econ. Stud. 61 (1994) 631): the effective sample size is the number of blocks, not of
 samples. Also per candidate: its relative leverage √(ãᵀWã / aᵀWa), and the share cos² of
 its signature beyond the model that lies in the span of the catalogue's terms not in the
-model. The projections use every ``stride``-th sample (at most ``SUBSAMPLE``: J and x are
-smooth), the scores every sample, in chunks of ``CHUNK``.
+model. The projections use every ``stride``-th sample (at most ``Thresholds.motion_subsample``: J and x are
+smooth), the scores every sample, in chunks of ``Thresholds.motion_chunk_samples``.
 """
 
 from __future__ import annotations
@@ -34,13 +34,12 @@ import numpy as np
 
 from bench.diagnosis.library import Base
 from bench.diagnosis.library_motion import MotionTerm, base_values
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import BLOCK_S, NW_LAGS, TARGET_BLOCKS, DynamicFit
 from bench.estimation.dynamic_model import ModelSpec, predict
 from bench.estimation.motion_data import MotionData
 
 FloatArray = np.ndarray
-CHUNK = 4000
-SUBSAMPLE = 2000
 SLOW_TRENDS = ("t", "temp")
 """Slow trends a bias wander can make over one run: their powers up to the third on each
 channel span what a term must not mostly be (``library_motion``, "slow")."""
@@ -144,7 +143,10 @@ def _base_matrix(vals: dict[str, FloatArray], names: tuple[str, ...]) -> BaseCol
 
 
 def design(
-    m: MotionData, monos: list[tuple[Base, ...]], vals: dict[str, FloatArray]
+    m: MotionData,
+    monos: list[tuple[Base, ...]],
+    vals: dict[str, FloatArray],
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[Design, BaseColumns]:
     names = tuple(dict.fromkeys(b.name for f in monos for b in f))
     pos = {n: k for k, n in enumerate(names)}
@@ -152,7 +154,7 @@ def design(
     index = np.array([[pos[b.name] for b in f] + [one] * (3 - len(f)) for f in monos], dtype=np.int64).T
     base = _base_matrix(vals, names)
     idx = np.flatnonzero(m.valid)
-    stride = max(1, idx.size // SUBSAMPLE)
+    stride = max(1, idx.size // th.motion_subsample)
     sub = idx[::stride]
     bs = base[sub]
     Xs = bs[:, index[0]] * bs[:, index[1]] * bs[:, index[2]]
@@ -198,6 +200,7 @@ def scores(
     catalogue: tuple[ModelSpec, FloatArray] | None,
     *,
     shares: bool = True,
+    th: Thresholds = THRESHOLDS,
 ) -> Stats:
     """Scores, HAC variances and projections of every monomial on every channel (module docstring).
 
@@ -233,8 +236,9 @@ def scores(
     blk, nb = des.blk, des.nb
     SX = [np.zeros((nb, M)) for _ in range(3)]
     SJ = [np.zeros((nb, p)) for _ in range(3)]
-    for a in range(0, idx.size, CHUNK):
-        sel = idx[a : a + CHUNK]
+    chunk = th.motion_chunk_samples
+    for a in range(0, idx.size, chunk):
+        sel = idx[a : a + chunk]
         raw, J = predict(fit.theta, m.take(sel), fit.spec, g, lever, jacobian=True)
         assert J is not None
         J = np.concatenate([J, lib_columns(aug, vals, sel)], axis=2)

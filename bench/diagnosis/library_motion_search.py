@@ -3,21 +3,21 @@
 Model with library terms: raw = h(θ; motion) + Σ_k c_k x_k e_{i_k} (``dynamic_model``; x_k a
 monomial on channel i_k). Each step scores every candidate (``library_motion_scores``: the
 statistic T with a Newey-West variance over the dynamic fit's blocks) and admits the best
-one that passes F(1, ν) at α = ``LIBRARY_SHARE`` · false_alarm / N_L (N_L terms in the
+one that passes F(1, ν) at α = ``library_share`` · ``false_alarm`` / N_L (``Thresholds``; N_L terms in the
 library on this recording, ν the blocks' Satterthwaite degrees of freedom) and whose BIC
 change, n Σ_c ln(σ̂²_c,1/σ̂²_c,0) + ln(3n) with the model refitted, is negative (as the
 catalogue's). Among terms on the same channel whose signatures beyond the model are alike
-(|cos| > ``ALIKE_COSINE``) and whose T lies within ``TIE_CHI2`` of the best, the simplest
+(|cos| > ``alike_cosine``) and whose T lies within ``tie_chi2`` of the best, the simplest
 (lowest degree) enters; the others are reported as confounded with it (``_choose``).
 
-Before a term is a candidate: relative leverage beyond the model ≥ ``RELATIVE_LEVERAGE_MIN``
+Before a term is a candidate: relative leverage beyond the model ≥ ``Thresholds.relative_leverage_min``
 (else the motion does not determine it); not the catalogue's (its signature beyond the model
-within |cos| ``ALIKE_COSINE`` of the span of the catalogue terms not in the model: those are
+within |cos| ``Thresholds.alike_cosine`` of the span of the catalogue terms not in the model: those are
 the catalogue's to claim, with its gates: the lever arm's ω²·r and ω̇·r, the proof masses,
-the common skew K·ḟ, the tilt); not mostly a slow trend (more than ``SLOW_SHARE`` of its
+the common skew K·ḟ, the tilt); not mostly a slow trend (more than ``Thresholds.slow_share`` of its
 signature's energy beyond the model in the span of the cubic polynomials in t and in temp on
 each channel: a bias wander makes those, and abs(f_z)·t, whose mean is a drift, took a bias
-step otherwise); not an alias of a simpler term (|cos| > 1 − ``ALIAS_TOL``).
+step otherwise); not an alias of a simpler term (|cos| > 1 − ``Thresholds.alias_tol``).
 
 Refit: Gauss-Newton steps of the joint model (catalogue parameters and library coefficients)
 until the library step is below a thousandth of its sigma, then the dynamic fit of
@@ -33,9 +33,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import f as f_dist
 
-from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN
 from bench.diagnosis.library_motion import (
-    ALIAS_TOL,
     CHANNELS,
     MotionTerm,
     base_values,
@@ -44,7 +42,6 @@ from bench.diagnosis.library_motion import (
     motion_physics,
 )
 from bench.diagnosis.library_motion_scores import (
-    CHUNK,
     Stats,
     design,
     lib_columns,
@@ -53,16 +50,12 @@ from bench.diagnosis.library_motion_scores import (
     solve_scaled,
 )
 from bench.diagnosis.result import Discovery
-from bench.diagnosis.selection import ALIKE_COSINE, LIBRARY_SHARE, MAX_STEPS, TIE_CHI2
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch
 from bench.estimation.dynamic_model import ModelSpec, predict
 from bench.estimation.motion_data import MotionData
 
 FloatArray = np.ndarray
-REFIT_ITER = 5
-SLOW_SHARE = 0.5
-"""A term more than half of whose signature beyond the model (in energy, cos²) is a slow trend
-(cubic polynomials in t and in temp on its channel) is one a bias wander can make: not searched."""
 
 
 @dataclass(frozen=True)
@@ -111,6 +104,7 @@ def refit_terms(
     terms: list[MotionTerm],
     coef: FloatArray,
     vals: dict[str, FloatArray],
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[DynamicFit, FloatArray]:
     """The catalogue model and the library coefficients fitted together (module docstring):
     Gauss-Newton steps of the joint model, [JᵀWJ JᵀWA; AᵀWJ AᵀWA] [δθ; δc] = [JᵀWe; AᵀWe], from
@@ -122,11 +116,12 @@ def refit_terms(
     cols = lib_columns(terms, vals, np.arange(m.n))
     w = 1.0 / fit.noise_sigma**2
     p, k = fit.spec.n_params, len(terms)
-    for _ in range(REFIT_ITER):
+    chunk = th.motion_chunk_samples
+    for _ in range(th.motion_refit_iter):
         y_adj = y - np.einsum("nck,k->nc", cols, coef)
         N, rhs = np.zeros((p + k, p + k)), np.zeros(p + k)
-        for a in range(0, idx.size, CHUNK):
-            sel = idx[a : a + CHUNK]
+        for a in range(0, idx.size, chunk):
+            sel = idx[a : a + chunk]
             raw, J = predict(theta, m.take(sel), fit.spec, g, lever, jacobian=True)
             assert J is not None
             JA = np.concatenate([J, cols[sel]], axis=2)
@@ -143,7 +138,9 @@ def refit_terms(
     return fit_dynamic_batch(m, y_adj, g, lever, fit.spec, theta0=theta), coef
 
 
-def _screen(st: Stats, terms: list[MotionTerm], mono_index: dict[str, int], taken: set[str]) -> tuple[
+def _screen(
+    st: Stats, terms: list[MotionTerm], mono_index: dict[str, int], taken: set[str], th: Thresholds
+) -> tuple[
     list[tuple[MotionTerm, int]], dict[str, list[str]], int, int, int
 ]:  # fmt: skip
     """Candidates of this step: (term, monomial index), aliases, and how many were not
@@ -157,11 +154,11 @@ def _screen(st: Stats, terms: list[MotionTerm], mono_index: dict[str, int], take
             if t.channel != c or t.label in taken:
                 continue
             a = mono_index[t.term]
-            if not np.isfinite(st.lev[c][a]) or st.lev[c][a] < RELATIVE_LEVERAGE_MIN:
+            if not np.isfinite(st.lev[c][a]) or st.lev[c][a] < th.relative_leverage_min:
                 dropped += 1
-            elif st.cat_cos2[c][a] > ALIKE_COSINE**2:
+            elif st.cat_cos2[c][a] > th.alike_cosine**2:
                 catalogue += 1
-            elif st.slow_cos2[c][a] > SLOW_SHARE:
+            elif st.slow_cos2[c][a] > th.slow_share:
                 slow += 1
             else:
                 eligible.append((t, a))
@@ -170,7 +167,7 @@ def _screen(st: Stats, terms: list[MotionTerm], mono_index: dict[str, int], take
         ix = np.array([a for _, a in eligible])
         Pc = st.P[c][np.ix_(ix, ix)]
         d = np.sqrt(np.maximum(np.diag(Pc), 1e-300))
-        twin = np.tril(np.abs(Pc) / np.outer(d, d) > 1.0 - ALIAS_TOL, -1)
+        twin = np.tril(np.abs(Pc) / np.outer(d, d) > 1.0 - th.alias_tol, -1)
         is_kept = np.ones(ix.size, dtype=bool)
         for r in np.flatnonzero(twin.any(axis=1)):
             first = np.flatnonzero(twin[r, :r] & is_kept[:r])
@@ -182,7 +179,7 @@ def _screen(st: Stats, terms: list[MotionTerm], mono_index: dict[str, int], take
 
 
 def _choose(
-    st: Stats, pool: list[tuple[MotionTerm, int]], crit: float
+    st: Stats, pool: list[tuple[MotionTerm, int]], crit: float, th: Thresholds
 ) -> tuple[MotionTerm, int, float, tuple[str, ...]] | None:
     """The term to enter, its T and its alike rivals, or ``None`` (module docstring).
 
@@ -190,7 +187,7 @@ def _choose(
     the fit each term gives, G = U² / ãᵀWã (its Δχ² under the residual's own level: each
     term's T divides by its own variance estimate, which scatters by ~1/√ν between alike
     terms and would pick the luckiest of them). Terms alike the best (same channel, |cos| >
-    ``ALIKE_COSINE``) within ``TIE_CHI2`` of its G, in units of the best's T (G·T/G), are a
+    ``th.alike_cosine``) within ``th.tie_chi2`` of its G, in units of the best's T (G·T/G), are a
     tie, which the simplest wins.
     """
     rows = []
@@ -202,13 +199,13 @@ def _choose(
         return None
     top_G, top_T, top, ta = max(rows, key=lambda r: r[0])
     Pc = st.P[top.channel]
-    tie = TIE_CHI2 * top_G / top_T
+    tie = th.tie_chi2 * top_G / top_T
 
     def cos(b: int) -> float:
         return float(abs(Pc[ta, b])) / math.sqrt(max(float(Pc[ta, ta] * Pc[b, b]), 1e-300))
 
     alike = [
-        r for r in rows if r[2].channel == top.channel and r[0] >= top_G - tie and cos(r[3]) > ALIKE_COSINE
+        r for r in rows if r[2].channel == top.channel and r[0] >= top_G - tie and cos(r[3]) > th.alike_cosine
     ]
     _, Tb, best, ba = min(alike, key=lambda r: (r[2].degree, -r[0]))
     return best, ba, Tb, tuple(r[2].term for r in alike if r[2] is not best)
@@ -223,7 +220,7 @@ def search_motion_library(
     temp_c: FloatArray | None,
     catalogue: tuple[ModelSpec, FloatArray] | None,
     *,
-    false_alarm: float,
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[MotionLibraryResult, dict[str, FloatArray]]:
     """Greedy search of the moving library after the catalogue (module docstring).
 
@@ -233,28 +230,39 @@ def search_motion_library(
         (the others at their null), whose span marks a term as the catalogue's; ``None``: none left.
     :returns: the result and the base quantities' values per sample (name -> (n,)).
     """
-    bases, vals = motion_bases(m, fit, g_m_s2, lever, temp_c)
-    terms = candidate_terms(bases)
+    bases, vals = motion_bases(m, fit, g_m_s2, lever, temp_c, th)
+    terms = candidate_terms(bases, th)
     monos = list({t.term: t.factors for t in terms}.values())
     mono_index = {t.term: k for k, t in enumerate({t.term: t for t in terms}.values())}
-    des, base = design(m, monos, vals)
+    des, base = design(m, monos, vals, th)
     fits = [fit]
     included: list[Included] = []
     coef = np.zeros(0)
     notes: list[str] = []
     n_terms = 0
     first: Stats | None = None
-    for _ in range(MAX_STEPS):
+    for _ in range(th.max_steps):
         inc_terms = [i.term for i in included]
         y_adj = y - np.einsum("nck,k->nc", lib_columns(inc_terms, vals, np.arange(m.n)), coef)
         st = scores(
-            m, y_adj, fits[-1], g_m_s2, lever, inc_terms, des, base, vals, catalogue, shares=first is None
+            m,
+            y_adj,
+            fits[-1],
+            g_m_s2,
+            lever,
+            inc_terms,
+            des,
+            base,
+            vals,
+            catalogue,
+            shares=first is None,
+            th=th,
         )
         if first is None:
             first = st
         else:  # the shares of the first step: the spans they measure do not move with a term
             st = replace(st, cat_cos2=first.cat_cos2, slow_cos2=first.slow_cos2)
-        pool, aliases, dropped, cat, slow = _screen(st, terms, mono_index, {t.label for t in inc_terms})
+        pool, aliases, dropped, cat, slow = _screen(st, terms, mono_index, {t.label for t in inc_terms}, th)
         if not included:
             n_terms = len(pool)
             notes.append(
@@ -263,20 +271,20 @@ def search_motion_library(
                 "mostly a slow trend a bias wander makes (powers of t, temp), "
                 f"{sum(len(v) for v in aliases.values())} aliases of simpler terms); gate F(1, "
                 f"{satterthwaite_dof(st.n_blocks):.1f}) at "
-                f"{LIBRARY_SHARE * false_alarm / max(len(pool), 1):.2g}"
+                f"{th.library_share * th.false_alarm / max(len(pool), 1):.2g}"
             )
         if not pool:
             break
-        alpha = LIBRARY_SHARE * false_alarm / len(pool)
+        alpha = th.library_share * th.false_alarm / len(pool)
         crit = float(f_dist.ppf(1.0 - alpha, 1, satterthwaite_dof(st.n_blocks)))
-        pick = _choose(st, pool, crit)
+        pick = _choose(st, pool, crit, th)
         if pick is None:
             break
         term, a, T, alike = pick
         term = replace(term, aliases=tuple(aliases.get(term.label, ())))
         c0 = float(st.U[term.channel][a] / st.P[term.channel][a, a]) / st.scale[a]
         new_fit, new_coef = refit_terms(
-            m, y, g_m_s2, lever, fits[-1], [*inc_terms, term], np.append(coef, c0), vals
+            m, y, g_m_s2, lever, fits[-1], [*inc_terms, term], np.append(coef, c0), vals, th
         )
         dbic = _loglik(new_fit) - _loglik(fits[-1]) + math.log(3 * new_fit.n_used)
         if dbic >= 0:
@@ -294,8 +302,8 @@ def search_motion_library(
         # the residual of the final model (every term in), the term tested beyond the model and the others
         others = [i.term for j, i in enumerate(included) if j != k]
         y_adj = y - np.einsum("nck,k->nc", lib_columns(inc_all, vals, np.arange(m.n)), coef)
-        one, one_base = design(m, [inc.term.factors], vals)
-        st = scores(m, y_adj, fits[-1], g_m_s2, lever, others, one, one_base, vals, None, shares=False)
+        one, one_base = design(m, [inc.term.factors], vals, th)
+        st = scores(m, y_adj, fits[-1], g_m_s2, lever, others, one, one_base, vals, None, shares=False, th=th)
         c = inc.term.channel
         Pcc = float(st.P[c][0, 0])
         sig = math.sqrt(float(st.V[c][0])) / Pcc / float(st.scale[0])

@@ -11,7 +11,7 @@ those whose span marks a library term as the catalogue's, so no term they could 
 replace them). To keep the cost at two searches, the full path's terms are first refitted
 after each shorter path and only the best of those is searched again. The model of lowest
 BIC, n Σ_c ln σ̂²_c + p ln(3n) with p counting every coefficient, wins; a shorter catalogue
-path only on "strong" evidence, a BIC lower by more than ``TIE_CHI2`` (Kass & Raftery, JASA
+path only on "strong" evidence, a BIC lower by more than ``Thresholds.tie_chi2`` (Kass & Raftery, JASA
 90 (1995) 773), as the static library's swap. The cut is tried only when the full path's
 search discovered a term (the case where a catalogue step may have taken part of it).
 """
@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from bench.diagnosis.library_motion_search import MotionLibraryResult
-from bench.diagnosis.selection import TIE_CHI2
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit
 
 FloatArray = np.ndarray
@@ -44,7 +44,11 @@ def model_bic(lib: MotionLibraryResult) -> float:
 
 
 def cut_catalogue(
-    search: Search, rescore: Rescore, n_steps: int, chosen: tuple[str, ...]
+    search: Search,
+    rescore: Rescore,
+    n_steps: int,
+    chosen: tuple[str, ...],
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[int, MotionLibraryResult, dict[str, FloatArray], str | None]:
     """(k, the search after the first k catalogue steps, its base values, a note) (module docstring).
 
@@ -63,11 +67,11 @@ def cut_catalogue(
     full = model_bic(lib)
     scores = {k: rescore(k, lib, vals) for k in range(n_steps)}
     k = min(scores, key=lambda j: (scores[j], j))
-    if scores[k] >= full - TIE_CHI2:
+    if scores[k] >= full - th.tie_chi2:
         return n_steps, lib, vals, None
     lk, vk = search(k)
     b = model_bic(lk)
-    if not lk.included or b >= full - TIE_CHI2:
+    if not lk.included or b >= full - th.tie_chi2:
         return n_steps, lib, vals, None
     new = ", ".join(i.term.label for i in lk.included)
     note = (

@@ -17,6 +17,7 @@ from bench.diagnosis.effects import Candidate, first_order_design, pose_response
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import GlsFit, NoiseParams, fit_noise, gls, window_covariance
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.diagnosis.wander_cap import SlowNoiseCap
 
 
@@ -65,14 +66,16 @@ def fit_model(
     iterations: int = 1,
     cap: SlowNoiseCap | None = None,
     own: bool = False,
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[NoiseParams, GlsFit, FloatArray]:
     """REML noise and GLS fit of a model, the columns evaluated at K0 (then at the fitted K).
 
-    ``cap`` is the recording's slow-noise bound (``wander_cap``), built here if not given.
+    ``cap`` is the recording's slow-noise bound (``wander_cap``), built here at
+    ``th.cap_alpha`` if not given.
     The slow noise has one level scaled by the channels' gains, or with ``own`` one level
     per channel.
     """
-    cap = SlowNoiseCap(ev) if cap is None else cap
+    cap = SlowNoiseCap(ev, th.cap_alpha) if cap is None else cap
     K = K0
     noise: NoiseParams | None = init
     fit: GlsFit | None = None

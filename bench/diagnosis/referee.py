@@ -13,6 +13,7 @@ from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.library import EFFECT
 from bench.diagnosis.likelihood import covariance, gls
 from bench.diagnosis.model_state import ModelState, design, fit_model, scale_matrix
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
 
 def prune_catalogue(
@@ -20,8 +21,8 @@ def prune_catalogue(
     state: ModelState,
     pool: list[Candidate],
     fixed: FloatArray | None,
-    false_alarm: float,
     notes: dict[str, str],
+    th: Thresholds = THRESHOLDS,
 ) -> list[str]:
     """Drop catalogue effects that entered before a library term and are not needed once it is in.
 
@@ -48,7 +49,7 @@ def prune_catalogue(
             keep = [c for c in state.candidates if c.effect != effect]
             q = sum(len(c.names) for c in state.candidates if c.effect == effect)
             lr = gls(design(ev, K, keep), z, C).chi2 - full
-            gate = q * float(f_dist.ppf(1.0 - false_alarm / max(n_cat, 1), q, ev.n_obs - X.shape[1]))
+            gate = q * float(f_dist.ppf(1.0 - th.false_alarm / max(n_cat, 1), q, ev.n_obs - X.shape[1]))
             if lr < gate and (weakest is None or lr / gate < weakest[0]):
                 weakest = (lr / gate, effect, lr)
         if weakest is None:
@@ -62,7 +63,7 @@ def prune_catalogue(
             f"entered before the library's {terms} and is not needed once it is in "
             f"(its statistic falls to {lr:.1f}, below its gate): dropped"
         )
-        state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise)
+        state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise, th=th)
 
 
 def loo_scores(ev: StaticEvidence, X: FloatArray, C: FloatArray) -> FloatArray:
@@ -83,7 +84,11 @@ def loo_scores(ev: StaticEvidence, X: FloatArray, C: FloatArray) -> FloatArray:
 
 
 def referee(
-    ev: StaticEvidence, state: ModelState, fixed: FloatArray | None, notes: dict[str, str]
+    ev: StaticEvidence,
+    state: ModelState,
+    fixed: FloatArray | None,
+    notes: dict[str, str],
+    th: Thresholds = THRESHOLDS,
 ) -> list[str]:
     """Out-of-sample referee of the structured effects (catalogue and library).
 
@@ -123,4 +128,4 @@ def referee(
             f"(leave-one-window-out chi2 {after:.1f} with it, {before:.1f} without): a pattern the "
             "windows happen to follow, not claimed"
         )
-        state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise)
+        state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise, th=th)

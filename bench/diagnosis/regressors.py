@@ -24,8 +24,7 @@ from scipy.stats import t as t_dist
 
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
-
-SIGNIFICANCE = 0.01
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
 
 def window_regressors(ev: StaticEvidence) -> dict[str, FloatArray]:
@@ -59,10 +58,14 @@ class Correlation:
     significant: bool
 
 
-def correlations(ev: StaticEvidence, resid: FloatArray, sigma: FloatArray) -> list[Correlation]:
+def correlations(
+    ev: StaticEvidence, resid: FloatArray, sigma: FloatArray, th: Thresholds = THRESHOLDS
+) -> list[Correlation]:
     """Correlations of every regressor with every channel's residual, strongest first.
 
     :param resid: (m, 3) first-order residuals; :param sigma: (m, 3) their noise sigma.
+    Significant: |t| beyond the two-sided ``th.correlation_significance`` quantile, Bonferroni
+    over channels and regressors.
     """
     m = ev.m
     dof = m - 5
@@ -70,7 +73,7 @@ def correlations(ev: StaticEvidence, resid: FloatArray, sigma: FloatArray) -> li
     if dof < 1:
         return out
     regs = window_regressors(ev)
-    crit = float(t_dist.ppf(1.0 - SIGNIFICANCE / (2.0 * 3 * len(regs)), dof))
+    crit = float(t_dist.ppf(1.0 - th.correlation_significance / (2.0 * 3 * len(regs)), dof))
     X = np.column_stack([np.ones(m), ev.f_m_s2])
     for name, x in regs.items():
         for i in range(3):

@@ -3,10 +3,10 @@
 At each step every candidate not yet in the model is tried (fixed columns appended to the
 design; the pose error as a variance component). A candidate is admitted only if
 
-1. it is observable: its columns keep at least ``RELATIVE_LEVERAGE_MIN`` of their norm
+1. it is observable: its columns keep at least ``Thresholds.relative_leverage_min`` of their norm
    outside the span of the current design (else bias, K and the effects already in the
    model would absorb it: it is reported as indistinguishable, not guessed);
-2. its statistic passes the gate at α = ``false_alarm`` / N (N candidates in the step).
+2. its statistic passes the gate at α = ``Thresholds.false_alarm`` / N (N candidates in the step).
    Fixed columns: LR = Δχ² = χ²_current − χ²_extended, both under the noise re-estimated
    (REML) under the extended model (the Wald statistic of the q new columns), must exceed
    q·F_{1−α}(q, n − p), p the extended design's columns (F rather than χ²_q because the
@@ -18,12 +18,12 @@ design; the pose error as a variance component). A candidate is admitted only if
 
 Each step tries the groups in order and takes the first with an admissible candidate:
 the catalogue's columns; the library's terms beyond the catalogue (``library``; gate at
-``LIBRARY_SHARE`` · α / N_L, ties among alike terms to the simplest); a swap of a catalogue
+``Thresholds.library_share`` · α / N_L, ties among alike terms to the simplest); a swap of a catalogue
 effect for library terms where that lowers the BIC (``_swap``); last the pose error, a
 catch-all, which must also show the scatter its physics implies on every channel. Among
 the admissible candidates of a group the one with the lowest BIC change enters; selection
 stops when none is admissible. Candidates are ranked first with the current noise held
-fixed and only the best ``SHORTLIST`` are re-fitted with their own noise (the REML fit is
+fixed and only the best ``Thresholds.shortlist`` are re-fitted with their own noise (the REML fit is
 the expensive part).
 """
 
@@ -39,7 +39,7 @@ from scipy.stats import f as f_dist
 from bench.diagnosis.catch_all import pose_check
 from bench.diagnosis.confounding import mimics
 from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
-from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray
+from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import GlsFit, NoiseParams, window_covariance
 from bench.diagnosis.model_state import (
@@ -52,6 +52,7 @@ from bench.diagnosis.model_state import (
     scale_matrix,
     whitened_lr,
 )
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.diagnosis.wander_cap import SlowNoiseCap
 from bench.diagnosis.wander_modes import (
     WANDER_LIKE,
@@ -61,29 +62,6 @@ from bench.diagnosis.wander_modes import (
     pose_modulated,
     wander_note,
 )
-
-FALSE_ALARM = 0.01
-"""False-alarm probability of one selection step: split evenly (Bonferroni) over the
-candidates tried in that step, so each gate runs at FALSE_ALARM / N."""
-SHORTLIST = 4
-MAX_STEPS = 8
-LIBRARY_SHARE = 0.1
-"""Share of ``false_alarm`` the library's family of terms may spend in one step (split
-evenly over its terms): the catalogue's gates, and so its detection limits, are unchanged."""
-TIE_CHI2 = 6.0
-"""Library terms whose statistics (or BIC changes) lie within this of the best are a tie,
-which the simplest (lowest degree) wins: a term of higher degree replaces a simpler one
-only on "strong" evidence, a BIC difference above 6 (Kass & Raftery, JASA 90 (1995) 773),
-and only among alike terms (``ALIKE_COSINE``).
-Alike terms (f_y² and |f_y|³ on the 12-pose set, |cos| ≈ 0.98) differ by less than the
-wander between windows makes."""
-ALIKE_COSINE = 0.8
-"""Library terms whose signatures beyond the model have |cos| above this are alike (ties)."""
-PRESCREEN = 0.25
-"""A library term whose statistic under the current noise is below this fraction of its
-gate is not re-fitted with its own noise (it cannot pass: re-fitting the noise moves the
-statistic by far less than 4×)."""
-
 
 LIB = "discovered:"
 """Effect prefix of the library's terms (``library.EFFECT``)."""
@@ -101,12 +79,13 @@ def _structured(
     simplicity: dict[str, int] | None = None,
     cap: SlowNoiseCap | None = None,
     wander_notes: dict[str, str] | None = None,
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[float, Candidate, float, tuple[NoiseParams, GlsFit, FloatArray]] | None:
     """The best admissible fixed-column candidate of ``pool`` (gate at ``alpha`` each), or ``None``.
 
     ``prescreen`` (a fraction of the gate): candidates whose statistic under the current noise
     is below it are not re-fitted. ``simplicity`` (label -> degree): among admissible
-    candidates within ``TIE_CHI2`` of the best (statistic under the windows' own scatter for
+    candidates within ``th.tie_chi2`` of the best (statistic under the windows' own scatter for
     the shortlist, then 2 ℓ_ML of the extended model under its own noise) the one of lowest
     degree is tried and enters. A drift or temperature claim (:data:`WANDER_LIKE`) must also
     beat the trend the measured wander makes: its statistic is the smaller of the one above and
@@ -135,7 +114,8 @@ def _structured(
     for cand, a in zip(tried, cols, strict=True):
         q = a.shape[1]
         lv = leverage(X, a)
-        if np.any(lv < RELATIVE_LEVERAGE_MIN) or np.any(lev[col : col + q] < RELATIVE_LEVERAGE_MIN):
+        lev_min = th.relative_leverage_min
+        if np.any(lv < lev_min) or np.any(lev[col : col + q] < lev_min):
             notes[cand.label] = (
                 f"cannot be told apart from the model's other terms on this pose set "
                 f"(only {float(np.min(lv)):.1e} of its signature is independent of them)"
@@ -146,8 +126,8 @@ def _structured(
             ranked.append((lr_fixed(ev, X, np.hstack([X, a]), state.noise, K, fixed), cand))
         col += q
     ranked.sort(key=lambda r: -r[0])
-    if simplicity and len(ranked) > SHORTLIST:
-        # the simplest of the terms alike the best (within TIE_CHI2) is re-fitted too
+    if simplicity and len(ranked) > th.shortlist:
+        # the simplest of the terms alike the best (within tie_chi2) is re-fitted too
         Qx, _ = np.linalg.qr(X)
         pos = {id(c): k for k, c in enumerate(tried)}
         Ap = np.hstack(cols)
@@ -157,14 +137,15 @@ def _structured(
         near = [
             r
             for r in ranked
-            if r[0] >= ranked[0][0] - TIE_CHI2 and abs(float(Ap[:, pos[id(r[1])]] @ s_top)) > ALIKE_COSINE
+            if r[0] >= ranked[0][0] - th.tie_chi2
+            and abs(float(Ap[:, pos[id(r[1])]] @ s_top)) > th.alike_cosine
         ]
         first = min(near, key=lambda r: (simplicity.get(r[1].label, 0), -r[0]))
-        if first not in ranked[:SHORTLIST]:
-            ranked = [*ranked[: SHORTLIST - 1], first]
+        if first not in ranked[: th.shortlist]:
+            ranked = [*ranked[: th.shortlist - 1], first]
     admissible = []
     null_own: tuple[NoiseParams, GlsFit, FloatArray] | None = None
-    for lr_now, cand in ranked[:SHORTLIST]:
+    for lr_now, cand in ranked[: th.shortlist]:
         q = len(cand.names)
         gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X.shape[1] - q))
         if lr_now < prescreen * gate:
@@ -178,7 +159,9 @@ def _structured(
         wander_like = cand.effect in WANDER_LIKE or (follows_time(term) and not pose_modulated(term))
         if term and follows_time(term) and pose_modulated(term) and lr > gate:
             C1 = window_covariance(ev.V, ev.mid_s, noise1, pose_response(ev, K1), fixed)
-            lr_mod, b = modulated_lr(ev, X1[:, : X.shape[1]], X1[:, X.shape[1] :], cand.channels[0], C1)
+            lr_mod, b = modulated_lr(
+                ev, X1[:, : X.shape[1]], X1[:, X.shape[1] :], cand.channels[0], C1, th.relative_leverage_min
+            )
             gate_mod = q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1] - b))
             if lr_mod <= gate_mod:
                 wander_notes[cand.label] = modulated_note(cand.label, lr, lr_mod, gate_mod)
@@ -215,8 +198,8 @@ def _structured(
         alike = [
             a
             for a in admissible
-            if 2.0 * (top[3][1].loglik_ml - a[3][1].loglik_ml) <= TIE_CHI2
-            and abs(float(sig(a[1]) @ s_top)) > ALIKE_COSINE
+            if 2.0 * (top[3][1].loglik_ml - a[3][1].loglik_ml) <= th.tie_chi2
+            and abs(float(sig(a[1]) @ s_top)) > th.alike_cosine
         ]
         best = min(alike, key=lambda a: (simplicity.get(a[1].label, 0), -a[3][1].loglik_ml))
     return best
@@ -228,9 +211,10 @@ def _swap(
     K: FloatArray,
     fixed: FloatArray | None,
     library: list[Candidate],
-    false_alarm: float,
     notes: dict[str, str],
     simplicity: dict[str, int] | None,
+    cap: SlowNoiseCap,
+    th: Thresholds,
 ) -> bool:
     """Replace a catalogue effect of the model by one library term where that lowers the BIC.
 
@@ -238,7 +222,7 @@ def _swap(
     catalogue can enter and then bend the library's choice. For each catalogue effect E of
     the model: remove it and the library's terms, run the library's steps again (their gate
     as in ``select``); if that model's BIC (−2 ℓ_ML + k ln n, each model under its own
-    noise) is lower by more than ``TIE_CHI2`` (strong evidence: the catalogue keeps its
+    noise) is lower by more than ``th.tie_chi2`` (strong evidence: the catalogue keeps its
     precedence on anything weaker), the swap is made
     (E is not tried again). Where E's columns can mimic one of the terms (``confounding.mimics``), a
     catalogue effect that explains the data alone keeps it (a concealed cross-coupling is not
@@ -249,7 +233,6 @@ def _swap(
     """
     best: tuple[float, str, ModelState] | None = None
     current = bic(ev, state)
-    cap = SlowNoiseCap(ev)
     for effect in dict.fromkeys(c.effect for c in state.candidates):
         if effect.startswith(LIB):
             continue
@@ -261,11 +244,11 @@ def _swap(
             pose_edf=state.pose_edf,
         )  # fmt: skip
         added = 0
-        while added < MAX_STEPS:
+        while added < th.max_steps:
             n_lib = sum(1 for c in library if c not in trial.candidates)
             step = _structured(
-                ev, library, trial, K0, fixed, LIBRARY_SHARE * false_alarm / max(n_lib, 1), {},
-                prescreen=PRESCREEN, simplicity=simplicity, cap=cap,
+                ev, library, trial, K0, fixed, th.library_share * th.false_alarm / max(n_lib, 1), {},
+                prescreen=th.prescreen, simplicity=simplicity, cap=cap, th=th,
             )  # fmt: skip
             if step is None:
                 break
@@ -281,11 +264,11 @@ def _swap(
         mine = [c for c in state.candidates if c.effect == effect]
         chans = {i for c in mine for i in c.channels}
         helped = any(c in library and chans & set(c.channels) for c in state.candidates)
-        if mimics(ev, K, mine, trial.candidates[-added:], ALIKE_COSINE) and (
+        if mimics(ev, K, mine, trial.candidates[-added:], th.alike_cosine) and (
             not helped or trial.fit.theta.size > state.fit.theta.size
         ):
             continue
-        if b < current - TIE_CHI2 and (best is None or b < best[0]):
+        if b < current - th.tie_chi2 and (best is None or b < best[0]):
             best = (b, effect, trial)
     if best is None:
         return False
@@ -307,15 +290,15 @@ def select(
     *,
     pose_allowed: bool,
     fixed: FloatArray | None = None,
-    false_alarm: float = FALSE_ALARM,
     library: list[Candidate] | None = None,
     simplicity: dict[str, int] | None = None,
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[ModelState, dict[str, str]]:
     """Run the greedy selection.
 
     Each step tries, in this order, and takes the first group with an admissible candidate:
-    the catalogue's fixed columns (gate at ``false_alarm`` / N, N catalogue candidates plus
-    the pose error); the library's terms (gate at ``LIBRARY_SHARE`` · ``false_alarm`` / N_L,
+    the catalogue's fixed columns (gate at ``th.false_alarm`` / N, N catalogue candidates plus
+    the pose error); the library's terms (gate at ``th.library_share`` · ``th.false_alarm`` / N_L,
     N_L the library's size: a family that large must not spend the catalogue's budget);
     the pose error, a catch-all, last (its gate as the catalogue's, its BIC charged its
     effective degrees of freedom, and it must show the scatter its physics implies on every
@@ -328,6 +311,7 @@ def select(
     :param fixed: fixed extra covariance per window (orientation-free diagnosis).
     :param library: candidates beyond the catalogue (``library``), or ``None``.
     :param simplicity: library label -> degree, for ties (``_structured``).
+    :param th: the diagnosis's knobs (``thresholds``).
     :returns: the final state and, per candidate label, why it was not admitted when it
         could not be told from the model (``"indistinguishable"`` notes).
     """
@@ -335,20 +319,20 @@ def select(
     state = ModelState()
     X0 = first_order_design(ev.f_m_s2)
     K = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
-    cap = SlowNoiseCap(ev)
+    cap = SlowNoiseCap(ev, th.cap_alpha)
     state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2, cap=cap)
     notes: dict[str, str] = {}
     library = library or []
-    for _ in range(MAX_STEPS):
+    for _ in range(th.max_steps):
         assert state.noise is not None and state.fit is not None
         n_cat = sum(1 for c in pool if c not in state.candidates) + (
             1 if pose_allowed and not state.pose else 0
         )
-        alpha = false_alarm / max(n_cat, 1)
-        step = _structured(ev, pool, state, K, fixed, alpha, notes, cap=cap)
+        alpha = th.false_alarm / max(n_cat, 1)
+        step = _structured(ev, pool, state, K, fixed, alpha, notes, cap=cap, th=th)
         if step is None and library:
             n_lib = sum(1 for c in library if c not in state.candidates)
-            alpha_lib = LIBRARY_SHARE * false_alarm / max(n_lib, 1)
+            alpha_lib = th.library_share * th.false_alarm / max(n_lib, 1)
             step = _structured(
                 ev,
                 library,
@@ -357,10 +341,11 @@ def select(
                 fixed,
                 alpha_lib,
                 {},
-                prescreen=PRESCREEN,
+                prescreen=th.prescreen,
                 simplicity=simplicity,
                 cap=cap,
                 wander_notes=notes,
+                th=th,
             )
         if step is not None:
             dbic, chosen, lr, model1 = step
@@ -368,7 +353,7 @@ def select(
             state.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
             state.noise, state.fit, K = model1
             continue
-        if library and _swap(ev, state, K, fixed, library, false_alarm, notes, simplicity):
+        if library and _swap(ev, state, K, fixed, library, notes, simplicity, cap, th):
             assert state.fit is not None
             K = scale_matrix(state.fit)
             pool = [c for c in pool if c.effect not in state.swapped]
@@ -389,6 +374,7 @@ def select(
             design(ev, K1, state.candidates),
             ev.y.reshape(-1),
             fixed,
+            th,
         )
         gain = 2.0 * (chk.loglik_conditional - state.fit.loglik_ml)
         dbic = -gain + max(chk.edf, 1.0) * math.log(n)

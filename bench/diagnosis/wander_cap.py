@@ -11,7 +11,7 @@ process alone (block means of a first-order Gauss-Markov process),
 and the white noise only adds to it. So, with D_w = d_w² / g(h_w, T_c) pooled over the m
 windows of one channel, the upper confidence bound
 
-    τ² ≤ τ²_max(T_c) = Σ_w D_w / χ²_{m}(α)     (α = ``CAP_ALPHA``)
+    τ² ≤ τ²_max(T_c) = Σ_w D_w / χ²_{m}(α)     (α = ``Thresholds.cap_alpha``)
 
 holds whatever the white noise is (dropping it only makes the bound looser). On a
 recording whose wander is what the noise model says, the bound lies far above the REML
@@ -27,9 +27,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
 from bench.diagnosis.evidence import FloatArray, StaticEvidence
-
-CAP_ALPHA = 1e-3
-"""Lower-tail probability of the χ² quantile used for the upper bound (one-sided 99.9 %)."""
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
 
 def half_difference_factor(h_s: FloatArray, corr_time_s: float) -> FloatArray:
@@ -64,8 +62,9 @@ def half_differences(ev: StaticEvidence) -> tuple[FloatArray, FloatArray] | None
 class SlowNoiseCap:
     """τ²_max(T_c) of the module docstring for one recording (half differences computed once)."""
 
-    def __init__(self, ev: StaticEvidence) -> None:
+    def __init__(self, ev: StaticEvidence, alpha: float) -> None:
         self._hd = half_differences(ev)
+        self._alpha = alpha
 
     def __call__(self, corr_time_s: float) -> FloatArray | None:
         """(3,) upper bound τ²_max per channel (channel units²); ``None`` if it cannot be formed."""
@@ -73,13 +72,13 @@ class SlowNoiseCap:
             return None
         d2, h = self._hd
         D = d2 / half_difference_factor(h, corr_time_s)[:, None]
-        return np.asarray(D.sum(axis=0) / float(chi2_dist.ppf(CAP_ALPHA, D.shape[0])), dtype=float)
+        return np.asarray(D.sum(axis=0) / float(chi2_dist.ppf(self._alpha, D.shape[0])), dtype=float)
 
 
-def slow_noise_cap(ev: StaticEvidence, corr_time_s: float) -> FloatArray | None:
+def slow_noise_cap(ev: StaticEvidence, corr_time_s: float, th: Thresholds = THRESHOLDS) -> FloatArray | None:
     """(3,) upper bound τ²_max per channel for correlation time ``corr_time_s`` (channel units²).
 
     ``None`` when the evidence carries no window samples (the bound cannot be formed) or
     ``corr_time_s`` ≤ 0.
     """
-    return SlowNoiseCap(ev)(corr_time_s)
+    return SlowNoiseCap(ev, th.cap_alpha)(corr_time_s)

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.diagnosis.effects.base import RELATIVE_LEVERAGE_MIN, FloatArray, channel_column
+from bench.diagnosis.effects.base import FloatArray, channel_column
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import NoiseParams, gls
 from bench.estimation.window_covariance import WindowCovariance
@@ -104,18 +104,25 @@ def wander_basis(ev: StaticEvidence, channel: int) -> FloatArray:
 
 
 def modulated_lr(
-    ev: StaticEvidence, X: FloatArray, a: FloatArray, channel: int, C: WindowCovariance
+    ev: StaticEvidence,
+    X: FloatArray,
+    a: FloatArray,
+    channel: int,
+    C: WindowCovariance,
+    leverage_min: float,
 ) -> tuple[float, int]:
     """LR_mod of the module docstring and the number b of wander columns it conditions on.
 
     :param X: (3m, p) the model without the term; :param a: (3m, q) the term's columns.
     :param channel: the term's channel; :param C: the extended model's noise covariance.
+    :param leverage_min: wander columns with less than this share of their norm beyond X are left
+        out (``Thresholds.relative_leverage_min``).
     :returns: (LR_mod ≥ 0, b). LR_mod is 0 when the term lies in the span of X and B_i.
     """
     B = wander_basis(ev, channel)
     Q, _ = np.linalg.qr(X)
     Bp = B - Q @ (Q.T @ B)
-    keep = np.linalg.norm(Bp, axis=0) > RELATIVE_LEVERAGE_MIN * np.linalg.norm(B, axis=0)
+    keep = np.linalg.norm(Bp, axis=0) > leverage_min * np.linalg.norm(B, axis=0)
     X0 = np.hstack([X, B[:, keep]])
     z = ev.y.reshape(-1)
     q = a.shape[1]

@@ -34,7 +34,7 @@ what batch means of regression residuals do (the estimator assumes a stationary 
 
 The coefficients come from the fit, which depends on the noise: the model is refitted
 (REML noise and GLS, ``model_state.fit_model``) under the corrected evidence and the
-correction redone with the refit's coefficients, :data:`REFIT_PASSES` times in all.
+correction redone with the refit's coefficients, ``Thresholds.within_window_passes`` times in all.
 Only a model with such a library term is refitted; every other model, the selection's
 statistics, the catalogue's effects (bias_drift and temperature_bias keep their window
 noise, which their own within-window change is part of) and ``calibrate`` are unchanged.
@@ -52,12 +52,11 @@ from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.library import LibraryTerm, quantity
 from bench.diagnosis.likelihood import GlsFit
 from bench.diagnosis.model_state import ModelState, fit_model, scale_matrix
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.window_noise import pooled_mean_covariances, window_noise
 
 WITHIN_KINDS = ("temp", "t")
 """Base quantities that change within a static window (the pose's f and |f| do not)."""
-REFIT_PASSES = 2
-"""Corrections of the window noise, each followed by a refit with the new coefficients."""
 
 
 def varies_within(t: LibraryTerm) -> bool:
@@ -130,6 +129,7 @@ def refit_within_window(
     state: ModelState,
     lib_terms: dict[str, LibraryTerm],
     fixed: FloatArray | None,
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[StaticEvidence, ModelState]:
     """The evidence and model state the final model is reported from.
 
@@ -143,7 +143,7 @@ def refit_within_window(
     assert state.fit is not None and state.noise is not None
     fit, noise = state.fit, state.noise
     out = ev
-    for _ in range(REFIT_PASSES):
+    for _ in range(th.within_window_passes):
         out = corrected_evidence(ev, coefficients(fit, state.candidates, within))
-        noise, fit, _ = fit_model(out, state.candidates, state.pose, scale_matrix(fit), fixed, noise)
+        noise, fit, _ = fit_model(out, state.candidates, state.pose, scale_matrix(fit), fixed, noise, th=th)
     return out, replace(state, noise=noise, fit=fit)

@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -77,19 +78,16 @@ class Effect(Protocol):
         """One sentence of physics."""
         ...
 
-    def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
-        """Whether the recording can show the effect, and why (not)."""
+    def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
+        """Whether the recording can show the effect (under the knobs ``th``), and why (not)."""
         ...
 
-    def candidates(self, ev: StaticEvidence) -> list[Candidate]:
+    def candidates(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> list[Candidate]:
         """The model extensions to try (``columns`` kind; empty otherwise)."""
         ...
 
 
 AXES = "xyz"
-RELATIVE_LEVERAGE_MIN = 1e-3
-"""A column whose part outside the first-order design is below this fraction of its norm
-cannot be told from bias and K on this pose set."""
 
 
 def leverage(X: FloatArray, cols: FloatArray) -> FloatArray:

@@ -25,9 +25,8 @@ import numpy as np
 
 from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.kinematics import attitude, static_specific_force
-
-_STEP_DEG = 1e-3
 
 
 def _per_window(K: FloatArray, R: FloatArray, base_vectors: FloatArray) -> FloatArray:
@@ -53,7 +52,7 @@ class TableTilt:
         "a pose-dependent error that changes when the outer (vertical) axis turns the fixture"
     )
 
-    def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
+    def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
         if not ev.orientation_known or ev.attitudes() is None:
             return False, "needs table encoders: the recording has no table"
         assert ev.table_rad is not None
@@ -62,7 +61,7 @@ class TableTilt:
             return False, "needs windows at several outer-axis angles; all windows share one"
         return True, f"windows at {outer} outer-axis angles"
 
-    def candidates(self, ev: StaticEvidence) -> list[Candidate]:
+    def candidates(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> list[Candidate]:
         g = ev.g_local_m_s2
         vecs = np.array([[0.0, -g, 0.0], [g, 0.0, 0.0]])
 
@@ -93,34 +92,35 @@ class EncoderOffset:
         "told from the unit's own orientation on the fixture"
     )
 
-    def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
+    def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
         if not ev.orientation_known or ev.table_rad is None:
             return False, "needs table encoders: the recording has no table"
         return True, "checked per axis against the pose set"
 
-    def jacobian(self, ev: StaticEvidence, K: FloatArray) -> FloatArray:
-        """(3m, k) response of the window means to a 1° offset of each axis."""
+    def jacobian(self, ev: StaticEvidence, K: FloatArray, step_deg: float) -> FloatArray:
+        """(3m, k) response of the window means to a 1° offset of each axis (central
+        differences of step ``step_deg``)."""
         assert ev.table_rad is not None and ev.axis_vectors is not None
         M = np.eye(3) if ev.mount is None else ev.mount
-        h = np.deg2rad(_STEP_DEG)
+        h = np.deg2rad(step_deg)
         cols = []
         for j in range(ev.table_rad.shape[1]):
             dq = np.zeros(ev.table_rad.shape[1])
             dq[j] = h
             fp = static_specific_force(attitude(ev.axis_vectors, ev.table_rad + dq, M), ev.g_local_m_s2)
             fm = static_specific_force(attitude(ev.axis_vectors, ev.table_rad - dq, M), ev.g_local_m_s2)
-            df = (fp - fm) / (2 * _STEP_DEG)  # per degree
+            df = (fp - fm) / (2 * step_deg)  # per degree
             cols.append((df @ K.T).reshape(-1))
         return np.stack(cols, axis=1)
 
-    def candidates(self, ev: StaticEvidence) -> list[Candidate]:
+    def candidates(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> list[Candidate]:
         assert ev.table_rad is not None
         k = ev.table_rad.shape[1]
         out = []
         for j in range(k):
 
             def cols(e: StaticEvidence, K: FloatArray, j: int = j) -> FloatArray:
-                return self.jacobian(e, K)[:, j : j + 1]
+                return self.jacobian(e, K, th.encoder_step_deg)[:, j : j + 1]
 
             def params(
                 theta: FloatArray, cov: FloatArray, K: FloatArray, j: int = j
@@ -170,14 +170,14 @@ class PoseError:
         "scatter perpendicular to gravity, on all channels together"
     )
 
-    def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
+    def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
         if not ev.orientation_known:
             return False, "the recording does not say where the unit was, so there is nothing to be off from"
         if ev.m < 6:
             return False, f"needs at least 6 windows to tell pose scatter from noise, got {ev.m}"
         return True, f"{ev.m} windows, 3 channels each"
 
-    def candidates(self, ev: StaticEvidence) -> list[Candidate]:
+    def candidates(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> list[Candidate]:
         return []
 
 

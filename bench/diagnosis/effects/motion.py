@@ -15,6 +15,7 @@ import numpy as np
 
 from bench.diagnosis.effects.base import Candidate, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
 
 @dataclass(frozen=True)
@@ -27,7 +28,7 @@ class MotionEffect:
     needs: str
     kind: str = "motion"
 
-    def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
+    def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
         base = f"needs {self.needs}; in the static windows the table stands still"
         if ev.peak_rate_rad_s > 0:
             return False, (
@@ -36,7 +37,7 @@ class MotionEffect:
             )
         return False, base
 
-    def candidates(self, ev: StaticEvidence) -> list[Candidate]:
+    def candidates(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> list[Candidate]:
         return []
 
 

@@ -23,10 +23,9 @@ import numpy as np
 
 from bench.diagnosis.effects.base import AXES, Candidate, FloatArray, ParamSpec, channel_column
 from bench.diagnosis.evidence import G0_M_S2, StaticEvidence
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
 REFERENCE_TEMP_C = 25.0
-MIN_TEMPERATURE_SPAN_C = 0.05
-"""Temperature must vary by more than this over the windows to say anything about tc."""
 
 _PAIRS = ((0, 1), (0, 2), (1, 2))
 
@@ -58,20 +57,20 @@ class ChannelEffect:
     regressor_names: tuple[str, ...] = ("",)
     kind: str = "columns"
 
-    def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
+    def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
         if self.id == "temperature_bias":
             if not ev.has_temperature:
                 return False, "the recording has no temperature channel"
             assert ev.temp_c is not None
             span = float(np.ptp(ev.temp_c))
-            if span < MIN_TEMPERATURE_SPAN_C:
+            if span < th.min_temperature_span_c:
                 return False, f"temperature varied by only {span:.3g} °C over the windows"
             return True, f"temperature spans {span:.2g} °C over the windows"
         if self.id == "bias_drift":
             return True, f"windows span {np.ptp(ev.mid_s):.0f} s"
         return True, "needs several input levels per axis; checked against the pose set below"
 
-    def candidates(self, ev: StaticEvidence) -> list[Candidate]:
+    def candidates(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> list[Candidate]:
         out = []
         name = self.parameters[0].name
         q = len(self.regressor_names)

@@ -4,9 +4,9 @@ A ring of the table structure after a stop, δθ(s) = A·e^(−s/τ)·sin(2π f_
 that moved, adds to the first seconds of each window a narrow-band oscillation at f_r whose
 power decays as e^(−2s/τ). Test (a narrow-band excess-power detector, frequency unknown):
 
-- every window-channel is cut into consecutive segments of ``SEGMENT_S``; each segment is
+- every window-channel is cut into consecutive segments of ``Thresholds.settling_segment_s``; each segment is
   detrended (mean and slope: bias wander) and its periodogram P(f_j) taken at the Fourier
-  frequencies f_j = j / SEGMENT_S (j ≥ 2, below 0.9 × Nyquist);
+  frequencies f_j = j / segment (j ≥ 2, below 0.9 × Nyquist);
 - the reference spectrum of channel c, P_ref(c, f_j), is the mean periodogram of the
   segments in the second half of every window at the neighbouring frequencies f_{j±2},
   f_{j±3} (the same estimator, so the ratio is unbiased for a smooth noise spectrum; the
@@ -19,7 +19,7 @@ power decays as e^(−2s/τ). Test (a narrow-band excess-power detector, frequen
   (mean early/reference ratio over 1000 clean simulated recordings 0.952 at 1 Hz and
   1.025 at 2.5 Hz, 16 and 7.5 standard errors from 1; the ratio that h predicts, 0.94 and
   1.02);
-- the early segments are the first ``EARLY_SEGMENTS`` of each window (at most half of
+- the early segments are the first ``Thresholds.settling_early_segments`` of each window (at most half of
   them, so they never overlap the reference's second half); for each f_j,
   T_j = Σ over windows, channels and early segments of 2 P(f_j) / P_ref(c, f_j);
 - null distribution: a periodogram ordinate of stationary noise is PSD·χ²₂/2, so
@@ -53,13 +53,7 @@ from scipy.stats import f as f_dist
 
 from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
-
-SEGMENT_S = 2.0
-"""Length of one segment (s); frequency resolution 1/SEGMENT_S."""
-EARLY_SEGMENTS = 3
-"""Segments at the start of each window that the test looks at."""
-RING_DECADES = math.log(0.05 / 1e-4)
-"""ln(initial ring amplitude / floor) of the bench's settling convention (docs/physics-model.md)."""
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
 
 @dataclass(frozen=True)
@@ -107,15 +101,16 @@ def detrended_response(n_seg: int) -> FloatArray:
 
 
 def _spectra(
-    window_samples: tuple[FloatArray, ...], sample_rate_hz: float
+    window_samples: tuple[FloatArray, ...], sample_rate_hz: float, th: Thresholds
 ) -> tuple[list[FloatArray], FloatArray, FloatArray]:
     """(per-window segment spectra, reference (n_f, 3), reference dof per channel (n_f,))."""
-    n_seg = round(SEGMENT_S * sample_rate_hz)
+    seg_s = th.settling_segment_s
+    n_seg = round(seg_s * sample_rate_hz)
     if n_seg < 16:
-        raise ValueError(f"settling: {sample_rate_hz:g} Hz is too slow for {SEGMENT_S:g} s segments")
+        raise ValueError(f"settling: {sample_rate_hz:g} Hz is too slow for {seg_s:g} s segments")
     spectra = [_segment_spectra(x, n_seg) for x in window_samples if x.shape[0] >= 4 * n_seg]
     if len(spectra) < 3:
-        raise ValueError(f"settling: needs at least 3 windows of {4 * SEGMENT_S:g} s or more")
+        raise ValueError(f"settling: needs at least 3 windows of {4 * seg_s:g} s or more")
     late_segments = [s[s.shape[0] // 2 :] for s in spectra]
     late = np.concatenate(late_segments).mean(axis=0)  # (n_f, 3)
     n_late = sum(x.shape[0] for x in late_segments)
@@ -131,35 +126,38 @@ def _spectra(
     return spectra, np.where(ref > 0, ref, np.inf), ref_dof
 
 
-def _bins(sample_rate_hz: float, n_f: int) -> npt.NDArray[np.intp]:
-    f = np.arange(n_f) / SEGMENT_S
+def _bins(sample_rate_hz: float, n_f: int, segment_s: float) -> npt.NDArray[np.intp]:
+    f = np.arange(n_f) / segment_s
     return np.flatnonzero((np.arange(n_f) >= 2) & (f < 0.45 * sample_rate_hz))
 
 
 def frequency_p_values(
-    window_samples: tuple[FloatArray, ...], sample_rate_hz: float
+    window_samples: tuple[FloatArray, ...], sample_rate_hz: float, th: Thresholds = THRESHOLDS
 ) -> tuple[FloatArray, FloatArray, FloatArray, int, FloatArray]:
     """Per-frequency statistics of the test (module docstring), before the Bonferroni step.
 
     :returns: (f_j (Hz), T_j, p_j = F(2n, 3 d_ref(j)) tail of T_j / (2n), n, 3 d_ref(j)).
     :raises ValueError: windows too short or too slowly sampled for the test.
     """
-    spectra, ref, ref_dof = _spectra(window_samples, sample_rate_hz)
-    early = np.concatenate([s[: min(EARLY_SEGMENTS, s.shape[0] // 2)] for s in spectra])  # (k, n_f, 3)
-    bins = _bins(sample_rate_hz, ref.shape[0])
+    spectra, ref, ref_dof = _spectra(window_samples, sample_rate_hz, th)
+    n_early = th.settling_early_segments
+    early = np.concatenate([s[: min(n_early, s.shape[0] // 2)] for s in spectra])  # (k, n_f, 3)
+    bins = _bins(sample_rate_hz, ref.shape[0], th.settling_segment_s)
     T = (2.0 * early[:, bins, :] / ref[None, bins, :]).sum(axis=(0, 2))
     n = early.shape[0] * early.shape[2]
     d_ref = 3.0 * ref_dof[bins]
-    return bins / SEGMENT_S, T, f_dist.sf(T / (2 * n), 2 * n, d_ref), n, d_ref
+    return bins / th.settling_segment_s, T, f_dist.sf(T / (2 * n), 2 * n, d_ref), n, d_ref
 
 
-def settling_test(window_samples: tuple[FloatArray, ...], sample_rate_hz: float) -> SettlingTest:
+def settling_test(
+    window_samples: tuple[FloatArray, ...], sample_rate_hz: float, th: Thresholds = THRESHOLDS
+) -> SettlingTest:
     """Narrow-band early-excess test of the module docstring.
 
     :param window_samples: per window (n_w, 3) raw samples; :param sample_rate_hz: rate (Hz).
     :raises ValueError: windows too short or too slowly sampled for the test.
     """
-    freq, T, p_bins, n, d_ref = frequency_p_values(window_samples, sample_rate_hz)
+    freq, T, p_bins, n, d_ref = frequency_p_values(window_samples, sample_rate_hz, th)
     j = int(np.argmin(p_bins))
     return SettlingTest(
         statistic=float(T[j]),
@@ -173,21 +171,25 @@ def settling_test(window_samples: tuple[FloatArray, ...], sample_rate_hz: float)
 
 
 def settling_duration(
-    window_samples: tuple[FloatArray, ...], sample_rate_hz: float, frequency_hz: float
+    window_samples: tuple[FloatArray, ...],
+    sample_rate_hz: float,
+    frequency_hz: float,
+    th: Thresholds = THRESHOLDS,
 ) -> tuple[float, float]:
     """(duration_s, sigma) of the ring from the decay of its narrow-band power (module docstring).
 
     :raises ValueError: windows too short or the decay cannot be fitted.
     """
-    spectra, ref, _ = _spectra(window_samples, sample_rate_hz)
-    j = round(frequency_hz * SEGMENT_S)
+    spectra, ref, _ = _spectra(window_samples, sample_rate_hz, th)
+    seg_s = th.settling_segment_s
+    j = round(frequency_hz * seg_s)
     k = min(s.shape[0] for s in spectra) // 2
     if k < 3:
         raise ValueError("settling: windows too short to follow the decay of the ring")
     a = np.stack([s[:k, j, :] / ref[j] for s in spectra])  # (m, k, 3)
     R = a.mean(axis=(0, 2))
     sd = np.maximum(R / math.sqrt(a.shape[0] * a.shape[2]), 1e-12)
-    s = (np.arange(k) + 0.5) * SEGMENT_S
+    s = (np.arange(k) + 0.5) * seg_s
 
     def model(s: FloatArray, b: float, tau: float) -> FloatArray:
         return 1.0 + b * np.exp(-2.0 * s / tau)
@@ -201,7 +203,7 @@ def settling_duration(
         raise ValueError(f"settling: the decay of the ring could not be fitted ({exc})") from exc
     chi2_red = float(np.sum(((R - model(s, *p)) / sd) ** 2)) / max(k - 2, 1)
     tau_sigma = float(np.sqrt(max(cov[1, 1], 0.0) * max(chi2_red, 1.0)))
-    return float(p[1] * RING_DECADES), tau_sigma * RING_DECADES
+    return float(p[1] * th.settling_ring_decades), tau_sigma * th.settling_ring_decades
 
 
 @dataclass(frozen=True)
@@ -216,20 +218,21 @@ class Settling:
         "seconds of each window carry a decaying oscillation at the structure's frequency"
     )
 
-    def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
+    def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
+        seg_s, n_early = th.settling_segment_s, th.settling_early_segments
         if ev.window_samples is None or ev.sample_rate_hz is None:
             return False, "needs the windows' samples, not only their means"
-        if SEGMENT_S * ev.sample_rate_hz < 16:
+        if seg_s * ev.sample_rate_hz < 16:
             return False, f"needs at least 8 Hz sampling ({ev.sample_rate_hz:g} Hz)"
-        n_min = 4 * SEGMENT_S * ev.sample_rate_hz
+        n_min = 4 * seg_s * ev.sample_rate_hz
         if sum(x.shape[0] >= n_min for x in ev.window_samples) < 3:
-            return False, f"needs at least 3 windows of {4 * SEGMENT_S:g} s or more"
+            return False, f"needs at least 3 windows of {4 * seg_s:g} s or more"
         return True, (
-            f"narrow-band power of the first {EARLY_SEGMENTS * SEGMENT_S:g} s of each window "
+            f"narrow-band power of the first {n_early * seg_s:g} s of each window "
             "against the windows' second halves"
         )
 
-    def candidates(self, ev: StaticEvidence) -> list[Candidate]:
+    def candidates(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> list[Candidate]:
         return []
 
 

@@ -27,10 +27,8 @@ import numpy as np
 
 from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.kinematics import attitude, static_specific_force
-
-STEP_RAD = 1e-5
-"""Central-difference step of the axis angles (rad): the response is linear to 1e-10 there."""
 
 
 def error_directions(u: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -49,18 +47,21 @@ def _turned(u: FloatArray, e: FloatArray, angle_rad: float) -> FloatArray:
     )
 
 
-def axis_response(ev: StaticEvidence, K: FloatArray, axis: int, angle: int) -> FloatArray:
-    """(3m,) response of the stacked window means to 1 rad of ``angle`` (0: a, 1: b) of ``axis``."""
+def axis_response(
+    ev: StaticEvidence, K: FloatArray, axis: int, angle: int, step_rad: float = THRESHOLDS.table_axis_step_rad
+) -> FloatArray:
+    """(3m,) response of the stacked window means to 1 rad of ``angle`` (0: a, 1: b) of ``axis``
+    (central differences of step ``step_rad``)."""
     assert ev.table_rad is not None and ev.axis_vectors is not None
     M = np.eye(3) if ev.mount is None else ev.mount
     u = ev.axis_vectors[axis]
     e = error_directions(u)[angle]
     out = []
-    for h in (STEP_RAD, -STEP_RAD):
+    for h in (step_rad, -step_rad):
         axes = np.array(ev.axis_vectors, dtype=float, copy=True)
         axes[axis] = _turned(u, e, h)
         out.append(static_specific_force(attitude(axes, ev.table_rad, M), ev.g_local_m_s2))
-    df = (out[0] - out[1]) / (2 * STEP_RAD)
+    df = (out[0] - out[1]) / (2 * step_rad)
     return np.asarray((df @ K.T).reshape(-1), dtype=float)
 
 
@@ -77,14 +78,14 @@ class TableAxisError:
         "gravity direction is off by an amount that follows the axes' angles"
     )
 
-    def observable(self, ev: StaticEvidence) -> tuple[bool, str]:
+    def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
         if not ev.orientation_known or ev.table_rad is None or ev.axis_vectors is None:
             return False, "needs table encoders: the recording has no table"
         if ev.table_rad.shape[1] < 2:
             return False, "a one-axis table's axis direction is the base's tilt (table_tilt)"
         return True, "checked per axis (two angles each) against the pose set"
 
-    def candidates(self, ev: StaticEvidence) -> list[Candidate]:
+    def candidates(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> list[Candidate]:
         assert ev.table_rad is not None
         k = ev.table_rad.shape[1]
         out = []
@@ -93,7 +94,7 @@ class TableAxisError:
             for a in range(2):
 
                 def cols(e: StaticEvidence, K: FloatArray, j: int = j, a: int = a) -> FloatArray:
-                    return axis_response(e, K, j, a)[:, None]
+                    return axis_response(e, K, j, a, th.table_axis_step_rad)[:, None]
 
                 def params(
                     theta: FloatArray, cov: FloatArray, K: FloatArray, j: int = j, a: int = a

@@ -18,12 +18,12 @@ import pytest
 from scipy.stats import chi2 as chi2_dist
 
 from bench.diagnosis.effects.settling import (
-    SEGMENT_S,
     _segment_spectra,
     detrended_response,
     frequency_p_values,
     settling_test,
 )
+from bench.diagnosis.thresholds import THRESHOLDS
 
 RATE_HZ = 100.0
 N_SETS = 200
@@ -71,7 +71,7 @@ def test_a_decaying_ring_is_found_at_its_frequency() -> None:
 def test_detrended_response_is_the_mean_periodogram_of_detrended_white_noise() -> None:
     """h_j against 4000 detrended 2 s segments of unit white noise (three channels each): the
     lowest bins lose the share the closed form 1 − 3/(π² j²) (slope, large n) gives."""
-    n_seg = round(SEGMENT_S * RATE_HZ)
+    n_seg = round(THRESHOLDS.settling_segment_s * RATE_HZ)
     h = detrended_response(n_seg)
     x = np.random.default_rng(11).standard_normal((4000 * n_seg, 3))
     mean = _segment_spectra(x, n_seg).mean(axis=(0, 2))

@@ -15,6 +15,7 @@ from bench.diagnosis.effects import first_order_design
 from bench.diagnosis.effects.base import channel_column
 from bench.diagnosis.evidence import G0_M_S2
 from bench.diagnosis.likelihood import NoiseParams, gls, window_covariance
+from bench.diagnosis.thresholds import THRESHOLDS
 from bench.diagnosis.wander_modes import follows_time, modulated_lr, pose_modulated
 from tests.bench.diagnosis.test_diagnosis_library import SIGMA, _evidence
 
@@ -45,7 +46,7 @@ def test_modulated_statistic_is_the_closed_form_under_white_noise() -> None:
     C = window_covariance(ev.V, ev.mid_s, _white(ev.m))
     X = first_order_design(ev.f_m_s2)
     a = channel_column(ev, 0, ev.f_m_s2[:, 2] / G0_M_S2 * ev.mid_s)
-    lr, b = modulated_lr(ev, X, a, 0, C)
+    lr, b = modulated_lr(ev, X, a, 0, C, THRESHOLDS.relative_leverage_min)
     s = (ev.mid_s - ev.mid_s.mean()) / np.ptp(ev.mid_s)
     A = np.hstack([X, channel_column(ev, 0, s)])
     Q, _ = np.linalg.qr(A)
@@ -68,7 +69,7 @@ def test_a_wanders_trend_gives_a_pose_modulated_term_nothing() -> None:
     y = ev.y.reshape(-1)
     a = channel_column(ev, 2, np.abs(ev.f_m_s2[:, 1]) / G0_M_S2 * ev.mid_s)
     plain = gls(X, y, C).chi2 - gls(np.hstack([X, a]), y, C).chi2
-    lr, _ = modulated_lr(ev, X, a, 2, C)
+    lr, _ = modulated_lr(ev, X, a, 2, C, THRESHOLDS.relative_leverage_min)
     assert plain > 100.0
     assert lr < 15.0  # χ²_1 beyond p = 1e-4
 
@@ -84,7 +85,7 @@ def test_a_pose_modulated_term_keeps_its_evidence_beside_the_trend() -> None:
     C = window_covariance(ev.V, ev.mid_s, _white(ev.m))
     X = first_order_design(ev.f_m_s2)
     a = channel_column(ev, 0, ev.f_m_s2[:, 2] / G0_M_S2 * ev.mid_s)
-    lr, _ = modulated_lr(ev, X, a, 0, C)
+    lr, _ = modulated_lr(ev, X, a, 0, C, THRESHOLDS.relative_leverage_min)
     s = (ev.mid_s - ev.mid_s.mean()) / np.ptp(ev.mid_s)
     Q, _ = np.linalg.qr(np.hstack([X, channel_column(ev, 0, s)]))
     ap = a[:, 0] - Q @ (Q.T @ a[:, 0])
@@ -99,7 +100,7 @@ def test_the_trend_column_is_left_out_when_the_model_has_it() -> None:
     C = window_covariance(ev.V, ev.mid_s, _white(ev.m))
     X = np.hstack([first_order_design(ev.f_m_s2), channel_column(ev, 0, ev.mid_s)])
     a = channel_column(ev, 0, ev.f_m_s2[:, 2] / G0_M_S2 * ev.mid_s)
-    lr, b = modulated_lr(ev, X, a, 0, C)
+    lr, b = modulated_lr(ev, X, a, 0, C, THRESHOLDS.relative_leverage_min)
     Q, _ = np.linalg.qr(X)
     ap = a[:, 0] - Q @ (Q.T @ a[:, 0])
     assert b == 0

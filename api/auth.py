@@ -120,6 +120,7 @@ class Authenticator:
     :param sessions: writing session factory (``last_used_at``), or ``None`` for no database.
     :param read_sessions: read-only session factory for the look-up (default: ``sessions``).
     :param public_read: anonymous requests may read.
+    :param link_key: the deployment's key for signed links (:class:`LinkSigner`); ``None``: one drawn here.
     """
 
     def __init__(
@@ -129,6 +130,7 @@ class Authenticator:
         read_sessions: sessionmaker[Session] | None = None,
         *,
         public_read: bool = False,
+        link_key: bytes | None = None,
     ) -> None:
         self._env = dict(env_tokens)
         self._sessions = sessions
@@ -137,7 +139,7 @@ class Authenticator:
         self._touched: dict[int, float] = {}
         self._touch_lock = threading.Lock()
         self._toucher = ThreadPoolExecutor(max_workers=1, thread_name_prefix="token-last-used")
-        self.links = LinkSigner()
+        self.links = LinkSigner(link_key)
 
     def add(self, secret: str, role: Role) -> None:
         """Accept one more secret (e.g. the admin token generated at start)."""
@@ -235,9 +237,10 @@ class LinkSigner:
     """Short-lived signed links: ``?link=PAYLOAD.MAC`` for one path, one principal, until a time.
 
     PAYLOAD is base64url JSON ``{"p": path, "e": expiry (Unix s), "r": role, "t": token id}``;
-    MAC is its HMAC-SHA256 under a key drawn at start (links die with the process).
+    MAC is its HMAC-SHA256 under the deployment's key (``CALBENCH_LINK_KEY``, or the one
+    ``calbench serve`` draws and hands to all its workers), so a link opens on any API process.
 
-    :param key: the HMAC key (default: 32 random bytes).
+    :param key: the HMAC key (default: 32 random bytes, links then open only on this process).
     :param clock: Unix time (s), for tests.
     """
 

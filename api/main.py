@@ -101,7 +101,13 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
     hub = ProgressHub()
     runner = RunQueue(settings, sessions, read_sessions, clock=clock)
     drift = DriftScheduler(settings, sessions, runner, clock=clock)
-    auth = Authenticator(env_tokens, sessions, read_sessions, public_read=settings.public_read)
+    auth = Authenticator(
+        env_tokens,
+        sessions,
+        read_sessions,
+        public_read=settings.public_read,
+        link_key=settings.link_key.encode("utf-8") or None,
+    )
     analysis = AnalysisPool(settings.upload_workers)
     snapshots = SnapshotCache(read_sessions)
     return Services(

@@ -21,6 +21,8 @@ _PLACEHOLDER_WORDS = frozenset(
         "not configured", "not stated", "unset", "to be set", "to be configured", "set me",
     }
 )  # fmt: skip
+MIN_LINK_KEY_CHARS = 32
+"""Shortest link-signing key (characters)."""
 _PLACEHOLDER_PHRASES = ("not configured", "not set", "to be set", "placeholder", "change me", "changeme")
 
 
@@ -58,6 +60,11 @@ class Settings(BaseSettings):
     :param sim_speed: simulated seconds per wall second for ``--sim``.
     :param sim_sample_rate_hz: DAQ rate of the simulated bench (Hz).
     :param temp_band_c: allowed sensor temperature band (°C) or ``None``.
+    :param link_key: the key that signs the service's short-lived links (``POST /api/links``),
+        one per deployment, at least 32 characters, so that a link made by one API process
+        opens on every other (``calbench serve --workers N``, several hosts on one database);
+        empty: ``calbench serve`` draws one at start and hands it to its workers (links then
+        die when it restarts), an app built otherwise draws its own.
     :param public_read: reads need no token (a lab that shows the dashboard on a wall screen).
     :param sim: the service drives a simulated bench (``calbench serve --sim``).
     :param agent: ``embedded``: the service runs the bench agent in a thread of its own process
@@ -109,6 +116,7 @@ class Settings(BaseSettings):
     bench_file: Path | None = None
     bench_name: str = Field(default_factory=socket.gethostname)
     tokens: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    link_key: str = Field("", repr=False)
     sim_speed: float = 1.0
     sim_sample_rate_hz: float = 1000.0
     temp_band_c: tuple[float, float] | None = None
@@ -150,6 +158,16 @@ class Settings(BaseSettings):
         """``CALBENCH_TOKENS=operator:SECRET,viewer:SECRET`` (comma-separated ``role:secret``)."""
         if isinstance(value, str):
             return [part.strip() for part in value.split(",") if part.strip()]
+        return value
+
+    @field_validator("link_key")
+    @classmethod
+    def _check_link_key(cls, value: str) -> str:
+        """Empty, or a secret of at least :data:`MIN_LINK_KEY_CHARS` characters."""
+        if value and len(value) < MIN_LINK_KEY_CHARS:
+            raise ValueError(
+                f"CALBENCH_LINK_KEY has {len(value)} characters; expected at least {MIN_LINK_KEY_CHARS}"
+            )
         return value
 
     @field_validator("reference_equipment", mode="before")

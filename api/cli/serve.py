@@ -29,6 +29,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from pydantic import ValidationError
+
 from api.auth import new_secret, parse_tokens
 from api.cli import BadInput
 from api.drift import parse_time_of_day
@@ -86,6 +88,11 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         settings = Settings()
         parse_tokens(settings.tokens)
         parse_time_of_day(settings.drift_time)
+    except ValidationError as exc:  # one line: the first field at fault and why
+        first = exc.errors()[0]
+        msg = str(first["msg"]).removeprefix("Value error, ")
+        name = "CALBENCH_" + "_".join(str(p) for p in first["loc"][:1]).upper()
+        raise BadInput(msg if name in msg else f"{name}: {msg}") from None
     except ValueError as exc:
         raise BadInput(str(exc).splitlines()[0]) from None
     if not 0 < args.port < 65536:
@@ -110,6 +117,8 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
     if getattr(args, "bench_file", None) is not None:
         update["bench_file"] = Path(args.bench_file)
     update["agent"] = "embedded" if getattr(args, "agent", "spawn") == "embedded" else "external"
+    if not settings.link_key:  # one key for all the workers of this service
+        update["link_key"] = new_secret()
     generated: dict[str, str] = {}
     if not settings.tokens:
         generated[new_secret()] = "admin"

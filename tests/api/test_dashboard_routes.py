@@ -1,7 +1,7 @@
 """The dashboard page and the plot series routes, checked against independent computations.
 
-Runs are registered directly in the database and point at the independent example
-recording (``shared/data/examples/example_static12``), so no bench has to run: the series
+Runs are registered directly in the database and point at the shipped example
+recording (``examples/static12_nonlinearity``), so no bench has to run: the series
 the routes compute from the recording are compared with the fit's own contract, with
 K⁻¹ applied through an explicit inverse, with a reference model whose answer is known
 exactly (a scale 1 % high shrinks every |f̂| by 1.01), and with white noise whose Allan
@@ -32,6 +32,7 @@ from bench.recording import Recording, Sidecar, read_recording
 from db.models import RunState
 from db.repo.runs import create_run, finish_run
 from db.repo.units import get_or_create_unit
+from tests.conftest import EXAMPLES, STATIC_EXAMPLE
 from tests.support.fits import stored_fit
 from tests.support.service_helpers import VIEW, service_settings
 
@@ -39,8 +40,8 @@ SERIAL = "SN-DASH-1"
 
 
 @pytest.fixture(scope="module")
-def example(shared_dir: Path) -> Path:
-    return shared_dir / "data" / "examples" / "example_static12.csv"
+def example() -> Path:
+    return EXAMPLES / f"{STATIC_EXAMPLE}.csv"
 
 
 @pytest.fixture(scope="module")
@@ -184,7 +185,7 @@ def test_allan_of_the_longest_static_window_is_served(client: TestClient) -> Non
     body = client.get("/api/runs/run-new/plots/allan", headers=VIEW).json()
     assert body["source"] == "longest static window" and body["unit"] == "V"
     taus = np.array(body["taus_s"])
-    assert taus[0] == pytest.approx(0.01) and np.all(np.diff(taus) > 0)
+    assert taus[0] == pytest.approx(0.1) and np.all(np.diff(taus) > 0)  # one sample at 10 Hz
     adev, lo, hi = (np.array(body[k]) for k in ("adev", "adev_lo", "adev_hi"))
     assert adev.shape == (3, taus.size) and np.all(lo <= adev) and np.all(adev <= hi)
 

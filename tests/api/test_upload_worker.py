@@ -16,22 +16,20 @@ from fastapi.testclient import TestClient
 from api import analysis_worker
 from api.analysis_worker import AnalysisPool
 from api.main import create_app
+from tests.conftest import EXAMPLES, STATIC_EXAMPLE
 from tests.support.service_helpers import OP, service_settings
 
 pytestmark = pytest.mark.timeout(300)
 
 
-def _files(shared_dir: Path) -> dict[str, tuple[str, bytes]]:
-    ex = shared_dir / "data" / "examples"
+def _files() -> dict[str, tuple[str, bytes]]:
     return {
-        "recording": ("example_static12.csv", (ex / "example_static12.csv").read_bytes()),
-        "sidecar": ("example_static12.json", (ex / "example_static12.json").read_bytes()),
+        "recording": (f"{STATIC_EXAMPLE}.csv", (EXAMPLES / f"{STATIC_EXAMPLE}.csv").read_bytes()),
+        "sidecar": (f"{STATIC_EXAMPLE}.json", (EXAMPLES / f"{STATIC_EXAMPLE}.json").read_bytes()),
     }
 
 
-def test_health_answers_while_an_upload_is_analysed(
-    tmp_path: Path, shared_dir: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_health_answers_while_an_upload_is_analysed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     release, entered = threading.Event(), threading.Event()
     real = analysis_worker.analyse_upload
 
@@ -46,7 +44,7 @@ def test_health_answers_while_an_upload_is_analysed(
         result: dict[str, Any] = {}
         upload = threading.Thread(
             target=lambda: result.update(
-                r=client.post("/api/recordings", files=_files(shared_dir), headers=OP)
+                r=client.post("/api/recordings", files=_files(), headers=OP)
             )
         )
         upload.start()
@@ -64,8 +62,7 @@ def _exit_worker(csv_path: str) -> Any:
     os._exit(3)  # the worker process dies (killed, out of memory)
 
 
-def test_a_dead_worker_is_reported_and_replaced(tmp_path: Path, shared_dir: Path) -> None:
-    ex = shared_dir / "data" / "examples"
+def test_a_dead_worker_is_reported_and_replaced(tmp_path: Path) -> None:
     pool = AnalysisPool(1)
     try:
         loop = asyncio.new_event_loop()
@@ -74,8 +71,8 @@ def test_a_dead_worker_is_reported_and_replaced(tmp_path: Path, shared_dir: Path
             with pytest.raises(concurrent.futures.process.BrokenProcessPool):
                 loop.run_until_complete(loop.run_in_executor(executor, _exit_worker, "x"))
             with pytest.raises(RuntimeError, match="worker died"):
-                loop.run_until_complete(pool.analyse(ex / "example_static12.csv"))
-            cal, _diag, _note = loop.run_until_complete(pool.analyse(ex / "example_static12.csv"))
+                loop.run_until_complete(pool.analyse(EXAMPLES / f"{STATIC_EXAMPLE}.csv"))
+            cal, _diag, _note = loop.run_until_complete(pool.analyse(EXAMPLES / f"{STATIC_EXAMPLE}.csv"))
         finally:
             loop.close()
         assert len(cal["bias"]) == 3

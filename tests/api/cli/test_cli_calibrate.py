@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import json
-import shutil
 
 import pytest
 
 from api.cli import main
+from tests.conftest import STATIC_EXAMPLE, copy_example
 
 CONTRACT_KEYS = {
     "unit", "channel_unit", "procedure", "bias", "bias_sigma", "scale_matrix", "scale_matrix_sigma",
@@ -18,11 +18,8 @@ CONTRACT_KEYS = {
 
 
 @pytest.fixture()
-def example(shared_dir, tmp_path):
-    src = shared_dir / "data" / "examples"
-    for ext in ("csv", "json"):
-        shutil.copy(src / f"example_static12.{ext}", tmp_path / f"rec.{ext}")
-    return tmp_path / "rec.csv"
+def example(tmp_path):
+    return copy_example(STATIC_EXAMPLE, tmp_path)
 
 
 def test_json_output_has_exactly_the_contract_keys(example, capsys) -> None:
@@ -45,7 +42,7 @@ def test_json_output_has_exactly_the_contract_keys(example, capsys) -> None:
     out = json.loads(capsys.readouterr().out)
     assert set(out) == CONTRACT_KEYS
     assert (
-        out["unit"] == "SN-EXAMPLE_STATIC12"
+        out["unit"] == "SN-EX-0001"
         and out["channel_unit"] == "V"
         and out["procedure"] == "static-12"
     )
@@ -56,8 +53,9 @@ def test_json_output_has_exactly_the_contract_keys(example, capsys) -> None:
     assert set(out["g_check"]) == {"before", "after"}
     for part in out["g_check"].values():
         assert set(part) == {"mean_error_m_s2", "std_m_s2"}
-    # nominal 0.0176 V per m/s² is ~2 % off the true scales: 'before' is far worse than 'after'
-    assert out["g_check"]["before"]["std_m_s2"] > 50 * out["g_check"]["after"]["std_m_s2"]
+    # nominal 0.0176 V per m/s² is 1-3 % off the true scales (0.1 to 0.3 m/s² at 1 g): 'before' is
+    # far worse than 'after', which the concealed 4 mg z nonlinearity limits to about 0.01 m/s²
+    assert out["g_check"]["before"]["std_m_s2"] > 10 * out["g_check"]["after"]["std_m_s2"]
 
 
 def test_human_output_is_a_table_with_every_window(example, capsys) -> None:

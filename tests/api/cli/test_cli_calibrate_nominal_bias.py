@@ -5,16 +5,13 @@ one line naming the flag, instead of a 'before' |g| check that takes a 1.5 V zer
 from __future__ import annotations
 
 import json
-import shutil
 
 from api.cli import main
+from tests.conftest import STATIC_EXAMPLE, copy_example
 
 
-def test_nominal_scale_without_bias_on_a_v_channel_exits_2(shared_dir, tmp_path, capsys) -> None:
-    src = shared_dir / "data" / "examples"
-    for ext in ("csv", "json"):
-        shutil.copy(src / f"example_static12.{ext}", tmp_path / f"rec.{ext}")
-    rec = tmp_path / "rec.csv"
+def test_nominal_scale_without_bias_on_a_v_channel_exits_2(tmp_path, capsys) -> None:
+    rec = copy_example(STATIC_EXAMPLE, tmp_path)
     assert main(["calibrate", str(rec), "--json", "--nominal-scale", "0.0176"]) == 2
     captured = capsys.readouterr()
     assert captured.out == ""

@@ -1,6 +1,6 @@
 """Exports of the fitted model, each loaded back with the other tool's own reader: imucal's
 ``CalibrationInfo.from_json``, PyYAML for the Kalibr YAML, gcc for the C header; the CLI on the
-shared example recording."""
+shipped example recording."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from api.cli import main
 from api.exports import certified_uncertainty, export_text, kalibr_noise
 from bench.estimation.allan import overlapping_allan
 from bench.export import FORMATS, to_c_header, to_imucal, to_json, to_kalibr
+from tests.conftest import STATIC_EXAMPLE, copy_example
 from tests.support.fits import stored_fit
 
 RNG = np.random.default_rng(14)
@@ -98,12 +99,9 @@ def test_plain_json_and_a_singular_model_is_refused() -> None:
         to_json(stored_fit(scale_matrix=[[1, 0, 0], [1, 0, 0], [0, 0, 1]]))
 
 
-def test_cli_writes_each_format_from_a_recording(shared_dir: Path, tmp_path: Path) -> None:
+def test_cli_writes_each_format_from_a_recording(tmp_path: Path) -> None:
     imucal = pytest.importorskip("imucal")
-    src = shared_dir / "data" / "examples"
-    for ext in ("csv", "json"):
-        shutil.copy(src / f"example_static12.{ext}", tmp_path / f"rec.{ext}")
-    rec = tmp_path / "rec.csv"
+    rec = copy_example(STATIC_EXAMPLE, tmp_path)
     assert main(["calibrate", str(rec), "--json"]) == 0
     for fmt in ("imucal", "kalibr", "c-header", "json"):
         out = tmp_path / f"out.{fmt}"
@@ -112,7 +110,7 @@ def test_cli_writes_each_format_from_a_recording(shared_dir: Path, tmp_path: Pat
     info = imucal.CalibrationInfo.from_json((tmp_path / "out.imucal").read_text())
     assert info.K_a.shape == (3, 3)
     kal = yaml.safe_load((tmp_path / "out.kalibr").read_text())["imu0"]
-    assert kal["accelerometer_noise_density"] > 0 and kal["update_rate"] > 0
+    assert kal["accelerometer_noise_density"] > 0 and kal["update_rate"] == 10.0  # the sidecar's rate
     assert main(["export", str(tmp_path / "missing.csv"), "--format", "json"]) == 2
 
 

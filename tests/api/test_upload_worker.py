@@ -43,9 +43,7 @@ def test_health_answers_while_an_upload_is_analysed(tmp_path: Path, monkeypatch:
     with TestClient(create_app(settings, start_scheduler=False)) as client:
         result: dict[str, Any] = {}
         upload = threading.Thread(
-            target=lambda: result.update(
-                r=client.post("/api/recordings", files=_files(), headers=OP)
-            )
+            target=lambda: result.update(r=client.post("/api/recordings", files=_files(), headers=OP))
         )
         upload.start()
         assert entered.wait(60), "the analysis never started"

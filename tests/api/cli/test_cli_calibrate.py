@@ -41,11 +41,7 @@ def test_json_output_has_exactly_the_contract_keys(example, capsys) -> None:
     )
     out = json.loads(capsys.readouterr().out)
     assert set(out) == CONTRACT_KEYS
-    assert (
-        out["unit"] == "SN-EX-0001"
-        and out["channel_unit"] == "V"
-        and out["procedure"] == "static-12"
-    )
+    assert out["unit"] == "SN-EX-0001" and out["channel_unit"] == "V" and out["procedure"] == "static-12"
     assert len(out["bias"]) == 3 and len(out["bias_sigma"]) == 3
     assert [len(r) for r in out["scale_matrix"]] == [3, 3, 3] and [
         len(r) for r in out["scale_matrix_sigma"]

@@ -3,7 +3,7 @@
 The recording carries what the bench *believes* (the sidecar geometry, local gravity),
 never the truth: the truth goes to ``<stem>.truth.json`` so that a calibration or a
 diagnosis of the recording can be checked against it, as with the example recordings in
-``shared/data/examples``.
+``examples/`` (made this way, ``examples/README.md``).
 """
 
 from __future__ import annotations

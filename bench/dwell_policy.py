@@ -2,7 +2,7 @@
 
 The mean of a static window is worth averaging only while its Allan deviation still falls:
 at the curve's minimum τ_min the white noise has been averaged down to the bias-instability
-floor, and a longer dwell buys nothing but drift (DESIGN.md §1; IEEE Std 952 Annex C). The
+floor, and a longer dwell buys nothing but drift (docs/methods.md §1; IEEE Std 952 Annex C). The
 dwell is therefore τ_min of the unit's Allan curve, taken from
 
 1. the unit's last Allan characterisation, when one is given (``source = "allan"``), or

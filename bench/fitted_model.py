@@ -1,5 +1,5 @@
 """The fitted first-order model of a run as the program passes it around: the typed form of
-the ``calbench calibrate --json`` object (``shared/cli-contract.md``).
+the ``calbench calibrate --json`` object (``docs/cli-contract.md``).
 
 A fresh fit gives it by :meth:`bench.calibration.CalibrationResult.fitted_model`; a fit stored
 as JSON (a run's ``params["calibration"]``, a ``fit`` row) is parsed once, where it leaves the

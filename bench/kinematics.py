@@ -1,7 +1,7 @@
 """Table kinematics: attitude, angular rate and acceleration, and the specific force a sensor feels.
 
 Pure numpy, SI units (radians, seconds, metres). The conventions are those of
-``recording-format.md``: the base frame is fixed to the room with z up; axis 1 is the
+``docs/recording-format.md``: the base frame is fixed to the room with z up; axis 1 is the
 outermost; each axis vector ``u_i`` is given in its parent frame at zero angles; the
 sensor's attitude (sensor frame -> base frame) is
 

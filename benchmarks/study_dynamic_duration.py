@@ -1,6 +1,6 @@
 """Parameter sigma against test duration: static 12-position tumble vs two-axis oscillation.
 
-Reproduces, in simulation, the oscillation paper's claim (DESIGN.md §2: the accuracy of a
+Reproduces, in simulation, the oscillation paper's claim (docs/methods.md §2: the accuracy of a
 40-minute static test in 1.5 minutes) for an ADXL325-like unit: 15 mg bias spread, 1 %
 scale spread, 15′ misalignment, 250 µg/√Hz white noise, 40 µg Gauss-Markov bias wander
 (200 s), a 16-bit converter over 3 V, 100 Hz. Both methods are simulated by the same truth

@@ -1,4 +1,5 @@
-"""The layer contracts of DESIGN.md hold: api > db > bench > drivers, pure estimation and diagnosis."""
+"""The layer contracts of the README ("Layout") hold: api > db > bench > drivers, pure estimation
+and diagnosis."""
 
 from __future__ import annotations
 

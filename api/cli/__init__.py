@@ -2,7 +2,7 @@
 
 Each subcommand lives in its own module under ``api/cli/`` and exposes
 ``add_arguments(parser)`` and ``run(args) -> int``. Bad input ends with exit code 2 and
-one line on stderr (see ``shared/cli-contract.md``).
+one line on stderr (see ``docs/cli-contract.md``).
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ vibration is not read as white noise nor a 23.4 Hz one as quantisation noise. A 
 names each channel whose Allan curve the noise model does not describe (χ² above its 95 %
 point: its sigmas then carry the model allowance).
 Human output: a τ / σ_A table with intervals, the lines, the noise terms, the dwell and the
-warnings. ``--json``: one object (fields in ``shared/cli-contract.md`` style). Bad input: exit
+warnings. ``--json``: one object (fields in ``docs/cli-contract.md`` style). Bad input: exit
 2, one line.
 """
 

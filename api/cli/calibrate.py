@@ -2,7 +2,7 @@
 
 Human output: the coefficients with their one-sigma uncertainties, the per-window
 residuals and |g| errors, and the |g| check summary. ``--json``: the object of
-``shared/cli-contract.md``. Bad input: exit 2 with one line (raised as ValueError).
+``docs/cli-contract.md``. Bad input: exit 2 with one line (raised as ValueError).
 """
 
 from __future__ import annotations

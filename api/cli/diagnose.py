@@ -4,7 +4,7 @@ Human output: the mismatch of the first-order model, each finding with its param
 and the BIC change, each term found beyond the catalogue (DISCOVERED), the final fit and,
 when it still fails the recording's noise, where (UNEXPLAINED), and the effects this
 recording cannot show.
-``--json``: the object of ``shared/cli-contract.md``. ``--report``: a self-contained HTML
+``--json``: the object of ``docs/cli-contract.md``. ``--report``: a self-contained HTML
 page with residual plots. Bad input: exit 2 with one line (raised as ValueError).
 """
 

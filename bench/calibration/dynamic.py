@@ -4,7 +4,7 @@ Recording -> motion regressors (``motion_data.prepare_motion`` on the unwrapped 
 angles and the sidecar geometry) -> choice of terms (below) -> batch fit over every usable
 sample (``dynamic_batch``) -> extended Kalman filter over the same samples as a cross-check
 (``dynamic_kalman``) -> the contract of ``calbench calibrate`` with the terms beyond bias
-and K under ``extra`` (``cli-contract.md``: ``lever_arm.r_m``, ``proof_mass_offsets.rho_m``,
+and K under ``extra`` (``docs/cli-contract.md``: ``lever_arm.r_m``, ``proof_mass_offsets.rho_m``,
 ``nonlinearity_quadratic.k2_per_g``, ``table_tilt.tilt_rad``, ``time_skew.delay_s``).
 
 Terms: the model the evidence supports. By default the terms are those the diagnosis of

@@ -1,6 +1,6 @@
 """Typed results of a calibration: one window (:class:`WindowResult`) and one fit
 (:class:`CalibrationResult`), turned into the ``calbench calibrate --json`` object of
-``shared/cli-contract.md`` only by :meth:`CalibrationResult.to_contract`; what limits,
+``docs/cli-contract.md`` only by :meth:`CalibrationResult.to_contract`; what limits,
 certificates and exports read of it is :meth:`CalibrationResult.fitted_model`.
 """
 
@@ -125,7 +125,7 @@ class CalibrationResult:
         )
 
     def to_contract(self) -> dict[str, Any]:
-        """The ``calbench calibrate --json`` object (shared/cli-contract.md)."""
+        """The ``calbench calibrate --json`` object (docs/cli-contract.md)."""
         g_check_out: dict[str, Any] = {}
         if self.g_before is not None:
             g_check_out["before"] = _g_dict(self.g_before)

@@ -9,7 +9,7 @@ glue (``bench.calibration.diagnose``), so all three read a recording the same wa
   labelled ``nominal_up`` when any segment is), or detected ones when there are no segments;
 * window angles: the mean encoder angle of each window, taken relative to the window's
   first sample and wrapped to (−180°, 180°] before averaging (robust to the ±180° wrap);
-* specific force per window: f_w = Rᵀ [0, 0, g] at those angles (``recording-format.md``,
+* specific force per window: f_w = Rᵀ [0, 0, g] at those angles (``docs/recording-format.md``,
   "Kinematics"), or ±g along the ``nominal_up`` axis of a hand-placed window.
 """
 

@@ -4,7 +4,7 @@ Source format: IMU-TK (Tedaldi, Pretto, Menegatti, ICRA 2014) reads whitespace-s
 ASCII ``t[s] x y z`` per line, one file for the accelerometer and one for the gyro (its own
 test data names them ``xsens_acc.mat`` and ``xsens_gyro.mat``); or the two joined on time
 as a CSV with the header ``t_s, acc_{x,y,z}_counts, gyr_{x,y,z}_counts`` (the Xsens data
-set's ``xsens_mti_raw_counts.csv``, ``shared/data/real/imu_tk-xsens/README.md``).
+set's ``xsens_mti_raw_counts.csv``, the data set's own README, docs/real-datasets.md).
 
 What the files say, and so what is written: the time stamps (the sample rate is their
 median spacing) and three numbers per sensor and sample, every sample kept. What they do

@@ -1,6 +1,6 @@
 """imucal's Ferraris example sessions -> calbench-recording/1.
 
-Source (``shared/data/real/imucal-ferraris/README.md``; imucal, mad-lab-fau, MIT):
+Source (imucal, mad-lab-fau, MIT; docs/real-datasets.md):
 
 * ``example_ferraris_session.csv`` — one continuous session, columns ``n_samples, gyr_x,
   gyr_y, gyr_z, acc_x, acc_y, acc_z`` in m/s² and °/s, with the authors' annotation

@@ -2,7 +2,7 @@
 the recording about as well (|cos| of their signatures beyond the first-order model above
 ``Thresholds.confound_cosine``), why two effects cannot be told apart, and a discovered term's report
 (coefficient and sigma in channel units per unit of the term, ΔBIC, residual after, the
-physics sentence of ``library.physics``; ``cli-contract.md``, "Beyond the catalogue")."""
+physics sentence of ``library.physics``; ``docs/cli-contract.md``, "Beyond the catalogue")."""
 
 from __future__ import annotations
 

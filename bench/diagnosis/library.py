@@ -1,6 +1,6 @@
 """A library of terms beyond the catalogue: products of what a static recording offers.
 
-Base quantities of a static window w (``cli-contract.md``, "Beyond the catalogue"):
+Base quantities of a static window w (``docs/cli-contract.md``, "Beyond the catalogue"):
 
     f_x, f_y, f_z        specific force from the believed geometry (g = 9.80665 m/s²)
     abs(f_x) … abs(f_z)  its magnitudes (g)

@@ -1,6 +1,6 @@
 """The term library for moving-table recordings: products of what the motion offers.
 
-Base quantities per sample (``cli-contract.md``, "Beyond the catalogue"), from the final
+Base quantities per sample (``docs/cli-contract.md``, "Beyond the catalogue"), from the final
 catalogue model θ̂ of the dynamic diagnosis (``dynamic_model``):
 
     f_x, f_y, f_z          modelled specific force, lever arm, tilt and skew included (g)

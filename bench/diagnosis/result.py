@@ -1,4 +1,4 @@
-"""The diagnosis as frozen data, and its ``calbench diagnose --json`` form (cli-contract.md)."""
+"""The diagnosis as frozen data, and its ``calbench diagnose --json`` form (docs/cli-contract.md)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """A run's diagnosis as the program reads it back: the typed form of the parts of the stored
-``calbench diagnose --json`` object (``shared/cli-contract.md``) that findings rows,
+``calbench diagnose --json`` object (``docs/cli-contract.md``) that findings rows,
 certificates and run views use.
 
 A fresh diagnosis gives it by :meth:`StoredDiagnosis.of`; a diagnosis stored as JSON (a run's

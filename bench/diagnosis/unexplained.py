@@ -1,5 +1,5 @@
 """Whether the final model still fails the recording's own noise (``unexplained`` of
-``cli-contract.md``): χ² of the whole model, per channel and channels against each other;
+``docs/cli-contract.md``): χ² of the whole model, per channel and channels against each other;
 orientation-free evidence on the magnitude alone."""
 
 from __future__ import annotations

@@ -79,7 +79,7 @@ def wander_note(effect: str, lr: float, lr_wander: float, gate: float, noise: No
 
 
 TIME_BASES = ("t", "temp")
-"""Base quantities (``cli-contract.md`` grammar) a bias wander can follow."""
+"""Base quantities (``docs/cli-contract.md`` grammar) a bias wander can follow."""
 
 
 def _bases(term: str) -> list[str]:

@@ -1,6 +1,6 @@
 """Measurement model of an accelerometer triad on a moving table, with its exact Jacobian.
 
-Kinematics (``recording-format.md``; Titterton & Weston, *Strapdown Inertial Navigation
+Kinematics (``docs/recording-format.md``; Titterton & Weston, *Strapdown Inertial Navigation
 Technology*, 2nd ed., §3.2): with R_in(t) the innermost table frame's attitude, M the
 mount rotation, ω and ω̇ the innermost frame's rate and angular acceleration (base
 coordinates) and A = [ω̇]× + [ω]×², the specific force that sensor axis i feels at a
@@ -9,9 +9,9 @@ point q_i of the innermost table frame is
     f_i(t) = e_iᵀ G(t) g_base + e_iᵀ B(t) q_i,     G = Mᵀ R_inᵀ,   B = Mᵀ R_inᵀ A R_in
 
 with g_base = Rot(x, a)·Rot(y, b)·[0, 0, g] = g·[sin b, −cos b sin a, cos b cos a] (the
-``table_tilt`` of ``cli-contract.md``). Without the size effect every axis sits at the
+``table_tilt`` of ``docs/cli-contract.md``). Without the size effect every axis sits at the
 lever arm r (q_i = r); with it (``proof_mass_offsets``) each axis has its own q_i
-(DESIGN.md §3, the rate-table paper). f is linear in g_base and q, and so is its time
+(docs/methods.md §3, the rate-table method). f is linear in g_base and q, and so is its time
 derivatives ḟ = Ġ g_base + Ḃ q and f̈, with Ġ, Ḃ, G̈, B̈ precomputed by differentiating G,
 B along time (``motion_data.prepare_motion``: Savitzky–Golay derivatives of the encoder angles).
 
@@ -19,7 +19,7 @@ B along time (``motion_data.prepare_motion``: Savitzky–Golay derivatives of th
 f_δ(t) = f(t − δ) ≈ f(t) − δ·ḟ(t) + δ²/2·f̈(t) (second order; with |f⃛| ≲ g·ω³ the neglected
 δ³/6·f⃛ is below 1e-6 g for δ ≤ 10 ms at the procedures' rates, ω ≤ 3.5 rad/s).
 
-Sensor (``cli-contract.md``): raw = b + K f_δ + diag(K) ⊙ k2 ⊙ f_δ² / g0.
+Sensor (``docs/cli-contract.md``): raw = b + K f_δ + diag(K) ⊙ k2 ⊙ f_δ² / g0.
 
 Parameter vector θ (``ModelSpec.names``): bias (3, channel units), K (9, row-major,
 channel unit per m/s²), then the chosen terms in the order of ``TERM_ORDER``: lever_arm

@@ -1,6 +1,6 @@
 """Table motion of a recording reduced to the regressors of the moving-table model.
 
-From the sampled, unwrapped encoder angles (``recording-format.md``) :func:`prepare_motion`
+From the sampled, unwrapped encoder angles (``docs/recording-format.md``) :func:`prepare_motion`
 keeps the angles, their rates and accelerations, the samples the fit may use and the peak
 rate (:class:`MotionData`, 81 bytes per sample with three axes); :meth:`MotionData.take`
 forms, for the samples a consumer asks for, G = Mᵀ R_inᵀ and B = Mᵀ R_inᵀ A R_in

@@ -1,6 +1,6 @@
 """Multi-position static calibration with known orientations: bias + full 3×3 K per channel.
 
-Model (tumble test, DESIGN.md §1): the mean of static window w is
+Model (tumble test, docs/methods.md §1): the mean of static window w is
 
     y_w = b + K f_w + e_w,    Cov(e_w) = S_w = V_w + t · K (I − f̂_w f̂_wᵀ) Kᵀ + diag(τ²)
 

@@ -1,4 +1,4 @@
-"""oscillation-2axis: quasi-harmonic oscillation of two axes (DESIGN.md §2).
+"""oscillation-2axis: quasi-harmonic oscillation of two axes (docs/methods.md §2).
 
 The paper's dynamic calibration oscillates both axes of a two-axis table with amplitudes
 360° and 90° and periods ``2·T1 = 5·T2``, ``T2 = 12 s`` (so ``T1 = 30 s``), and reaches in

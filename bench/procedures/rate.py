@@ -2,14 +2,14 @@
 
 At a constant rate ω about the vertical axis, a sensor at ``p`` (base frame) off the axis
 feels the centripetal term ``ω × (ω × p)`` (magnitude ω²·r) on top of gravity, so steps
-up to ±200 °/s separate the lever arm from bias and scale (DESIGN.md §3: offsets to
+up to ±200 °/s separate the lever arm from bias and scale (docs/methods.md §3: offsets to
 millimetres at up to ±200 °/s). Opposite rates at each pose cancel rate-odd effects (a gyro
 scale, time skew) in the sum and isolate them in the difference. The poses turn the sensor
 so each of its axes lies in the plane of rotation at least once; ``tilted_deg`` adds the
 5–10° tilted poses that separate the per-axis proof-mass offsets (size effect).
 
 Each pose starts with a short static reference window (``Dwell``), then one ``Rotate``
-window per rate. Axes as in ``recording-format.md`` (1 = outer, vertical).
+window per rate. Axes as in ``docs/recording-format.md`` (1 = outer, vertical).
 """
 
 from __future__ import annotations

@@ -16,13 +16,13 @@ K: a bias ramp over the run moves the least-squares K by 0.056 of the ramp's end
 / g (Frobenius norm over the 9 elements; quadratic 0.028), where the icosahedron's ring order
 (+z first, −z last) moved it by 1.06 (quadratic 0.18).
 
-Poses assume the default geometry of ``recording-format.md``: outer axis ``z``, middle axis
+Poses assume the default geometry of ``docs/recording-format.md``: outer axis ``z``, middle axis
 ``x``, inner axis ``z`` (at zero middle angle). With ``R = Rz(θ1)·Rx(θ2)·Rz(θ3)`` the
 specific force at rest is ``f = Rᵀ·[0, 0, g] = g·(sin θ2 sin θ3, sin θ2 cos θ3, cos θ2)``,
 so a wanted up-direction ``u`` in the sensor frame needs ``θ2 = acos(u_z)``,
 ``θ3 = atan2(u_x, u_y)``.
 
-Source of the method: DESIGN.md §1 (static 12-orientation calibration, dwell from Allan).
+Source of the method: docs/methods.md §1 (static 12-orientation calibration, dwell from Allan).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""calbench-recording/1: read, write, validate (see shared/recording-format.md)."""
+"""calbench-recording/1: read, write, validate (see docs/recording-format.md)."""
 
 from bench.recording.errors import RecordingError
 from bench.recording.model import (

@@ -11,7 +11,7 @@ from pathlib import Path
 
 
 class RecordingError(ValueError):
-    """A recording (CSV or sidecar) that breaks a rule of ``recording-format.md``.
+    """A recording (CSV or sidecar) that breaks a rule of ``docs/recording-format.md``.
 
     :param path: the offending file.
     :param problem: what is wrong and what was expected.

@@ -1,6 +1,6 @@
 """In-memory form of a calbench-recording/1 run (CSV samples + JSON sidecar).
 
-See ``shared/recording-format.md``. Everything here is plain frozen data; reading,
+See ``docs/recording-format.md``. Everything here is plain frozen data; reading,
 writing and validation live in ``reader.py`` / ``writer.py``.
 """
 

@@ -279,7 +279,7 @@ def read_recording(csv_path: str | Path) -> Recording:
     """Read a recording: ``run.csv`` and its sidecar ``run.json``.
 
     :returns: a :class:`Recording` with every row of the CSV.
-    :raises RecordingError: any rule of ``recording-format.md`` broken; the message names
+    :raises RecordingError: any rule of ``docs/recording-format.md`` broken; the message names
         the file, the row/line or key, and what was expected.
     :raises FileNotFoundError: the CSV or its sidecar does not exist.
     """

@@ -29,7 +29,7 @@ class FitKind(enum.Enum):
 class FitModel(IntId, Base):
     """A fitted sensor model.
 
-    :param contract: the ``calbench calibrate --json`` object (``shared/cli-contract.md``):
+    :param contract: the ``calbench calibrate --json`` object (``docs/cli-contract.md``):
         bias, scale_matrix, their sigmas, terms, extra, residual_rms, g_check.
     :param param_names: names of the parameters in the order of ``covariance``'s rows.
     :param covariance: (n_params, n_params) covariance of the fitted parameters, in the
@@ -53,7 +53,7 @@ class Finding(IntId, Base):
     """One finding of ``calbench diagnose``: an effect id of the catalogue and its fit.
 
     :param parameters, sigma: the effect's parameters and their 1-sigma uncertainties,
-        keyed by the parameter names of ``shared/cli-contract.md``.
+        keyed by the parameter names of ``docs/cli-contract.md``.
     :param delta_bic: BIC change from adding the effect (negative: the effect is supported).
     """
 

@@ -3,7 +3,7 @@
 Each function lays out the table motion as a :class:`~drivers.sim.motion.TableProfile`,
 samples it through a :class:`~drivers.sim.physics.SensorPhysics` in one block and returns
 a :class:`SimulatedRun` (samples, windows, the truth). Default geometry: the three-axis
-table of ``recording-format.md`` (outer vertical, middle horizontal x, inner vertical).
+table of ``docs/recording-format.md`` (outer vertical, middle horizontal x, inner vertical).
 
 Windows start ``lead_s`` after the move before them ends, so the ``settling`` effect
 (ringing for ``duration_s`` after each stop) shows in a window when duration_s > lead_s.
@@ -34,7 +34,7 @@ from drivers.sim.sensor_truth import SensorTruth
 FloatArray = npt.NDArray[np.float64]
 
 DEFAULT_AXES = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-"""The default three-axis table of ``recording-format.md``, outermost first."""
+"""The default three-axis table of ``docs/recording-format.md``, outermost first."""
 
 
 @dataclass(frozen=True)
@@ -266,7 +266,7 @@ def simulate_oscillation(
     move_rate_deg_s: float = 30.0,
     move_accel_deg_s2: float = 60.0,
 ) -> SimulatedRun:
-    """Two-axis quasi-harmonic oscillation (``oscillation-2axis``), after DESIGN.md.
+    """Two-axis quasi-harmonic oscillation (``oscillation-2axis``), after docs/methods.md §2.
 
     The inner axis oscillates with amplitude ``amplitudes_deg[0]`` and period T1, the middle
     axis with ``amplitudes_deg[1]`` and T2 = ``period_short_s``; 2·T1 = 5·T2. Each starts

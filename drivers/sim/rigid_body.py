@@ -1,6 +1,6 @@
 """Rigid-body kinematics of a multi-axis table, written independently of ``bench.kinematics``.
 
-Conventions of ``recording-format.md``: base frame z up; ``Rot(u, θ)`` right-handed;
+Conventions of ``docs/recording-format.md``: base frame z up; ``Rot(u, θ)`` right-handed;
 attitude of the innermost table frame R_inner = Rot(u1, θ1)·…·Rot(uN, θN) (outermost
 first); sensor attitude R = R_inner·M. Axis i turns about u_i expressed in its parent
 frame, i.e. about R_{<i}·u_i in base coordinates, where R_{<i} = Rot(u1, θ1)·…·Rot(u_{i−1},

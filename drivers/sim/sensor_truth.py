@@ -1,6 +1,6 @@
 """What a simulated unit truly is: bias, scale/misalignment K, catalogue effects, noise, ageing.
 
-First-order model (``cli-contract.md``): raw = bias + K·f, bias in channel units, K in
+First-order model (``docs/cli-contract.md``): raw = bias + K·f, bias in channel units, K in
 channel units per m/s². Effects beyond it are keyed by the catalogue's ids with the
 catalogue's parameter names and units; they are validated here, applied in
 ``drivers/sim/physics.py``, and their equations are collected in ``docs/physics-model.md``.
@@ -52,7 +52,7 @@ EFFECT_PARAMETERS: dict[str, dict[str, tuple[int, ...]]] = {
     "settling": {"duration_s": ()},
     **BENCH_EFFECT_PARAMETERS,
 }
-"""Catalogue of ``cli-contract.md`` and the bench physics beyond it (``bench_effects``):
+"""Catalogue of ``docs/cli-contract.md`` and the bench physics beyond it (``bench_effects``):
 effect id -> parameter name -> shape (−1: any length)."""
 
 _NOMINAL = {

@@ -1,4 +1,4 @@
-"""Two benches at once writing to one PostgreSQL database (the lab set-up of DESIGN.md)."""
+"""Two benches at once writing to one PostgreSQL database (the lab set-up of docs/service.md)."""
 
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ def truth(
 
 
 def oscillation(seed: int = 1, rate_hz: float = 100.0, **kw: Any) -> tuple[SimulatedRun, Recording]:
-    """The oscillation-2axis run of DESIGN.md (90 s) and its recording (zero believed lever arm)."""
+    """The oscillation-2axis run of docs/methods.md §2 (90 s) and its recording (zero believed lever arm)."""
     tr = kw.pop("truth", None) or truth()
     run = simulate_oscillation(SensorPhysics(tr, DEFAULT_AXES, seed=seed), rate_hz, **kw)
     return run, to_recording(run, serial="SN-DYN")

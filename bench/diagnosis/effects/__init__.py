@@ -1,4 +1,4 @@
-"""The catalogue of physical effects (``cli-contract.md``), one object per effect id, in contract order."""
+"""The catalogue of physical effects (``docs/cli-contract.md``), one object per effect id, in its order."""
 
 from __future__ import annotations
 

@@ -56,7 +56,7 @@ class Candidate:
 
 
 class Effect(Protocol):
-    """A catalogue effect (``cli-contract.md``); implementations are frozen dataclasses."""
+    """A catalogue effect (``docs/cli-contract.md``); implementations are frozen dataclasses."""
 
     @property
     def id(self) -> str:

@@ -1,6 +1,6 @@
 """Effects inside the sensor: terms added to channel i, scaled by its own sensitivity K_ii.
 
-Catalogue (``cli-contract.md``; g0 = 9.80665 m/s²), each column evaluated per window w:
+Catalogue (``docs/cli-contract.md``; g0 = 9.80665 m/s²), each column evaluated per window w:
 
     nonlinearity_quadratic   raw_i += K_ii · k2_i · f_i² / g0
     scale_asymmetry          raw_i += K_ii · (δ_i / 2) · |f_i|

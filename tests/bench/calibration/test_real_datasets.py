@@ -1,4 +1,5 @@
-"""The real data sets in shared/data/real, calibrated (numbers recorded in docs/real-datasets.md)."""
+"""The real data sets in ../shared/data/real (beside the repository, not shipped), calibrated
+(numbers recorded in docs/real-datasets.md)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""``calbench diagnose`` on the real data sets of /work/shared/data/real (docs/diagnose.md, "Real data sets").
+"""``calbench diagnose`` on the real data sets of ../shared/data/real, beside the repository and
+not shipped with it (docs/diagnose.md, "Real data sets").
 
 - imucal annotated session (counts, hand-held, six labelled poses): the window means disagree
   with their labels far beyond anything the windows' own samples allow for bias wander, so

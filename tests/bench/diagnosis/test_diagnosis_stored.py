@@ -13,7 +13,7 @@ from bench.diagnosis.result import Diagnosis, Finding, ModelSummary
 from bench.diagnosis.stored import StoredDiagnosis, StoredFinding
 from bench.fitted_model import ContractError
 
-# the example of shared/cli-contract.md
+# the example of docs/cli-contract.md
 CONTRACT: dict[str, Any] = {
     "unit": "SN-0001",
     "baseline": {"terms": ["bias", "scale_matrix"], "residual_rms": 5.1e-5, "chi2_dof": 45.2, "bic": 1126.6},

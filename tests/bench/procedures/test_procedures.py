@@ -26,7 +26,7 @@ from bench.procedures.oscillation import T1_S, T2_S
 from bench.procedures.preview import move_time_s
 from bench.records import WindowKind
 
-AXES = np.array([[0, 0, 1], [1, 0, 0], [0, 0, 1]], dtype=float)  # recording-format.md default
+AXES = np.array([[0, 0, 1], [1, 0, 0], [0, 0, 1]], dtype=float)  # docs/recording-format.md default
 
 
 def gravity_in_sensor(angles_deg: tuple[float, ...], tilt_rad: tuple[float, float] = (0, 0)) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""Every validation rule of recording-format.md: an error naming the file, the row or key, and the rule."""
+"""Every validation rule of docs/recording-format.md: an error naming the file, the row or key,
+and the rule."""
 
 from __future__ import annotations
 

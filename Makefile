@@ -39,7 +39,7 @@ test-fast: install
 	$(BIN)/python -m pytest -n 2 --dist loadgroup -q -m "not slow and not browser"
 
 bench: install
-	$(BIN)/python -m benchmarks
+	$(BIN)/python -m benchmarks --record
 
 # Long fuzzing: the property-based input tests with 2000 examples each, then the CLI mutation
 # fuzzer (800 mutants of a recording through calibrate and diagnose; exit 1 on any bug class).

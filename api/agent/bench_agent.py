@@ -11,7 +11,10 @@ the abort, pause and continue requests stored for it. Progress, windows, chunks,
 state, the fit, the diagnosis and the certificate go to the database as they happen, so any
 number of API processes can show them, and an API process can die or restart while the run
 records. The agent itself can restart: a run it held is then ``interrupted`` and resumes from
-its last complete window when an operator asks (``POST /api/runs/{id}/resume``).
+its last complete window when an operator asks (``POST /api/runs/{id}/resume``). A run a
+device fault interrupted (a stalled or reset table, a lost link, a DAQ timeout, a full disk)
+is resumed by the agent itself when its next try is due (:mod:`api.agent.fault_retry`); the
+bench takes no other run meanwhile.
 
 On SIGTERM/SIGINT the agent stops the run it holds with the table safe and the recording
 closed, stored ``interrupted`` (resumable), as the service did before it had an agent.
@@ -36,6 +39,7 @@ from collections.abc import Callable
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
+from api.agent import fault_retry
 from api.agent.devices import bench_config_for
 from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
 from api.drift import record_drift_check
@@ -54,7 +58,7 @@ from db.models import Run, RunState
 from db.observer import finish_record
 from db.process import process_start_ticks
 from db.repo.benches import agent_alive, agent_gone
-from db.repo.queue import ClaimedRun, claim_next_run, pending_control
+from db.repo.queue import ClaimedRun, claim_next_run, pending_control, queue_resume
 from db.repo.recovery import mark_interrupted_runs
 from db.repo.runs import finish_run, merge_params
 from db.repo.units import get_or_create_bench, get_unit_by_serial
@@ -180,6 +184,16 @@ class BenchAgent:
             self._apply_control(cur)
             return None
         self.end_orphans()
+        with self.sessions.begin() as s:  # a run a device fault interrupted goes first, when due
+            due, waiting = fault_retry.due_resume(s, self.bench_id)
+            if due is not None:
+                try:
+                    queue_resume(s, due)
+                except ValueError as exc:  # its recording no longer cuts at a window: not resumable
+                    fault_retry.give_up(s, due, str(exc))
+                    due = None
+        if waiting and due is None:
+            return None  # the bench is kept for it
         with self.sessions.begin() as s:
             claimed = claim_next_run(
                 s, self.bench_id, owner_pid=self.pid, owner_host=self.host, lease_token=self.lease_token

@@ -19,23 +19,25 @@ from pathlib import Path
 from typing import Any
 
 from api.agent.devices import bench_config_for, bench_sidecar, open_devices
-from api.agent.verdict import execute, limits_for
+from api.agent.fault_retry import FAULT_PREFIX, ResumeFailed
+from api.agent.verdict import finish_observers, limits_for, run_record
 from api.settings import Settings
 from bench.bench_config import apply_to_daq
 from bench.dwell_policy import fixed_dwell
 from bench.limits import UnitLimits
 from bench.procedures import build_procedure, preview
-from bench.records import DwellChoice, RunRecord, RunStart, new_run_id
+from bench.records import DwellChoice, RunRecord, RunStart, RunState, new_run_id
 from bench.run_observer import RunObserver
 from bench.run_recorder import RunRecorder
 from bench.sequencer.control import RunControl, SequencerConfig
+from bench.sequencer.faults import resumable_fault
 from bench.sequencer.loop import Sequencer
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Run, Unit
 from db.models import RunState as DbRunState
 from db.observer import DbRunObserver
-from db.repo.recovery import ResumePoint, claim_for_resume, mark_interrupted_runs
+from db.repo.recovery import ResumePoint, claim_for_resume, mark_interrupted_runs, mark_run_interrupted
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
 from drivers.factory import BenchDevices
@@ -174,11 +176,42 @@ def start_run(
             (config or _config(settings)),
             dwell,
         )
-        return execute(seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None, settings)
+        return execute_resumable(
+            seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None, settings
+        )
     finally:
         if owned:
             devices.close()
         engine.dispose()
+
+
+def execute_resumable(
+    seq: Sequencer,
+    csv_path: Path,
+    observers: Sequence[RunObserver],
+    limits: UnitLimits | None,
+    settings: Settings,
+) -> RunRecord:
+    """:func:`api.agent.verdict.execute`, except that a run ended by a fault the bench recovers
+    from (:func:`bench.sequencer.faults.resumable_fault`) is left ``interrupted`` — table safe,
+    recording closed at its last durable chunk — with an error beginning
+    :data:`~api.agent.fault_retry.FAULT_PREFIX`, for :mod:`api.agent.fault_retry` to resume."""
+    acq = seq.run()
+    if acq.resumable:
+        record = RunRecord(
+            start=seq.start,
+            state=RunState.INTERRUPTED,
+            outcome=None,
+            windows=acq.windows,
+            error=FAULT_PREFIX + (acq.error or "unknown"),
+            n_samples=acq.n_samples,
+            dwell=acq.dwell,
+            gaps=acq.gaps,
+        )
+    else:
+        record = run_record(seq, acq.outcome, acq.error, csv_path, limits, settings)
+    finish_observers(observers, record)
+    return record
 
 
 def resume_run(
@@ -274,7 +307,15 @@ def continue_run(
             f"{bench_config.name!r} version {bench_config.version} ({bench_config.path}), with other "
             "contents: a run continues only on the bench it started on"
         )
-    devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
+    try:
+        devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
+    except Exception as exc:
+        if not (resumable_fault(exc) or isinstance(exc, RuntimeError)):
+            raise
+        why = f"{FAULT_PREFIX}the devices did not open: {type(exc).__name__}: {exc}"
+        with sessions.begin() as s:
+            mark_run_interrupted(s, run_id, why)
+        raise ResumeFailed(why) from exc
     try:
         start = RunStart(
             run_id,
@@ -304,7 +345,7 @@ def continue_run(
             start_window=point.next_window_index,
         )
         limits = limits_for(settings, model, devices.daq.channel_unit)
-        return execute(seq, csv_path, obs, limits, settings)
+        return execute_resumable(seq, csv_path, obs, limits, settings)
     finally:
         devices.close()
 

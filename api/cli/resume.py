@@ -1,14 +1,17 @@
 """``calbench resume RUN_ID [--sim] [--sim-speed N]``: finish an interrupted run.
 
 The recording is cut back to the last durable chunk that holds the last complete window,
-and the procedure continues with the next window; the end is as ``calbench run``.
+and the procedure continues with the next window; the end is as ``calbench run`` (a device
+fault is resumed automatically as there, :mod:`api.agent.fault_retry`).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 from api.agent.bench_lock import HELD_EXIT
+from api.agent.fault_retry import run_resuming
 from api.agent.session import resume_run
 from api.cli.run import (
     ProgressBar,
@@ -18,6 +21,7 @@ from api.cli.run import (
     report,
     settings_for,
 )
+from bench.records import RunRecord
 from bench.sequencer.control import RunControl
 
 
@@ -36,13 +40,18 @@ def run(args: argparse.Namespace) -> int:
     try:
         control = RunControl()
         install_abort_handler(control)
-        record = resume_run(
-            settings,
-            args.run_id,
-            sim=args.sim,
-            sim_speed=args.sim_speed,
-            observers=[] if args.json else [ProgressBar()],
-            control=control,
+        observers = [] if args.json else [ProgressBar()]
+
+        def resume(run_id: str) -> RunRecord:
+            return resume_run(
+                settings, run_id, sim=args.sim, sim_speed=args.sim_speed, observers=observers, control=control
+            )
+
+        record = run_resuming(
+            lambda: resume(args.run_id),
+            resume,
+            control,
+            say=lambda msg: print(f"calbench resume: {msg}", file=sys.stderr),
         )
         return report(record, args.json)
     finally:

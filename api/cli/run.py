@@ -3,7 +3,8 @@
 Shows a progress bar on stderr while the run records, then prints the fit and the |g|
 table (or, with ``--json``, one object: run id, outcome, error, calibration). Ctrl-C
 aborts the run cleanly (table to its safe state, recording kept). Exit code 0 for PASS,
-1 for FAIL, ERROR or ABORTED, 2 for bad input, 3 when another process drives the bench (an
+1 for FAIL, ERROR or ABORTED (or a run still interrupted by a device fault after its automatic
+resumes, :mod:`api.agent.fault_retry`), 2 for bad input, 3 when another process drives the bench (an
 agent, another ``calbench run``: one line names it; :mod:`api.agent.bench_lock`).
 """
 
@@ -19,7 +20,8 @@ from types import FrameType
 from typing import Any, TextIO
 
 from api.agent.bench_lock import HELD_EXIT, BenchHeld, BenchLock
-from api.agent.session import start_run
+from api.agent.fault_retry import run_resuming
+from api.agent.session import resume_run, start_run
 from api.cli import decimal_arg
 from api.settings import Settings
 from bench.limits import describe
@@ -188,15 +190,23 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, settings: Settings) -> int:
     control = RunControl()
     install_abort_handler(control)
-    record = start_run(
-        settings,
-        args.procedure,
-        args.unit,
-        sim=args.sim,
-        sim_speed=args.sim_speed,
-        seed=args.seed,
-        dwell_s=args.dwell_s,
-        observers=[] if args.json else [ProgressBar()],
-        control=control,
+    observers = [] if args.json else [ProgressBar()]
+    record = run_resuming(
+        lambda: start_run(
+            settings,
+            args.procedure,
+            args.unit,
+            sim=args.sim,
+            sim_speed=args.sim_speed,
+            seed=args.seed,
+            dwell_s=args.dwell_s,
+            observers=observers,
+            control=control,
+        ),
+        lambda run_id: resume_run(
+            settings, run_id, sim=args.sim, sim_speed=args.sim_speed, observers=observers, control=control
+        ),
+        control,
+        say=lambda msg: print(f"calbench run: {msg}", file=sys.stderr),
     )
     return report(record, args.json)

@@ -26,6 +26,8 @@ from collections.abc import Callable
 
 from sqlalchemy.orm import Session, sessionmaker
 
+from api.agent import fault_retry
+from api.agent.fault_retry import FAULT_PREFIX, ResumeFailed, RetryPolicy, interrupted_by_fault
 from api.agent.session import start_run
 from api.runs import resume as service_resume
 from api.runs.hub import TERMINAL_EVENT, ProgressHub
@@ -104,6 +106,8 @@ class BenchRunner:
         self._current: LiveRun | None = None
         self._thread: threading.Thread | None = None
         self._recent: dict[str, LiveRun] = {}
+        self.retry = RetryPolicy()
+        """When and how often a run a device fault interrupted is resumed automatically."""
 
     @property
     def current(self) -> LiveRun | None:
@@ -289,6 +293,27 @@ class BenchRunner:
             defer_final_state=True,
         )
 
+    def _schedule_resume(self, live: LiveRun, fault: str, windows: int) -> None:
+        """Store the next automatic resume of a run a device fault interrupted (the bench's agent
+        queues it when due, :mod:`api.agent.fault_retry`)."""
+        try:
+            with self.sessions.begin() as s:
+                entry = fault_retry.schedule(s, live.id, fault, windows, self.retry)
+        except Exception:
+            log.exception("run %s: could not schedule its automatic resume", live.id)
+            return
+        if entry is None:
+            log.error("run %s: %s; automatic resumes spent, it waits for an operator", live.id, fault)
+        else:
+            log.warning(
+                "run %s: %s; automatic resume %s due at %s",
+                live.id,
+                fault,
+                entry["attempt"],
+                entry["not_before"],
+            )
+        live.extra["auto_resume"] = entry
+
     def _finishing_gate(self, run_id: str) -> str | None:
         """The stored abort of ``run_id``, else the run marked finishing in the database in the
         same transaction (:func:`db.repo.queue.enter_finishing`): a request either took effect
@@ -304,11 +329,18 @@ class BenchRunner:
             record = self._acquire(live)
             live.record = record
             live.error = record.error
-            if live.shutdown and record.outcome is Outcome.ABORTED:
+            if interrupted_by_fault(record):  # table safe, recording closed: resumed automatically
+                interrupted = True
+                self._schedule_resume(live, record.error or FAULT_PREFIX, len(record.windows))
+            elif live.shutdown and record.outcome is Outcome.ABORTED:
                 with self.sessions.begin() as s:
                     interrupted = service_resume.interrupt_shutdown_abort(s, live.id)
             elif self.finisher is not None:
                 self.finisher(live, record)
+        except ResumeFailed as exc:  # the devices did not open: put back interrupted, tried again
+            live.error, interrupted = str(exc), True
+            claimed = live.extra.get("claimed")
+            self._schedule_resume(live, str(exc), claimed.point.next_window_index if claimed else 0)
         except Exception as exc:  # the worker must report, not die silently
             log.exception("run %s failed in the service", live.id)
             live.error = f"{type(exc).__name__}: {exc}"

@@ -108,6 +108,10 @@ class RunControl:
         self._resume.clear()
         return asked
 
+    def wait_abort(self, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` for an abort; whether one was requested."""
+        return self._abort.wait(timeout_s)
+
     @property
     def abort_requested(self) -> bool:
         """An abort was requested."""

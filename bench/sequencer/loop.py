@@ -10,7 +10,12 @@ bench running faster than real time gives the same recording.
 
 Outcomes: an operator abort ends as ABORTED; any driver fault, deadline or DAQ stall as
 ERROR naming the step; in both cases, and on success, the table is stopped (safe state),
-acquisition stopped and the recording closed with everything recorded so far. Pause, an
+acquisition stopped and the recording closed with everything recorded so far. A fault a
+lab's bench recovers from — a device that stops answering (stall, reset), a lost link, a
+garbled reply, a recording write refused (disk full) — is marked ``resumable``
+(:mod:`bench.sequencer.faults`): the caller leaves the run interrupted and resumes it from
+its last durable window (:mod:`api.agent.fault_retry`); a fault the device reports itself (an axis
+fault, a Modbus exception), a limit, a rejected window or a database refusal is not. Pause, an
 open interlock or a temperature outside its band *suspend* the run: the window in progress
 is dropped, the table held, and the window recorded again once the condition clears.
 
@@ -45,6 +50,7 @@ from bench.run_recorder import RunRecorder
 from bench.sequencer.control import AbortRequested, Interruption, RunControl, SequencerConfig, WindowSpoiled
 from bench.sequencer.daq import DaqPump, Failed, Gap, Restarted
 from bench.sequencer.deadline import call_with_deadline
+from bench.sequencer.faults import resumable_fault
 from bench.sequencer.observers import ObserverError, Observers
 from bench.sequencer.progress import run_progress
 from bench.sequencer.safety import make_safe, prepare_table
@@ -66,6 +72,9 @@ class Acquisition:
     :param dwell: the dwell choice used.
     :param n_samples: rows in the recording.
     :param gaps: every sample gap met, in order (also those from before a resume).
+    :param resumable: the ERROR was a fault the bench recovers from
+        (:func:`bench.sequencer.faults.resumable_fault`): the run may continue from its last
+        durable window.
     """
 
     outcome: Outcome | None
@@ -74,6 +83,7 @@ class Acquisition:
     dwell: DwellChoice | None
     n_samples: int
     gaps: tuple[GapRecord, ...] = ()
+    resumable: bool = False
 
 
 class Sequencer:
@@ -354,6 +364,7 @@ class Sequencer:
         """Execute the procedure; never raises for device faults (they become ERROR)."""
         outcome: Outcome | None = None
         error: str | None = None
+        resumable = False
         try:
             self.notify("on_start", self.start)
             prepare_table(self)
@@ -372,6 +383,7 @@ class Sequencer:
             outcome, error = Outcome.ABORTED, f"aborted at {self.where}: {exc}"
         except (DriverError, TimeoutError, OSError, ObserverError, ValueError) as exc:
             outcome, error = Outcome.ERROR, f"{self.where}: {type(exc).__name__}: {exc}"
+            resumable = resumable_fault(exc)
         finally:
             problems = make_safe(self)
         if problems:
@@ -384,4 +396,5 @@ class Sequencer:
             self.dwell,
             self.recorder.n_rows,
             tuple(self.recorder.gaps),
+            resumable,
         )

@@ -125,6 +125,9 @@ class SimBenchProcess:
         if self.process.is_alive():
             self.process.terminate()
             self.process.join(timeout_s)
+        if self.process.is_alive():  # stopped (SIGSTOP) or hung: SIGTERM waits, SIGKILL does not
+            self.process.kill()
+            self.process.join(timeout_s)
         self._conn.close()
 
     def __enter__(self) -> SimBenchProcess:

@@ -1,5 +1,8 @@
-"""Injected driver faults on the simulated bench: every one ends as a clean ERROR (or a
-suspension), with the table made safe where it still answers and the partial recording kept.
+"""Injected driver faults on the simulated bench: a fault the device reports (an axis fault, a
+Modbus exception) ends as a clean ERROR; one the bench recovers from (a controller that stops
+answering, a garbled line, a DAQ that stays silent) leaves the run ``interrupted`` with the
+reason, and a resume then completes it; in every case the table is made safe where it still
+answers and the partial recording is kept.
 
 Faults are injected into the simulated controller and DAQ server once the second window is
 complete, through an observer; the real drivers see them over their real protocols.
@@ -15,7 +18,7 @@ import numpy as np
 import pytest
 
 from api.agent.devices import sim_url
-from api.agent.session import start_run
+from api.agent.session import resume_run, start_run
 from bench.recording.reader import read_recording
 from bench.records import Outcome, RunRecord, RunState, StateChange, WindowRecord
 from bench.run_observer import NullObserver
@@ -81,29 +84,42 @@ def assert_table_safe(devices: BenchDevices) -> None:
     assert not st.interlock_ok  # the shutdown order ends with the interlock open
 
 
+def test_a_table_axis_fault_ends_as_error(tmp_path: Path) -> None:
+    def inject(d: BenchDevices) -> None:
+        d.sim.controller.inject("stalled_axis", axis=2, trip_s=0.5)  # type: ignore[union-attr]
+
+    record, devices, _ = run_with_fault(tmp_path, inject)
+    try:
+        assert record.outcome is Outcome.ERROR and record.state is RunState.ERROR, record
+        assert record.error is not None and "step" in record.error
+        assert_recording_kept(record)
+        assert_table_safe(devices)
+    finally:
+        devices.close()
+
+
+def assert_interrupted_then_resumed(tmp_path: Path, record: RunRecord, expect: str) -> None:
+    """The run stopped on a device fault: interrupted, resumable; a resume completes it."""
+    assert record.state is RunState.INTERRUPTED and record.outcome is None, record
+    assert record.error is not None and record.error.startswith("device fault: ") and expect in record.error
+    assert_recording_kept(record)
+    resumed = resume_run(settings_for(tmp_path), record.run_id, sim=True, sim_speed=SIM_SPEED)
+    assert resumed.outcome is Outcome.PASS, resumed.error
+    assert len(resumed.windows) == 12 and resumed.start.resumed_from_window == len(record.windows)
+
+
 @pytest.mark.parametrize(
-    ("fault", "params", "expect"),
-    [
-        ("no_reply", {}, "Timeout"),
-        ("garbled", {"probability": 1.0}, "Error"),
-        ("stalled_axis", {"axis": 2, "trip_s": 0.5}, "step"),
-    ],
+    ("fault", "params", "expect"), [("no_reply", {}, "Timeout"), ("garbled", {}, "Error")]
 )
-def test_table_faults_end_as_error(tmp_path: Path, fault: str, params: dict[str, Any], expect: str) -> None:
+def test_a_table_that_stops_answering_or_garbles_leaves_the_run_resumable(
+    tmp_path: Path, fault: str, params: dict[str, Any], expect: str
+) -> None:
     def inject(d: BenchDevices) -> None:
         d.sim.controller.inject(fault, **params)  # type: ignore[union-attr]
 
     record, devices, _ = run_with_fault(tmp_path, inject)
-    try:
-        assert record.outcome is Outcome.ERROR, record
-        assert record.error is not None and expect in record.error
-        assert_recording_kept(record)
-        if fault == "stalled_axis":
-            assert_table_safe(devices)
-        else:
-            devices.sim.controller.clear(fault)  # type: ignore[union-attr]
-    finally:
-        devices.close()
+    devices.close()
+    assert_interrupted_then_resumed(tmp_path, record, expect)
 
 
 def test_interlock_trip_suspends_then_errors_when_it_stays_open(tmp_path: Path) -> None:
@@ -119,22 +135,23 @@ def test_interlock_trip_suspends_then_errors_when_it_stays_open(tmp_path: Path) 
         devices.close()
 
 
-@pytest.mark.parametrize("fault", ["exception", "silent"])
-def test_daq_faults_end_as_error_with_the_table_safe(tmp_path: Path, fault: str) -> None:
-    def inject(d: BenchDevices) -> None:
-        server = d.sim.daq_server  # type: ignore[union-attr]
-        if fault == "exception":
-            server.inject_exception(4, None)
-        else:
-            server.set_silent(True)
-
-    record, devices, _ = run_with_fault(tmp_path, inject)
+def test_a_daq_device_failure_ends_as_error_with_the_table_safe(tmp_path: Path) -> None:
+    record, devices, _ = run_with_fault(tmp_path, lambda d: d.sim.daq_server.inject_exception(4, None))  # type: ignore[union-attr]
     try:
         assert record.outcome is Outcome.ERROR, record
         assert_recording_kept(record)
         assert_table_safe(devices)
     finally:
         devices.close()
+
+
+def test_a_silent_daq_leaves_the_run_resumable_with_the_table_safe(tmp_path: Path) -> None:
+    record, devices, _ = run_with_fault(tmp_path, lambda d: d.sim.daq_server.set_silent(True))  # type: ignore[union-attr]
+    try:
+        assert_table_safe(devices)
+    finally:
+        devices.close()
+    assert_interrupted_then_resumed(tmp_path, record, "Timeout")
 
 
 def test_lost_daq_samples_are_recorded_again_not_hidden(tmp_path: Path) -> None:

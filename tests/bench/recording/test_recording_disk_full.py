@@ -54,7 +54,7 @@ def test_disk_full_mid_run_ends_error_with_the_table_safe_and_the_recording_cut(
     # room for about five windows of the twelve (a window of 1 s is ~200 rows of ~90 bytes)
     seq.recorder.writer._file = FillingFile(seq.recorder.writer._file, 5 * 200 * 90)
     acq = seq.run()
-    assert acq.outcome is Outcome.ERROR
+    assert acq.outcome is Outcome.ERROR and acq.resumable  # a full disk resumes once cleared
     assert "No space left on device" in (acq.error or "") and str(csv) in (acq.error or "")
     assert "cut at its last durable chunk" in (acq.error or "")
     assert table.stops >= 1  # safe state

@@ -1,0 +1,54 @@
+"""The start form tells the operator, before a run starts, that a unit whose model has no
+limits will get no statement of conformity; a unit of a model with limits gets no such note."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import httpx
+import pytest
+
+from tests.browser.conftest import CHROMIUM
+from tests.browser.live_server import live_service
+from tests.support.service_helpers import OP, OPERATOR, service_settings
+
+expect = pytest.importorskip("playwright.sync_api").expect
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.timeout(300),
+    pytest.mark.skipif(
+        not CHROMIUM.exists(),
+        reason="Debian's chromium is not installed at /usr/bin/chromium (`make browser` installs it)",
+    ),
+]
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    # an external agent that never comes: nothing runs, the form is what is tested
+    settings = service_settings(tmp_path_factory.mktemp("form"), agent="external", bench_name="bench-form")
+    with live_service(settings) as base:
+        for serial, model in (("SN-335", "ADXL335"), ("SN-325", "ADXL325")):
+            r = httpx.put(f"{base}/api/units/{serial}", json={"model": model}, headers=OP, timeout=30)
+            assert r.status_code == 200, r.text
+        yield base
+
+
+def test_the_form_warns_before_a_run_of_a_model_without_limits(browser: Any, service: str) -> None:
+    page = browser.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
+    page.goto(f"{service}/")
+    page.wait_for_selector("#start-run:not([disabled])")
+    warning = page.locator("#start-warning")
+    page.fill("#start-serial", "SN-335")
+    page.locator("#start-serial").dispatch_event("change")
+    expect(warning).to_contain_text("Unit SN-335: no statement of conformity will be made")
+    expect(warning).to_contain_text("no limits are configured for model ADXL335")
+    page.fill("#start-serial", "SN-325")
+    page.locator("#start-serial").dispatch_event("change")
+    expect(warning).to_have_text("")
+    assert errors == []

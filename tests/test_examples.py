@@ -18,6 +18,7 @@ from api.cli import main
 from bench.calibration import calibrate_recording
 from bench.calibration.diagnose import diagnose_recording
 from bench.recording import read_recording
+from bench.recording.writer import write_recording
 from tests.conftest import EXAMPLES, MOVING_EXAMPLE, REPO_ROOT, STATIC_EXAMPLE
 
 MAX_EXAMPLES_BYTES = 600_000
@@ -48,6 +49,16 @@ def test_the_examples_are_what_their_readme_says_and_small(tmp_path: Path) -> No
                 "examples/README.md again with --overwrite"
             )
     assert sum(p.stat().st_size for p in EXAMPLES.iterdir()) < MAX_EXAMPLES_BYTES
+
+
+@pytest.mark.parametrize("stem", [STATIC_EXAMPLE, MOVING_EXAMPLE])
+def test_an_example_read_and_written_again_is_the_same_bytes(tmp_path: Path, stem: str) -> None:
+    rec = read_recording(EXAMPLES / f"{stem}.csv")
+    write_recording(rec, tmp_path / f"{stem}.csv")
+    for suffix in (".csv", ".json"):
+        assert (tmp_path / f"{stem}{suffix}").read_bytes() == (EXAMPLES / f"{stem}{suffix}").read_bytes(), (
+            suffix
+        )
 
 
 def test_the_static_examples_concealed_nonlinearity_is_found_at_its_true_size() -> None:

@@ -183,10 +183,12 @@ class LimitsChoice:
 
     :param limits: the model's limits; ``None``: no statement of conformity can be made.
     :param reason: one sentence saying why no limits apply (empty when they do).
+    :param known_models: the models the limits file has, when the unit's is not among them.
     """
 
     limits: UnitLimits | None
     reason: str = ""
+    known_models: tuple[str, ...] = ()
 
 
 def choose_limits(
@@ -201,10 +203,7 @@ def choose_limits(
     name = (model or "").strip()
     if name:
         if name not in table:
-            known = ", ".join(sorted(table)) or "none"
-            return LimitsChoice(
-                None, f"no limits are configured for model {name} (the limits file has models: {known})"
-            )
+            return LimitsChoice(None, f"no limits are configured for model {name}", tuple(sorted(table)))
         chosen = table[name]
     elif default_model and default_model in table:
         chosen = table[default_model]

@@ -105,7 +105,8 @@ def conformity_warning(settings: Settings, model: str | None, channel_unit: str 
         return f"no statement of conformity: the limits file cannot be read ({exc})"
     if choice.limits is not None:
         return None
-    return f"no statement of conformity will be made: {choice.reason}"
+    known = f" (limits are configured for: {', '.join(choice.known_models)})" if choice.known_models else ""
+    return f"no statement of conformity will be made: {choice.reason}{known}"
 
 
 def unit_warnings(session: Session, settings: Settings, serial: str) -> list[str]:

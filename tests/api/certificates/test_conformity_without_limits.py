@@ -3,6 +3,10 @@ certificate makes no statement of conformity and says why (never another model's
 
 from __future__ import annotations
 
+import json
+import re
+import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -23,7 +27,7 @@ def test_preview_and_start_warn_about_a_model_without_limits(tmp_path: Path) -> 
             assert r.status_code == 200, r.text
         preview = client.get("/api/procedures/static-12/preview?unit_serial=SN-335", headers=VIEW).json()
         assert len(preview["warnings"]) == 1 and preview["warnings"][0].startswith(NO_LIMITS), preview
-        assert "ADXL325" in preview["warnings"][0]  # the models the file has, named as such
+        assert preview["warnings"][0].endswith("(limits are configured for: ADXL325)")
         for query in ("?unit_serial=SN-325", "?unit_serial=SN-NEW", ""):
             r = client.get(f"/api/procedures/static-12/preview{query}", headers=VIEW)
             assert r.status_code == 200 and r.json()["warnings"] == [], (query, r.text)
@@ -53,6 +57,7 @@ def test_a_model_without_limits_is_certified_without_a_statement_of_conformity(t
         assert body["limit_checks"] == []  # not judged against the default model's limits
         cert = client.get(f"/api/runs/{body['id']}/certificate", headers=VIEW)
         assert cert.status_code == 200, cert.text
+        pdf_bytes = client.get(f"/api/runs/{body['id']}/certificate.pdf", headers=VIEW).content
     content = cert.json()["content"]
     assert content["item"]["model"] == "ADXL335"
     conf = content["conformity"]
@@ -60,3 +65,13 @@ def test_a_model_without_limits_is_certified_without_a_statement_of_conformity(t
     assert conf["statement"].startswith("No statement of conformity is made")
     assert "no limits are configured for model ADXL335" in conf["statement"]
     assert "conforms" not in conf["statement"] and "PASS" not in conf["statement"]
+    assert "ADXL325" not in json.dumps(conf)  # never another model's limits, nor its name
+    if shutil.which("pdftotext") is not None:  # every page of the PDF says no statement is made
+        pdf = tmp_path / "c.pdf"
+        pdf.write_bytes(pdf_bytes)
+        text = subprocess.run(["pdftotext", "-layout", str(pdf), "-"], capture_output=True, text=True).stdout
+        flat = " ".join(text.split())
+        assert "no limits are configured for model ADXL335" in flat
+        pages = int(re.findall(r"Page \d+ of (\d+)", flat)[-1])
+        assert flat.count("Conformity: no statement of conformity") == pages >= 3
+        assert "conforms to" not in flat and "ADXL325" not in flat

@@ -7,8 +7,10 @@ host then slows the *simulated instrument* down, which no real table or DAQ woul
 loopback URLs, believed geometry, local g and channel unit; the drivers connect to it over
 TCP exactly as to hardware.
 
-The child lives while the pipe to its parent is open: :meth:`SimBenchProcess.close` ends it,
-and so does the parent's death (the pipe reaches end of file), so no simulator outlives the
+SIGUSR1 to the child cuts the table's client connections while the simulated controller runs
+on (a lost line, as a test injects it). The child lives while the pipe to its parent is
+open: :meth:`SimBenchProcess.close` ends it, and so does the parent's death (the pipe
+reaches end of file), so no simulator outlives the
 process that owns the bench.
 """
 
@@ -17,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import multiprocessing.connection
+import signal
 from typing import Any
 
 import numpy as np
@@ -37,6 +40,8 @@ def _serve(
     except BaseException as exc:
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
         return
+    # SIGUSR1: a lost line; the table's client connections drop, the controller runs on
+    signal.signal(signal.SIGUSR1, lambda signum, frame: bench.table_server.drop_connections())
     try:
         geo = bench.geometry
         conn.send(

@@ -189,6 +189,18 @@ class TableServer:
         self._start(lambda: self._serve_stream(read, write, f"pty {path}"), f"table-pty-{path}")
         return path
 
+    def drop_connections(self) -> int:
+        """Cut every client connection (a lost line: the client sees the link drop) and keep
+        listening; the number cut."""
+        with self._lock:
+            conns = [s for s in self._sockets if not _is_listener(s)]
+        cut = 0
+        for s in conns:
+            with contextlib.suppress(OSError):
+                s.shutdown(socket.SHUT_RDWR)
+                cut += 1
+        return cut
+
     # ---- lifetime ----------------------------------------------------------------------
     def close(self) -> None:
         """Stop serving: close the listeners, the connections and the pty (clients see the link drop)."""
@@ -214,3 +226,10 @@ class TableServer:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _is_listener(sock: socket.socket) -> bool:
+    try:
+        return bool(sock.getsockopt(socket.SOL_SOCKET, socket.SO_ACCEPTCONN))
+    except OSError:
+        return False

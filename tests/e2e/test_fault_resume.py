@@ -21,7 +21,7 @@ from bench.recording.reader import read_recording
 from tests.e2e.helpers import RATE_HZ, SIM_SPEED, wall_budget_s
 from tests.e2e.service_process import ServiceProcess, wait_for
 from tests.e2e.test_service_crash import RUN_SIM_S, run_until_windows
-from tests.support.sim_faults import kill, sim_pid, stall
+from tests.support.sim_faults import kill, lose_line, sim_pid, stall
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(900)]
 
@@ -50,8 +50,10 @@ def check_recording(path: str) -> None:
     assert holes <= len(gaps), (holes, gaps)
 
 
-@pytest.mark.parametrize("fault", ["stall", "kill"])
-def test_calbench_run_resumes_itself_after_the_simulator_stalls_or_dies(tmp_path: Path, fault: str) -> None:
+@pytest.mark.parametrize("fault", ["stall", "kill", "lost line"])
+def test_calbench_run_resumes_itself_after_the_simulator_stalls_dies_or_loses_its_line(
+    tmp_path: Path, fault: str
+) -> None:
     env = {
         **os.environ,
         "CALBENCH_DATA_DIR": str(tmp_path),
@@ -75,8 +77,10 @@ def test_calbench_run_resumes_itself_after_the_simulator_stalls_or_dies(tmp_path
         assert pid is not None
         if fault == "stall":
             stall(pid, 2.0)
-        else:
+        elif fault == "kill":
             kill(pid)
+        else:
+            lose_line(pid)
         out, err = proc.communicate(timeout=wall_budget_s(RUN_SIM_S) + 120)
     finally:
         if proc.poll() is None:

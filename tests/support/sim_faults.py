@@ -54,3 +54,9 @@ def kill(pid: int) -> None:
     """End process ``pid`` at once (SIGKILL)."""
     with contextlib.suppress(ProcessLookupError):
         os.kill(pid, signal.SIGKILL)
+
+
+def lose_line(pid: int) -> None:
+    """Cut the table's connections of simulator process ``pid``, which runs on (SIGUSR1)."""
+    with contextlib.suppress(ProcessLookupError):
+        os.kill(pid, signal.SIGUSR1)

@@ -8,7 +8,7 @@ from fastapi import APIRouter, HTTPException, Query, status
 
 from api.certificates.conformity import unit_warnings
 from api.deps import SessionDep, SettingsDep, ViewerDep
-from api.schemas import ProcedurePreviewOut
+from api.schemas import SERIAL_PATTERN, ProcedurePreviewOut
 from bench.procedures import PROCEDURES, build_procedure, preview
 from bench.sequencer.control import SequencerConfig
 
@@ -24,7 +24,7 @@ def procedure_preview(
     _: ViewerDep,
     session: SessionDep,
     dwell_s: Annotated[float | None, Query(gt=0, le=86400)] = None,
-    unit_serial: Annotated[str | None, Query(min_length=1, max_length=64)] = None,
+    unit_serial: Annotated[str | None, Query(pattern=SERIAL_PATTERN)] = None,
 ) -> ProcedurePreviewOut:
     """The procedure walked against the table's limits with the dwell a run started now would
     use (``dwell_s``, else the service's ``run_dwell_s``, else a provisional one that the run's

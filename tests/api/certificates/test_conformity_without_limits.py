@@ -75,3 +75,10 @@ def test_a_model_without_limits_is_certified_without_a_statement_of_conformity(t
         pages = int(re.findall(r"Page \d+ of (\d+)", flat)[-1])
         assert flat.count("Conformity: no statement of conformity") == pages >= 3
         assert "conforms to" not in flat and "ADXL325" not in flat
+
+
+def test_the_preview_refuses_a_serial_that_no_unit_can_have(tmp_path: Path) -> None:
+    app = create_app(service_settings(tmp_path, agent="external"), start_scheduler=False)
+    with TestClient(app) as client:
+        r = client.get("/api/procedures/static-12/preview?unit_serial=SN%20X%E2%80%AE", headers=VIEW)
+        assert r.status_code == 422, r.text

@@ -106,12 +106,49 @@ def channel_forms(
     return q, e, v
 
 
+def exponential_kernel_product(t_s: FloatArray, corr_time_s: float, Y: FloatArray) -> FloatArray:
+    """P Y for P_ww' = exp(−|t_w − t_w'| / T) (T = ``corr_time_s``; T ≤ 0: P = I), in O(m p).
+
+    In time order, with ρ_k = exp(−(t_k − t_{k−1}) / T), the lower part of P Y is the forward
+    recursion f_k = Y_k + ρ_k f_{k−1} and the upper part the backward g_k = Y_k + ρ_{k+1} g_{k+1};
+    P Y = f + g − Y (Rybicki & Press, ApJ 398 (1992) 169: the exponential kernel is Markov).
+
+    :param t_s: (m,) times (s), any order; :param Y: (m,) or (m, p).
+    :returns: P Y, the shape of Y.
+    """
+    if corr_time_s <= 0:
+        return np.array(Y, dtype=float, copy=True)
+    order = np.argsort(t_s, kind="stable")
+    Ys = np.asarray(Y, dtype=float)[order]
+    rho = np.exp(-np.diff(np.asarray(t_s, dtype=float)[order]) / corr_time_s)
+    f = Ys.copy()
+    g = Ys.copy()
+    for k in range(1, Ys.shape[0]):
+        f[k] += rho[k - 1] * f[k - 1]
+    for k in range(Ys.shape[0] - 2, -1, -1):
+        g[k] += rho[k] * g[k + 1]
+    out = np.empty_like(Ys)
+    out[order] = f + g - Ys
+    return out
+
+
 def gls_channel_forms(
     cov: WindowCovariance, X: FloatArray, z: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """:func:`channel_forms` for a model fitted under its own covariance (``C_true = C_fit = C``),
-    without an n × n solve: the residual comes from the O(m) factor of ``cov``, and the residual
-    covariance is M = C − X (XᵀC⁻¹X)⁻¹ Xᵀ (GLS), needed only within each channel (m × m).
+    in O(m) time and memory: nothing m × m is formed.
+
+    The residual comes from the O(m) factor of ``cov``. Within channel i the covariance is
+    C_i = diag(b) + τ_i² P (b_w = B_w,ii, P the wander's exponential kernel) and the residual
+    covariance M_i = C_i − H_i, H_i = X_i A⁻¹ X_iᵀ, A = XᵀC⁻¹X (GLS). With D = diag(1/diag C_i),
+    G = X_iᵀ D X_i and W = (D X_i)ᵀ C_i (D X_i):
+
+        E[q_i] = tr(D M_i) = Σ_w d_w C_i,ww − tr(A⁻¹ G),
+        Var[q_i] / 2 = tr(D M_i D M_i) = tr(D C_i D C_i) − 2 tr(A⁻¹ W) + tr(A⁻¹ G A⁻¹ G),
+        tr(D C_i D C_i) = Σ_w d_w² (b_w² + 2 τ_i² b_w) + τ_i⁴ dᵀ P⁽²⁾ d,
+
+    P⁽²⁾ = P ∘ P the kernel at half the correlation time; every product with P or P⁽²⁾ by
+    :func:`exponential_kernel_product`.
 
     :param cov: C in its O(m) form; :param X: (3m, p) design; :param z: (3m,) window means.
     :returns: (observed q (3,), expected (3,), variance (3,)) as :func:`channel_forms`.
@@ -122,16 +159,24 @@ def gls_channel_forms(
     r = z - X @ np.linalg.solve(A, CiX.T @ z)
     A_inv = np.linalg.inv(A)
     d = 1.0 / cov.diagonal()
-    C = cov.dense()
+    T = cov.corr_time_s
     q, e, v = np.zeros(3), np.zeros(3), np.zeros(3)
     for i in range(3):
         Xi = X[i::3]
-        Mi = C[i::3, i::3] - Xi @ A_inv @ Xi.T
         di = d[i::3]
-        DM = di[:, None] * Mi
+        b = cov.blocks[:, i, i]
+        tau2 = max(float(cov.tau2[i]), 0.0)
+        Y = di[:, None] * Xi
+        CY = b[:, None] * Y + (tau2 * exponential_kernel_product(cov.mid_s, T, Y) if tau2 > 0 else 0.0)
+        G = Xi.T @ Y
+        AG = A_inv @ G
+        W = Y.T @ CY
+        dCdC = float(np.sum(di * di * (b * b + 2.0 * tau2 * b)))
+        if tau2 > 0:
+            dCdC += tau2 * tau2 * float(di @ exponential_kernel_product(cov.mid_s, T / 2.0, di))
         q[i] = float(np.sum(di * r[i::3] ** 2))
-        e[i] = float(np.trace(DM))
-        v[i] = 2.0 * float(np.sum(DM * DM.T))
+        e[i] = float(np.sum(di * (b + tau2))) - float(np.trace(AG))
+        v[i] = 2.0 * (dCdC - 2.0 * float(np.sum(A_inv * W.T)) + float(np.sum(AG * AG.T)))
     return q, e, v
 
 

@@ -11,9 +11,10 @@ from bench.diagnosis.effects import Candidate, pose_response
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.library import EFFECT
-from bench.diagnosis.likelihood import covariance, gls
+from bench.diagnosis.likelihood import gls, window_covariance
 from bench.diagnosis.model_state import ModelState, design, fit_model, scale_matrix
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
+from bench.estimation.window_covariance import WindowCovariance
 
 
 def prune_catalogue(
@@ -39,7 +40,7 @@ def prune_catalogue(
     while True:
         K = scale_matrix(state.fit)
         X = design(ev, K, state.candidates)
-        C = covariance(ev.V, ev.mid_s, state.noise, pose_response(ev, K), fixed)
+        C = window_covariance(ev.V, ev.mid_s, state.noise, pose_response(ev, K), fixed)
         z = ev.y.reshape(-1)
         full = gls(X, z, C).chi2
         weakest: tuple[float, str, float] | None = None
@@ -66,20 +67,40 @@ def prune_catalogue(
         state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise, th=th)
 
 
-def loo_scores(ev: StaticEvidence, X: FloatArray, C: FloatArray) -> FloatArray:
+def loo_scores(ev: StaticEvidence, X: FloatArray, C: WindowCovariance) -> FloatArray:
     """(3,) leave-one-window-out prediction error per channel: Σ_w r_wi² / C_ww,ii with
-    r_w = y_w − X_w θ̂₋w, θ̂₋w the GLS estimate without window w's three rows (C's submatrix)."""
+    r_w = y_w − X_w θ̂₋w, θ̂₋w the GLS estimate without window w's three rows (C's submatrix).
+
+    In O(m), from Q = C⁻¹ (its factor and diagonal blocks Q_ww): the inverse of C without
+    window w is Q₋₋ − Q₋w Q_ww⁻¹ Q_w₋ (the Schur complement), so with U_w = (QX)_w − Q_ww X_w
+    and u_w = (Qz)_w − Q_ww z_w, the reduced normal equations are
+
+        A₋w = XᵀQX − U_wᵀX_w − X_wᵀU_w − X_wᵀQ_wwX_w − U_wᵀQ_ww⁻¹U_w,
+        b₋w = XᵀQz − U_wᵀz_w − X_wᵀu_w − X_wᵀQ_wwz_w − U_wᵀQ_ww⁻¹u_w,
+
+    θ̂₋w = A₋w⁻¹ b₋w (Harville, "Matrix Algebra From a Statistician's Perspective", 1997, §8.5).
+    """
     z = ev.y.reshape(-1)
+    fac = C.factor()
+    QX, Qz = fac.solve(X), fac.solve(z)
+    Qww = fac.inverse_diagonal_blocks()
+    A, b = X.T @ QX, X.T @ Qz
+    diag = C.diagonal()
     out = np.zeros(3)
     for w in range(ev.m):
-        keep = np.ones(ev.n_obs, dtype=bool)
-        keep[3 * w : 3 * w + 3] = False
+        rows = slice(3 * w, 3 * w + 3)
+        Xw, zw, Q = X[rows], z[rows], Qww[w]
+        U = QX[rows] - Q @ Xw
+        u = Qz[rows] - Q @ zw
+        QiU = np.linalg.solve(Q, np.column_stack([U, u]))
+        Aw = A - U.T @ Xw - Xw.T @ U - Xw.T @ Q @ Xw - U.T @ QiU[:, :-1]
+        bw = b - U.T @ zw - Xw.T @ u - Xw.T @ Q @ zw - U.T @ QiU[:, -1]
         try:
-            th = gls(X[keep], z[keep], C[np.ix_(keep, keep)]).theta
-        except ValueError:
+            th = np.linalg.solve(Aw, bw)
+        except np.linalg.LinAlgError:
             return np.full(3, np.inf)
-        r = z[3 * w : 3 * w + 3] - X[3 * w : 3 * w + 3] @ th
-        out += r * r / np.diag(C)[3 * w : 3 * w + 3]
+        r = zw - Xw @ th
+        out += r * r / diag[rows]
     return out
 
 
@@ -106,7 +127,7 @@ def referee(
         effects = list(dict.fromkeys(c.effect for c in state.candidates))
         if not effects:
             return dropped
-        C = covariance(ev.V, ev.mid_s, state.noise, pose_response(ev, K), fixed)
+        C = window_covariance(ev.V, ev.mid_s, state.noise, pose_response(ev, K), fixed)
         full = loo_scores(ev, design(ev, K, state.candidates), C)
         worst: tuple[float, str, float, float] | None = None
         for effect in effects:

@@ -268,9 +268,20 @@ def test_false_findings_on_two_hundred_clean_recordings_count_discovered_terms()
     assert len(false) <= 2, false
 
 
-def test_gls_channel_forms_equal_the_dense_formulas() -> None:
-    """The O(m) channel forms (residual from the factor, M = C − X(XᵀC⁻¹X)⁻¹Xᵀ per channel) agree
-    with the general n × n ones (M = R C Rᵀ) when the model is fitted under its own covariance."""
+@pytest.mark.parametrize(
+    ("tau2", "corr_time_s", "sort"),
+    [
+        ((2e-6, 5e-7, 1e-6), 200.0, True),
+        ((2e-6, 0.0, 1e-6), 50.0, False),  # windows out of time order, one channel without wander
+        ((2e-6, 5e-7, 1e-6), 0.0, False),  # wander independent between windows
+    ],
+)
+def test_gls_channel_forms_equal_the_dense_formulas(
+    tau2: tuple[float, float, float], corr_time_s: float, sort: bool
+) -> None:
+    """The O(m) channel forms (residual from the factor, traces through the exponential kernel's
+    recursions) agree with the general n × n ones (M = R C Rᵀ) when the model is fitted under its
+    own covariance."""
     from bench.diagnosis.catch_all import channel_forms, gls_channel_forms
     from bench.diagnosis.likelihood import NoiseParams, window_covariance
 
@@ -278,11 +289,24 @@ def test_gls_channel_forms_equal_the_dense_formulas() -> None:
     m = 20
     A = rng.normal(size=(m, 3, 3)) * 1e-3
     V = np.einsum("wij,wkj->wik", A, A) + 1e-6 * np.eye(3)
-    mid_s = np.sort(rng.uniform(0.0, 600.0, m))
-    noise = NoiseParams(tau2=np.array([2e-6, 5e-7, 1e-6]), corr_time_s=200.0, pose_var_rad2=0.0)
+    mid_s = rng.uniform(0.0, 600.0, m)
+    mid_s = np.sort(mid_s) if sort else mid_s
+    noise = NoiseParams(tau2=np.array(tau2), corr_time_s=corr_time_s, pose_var_rad2=0.0)
     cov = window_covariance(V, mid_s, noise)
     X = rng.normal(size=(3 * m, 12))
     z = rng.normal(size=3 * m) * 1e-3
     C = cov.dense()
     for fast, dense in zip(gls_channel_forms(cov, X, z), channel_forms(C, C, X, z), strict=True):
         np.testing.assert_allclose(fast, dense, rtol=1e-8)
+
+
+def test_exponential_kernel_product_is_the_dense_kernel() -> None:
+    """P Y by the forward and backward recursions against exp(−|Δt|/T) formed densely."""
+    from bench.diagnosis.catch_all import exponential_kernel_product
+
+    rng = np.random.default_rng(4)
+    t = rng.uniform(0.0, 100.0, 30)
+    Y = rng.normal(size=(30, 4))
+    P = np.exp(-np.abs(t[:, None] - t[None, :]) / 7.0)
+    np.testing.assert_allclose(exponential_kernel_product(t, 7.0, Y), P @ Y, rtol=1e-12)
+    np.testing.assert_allclose(exponential_kernel_product(t, 0.0, Y), Y)

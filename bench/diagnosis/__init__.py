@@ -264,6 +264,8 @@ def diagnose(
             )
     base = _summary(seq[0])
     rs = summarise(ev_final, seq[0].resid, seq[0].sigma)
+    left = unexplained(ev_final, final, state, K, fixed, th)
+    claimed = bool(findings or discovered or left is not None)
     return Diagnosis(
         unit=unit,
         channel_unit=channel_unit,
@@ -272,7 +274,7 @@ def diagnose(
         final=_summary(final),
         findings=tuple(findings),
         channel_ratio=rs.channel_ratio,
-        where=where(ev_final, rs),
+        where=where(ev_final, rs, th.where_ratio, claimed),
         correlations=tuple(correlations(ev_final, seq[0].resid, seq[0].sigma, th)),
         unobservable=unobservable,
         notes=(*note_list, _noise_text(state.noise)),
@@ -283,5 +285,5 @@ def diagnose(
         K=K,
         source=source,
         discovered=tuple(discovered),
-        unexplained=unexplained(ev_final, final, state, K, fixed, th),
+        unexplained=left,
     )

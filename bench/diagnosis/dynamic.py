@@ -45,6 +45,7 @@ from bench.diagnosis.library_motion_search import (
     search_motion_library,
 )
 from bench.diagnosis.library_motion_swap import cut_catalogue, fit_bic
+from bench.diagnosis.residuals import where_text
 from bench.diagnosis.result import Diagnosis, Finding, Unexplained
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
@@ -318,6 +319,7 @@ def diagnose_dynamic(
         *((cut_note,) if cut_note else ()),
     )
     unexplained = _unexplained(bs, final, th)
+    limit = f"{th.where_z:g} sigma in a {th.block_s:g} s block mean"
     return Diagnosis(
         unit=unit,
         channel_unit=channel_unit,
@@ -326,7 +328,7 @@ def diagnose_dynamic(
         final=bs.final,
         findings=tuple(findings),
         channel_ratio=bs.channel_ratio,
-        where=bs.where,
+        where=where_text(bs.where, bs.where_beyond, bool(findings or discovered or unexplained), limit),
         correlations=bs.correlations,
         unobservable=unobservable,
         notes=notes,

@@ -36,6 +36,9 @@ class BlockSummary:
     final: ModelSummary
     channel_ratio: FloatArray
     where: str
+    """The strongest block of the first-order mismatch (``residuals.where_text`` words it)."""
+    where_beyond: bool
+    """Whether that block lies beyond ``Thresholds.where_z`` sigma."""
     correlations: tuple[Correlation, ...]
     labels: tuple[str, ...]
     mid_s: FloatArray
@@ -143,12 +146,11 @@ def block_summary(
     base = summaries[0]
     w, i = np.unravel_index(int(np.argmax(np.abs(base.z))), base.z.shape)
     mid = (ids + 0.5) * th.block_s + float(m.t_s[v][0])
-    where = (
+    located = (
         f"a{'xyz'[i]}, strongest in the {th.block_s:g} s block at t = {mid[w]:.0f} s "
         f"(block mean {base.z[w, i]:+.1f} sigma)"
-        if abs(base.z[w, i]) > th.where_z
-        else "nowhere beyond the noise"
     )
+    beyond = bool(abs(base.z[w, i]) > th.where_z)
     breg = {k: _bmean(x[v], inv, nb) for k, x in regs.items() if not k.startswith("f_") or k.endswith("^2")}
     F = np.column_stack([np.ones(nb), *(_bmean(regs[f"f_{a}"][v], inv, nb) for a in "xyz")])
     assert resid1 is not None
@@ -156,7 +158,8 @@ def block_summary(
         baseline=base,
         final=summaries[1],
         channel_ratio=ratio,
-        where=where,
+        where=located,
+        where_beyond=beyond,
         correlations=tuple(_block_correlations(base.resid, breg, F, th.correlation_significance)),
         labels=tuple(f"t={x:.0f}s" for x in mid),
         mid_s=mid,

@@ -48,16 +48,33 @@ def _pose_text(f: FloatArray, g: float) -> str:
     return ", ".join(parts)
 
 
-def where(ev: StaticEvidence, summary: ResidualSummary) -> str:
-    """One line: the worst channel(s) and the window where the mismatch is strongest."""
+def where_text(located: str, beyond: bool, claimed: bool, limit: str) -> str:
+    """The ``where`` line of a diagnosis, never at odds with its claims.
+
+    :param located: the strongest place of the first-order mismatch, as a phrase.
+    :param beyond: whether it lies beyond ``limit`` (then it is the line).
+    :param claimed: whether the diagnosis names anything (a finding, a discovered term, an
+        unexplained mismatch): then the line says that no single place stands out on its own,
+        rather than "nowhere beyond the noise" beside the claims.
+    :param limit: the level ``beyond`` was judged at, in words.
+    """
+    if beyond:
+        return located
+    if not claimed:
+        return "nowhere beyond the noise"
+    return f"spread over the recording: nothing beyond {limit} on its own (largest: {located})"
+
+
+def where(ev: StaticEvidence, summary: ResidualSummary, ratio_limit: float, claimed: bool) -> str:
+    """One line: the worst channel(s) and the window where the mismatch is strongest
+    (:func:`where_text`; a channel is named when its χ²/dof exceeds ``ratio_limit``)."""
     ratio = summary.channel_ratio
     worst = int(np.argmax(ratio))
-    bad = [CHANNELS[i] for i in range(3) if ratio[i] > 2.0]
-    if not bad:
-        return "nowhere beyond the noise"
+    bad = [CHANNELS[i] for i in range(3) if ratio[i] > ratio_limit]
     w = int(np.argmax(np.abs(summary.z[:, worst])))
-    chans = ", ".join(bad)
-    return (
-        f"{chans}, strongest on {CHANNELS[worst]} in window {ev.labels[w]} "
+    place = (
+        f"strongest on {CHANNELS[worst]} in window {ev.labels[w]} "
         f"({_pose_text(ev.f_m_s2[w], ev.g_local_m_s2)}; residual {summary.z[w, worst]:+.1f} sigma)"
     )
+    located = f"{', '.join(bad)}, {place}" if bad else f"{place}, chi2/dof {ratio[worst]:.2f}"
+    return where_text(located, bool(bad), claimed, f"chi2/dof {ratio_limit:g} per channel")

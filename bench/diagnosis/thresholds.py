@@ -102,7 +102,10 @@ class Thresholds:
     block_s: float = 1.0
     """Block length (s) of a moving recording's block-mean residuals (``where``)."""
     where_z: float = 4.0
-    """A block residual beyond this many sigmas is named in ``where``."""
+    """A block residual beyond this many sigmas is named in ``where`` (moving recordings)."""
+    where_ratio: float = 2.0
+    """A channel whose first-order χ²/dof exceeds this is named in ``where`` (static recordings:
+    twice the noise is far outside the ratio's scatter for 12 windows or more)."""
     motion_chunk_samples: int = 4000
     """Samples per chunk of the moving library's per-sample scores (memory only: the result does
     not depend on it)."""

@@ -102,7 +102,7 @@ def conformity_warning(settings: Settings, model: str | None, channel_unit: str 
     try:
         choice = limits_choice(settings, model, channel_unit)
     except ValueError as exc:
-        return f"no statement of conformity: the limits file cannot be read ({exc})"
+        return f"the limits file cannot be read, so the bench will refuse the run: {exc}"
     if choice.limits is not None:
         return None
     known = f" (limits are configured for: {', '.join(choice.known_models)})" if choice.known_models else ""

@@ -82,3 +82,13 @@ def test_the_preview_refuses_a_serial_that_no_unit_can_have(tmp_path: Path) -> N
     with TestClient(app) as client:
         r = client.get("/api/procedures/static-12/preview?unit_serial=SN%20X%E2%80%AE", headers=VIEW)
         assert r.status_code == 422, r.text
+
+
+def test_an_unreadable_limits_file_is_named_before_the_run(tmp_path: Path) -> None:
+    from api.certificates.conformity import conformity_warning
+
+    bad = tmp_path / "limits.json"
+    bad.write_text("{")
+    warning = conformity_warning(service_settings(tmp_path, limits_file=bad), "ADXL325", "V")
+    assert warning is not None and warning.startswith("the limits file cannot be read")
+    assert str(bad) in warning

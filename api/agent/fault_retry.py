@@ -21,16 +21,19 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import logging
 from collections.abc import Callable
 from typing import Any
 
 import sqlalchemy as sa
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, sessionmaker
 
 from bench.records import RunRecord, RunState
 from bench.sequencer.control import RunControl
 from db.models import Run
 from db.types import utc_now
+
+log = logging.getLogger(__name__)
 
 FAULT_PREFIX = "device fault: "
 """Start of the error of a run interrupted by a fault the bench recovers from."""
@@ -138,6 +141,25 @@ def schedule(
     entry = {"attempt": attempt, "not_before": not_before.isoformat(), "windows": windows, "fault": fault}
     run.params = {**run.params, AUTO_KEY: entry}
     session.flush()
+    return entry
+
+
+def schedule_logged(
+    sessions: sessionmaker[Session], run_id: str, fault: str, windows: int, policy: RetryPolicy
+) -> dict[str, Any] | None:
+    """:func:`schedule` in its own transaction, logged; a database that refuses is logged too
+    (the run stays ``interrupted``, resumable on request)."""
+    try:
+        with sessions.begin() as s:
+            entry = schedule(s, run_id, fault, windows, policy)
+    except Exception:
+        log.exception("run %s: could not schedule its automatic resume", run_id)
+        return None
+    if entry is None:
+        log.error("run %s: %s; automatic resumes spent, it waits for an operator", run_id, fault)
+    else:
+        when = entry["not_before"]
+        log.warning("run %s: %s; automatic resume %s due at %s", run_id, fault, entry["attempt"], when)
     return entry
 
 

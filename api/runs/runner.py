@@ -294,25 +294,10 @@ class BenchRunner:
         )
 
     def _schedule_resume(self, live: LiveRun, fault: str, windows: int) -> None:
-        """Store the next automatic resume of a run a device fault interrupted (the bench's agent
-        queues it when due, :mod:`api.agent.fault_retry`)."""
-        try:
-            with self.sessions.begin() as s:
-                entry = fault_retry.schedule(s, live.id, fault, windows, self.retry)
-        except Exception:
-            log.exception("run %s: could not schedule its automatic resume", live.id)
-            return
-        if entry is None:
-            log.error("run %s: %s; automatic resumes spent, it waits for an operator", live.id, fault)
-        else:
-            log.warning(
-                "run %s: %s; automatic resume %s due at %s",
-                live.id,
-                fault,
-                entry["attempt"],
-                entry["not_before"],
-            )
-        live.extra["auto_resume"] = entry
+        """Store the run's next automatic resume (the agent queues it when due)."""
+        live.extra["auto_resume"] = fault_retry.schedule_logged(
+            self.sessions, live.id, fault, windows, self.retry
+        )
 
     def _finishing_gate(self, run_id: str) -> str | None:
         """The stored abort of ``run_id``, else the run marked finishing in the database in the

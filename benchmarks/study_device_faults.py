@@ -4,7 +4,8 @@ completed with no sample lost unseen.
 Each run is a real ``calbench run PROCEDURE --sim`` process (the simulated bench in its own
 process, 100 Hz at ×25, dwell 5 s), the procedures taken in turn. While it records, faults are
 injected into its simulated bench from outside, one after another at random wall times
-(uniform 2–8 s after the previous one ended), ``faults_per_run`` per run, each one of:
+(uniform 2–8 s after the previous one ended, from its first complete window on),
+``faults_per_run`` per run, each one of:
 
 * **stall**: the simulator process frozen (SIGSTOP) for a uniform 1–30 s, then let go;
 * **reset**: the simulator process killed (SIGKILL): every link drops, all state is lost;
@@ -55,9 +56,20 @@ class Injector:
     owner: subprocess.Popen[str]
     n: int
     rng: random.Random
+    db: Path
     done: list[tuple[str, float]] = field(default_factory=list)
 
+    def recording(self) -> bool:
+        """The run exists and records (a fault before it starts is a refused start, not studied)."""
+        try:
+            with sqlite3.connect(self.db) as conn:
+                return conn.execute("SELECT count(*) FROM run_window").fetchone()[0] > 0
+        except sqlite3.Error:
+            return False
+
     def run(self) -> None:
+        while not self.recording() and self.owner.poll() is None:
+            time.sleep(0.2)
         while len(self.done) < self.n and self.owner.poll() is None:
             time.sleep(self.rng.uniform(2.0, 8.0))
             pid = sim_pid(self.owner.pid)
@@ -104,7 +116,7 @@ def one_run(tmp: Path, i: int, faults: int, rng: random.Random) -> dict[str, obj
     cmd += ["--dwell-s", str(DWELL_S), "--seed", str(i), "--json"]
     t0 = time.monotonic()
     owner = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    injector = Injector(owner, faults, rng)
+    injector = Injector(owner, faults, rng, data / "calbench.db")
     thread = threading.Thread(target=injector.run, daemon=True)
     thread.start()
     out, err = owner.communicate(timeout=3600)
@@ -116,7 +128,8 @@ def one_run(tmp: Path, i: int, faults: int, rng: random.Random) -> dict[str, obj
         body = {}
         why = f"exit {owner.returncode}: {err.strip().splitlines()[-1:]}"
     with sqlite3.connect(data / "calbench.db") as conn:
-        state, resumes = conn.execute("SELECT state, resume_count FROM run").fetchone()
+        row = conn.execute("SELECT state, resume_count FROM run").fetchone()
+    state, resumes = row if row is not None else ("no run", 0)
     if why is None and (owner.returncode != 0 or body.get("outcome") != "PASS" or state != "completed"):
         why = f"exit {owner.returncode}, {body.get('outcome')}, {state}: {body.get('error')}"
     if why is None:

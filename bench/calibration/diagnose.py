@@ -29,6 +29,7 @@ from bench.calibration.windows import (
 )
 from bench.diagnosis import Diagnosis, StaticEvidence, diagnose
 from bench.diagnosis.dynamic import diagnose_dynamic
+from bench.diagnosis.hysteresis import last_move_sign
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.scalar_fit import fit_scalar
 from bench.estimation.windows import StaticWindow
@@ -60,7 +61,7 @@ def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
             ]
         )
     table = rec.sidecar.table
-    q_rad = axes = mount = None
+    q_rad = axes = mount = qu = None
     peak = 0.0
     known_f = known_specific_force(rec, wins)
     if table is not None and rec.table_deg is not None:
@@ -88,6 +89,7 @@ def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
         sample_rate_hz=rec.sidecar.sample_rate_hz,
         window_temp_c=None if rec.temp_c is None else tuple(rec.temp_c[w.slice] for w in wins),
         window_t_s=tuple(t[w.slice] for w in wins),
+        last_move_sign=None if qu is None else last_move_sign(qu, t, [w.start for w in wins]),
     )
 
 

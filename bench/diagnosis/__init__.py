@@ -24,11 +24,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.diagnosis.bench_families import static_line_findings, static_lines
 from bench.diagnosis.confounding import confounded, discovery, why
-from bench.diagnosis.effects import EFFECTS, NEEDS_TABLE, Candidate, pose_response
+from bench.diagnosis.effects import EFFECTS, NEEDS_TABLE, WITH_LIBRARY, Candidate, pose_response
 from bench.diagnosis.effects.base import first_order_design
 from bench.diagnosis.effects.settling import settling_duration, settling_test
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.hysteresis import with_last_move
 from bench.diagnosis.library import EFFECT, LibraryTerm, library_terms
 from bench.diagnosis.library import candidate as library_candidate
 from bench.diagnosis.likelihood import NoiseParams
@@ -112,6 +114,7 @@ def diagnose(
         raise ValueError("the windows' gravity directions lie on one plane: bias and K cannot be determined")
     unobservable: dict[str, str] = {}
     pool: list[Candidate] = []
+    beside_library: list[Candidate] = []
     pose_ok = settle_ok = False
     for eff in EFFECTS:
         ok, reason = eff.observable(ev, th)
@@ -120,7 +123,7 @@ def diagnose(
         if not ok:
             unobservable[eff.id] = reason
         elif eff.kind == "columns":
-            pool.extend(eff.candidates(ev, th))
+            (beside_library if eff.id in WITH_LIBRARY else pool).extend(eff.candidates(ev, th))
         elif eff.kind == "variance":
             pose_ok = True
         elif eff.kind == "window":
@@ -139,7 +142,7 @@ def diagnose(
             "the library's terms need the specific force the recording says each window saw; an "
             "orientation-free diagnosis has only the magnitude of each reading"
         )
-    library = [library_candidate(t) for t in lib_terms.values()]
+    library = [*beside_library, *(library_candidate(t) for t in lib_terms.values())]
     simplicity = {t.label: t.degree for t in lib_terms.values()}
 
     def select_without(excluded: set[str]) -> tuple[ModelState, dict[str, str]]:
@@ -235,9 +238,11 @@ def diagnose(
                 f"{f.effect} fits this recording about as well as {', '.join(f.confounded_with)}: "
                 "the recording cannot tell them apart (see the finding's summary)"
             )
+    # the bench-physics stage: periodic lines in the windows' samples (``bench_families``)
+    lines, line_free = static_lines(ev, th)
     if settle_ok:
-        assert ev.window_samples is not None and ev.sample_rate_hz is not None
-        st = settling_test(ev.window_samples, ev.sample_rate_hz, th)
+        assert line_free is not None and ev.sample_rate_hz is not None
+        st = settling_test(line_free, ev.sample_rate_hz, th)
         if st.p_value < th.settling_share * th.false_alarm:
             params_s: dict[str, object] = {
                 "frequency_hz": st.frequency_hz,
@@ -245,7 +250,7 @@ def diagnose(
             }
             sigma_s: dict[str, object] = {}
             try:
-                dur, dur_sigma = settling_duration(ev.window_samples, ev.sample_rate_hz, st.frequency_hz, th)
+                dur, dur_sigma = settling_duration(line_free, ev.sample_rate_hz, st.frequency_hz, th)
                 params_s["duration_s"], sigma_s["duration_s"] = dur, dur_sigma
             except ValueError as exc:
                 note_list.append(str(exc))
@@ -262,9 +267,12 @@ def diagnose(
                     explanation=next(e.explanation for e in EFFECTS if e.id == "settling"),
                 )
             )
+    findings.extend(static_line_findings(ev, lines, channel_unit, float(np.sqrt(np.mean(final.resid**2)))))
     base = _summary(seq[0])
     rs = summarise(ev_final, seq[0].resid, seq[0].sigma)
-    left = unexplained(ev_final, final, state, K, fixed, th)
+    left = with_last_move(
+        ev_final, final, state, K, fixed, unexplained(ev_final, final, state, K, fixed, th), th
+    )
     claimed = bool(findings or discovered or left is not None)
     return Diagnosis(
         unit=unit,

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
+from bench.diagnosis.bench_families import moving_stage as bench_stage
 from bench.diagnosis.dynamic_summary import BlockSummary, block_summary, motion_regressors
 from bench.diagnosis.effects import CATALOGUE
 from bench.diagnosis.library_motion_search import (
@@ -304,6 +305,9 @@ def diagnose_dynamic(
             )
         )
     discovered = tuple(discovery(inc, final, channel_unit) for inc in lib.included)
+    findings += bench_stage(
+        m, y, g_m_s2, lever, final, lib.adjustment(vals) if lib.included else None, channel_unit, th
+    )
     regs = motion_regressors(m, y, final, g_m_s2, lever, temp_c)
     bs = block_summary(
         m, y, fits, g_m_s2, lever, sig_w, regs, n_obs,

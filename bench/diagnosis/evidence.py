@@ -42,6 +42,8 @@ class StaticEvidence:
         (``within_window``).
     :param window_t_s: per window (n_w,) time of each sample (s, on the clock of ``mid_s``),
         or ``None``.
+    :param last_move_sign: (m, k) sign of each table axis's last move before each window (0:
+        it had not moved), or ``None`` (``hysteresis``).
     """
 
     y: FloatArray
@@ -60,6 +62,7 @@ class StaticEvidence:
     sample_rate_hz: float | None = None
     window_temp_c: tuple[FloatArray, ...] | None = None
     window_t_s: tuple[FloatArray, ...] | None = None
+    last_move_sign: FloatArray | None = None
 
     def __post_init__(self) -> None:
         m = self.y.shape[0] if self.y.ndim == 2 else -1

@@ -74,6 +74,15 @@ def summary(
             "the table's axes are not where its geometry says (the bench's physics, not the unit's): "
             + "; ".join(parts)
         )
+    if effect == "hysteresis":
+        h, s = np.asarray(params["half_step"]), np.asarray(sigma["half_step"])
+        parts = [
+            f"{_AX[i]} channel ±{h[j, i]:.3g} ± {s[j, i]:.2g} by the direction of axis {j + 1}'s last move"
+            for j in range(h.shape[0])
+            for i in range(3)
+            if h[j, i] != 0
+        ]
+        return "the output remembers the direction of the last move (hysteresis): " + "; ".join(parts)
     if effect == "pose_error":
         a = np.asarray(params["angles_rad"])
         mag = np.rad2deg(np.hypot(a[:, 0], a[:, 1]))

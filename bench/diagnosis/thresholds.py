@@ -119,6 +119,33 @@ class Thresholds:
     energy, cos²) is a slow trend (cubics in t and temp on its channel) is one a bias wander can
     make: not searched."""
 
+    # --- bench physics after the model (``bench_families``) -------------------------------
+    bench_false_alarm: float = 1e-3
+    """Family-wise false-alarm probability of each bench family's test on one recording (angle
+    harmonics, clock drift; the line finder's own is ``spectral_lines.FALSE_ALARM``, also 1e-3):
+    a verdict beside a model already chosen, as strict as ``unexplained_alpha``."""
+    ar_order: int = 8
+    """Order of the autoregression that prewhitens a moving residual: at 100 Hz, 80 ms of memory
+    beside the first-order nuisance; the wander's slow part is near a unit root it follows."""
+    harmonics: int = 4
+    """Harmonics of each table axis's angle searched (a motor's poles, a cable's twist, a slip
+    ring's once-per-turn are the first few)."""
+    max_harmonic_terms: int = 4
+    """Most angle harmonics one moving recording is said to carry; beyond that the disturbance
+    is not a few harmonics and ``unexplained`` is the honest answer."""
+    min_turn_rad: float = math.pi / 2
+    """An axis that turns through less than this is not searched for harmonics of its angle:
+    they are then slow functions of a nearly constant angle, a trend rather than a harmonic."""
+    line_grid_max: int = 400
+    """Most frequencies of a line's refinement on the samples' own clock (memory and time grow
+    with it; the parabola through the peak interpolates beyond the grid)."""
+    line_block_s: float = 10.0
+    """Block length (s) of a moving residual whose mean and slope are fitted beside a line: the
+    wander's trend is removed, a line of 0.5 Hz and above keeps ≥ 5 periods per block."""
+    move_rate_deg_s: float = 0.5
+    """An encoder angle changing faster than this (°/s) is a move (hysteresis's last-move sign);
+    an encoder flickering by one count at rest (1e-4° in 10 ms: 0.01°/s) is not."""
+
 
 THRESHOLDS = Thresholds()
 """The defaults."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from bench.diagnosis.effects.base import Candidate, Effect, ParamSpec, first_order_design, leverage
 from bench.diagnosis.effects.geometry import ENCODER_OFFSET, POSE_ERROR, TILT, pose_response
+from bench.diagnosis.effects.last_move import LAST_MOVE
 from bench.diagnosis.effects.motion import LEVER_ARM, LOWPASS, PROOF_MASS, TIME_SKEW
 from bench.diagnosis.effects.sensor import ASYMMETRY, CROSS_COUPLING, DRIFT, NONLINEARITY, TEMPERATURE
 from bench.diagnosis.effects.settling import SETTLING
@@ -26,9 +27,14 @@ CATALOGUE: tuple[Effect, ...] = (
 )
 """Every effect of the contract's table, in its order."""
 
-BENCH_EFFECTS: tuple[Effect, ...] = (TABLE_AXIS_ERROR,)
+BENCH_EFFECTS: tuple[Effect, ...] = (TABLE_AXIS_ERROR, LAST_MOVE)
 """Effects of the bench beyond the contract's first table (docs/diagnose.md, "Bench physics
 beyond the catalogue"), searched beside it."""
+
+WITH_LIBRARY = frozenset({"hysteresis"})
+"""Effects whose candidates are searched with the term library (its share of the false-alarm
+budget, once no catalogue candidate is admissible) rather than beside the catalogue: a
+signature that is no function of the pose, like the library's terms beyond the catalogue."""
 
 EFFECTS: tuple[Effect, ...] = (*CATALOGUE, *BENCH_EFFECTS)
 """Every effect a static diagnosis tries."""
@@ -45,6 +51,7 @@ NEEDS_TABLE = frozenset(
         "sensor_lowpass",
         "settling",
         "table_axis_error",
+        "hysteresis",
     }
 )
 """Effects whose physics is the table's (its motion, its encoders, its base, its ringing after a
@@ -56,6 +63,7 @@ __all__ = [
     "CATALOGUE",
     "EFFECTS",
     "NEEDS_TABLE",
+    "WITH_LIBRARY",
     "Candidate",
     "Effect",
     "ParamSpec",

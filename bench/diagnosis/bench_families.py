@@ -1,0 +1,186 @@
+"""The bench-physics stage after a diagnosis's model is chosen: what the final model leaves,
+searched for physics that is no function of the specific force, temperature or time alone.
+
+- Static recordings: periodic lines in the windows' samples (``periodic_lines``).
+- Moving recordings: disturbances locked to a table axis's angle, a delay that grows along
+  the run, periodic lines in the final residual (``motion_families``).
+
+Each is reported as a finding with its own effect id (docs/diagnose.md, "Bench physics
+beyond the catalogue"); it does not change the model the catalogue and library chose, nor
+``calibrate``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.motion_families import (
+    clock_drift,
+    drift_passes,
+    harmonic_signal,
+    search_harmonics,
+)
+from bench.diagnosis.periodic_lines import Line, find_periodic_lines, residual_stretches, without_lines
+from bench.diagnosis.result import Finding
+from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
+from bench.estimation.dynamic_batch import DynamicFit
+from bench.estimation.dynamic_model import predict, specific_force
+from bench.estimation.motion_data import MotionData
+
+FloatArray = np.ndarray
+CHANNELS = ("ax", "ay", "az")
+LINE_EXPLANATION = (
+    "a vibration, mains pick-up or a pump reaching the sensor: a sinusoid at one frequency "
+    "on the samples, locked to time, not to the table's motion"
+)
+HARMONIC_EXPLANATION = (
+    "a disturbance locked to a table axis's angle (a motor's magnetic field, a cable's pull, "
+    "a slip ring's once-per-turn): it repeats with the axis's turn, not with time"
+)
+DRIFT_EXPLANATION = (
+    "the DAQ's clock and the encoders' run at slightly different rates, so the delay between "
+    "a sample and its encoder reading grows along the run"
+)
+
+
+def _line_finding(line: Line, channel_unit: str, n: int, rms_after: float) -> Finding:
+    z2 = float(np.max((line.amplitude / np.maximum(line.amplitude_sigma, 1e-300))[list(line.channels)]) ** 2)
+    return Finding(
+        effect="periodic_line",
+        summary=line.summary(channel_unit),
+        parameters={
+            "frequency_hz": line.frequency_hz,
+            "amplitude": line.amplitude.tolist(),
+            "phase_rad": line.phase_rad.tolist(),
+            "channels": [CHANNELS[i] for i in line.channels],
+        },
+        sigma={"frequency_hz": line.frequency_sigma_hz, "amplitude": line.amplitude_sigma.tolist()},
+        delta_bic=float(-z2 + 3.0 * math.log(max(n, 2))),
+        lr=z2,
+        residual_rms_after=rms_after,
+        explanation=LINE_EXPLANATION,
+    )
+
+
+def static_lines(
+    ev: StaticEvidence, th: Thresholds = THRESHOLDS
+) -> tuple[tuple[Line, ...], tuple[FloatArray, ...] | None]:
+    """Periodic lines in a static recording's window samples, and the samples without them (for
+    the within-window tests: a line is not a ring after a move), or ``None`` when there are none."""
+    if ev.window_samples is None or ev.window_t_s is None or ev.sample_rate_hz is None:
+        return (), ev.window_samples
+    pieces = list(zip(ev.window_t_s, ev.window_samples, strict=True))
+    lines = find_periodic_lines(pieces, ev.sample_rate_hz, th)
+    return lines, (without_lines(pieces, lines) if lines else ev.window_samples)
+
+
+def static_line_findings(
+    ev: StaticEvidence, lines: tuple[Line, ...], channel_unit: str, rms_after: float
+) -> list[Finding]:
+    """The lines of :func:`static_lines` as findings."""
+    n = 0 if ev.window_t_s is None else int(sum(t.size for t in ev.window_t_s))
+    return [_line_finding(ln, channel_unit, n, rms_after) for ln in lines]
+
+
+def moving_findings(
+    t_s: FloatArray,
+    r: FloatArray,
+    f_m_s2: FloatArray,
+    K: FloatArray,
+    angles_rad: FloatArray,
+    valid: FloatArray,
+    sample_rate_hz: float,
+    channel_unit: str,
+    th: Thresholds = THRESHOLDS,
+) -> list[Finding]:
+    """Angle harmonics, clock drift and periodic lines in a moving recording's final residual.
+
+    :param t_s: (n,) time (s); :param r: (n, 3) the final model's residual (channel units).
+    :param f_m_s2: (n, 3) the final model's specific force (m/s²); :param K: (3, 3) its scale matrix.
+    :param angles_rad: (n, k) unwrapped encoder angles; :param valid: (n,) samples the fit used.
+    """
+    ok = np.asarray(valid, dtype=bool) & np.all(np.isfinite(r), axis=1)
+    t, rv, fv, qv = t_s[ok], r[ok], f_m_s2[ok], angles_rad[ok]
+    n = int(t.size)
+    out: list[Finding] = []
+    hs = search_harmonics(rv, fv, qv, th)
+    left = rv - harmonic_signal(hs, qv)
+    for h in hs:
+        parts = ", ".join(
+            f"{CHANNELS[i]} {h.amplitude[i]:.3g} ± {h.amplitude_sigma[i]:.2g} {channel_unit}"
+            for i in h.channels
+        )
+        out.append(
+            Finding(
+                effect="angle_harmonic",
+                summary=(
+                    f"a disturbance locked to axis {h.axis + 1}'s angle, {h.harmonic} per turn: {parts} "
+                    "(peak); it follows the axis's angle, not time (a motor's field, a cable, a slip ring)"
+                ),
+                parameters={
+                    "axis": h.axis + 1,
+                    "harmonic": h.harmonic,
+                    "amplitude": h.amplitude.tolist(),
+                    "phase_rad": h.phase_rad.tolist(),
+                    "channels": [CHANNELS[i] for i in h.channels],
+                },
+                sigma={"amplitude": h.amplitude_sigma.tolist()},
+                delta_bic=float(-2.0 * h.f_stat + 2.0 * math.log(max(n, 2))),
+                lr=float(2.0 * h.f_stat),
+                residual_rms_after=float(np.sqrt(np.mean(left**2))),
+                explanation=HARMONIC_EXPLANATION,
+            )
+        )
+    fdot = np.gradient(fv, t, axis=0)
+    cd = clock_drift(left, fv, fdot @ K.T, t, th)
+    if drift_passes(cd, th):
+        span = float(t[-1] - t[0])
+        out.append(
+            Finding(
+                effect="clock_drift",
+                summary=(
+                    "the delay between the DAQ's samples and the encoders grows by "
+                    f"{cd.rate_s_per_s:.3g} ± {cd.sigma:.2g} s per s ({cd.rate_s_per_s * 1e6:.3g} ppm; "
+                    f"{cd.rate_s_per_s * span * 1e3:.3g} ms over the {span:.0f} s): two clocks drifting; "
+                    "a time_skew found beside it is the mean delay"
+                ),
+                parameters={"delay_s_per_s": cd.rate_s_per_s},
+                sigma={"delay_s_per_s": cd.sigma},
+                delta_bic=float(-cd.wald + math.log(max(n, 2))),
+                lr=cd.wald,
+                residual_rms_after=float(np.sqrt(np.mean(left**2))),
+                explanation=DRIFT_EXPLANATION,
+            )
+        )
+    stretches = residual_stretches(t, left, np.ones(n, dtype=bool), th.line_block_s)
+    lines = find_periodic_lines(stretches, sample_rate_hz, th)
+    rms = float(np.sqrt(np.mean(left**2)))
+    out += [_line_finding(ln, channel_unit, n, rms) for ln in lines]
+    return out
+
+
+def moving_stage(
+    m: MotionData,
+    y: FloatArray,
+    g_m_s2: float,
+    lever: FloatArray,
+    final: DynamicFit,
+    library: FloatArray | None,
+    channel_unit: str,
+    th: Thresholds = THRESHOLDS,
+) -> list[Finding]:
+    """:func:`moving_findings` on the final dynamic model's residual.
+
+    :param library: (n, 3) the discovered terms' contribution (channel units) or ``None``.
+    """
+    model, _ = predict(final.theta, m, final.spec, g_m_s2, lever)
+    r = y - model - (0.0 if library is None else library)
+    f = specific_force(final.theta, m, final.spec, g_m_s2, lever)
+    K = final.theta[3:12].reshape(3, 3)
+    return moving_findings(m.t_s, r, f, K, m.angles_rad, m.valid, 1.0 / m.step_s, channel_unit, th)
+
+
+__all__ = ["moving_findings", "moving_stage", "static_line_findings", "static_lines"]

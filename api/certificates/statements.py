@@ -82,4 +82,6 @@ METHOD = {
     "principle); per-channel weighted least squares of raw = b + K·f",
     "rate-1axis": "single-axis rate table; static poses for b and K, rate windows for the lever arm",
     "oscillation-2axis": "two-axis quasi-harmonic oscillation",
+    "planned-static": "static multi-position, planned (12 orientations in antipodal order, repeated with "
+    "short dwells, calbench plan); weighted least squares of raw = b + K·f with the wander between windows",
 }

@@ -22,6 +22,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "export": ("api.cli.export", "write the fitted correction for imucal, Kalibr, C firmware or JSON"),
     "convert": ("api.cli.convert", "convert another tool's data set into calbench-recording/1"),
     "simulate": ("api.cli.simulate", "write a simulated recording with chosen effects"),
+    "plan": (
+        "api.cli.plan",
+        "design the procedure that reaches target uncertainties in the least table time",
+    ),
     "run": ("api.cli.run", "run a calibration procedure on the bench"),
     "runs": ("api.cli.runs", "list runs"),
     "resume": ("api.cli.resume", "resume an interrupted run"),

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from bench.procedures.oscillation import oscillation_2axis
+from bench.procedures.planned import planned_static
 from bench.procedures.preview import DEFAULT_TABLE_LIMITS, Preview, TableLimits, preview
 from bench.procedures.rate import rate_1axis
 from bench.procedures.static import static_12
@@ -18,6 +19,7 @@ PROCEDURES: dict[str, Callable[..., Procedure]] = {
     "static-12": static_12,
     "rate-1axis": rate_1axis,
     "oscillation-2axis": oscillation_2axis,
+    "planned-static": planned_static,
 }
 """Registry: procedure name -> factory taking ``dwell_s`` (``None``: noise window first)."""
 

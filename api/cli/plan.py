@@ -1,0 +1,131 @@
+"""``calbench plan --white UG [--wander UG --wander-tau S] [--random-walk UG] --scale PPM ... [--json]``.
+
+Designs the static procedure (``planned-static``) that reaches the target expanded
+uncertainties (k = 2) of the static window fit in the least table time on the table's limits,
+for the unit's noise (µg/√Hz white, µg Gauss-Markov wander with its correlation time, µg/√s
+random walk), and states its predicted U per group, the total table time (moves and settling
+included) and the white-noise bound of any motion for that time (docs/planning.md).
+``--compare PROC`` also predicts a registered static procedure with ``--dwell`` for the same unit.
+Human output: the design, U and time; ``--json``: one object. Bad input: exit 2, one line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from api.cli import BadInput, decimal_arg
+from bench.planning.noise import G0_M_S2, UnitNoise
+from bench.planning.search import Evaluation, Targets, describe_sigmas, evaluate, plan
+from bench.procedures import build_procedure
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``calbench plan``."""
+    parser.add_argument(
+        "--white", type=decimal_arg, required=True, metavar="UG_RT_HZ", help="white noise (µg/√Hz)"
+    )
+    parser.add_argument("--wander", type=decimal_arg, default=0.0, metavar="UG", help="bias wander σ (µg)")
+    parser.add_argument(
+        "--wander-tau", type=decimal_arg, default=100.0, metavar="S", help="its correlation time (s)"
+    )
+    parser.add_argument(
+        "--random-walk", type=decimal_arg, default=0.0, metavar="UG_RT_S", help="bias random walk"
+    )
+    parser.add_argument(
+        "--bias", type=decimal_arg, default=None, metavar="UG", help="target bias U, k=2 (µg)"
+    )
+    parser.add_argument(
+        "--scale", type=decimal_arg, default=None, metavar="PPM", help="target scale U, k=2 (ppm)"
+    )
+    parser.add_argument(
+        "--misalignment",
+        type=decimal_arg,
+        default=None,
+        metavar="URAD",
+        help="target misalignment U, k=2 (µrad)",
+    )
+    parser.add_argument("--settle-s", type=decimal_arg, default=2.0, help="settling after each move (s)")
+    parser.add_argument(
+        "--no-tilt", action="store_true", help="do not carry the base tilt as a nuisance parameter"
+    )
+    parser.add_argument("--max-minutes", type=decimal_arg, default=120.0, help="longest design tried (min)")
+    parser.add_argument(
+        "--compare", default=None, metavar="PROC", help="also predict this procedure (static)"
+    )
+    parser.add_argument("--dwell", type=decimal_arg, default=None, help="dwell of --compare (s)")
+    parser.add_argument("--json", action="store_true", help="print the machine-readable result")
+
+
+def evaluation_json(e: Evaluation) -> dict[str, Any]:
+    """An evaluation as JSON: procedure, time, predicted U (k = 2) and the bound."""
+    u = e.predicted
+    ug = 1e6 / G0_M_S2
+    return {
+        "procedure": e.procedure.name,
+        "parameters": e.procedure.parameters,
+        "duration_s": e.duration_s,
+        "predicted_U_k2": {
+            "bias_ug": 2 * u.bias * ug,
+            "scale_ppm": 2e6 * u.scale,
+            "misalignment_urad": 2e6 * u.misalignment,
+        },
+        "k_rms_sigma_ppm": 1e6 * u.k_rms,
+        "bound_k_sigma_ppm": 1e6 * e.bound_k,
+        "bound_bias_sigma_ug": e.bound_bias_m_s2 * ug,
+        "k_fraction_of_bound": e.k_fraction_of_bound,
+    }
+
+
+def _line(e: Evaluation) -> str:
+    return (
+        f"{e.procedure.name} {json.dumps(e.procedure.parameters)}: {e.duration_s / 60:.1f} min, "
+        f"{describe_sigmas(e.predicted)}; K sigma {1e6 * e.predicted.k_rms:.3g} ppm rms = "
+        f"{e.k_fraction_of_bound:.2f} x the bound of any motion ({1e6 * e.bound_k:.3g} ppm)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Plan, print, exit 0 (a plan found) or 1 (the targets are out of reach)."""
+    try:
+        noise = UnitNoise.from_ug(args.white, args.wander, args.wander_tau, args.random_walk)
+        targets = Targets(
+            None if args.bias is None else args.bias * 1e-6 * G0_M_S2,
+            None if args.scale is None else args.scale * 1e-6,
+            None if args.misalignment is None else args.misalignment * 1e-6,
+        )
+        if args.max_minutes <= 0:
+            raise ValueError(f"--max-minutes must be > 0, got {args.max_minutes}")
+        compare = None
+        if args.compare is not None:
+            compare = evaluate(
+                build_procedure(args.compare, dwell_s=args.dwell), noise, with_tilt=not args.no_tilt
+            )
+        result = plan(
+            noise,
+            targets,
+            settle_s=args.settle_s,
+            with_tilt=not args.no_tilt,
+            max_duration_s=args.max_minutes * 60,
+        )
+    except ValueError as exc:
+        raise BadInput(f"calbench plan: {exc}") from None
+    if args.json:
+        out: dict[str, Any] = {
+            "noise": noise.describe(),
+            "plan": None if result.best is None else evaluation_json(result.best),
+            "closest": None if result.closest is None else evaluation_json(result.closest),
+            "problems": list(result.problems),
+            "compare": None if compare is None else evaluation_json(compare),
+        }
+        print(json.dumps(out, indent=2))
+    else:
+        print(f"noise: {noise.describe()}")
+        if result.best is not None:
+            print("plan: " + _line(result.best))
+        for p in result.problems:
+            print(f"no plan: {p}")
+        if compare is not None:
+            print("compare: " + _line(compare))
+    return 0 if result.best is not None else 1

@@ -1,0 +1,218 @@
+"""The planner: the static design that meets the targets in the least table time.
+
+Candidates are :func:`~bench.procedures.planned.planned_static` procedures (twelve icosahedron
+directions in antipodal order, ``repeats`` passes, ``dwell_s`` per visit). Each is walked on the
+table's limits by :func:`~bench.procedures.preview.preview` — the same timing the sequencer's
+preview gives, moves and settling included — and its window times and forces give the predicted
+covariance of the static window fit with the unit's coloured noise
+(:func:`~bench.planning.information.predicted_uncertainty`). For every dwell of
+:data:`DWELL_GRID_S` the fewest passes that meet every target are found by bisection (the
+covariance only shrinks with more passes); the shortest candidate wins. Each design is reported
+against the white-noise bound of any motion for the same table time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.planning.information import (
+    PredictedUncertainty,
+    predicted_uncertainty,
+    tilt_response,
+    white_bound_bias,
+    white_bound_k,
+)
+from bench.planning.noise import UnitNoise, window_mean_covariance
+from bench.procedures.planned import MAX_WINDOWS, planned_static
+from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits, preview
+from bench.procedures.steps import Dwell, Procedure
+from bench.records import WindowKind
+
+DWELL_GRID_S = (2.0, 3.0, 5.0, 8.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0)
+"""Dwell per visit tried by :func:`plan` (s)."""
+
+
+@dataclass(frozen=True)
+class Targets:
+    """Wanted expanded uncertainties (k = 2); ``None``: no target for that group.
+
+    :param bias_m_s2: largest bias U (m/s²).
+    :param scale: largest scale-factor U (dimensionless).
+    :param misalignment_rad: largest off-diagonal U (rad).
+    """
+
+    bias_m_s2: float | None = None
+    scale: float | None = None
+    misalignment_rad: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("bias_m_s2", "scale", "misalignment_rad"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise ValueError(f"target {name}: expected a number > 0, got {v!r}")
+        if self.bias_m_s2 is None and self.scale is None and self.misalignment_rad is None:
+            raise ValueError("targets: give at least one of bias, scale, misalignment")
+
+    def met_by(self, u: PredictedUncertainty) -> bool:
+        """Every target is met at k = 2 by the predicted standard uncertainties."""
+        pairs = ((self.bias_m_s2, u.bias), (self.scale, u.scale), (self.misalignment_rad, u.misalignment))
+        return all(t is None or 2.0 * s <= t for t, s in pairs)
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """A procedure's prediction: table time and the window fit's standard uncertainties.
+
+    :param procedure: the procedure evaluated.
+    :param duration_s: total table time, moves and settling included (s).
+    :param predicted: the fit's predicted σ (k = 1).
+    :param bound_k: white-noise bound σ(K_ij) of any motion for ``duration_s``.
+    :param bound_bias_m_s2: white-noise bound σ(b_i) for ``duration_s`` (m/s²).
+    """
+
+    procedure: Procedure
+    duration_s: float
+    predicted: PredictedUncertainty
+    bound_k: float
+    bound_bias_m_s2: float
+
+    @property
+    def k_fraction_of_bound(self) -> float:
+        """Predicted RMS σ(K_ij) over the bound: 1 is the best any motion can do."""
+        return self.predicted.k_rms / self.bound_k
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The chosen design, or why none met the targets.
+
+    :param best: the shortest design that met every target, ``None`` when none did.
+    :param closest: when none did, the longest candidate tried (what is reachable).
+    :param problems: one sentence each when a target is out of reach.
+    """
+
+    best: Evaluation | None
+    closest: Evaluation | None
+    problems: tuple[str, ...] = field(default_factory=tuple)
+
+
+def rotation_deg(angles_deg: tuple[float, ...]) -> np.ndarray:
+    """R = Rz(outer)·Rx(middle)·Rz(inner) of the default geometry (base from sensor)."""
+
+    def rz(a: float) -> np.ndarray:
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    def rx(a: float) -> np.ndarray:
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+    o, m, i = (math.radians(a) for a in angles_deg)
+    return rz(o) @ rx(m) @ rz(i)
+
+
+def evaluate(
+    proc: Procedure,
+    noise: UnitNoise,
+    *,
+    limits: TableLimits = DEFAULT_TABLE_LIMITS,
+    g_m_s2: float = 9.80665,
+    with_tilt: bool = True,
+) -> Evaluation:
+    """Predict a static procedure's window-fit uncertainties and table time.
+
+    :raises ValueError: the procedure has no static windows with a fixed dwell, exceeds the
+        table's limits, or does not identify the parameters.
+    """
+    pv = preview(proc, limits)
+    if pv.problems:
+        raise ValueError(f"{proc.name}: {pv.problems[0]}")
+    if any(isinstance(s, Dwell) and s.duration_s is None for s in proc.steps):
+        raise ValueError(f"{proc.name}: the dwell must be fixed to predict the fit")
+    wins = [w for w in pv.windows if w.kind == WindowKind.STATIC]
+    if len(wins) < 4:
+        raise ValueError(f"{proc.name}: {len(wins)} static windows, the window fit needs at least 4")
+    starts = np.array([w.start_s for w in wins])
+    durations = np.array([w.duration_s for w in wins])
+    Rt = np.stack([rotation_deg(w.pose_deg).T for w in wins])
+    f = Rt @ np.array([0.0, 0.0, g_m_s2])
+    C = window_mean_covariance(noise, starts, durations)
+    u = predicted_uncertainty(f, C, tilt_response(Rt, g_m_s2) if with_tilt else None)
+    T = pv.duration_s
+    return Evaluation(
+        proc,
+        T,
+        u,
+        white_bound_k(noise.white_m_s2_rt_hz, T, g_m_s2),
+        white_bound_bias(noise.white_m_s2_rt_hz, T),
+    )
+
+
+def plan(
+    noise: UnitNoise,
+    targets: Targets,
+    *,
+    limits: TableLimits = DEFAULT_TABLE_LIMITS,
+    settle_s: float = 2.0,
+    g_m_s2: float = 9.80665,
+    with_tilt: bool = True,
+    max_duration_s: float = 2 * 3600.0,
+) -> Plan:
+    """The shortest planned-static design that meets ``targets`` (module docstring)."""
+    best: Evaluation | None = None
+    longest: Evaluation | None = None
+
+    def ev(dwell: float, reps: int) -> Evaluation:
+        return evaluate(
+            planned_static(dwell_s=dwell, repeats=reps, settle_s=settle_s),
+            noise,
+            limits=limits,
+            g_m_s2=g_m_s2,
+            with_tilt=with_tilt,
+        )
+
+    for dwell in DWELL_GRID_S:
+        one = ev(dwell, 1)
+        per_pass = one.duration_s
+        hi = max(1, min(MAX_WINDOWS // 12, int(max_duration_s // per_pass)))
+        top = ev(dwell, hi)
+        if longest is None or top.predicted.k_rms < longest.predicted.k_rms:
+            longest = top
+        if not targets.met_by(top.predicted):
+            continue
+        lo_ok, lo = top, 0  # invariant: reps=hi meets, reps=lo does not (0 never does)
+        if targets.met_by(one.predicted):
+            lo_ok = one
+        else:
+            lo = 1
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                e = ev(dwell, mid)
+                if targets.met_by(e.predicted):
+                    hi, lo_ok = mid, e
+                else:
+                    lo = mid
+        if best is None or lo_ok.duration_s < best.duration_s:
+            best = lo_ok
+    if best is not None:
+        return Plan(best, None)
+    problems = [
+        "no planned design within "
+        f"{max_duration_s / 60:.0f} min meets the targets; the best reaches "
+        + describe_sigmas(longest.predicted)
+        if longest is not None
+        else "no design could be evaluated"
+    ]
+    return Plan(None, longest, tuple(problems))
+
+
+def describe_sigmas(u: PredictedUncertainty) -> str:
+    """U (k = 2) per group in µg, ppm and µrad."""
+    ug = 1e6 / 9.80665
+    return (
+        f"U(k=2) bias {2 * u.bias * ug:.3g} ug, scale {2e6 * u.scale:.3g} ppm, "
+        f"misalignment {2e6 * u.misalignment:.3g} urad"
+    )

@@ -1,0 +1,63 @@
+"""planned-static: the static design the planner (``bench.planning``) chooses, as a procedure.
+
+The twelve icosahedron directions of static-12 (:func:`~bench.procedures.static.icosahedron_up_directions`)
+in its antipodal execution order, visited ``repeats`` times with a short ``dwell_s`` each: a
+pass forwards, the next backwards (antipodes stay adjacent in time and a linear drift over two
+passes cancels), the outer axis stepping 0°, 90°, 180°, −90° from visit to visit so a tilted base
+stays separable. Every window is an ordinary static window (labels ``p001``, ``p002``, …) and the
+recording is calibrated by the static window fit (``bench.estimation.static_fit``) with its slow
+wander between windows — the fit whose covariance the planner predicts.
+"""
+
+from __future__ import annotations
+
+from bench.procedures.static import (
+    EXECUTION_ORDER,
+    OUTER_ANGLES_DEG,
+    icosahedron_up_directions,
+    pose_for_up,
+)
+from bench.procedures.steps import Dwell, MoveTo, Procedure, Step
+
+NAME = "planned-static"
+DEFAULT_DWELL_S = 10.0
+MAX_WINDOWS = 2400
+
+
+def visit_order(repeats: int) -> list[int]:
+    """Icosahedron vertex index of every visit: forward passes alternating with reversed ones."""
+    out: list[int] = []
+    for r in range(repeats):
+        out += list(EXECUTION_ORDER) if r % 2 == 0 else list(reversed(EXECUTION_ORDER))
+    return out
+
+
+def planned_poses_deg(repeats: int) -> list[tuple[float, float, float]]:
+    """(outer, middle, inner) of every visit (deg), in order."""
+    dirs = icosahedron_up_directions()
+    return [
+        pose_for_up(dirs[k], OUTER_ANGLES_DEG[i % len(OUTER_ANGLES_DEG)])
+        for i, k in enumerate(visit_order(repeats))
+    ]
+
+
+def planned_static(dwell_s: float | None = None, repeats: int = 1, settle_s: float = 2.0) -> Procedure:
+    """Build the planned static procedure.
+
+    :param dwell_s: static window per visit (s); ``None`` takes :data:`DEFAULT_DWELL_S` (the
+        plan fixes it, so no noise window is recorded).
+    :param repeats: passes over the twelve directions, 1..200.
+    :param settle_s: settling allowance after each move (s).
+    :raises ValueError: repeats outside 1..200.
+    """
+    repeats = int(repeats)
+    if not 1 <= repeats <= MAX_WINDOWS // 12:
+        raise ValueError(f"planned-static repeats must be 1..{MAX_WINDOWS // 12}, got {repeats}")
+    dwell = DEFAULT_DWELL_S if dwell_s is None else float(dwell_s)
+    steps: list[Step] = []
+    for i, pose in enumerate(planned_poses_deg(repeats)):
+        label = f"p{i + 1:03d}"
+        steps.append(MoveTo(pose, label=label, settle_s=settle_s))
+        steps.append(Dwell(label, duration_s=dwell))
+    params: dict[str, object] = {"dwell_s": dwell, "repeats": repeats, "settle_s": settle_s}
+    return Procedure(NAME, tuple(steps), params, n_axes=3)

@@ -1,11 +1,13 @@
 """Bearer tokens with roles: ``viewer`` reads, ``operator`` also writes, ``admin`` also manages.
 
-Tokens come from ``CALBENCH_TOKENS`` (``operator:SECRET,viewer:SECRET,...``) and from the
-``api_token`` table (only their SHA-256 is stored). A request presents one as
-``Authorization: Bearer SECRET``. A secret never goes into a URL (it would land in access
-logs and browser history): the two endpoints a browser opens directly (the event stream,
-the PDF) also accept ``?link=``, a short-lived link signed by the service for one path
-(:class:`LinkSigner`, ``POST /api/links``), which dies with the token it was made for.
+Tokens come from ``CALBENCH_TOKENS`` (``operator:SECRET[:NAME],viewer:SECRET,...``; NAME is
+the operator the token stands for) and from the ``api_token`` table (only their SHA-256 is
+stored, with the operator's name); a run's audit trail names the operator of every request.
+A request presents one as ``Authorization: Bearer SECRET``. A secret never goes into a URL
+(it would land in access logs and browser history): the two endpoints a browser opens
+directly (the event stream, the PDF) also accept ``?link=``, a short-lived link signed by the
+service for one path (:class:`LinkSigner`, ``POST /api/links``), which dies with the token it
+was made for.
 Missing or unknown token: 401; a known token whose role is too low: 403. With
 ``public_read`` reads need no token, but a token that is presented must still be valid.
 """
@@ -29,6 +31,7 @@ from dataclasses import dataclass
 from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
 
+from bench.inputs import InputError, check_text
 from db.models import ApiToken
 from db.repo.tokens import lookup_token, touch_token
 
@@ -69,25 +72,50 @@ class AuthError(Exception):
 @dataclass(frozen=True)
 class Principal:
     """Who a request acts for: a role and, for a database token, its id (``None``: a configured
-    token, or anonymous reading)."""
+    token, or anonymous reading), and the operator's name stored with the token (``""``: none)."""
 
     role: Role
     token_id: int | None = None
+    operator: str = ""
+
+    @property
+    def actor(self) -> str:
+        """The name its actions are stored under: the operator's, else which token acted."""
+        if self.operator:
+            return self.operator
+        if self.token_id is not None:
+            return f"API token {self.token_id} (no operator name)"
+        return f"{self.role.label} token of CALBENCH_TOKENS (no operator name)"
 
 
 def _digest(secret: str) -> str:
     return hashlib.sha256(secret.encode("utf-8")).hexdigest()
 
 
+def parse_token_names(entries: Iterable[str]) -> dict[str, str]:
+    """``["operator:SECRET:Ada Lovelace", ...]`` -> ``{sha256(SECRET): "Ada Lovelace"}`` (entries
+    without a name are left out; :func:`parse_tokens` checks the entries)."""
+    names: dict[str, str] = {}
+    for entry in entries:
+        _, _, rest = entry.partition(":")
+        secret, _, name = rest.partition(":")
+        if name.strip():
+            names[_digest(secret.strip())] = name.strip()
+    return names
+
+
 def parse_tokens(entries: Iterable[str]) -> dict[str, Role]:
-    """``["operator:SECRET", ...]`` -> ``{sha256(SECRET): Role}``.
+    """``["operator:SECRET[:NAME]", ...]`` -> ``{sha256(SECRET): Role}`` (the names:
+    :func:`parse_token_names`).
 
     :raises ValueError: an entry without ``role:``, an unknown role, a secret shorter than
-        8 characters, or one secret given two roles (the message names the entry by index).
+        8 characters, a name that is not plain text of at most 100 characters, or one secret
+        given two roles (the message names the entry by index).
     """
     table: dict[str, Role] = {}
     for i, entry in enumerate(entries):
-        role_text, sep, secret = entry.partition(":")
+        role_text, sep, rest = entry.partition(":")
+        secret, _, name = rest.partition(":")
         where = f"CALBENCH_TOKENS entry {i + 1}"
         if not sep:
             raise ValueError(f"{where}: expected role:SECRET (e.g. operator:abc123...), got no ':'")
@@ -95,6 +123,10 @@ def parse_tokens(entries: Iterable[str]) -> dict[str, Role]:
         if role_name not in ("viewer", "operator", "admin"):
             raise ValueError(f"{where}: role {role_text!r} is not viewer, operator or admin")
         secret = secret.strip()
+        try:
+            check_text(name.strip(), max_chars=100)
+        except InputError as exc:
+            raise ValueError(f"{where}: operator name: {exc}") from None
         if len(secret) < 8:
             raise ValueError(f"{where}: the {role_name} secret is shorter than 8 characters")
         digest = _digest(secret)
@@ -117,6 +149,7 @@ class Authenticator:
     at most once per :data:`TOUCH_INTERVAL_S` per token.
 
     :param env_tokens: ``{sha256: Role}`` from :func:`parse_tokens`.
+    :param env_names: ``{sha256: operator name}`` from :func:`parse_token_names`.
     :param sessions: writing session factory (``last_used_at``), or ``None`` for no database.
     :param read_sessions: read-only session factory for the look-up (default: ``sessions``).
     :param public_read: anonymous requests may read.
@@ -131,8 +164,10 @@ class Authenticator:
         *,
         public_read: bool = False,
         link_key: bytes | None = None,
+        env_names: dict[str, str] | None = None,
     ) -> None:
         self._env = dict(env_tokens)
+        self._names = dict(env_names or {})
         self._sessions = sessions
         self._read_sessions = read_sessions or sessions
         self.public_read = public_read
@@ -141,9 +176,11 @@ class Authenticator:
         self._toucher = ThreadPoolExecutor(max_workers=1, thread_name_prefix="token-last-used")
         self.links = LinkSigner(link_key)
 
-    def add(self, secret: str, role: Role) -> None:
-        """Accept one more secret (e.g. the admin token generated at start)."""
+    def add(self, secret: str, role: Role, operator: str = "") -> None:
+        """Accept one more secret (e.g. the admin token generated at start), naming ``operator``."""
         self._env[_digest(secret)] = role
+        if operator:
+            self._names[_digest(secret)] = operator
 
     def is_env_secret(self, secret: str) -> bool:
         """``secret`` is one of the configured (not database) tokens."""
@@ -158,16 +195,17 @@ class Authenticator:
         """The principal of ``secret``, or ``None`` when no live token matches."""
         if len(secret) > MAX_SECRET_CHARS or "\x00" in secret:
             return None
-        role = self._env.get(_digest(secret))
+        digest = _digest(secret)
+        role = self._env.get(digest)
         if role is not None or self._read_sessions is None:
-            return Principal(role) if role is not None else None
+            return Principal(role, None, self._names.get(digest, "")) if role is not None else None
         with self._read_sessions.begin() as s:
             token = lookup_token(s, secret)
             if token is None:
                 return None
-            token_id, role = token.id, Role[token.role.name]
+            token_id, role, operator = token.id, Role[token.role.name], token.operator
         self._schedule_touch(token_id)
-        return Principal(role, token_id)
+        return Principal(role, token_id, operator)
 
     def is_live(self, who: Principal) -> bool:
         """``who`` may still act: a configured token or anonymous always, a database token

@@ -133,6 +133,17 @@ def require_operator(
     return _check(services, creds.credentials if creds else None, Role.OPERATOR)
 
 
+def require_operator_principal(
+    services: ServicesDep, creds: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
+) -> Principal:
+    """An operator (or admin) token, as the principal it belongs to (its operator's name goes into
+    the audit trail of the run it acts on)."""
+    try:
+        return services.auth.require_principal(creds.credentials if creds else None, Role.OPERATOR)
+    except AuthError as exc:
+        raise _http(exc) from None
+
+
 def require_viewer_or_link(
     request: Request,
     services: ServicesDep,
@@ -170,5 +181,6 @@ def require_admin(
 ViewerDep = Annotated[Role, Depends(require_viewer)]
 AdminDep = Annotated[Role, Depends(require_admin)]
 OperatorDep = Annotated[Role, Depends(require_operator)]
+OperatorPrincipalDep = Annotated[Principal, Depends(require_operator_principal)]
 ViewerLinkDep = Annotated[Principal, Depends(require_viewer_or_link)]
 ViewerPrincipalDep = Annotated[Principal, Depends(require_viewer_principal)]

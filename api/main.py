@@ -42,7 +42,7 @@ from fastapi.staticfiles import StaticFiles
 
 from api.agent.bench_agent import BenchAgent
 from api.analysis_worker import AnalysisPool
-from api.auth import Authenticator, Role, parse_tokens
+from api.auth import Authenticator, Role, parse_token_names, parse_tokens
 from api.db_revision import DatabaseRevision
 from api.deps import Services
 from api.doc_cache import DocumentCache, DocumentStore
@@ -107,6 +107,7 @@ def build_services(settings: Settings, clock: Callable[[], dt.datetime] = utc_no
         read_sessions,
         public_read=settings.public_read,
         link_key=settings.link_key.encode("utf-8") or None,
+        env_names=parse_token_names(settings.tokens),
     )
     analysis = AnalysisPool(settings.upload_workers)
     snapshots = SnapshotCache(read_sessions)
@@ -194,7 +195,7 @@ def create_app(
         install_log_redaction()  # after the server configured its logging
         services = build_services(settings, clock)
         for secret, role in (extra_tokens or {}).items():
-            services.auth.add(secret, Role[role.upper()])
+            services.auth.add(secret, Role[role.upper()], f"{role} token generated at start")
         agent = None
         if settings.agent == "embedded":
             agent = BenchAgent(settings, clock=clock)

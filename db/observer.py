@@ -25,6 +25,7 @@ from bench import records as br
 from bench.records import HOLDING_STATES
 from bench.run_observer import NullObserver
 from db.models import FINAL_STATES, FitKind, Run, RunState
+from db.models import run_params as rp
 from db.notify import notify_run
 from db.repo import progress, recovery, results, runs, units
 from db.types import utc_now
@@ -119,13 +120,13 @@ class DbRunObserver(NullObserver):
         """Create the run (fresh) or hand it to this process (resumed)."""
         params: dict[str, Any] = {
             **start.parameters,
-            "sample_rate_hz": start.sample_rate_hz,
-            "n_axes": start.n_axes,
-            "n_windows": start.n_windows,
-            "expected_duration_s": start.expected_duration_s,
+            rp.SAMPLE_RATE_HZ: start.sample_rate_hz,
+            rp.N_AXES: start.n_axes,
+            rp.N_WINDOWS: start.n_windows,
+            rp.EXPECTED_DURATION_S: start.expected_duration_s,
         }
         if start.dwell is not None:
-            params["dwell"] = dataclasses.asdict(start.dwell)
+            params[rp.DWELL] = dataclasses.asdict(start.dwell)
 
         def write(s: Session) -> None:
             bench = units.get_or_create_bench(s, start.bench_name)
@@ -174,7 +175,9 @@ class DbRunObserver(NullObserver):
                 lambda s: recovery.mark_run_interrupted(s, run_id, change.reason or "stopped", now=change.at)
             )
         elif change.state in _LIVE:
-            self._tx(lambda s: runs.set_live_state(s, run_id, change.state, now=change.at))
+            self._tx(
+                lambda s: runs.set_live_state(s, run_id, change.state, now=change.at, reason=change.reason)
+            )
 
     def on_progress(self, run_id: str, p: br.Progress) -> None:
         """Progress fraction and heartbeat, at most every ``min_progress_interval_s``."""
@@ -230,7 +233,7 @@ class DbRunObserver(NullObserver):
 
     def on_dwell(self, run_id: str, dwell: br.DwellChoice) -> None:
         """Store the dwell choice and its reason with the run's parameters."""
-        self._tx(lambda s: runs.merge_params(s, run_id, {"dwell": dataclasses.asdict(dwell)}))
+        self._tx(lambda s: runs.merge_params(s, run_id, {rp.DWELL: dataclasses.asdict(dwell)}))
 
     def on_gap(self, run_id: str, gap: br.GapRecord) -> None:
         """A sample gap, stored as it happens in ``params["sample_gaps"]`` (list of objects)."""
@@ -239,8 +242,8 @@ class DbRunObserver(NullObserver):
             run = s.get(Run, run_id, with_for_update=True)
             if run is None:
                 raise LookupError(f"run {run_id} not found")
-            gaps = list(run.params.get("sample_gaps") or [])
-            run.params = {**run.params, "sample_gaps": [*gaps, dataclasses.asdict(gap)]}
+            gaps = list(run.params.get(rp.SAMPLE_GAPS) or [])
+            run.params = {**run.params, rp.SAMPLE_GAPS: [*gaps, dataclasses.asdict(gap)]}
             s.flush()
 
         self._tx(write, notify=run_id)
@@ -262,9 +265,9 @@ class DbRunObserver(NullObserver):
             run.n_samples = record.n_samples
             run.limit_checks = [dataclasses.asdict(c) for c in record.limit_checks]
             # the recording's own list (a resume drops the gaps after the rows it cut)
-            run.params = {**run.params, "sample_gaps": [dataclasses.asdict(g) for g in record.gaps]}
+            run.params = {**run.params, rp.SAMPLE_GAPS: [dataclasses.asdict(g) for g in record.gaps]}
             if record.dwell is not None:
-                run.params = {**run.params, "dwell": dataclasses.asdict(record.dwell)}
+                run.params = {**run.params, rp.DWELL: dataclasses.asdict(record.dwell)}
             s.flush()
             if not record.state.is_final:
                 recovery.mark_run_interrupted(s, run_id, record.error or "the run stopped before finishing")

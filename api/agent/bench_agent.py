@@ -54,13 +54,13 @@ from bench.records import RunRecord, utc_now
 from bench.sequencer.control import SequencerConfig
 from db.engine import make_session_factory
 from db.migrate import open_database
-from db.models import Run, RunState
+from db.models import AGENT, Run, RunState
 from db.observer import finish_record
 from db.process import process_start_ticks
 from db.repo.benches import agent_alive, agent_gone
 from db.repo.queue import ClaimedRun, claim_next_run, pending_control, queue_resume
 from db.repo.recovery import mark_interrupted_runs
-from db.repo.runs import finish_run, merge_params
+from db.repo.runs import finish_run, set_service_run
 from db.repo.units import get_or_create_bench, get_unit_by_serial
 
 log = logging.getLogger(__name__)
@@ -97,7 +97,7 @@ def make_finisher(
                 nominal = unit_nominal(get_unit_by_serial(s, live.unit_serial))
             analysis = analyse_run(record, nominal)
         with sessions.begin() as s:
-            merge_params(s, record.run_id, {"service_kind": live.kind})
+            set_service_run(s, record.run_id, live.kind)
             # the final state commits in one transaction with the certificate (or drift check):
             # a run that reads completed has them
             finish_record(s, record)
@@ -188,7 +188,7 @@ class BenchAgent:
             due, waiting = fault_retry.due_resume(s, self.bench_id)
             if due is not None:
                 try:
-                    queue_resume(s, due)
+                    queue_resume(s, due, actor=AGENT)
                 except ValueError as exc:  # its recording no longer cuts at a window: not resumable
                     fault_retry.give_up(s, due, str(exc))
                     due = None
@@ -236,13 +236,11 @@ class BenchAgent:
             if claimed.point is not None:
                 self.runner.resume_claimed(service_resume.from_queue(claimed))
                 return
-            request = claimed.params.get("request") or {}
-            kind = claimed.params.get("service_kind", "calibration")
             self.runner.start(
                 claimed.unit_serial,
                 claimed.procedure,
-                dwell_s=request.get("dwell_s"),
-                kind="drift_check" if kind == "drift_check" else "calibration",
+                dwell_s=claimed.requested_dwell_s,
+                kind="drift_check" if claimed.kind == "drift_check" else "calibration",
                 run_id=claimed.run_id,
             )
         except (ValueError, BenchBusy) as exc:  # never leave a claimed run live without a worker

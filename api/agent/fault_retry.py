@@ -12,8 +12,8 @@ so: an operator resumes it on request (``POST /api/runs/{id}/resume``, ``calbenc
 once the bench is fixed.
 
 * ``calbench run`` / ``calbench resume``: :func:`run_resuming`, in the command's process.
-* the bench agent: :func:`schedule` stores the next try in the run's ``params``
-  (:data:`AUTO_KEY`), and the agent, while idle, queues the run when it is due
+* the bench agent: :func:`schedule` stores the next try with the run
+  (``Run.auto_resume``), and the agent, while idle, queues the run when it is due
   (:func:`due_resume`); the bench takes no other run meanwhile.
 """
 
@@ -37,9 +37,6 @@ log = logging.getLogger(__name__)
 
 FAULT_PREFIX = "device fault: "
 """Start of the error of a run interrupted by a fault the bench recovers from."""
-AUTO_KEY = "auto_resume"
-"""``Run.params`` key of the next automatic resume: ``{"attempt", "not_before", "windows",
-"fault"}``; ``"gave_up": true`` once the attempts are spent."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,7 +68,7 @@ def interrupted_by_fault(record: RunRecord) -> bool:
 
 
 def next_attempt(previous: object, windows: int) -> int:
-    """The number of the next try, from the stored :data:`AUTO_KEY` and the run's complete
+    """The number of the next try, from the stored ``Run.auto_resume`` and the run's complete
     windows now: one more than before, or 1 when a window was completed since."""
     if not isinstance(previous, dict) or not isinstance(previous.get("attempt"), int):
         return 1
@@ -128,9 +125,9 @@ def schedule(
     run = session.get(Run, run_id, with_for_update=True, populate_existing=True)
     if run is None or run.state is not RunState.INTERRUPTED:
         return None
-    attempt = next_attempt(run.params.get(AUTO_KEY), windows)
+    attempt = next_attempt(run.auto_resume, windows)
     if attempt > policy.attempts:
-        run.params = {**run.params, AUTO_KEY: {"gave_up": True, "windows": windows, "fault": fault}}
+        run.auto_resume = {"gave_up": True, "windows": windows, "fault": fault}
         run.error = (
             f"interrupted: {fault}; {policy.attempts} automatic resumes in a row recorded no window: "
             "resume it on request once the bench answers"
@@ -139,7 +136,7 @@ def schedule(
         return None
     not_before = (now or utc_now()) + dt.timedelta(seconds=policy.wait_s(attempt))
     entry = {"attempt": attempt, "not_before": not_before.isoformat(), "windows": windows, "fault": fault}
-    run.params = {**run.params, AUTO_KEY: entry}
+    run.auto_resume = entry
     session.flush()
     return entry
 
@@ -168,8 +165,8 @@ def give_up(session: Session, run_id: str, why: str) -> None:
     run = session.get(Run, run_id, with_for_update=True, populate_existing=True)
     if run is None:
         return
-    entry = run.params.get(AUTO_KEY)
-    run.params = {**run.params, AUTO_KEY: {**(entry if isinstance(entry, dict) else {}), "gave_up": True}}
+    entry = run.auto_resume
+    run.auto_resume = {**(entry if isinstance(entry, dict) else {}), "gave_up": True}
     run.error = f"interrupted: automatic resume refused: {why}"
     session.flush()
 
@@ -179,11 +176,10 @@ def due_resume(session: Session, bench_id: int, *, now: dt.datetime | None = Non
     pending but not yet due (the bench then waits for it)."""
     now = now or utc_now()
     rows = session.execute(
-        sa.select(Run.id, Run.params).where(Run.bench_id == bench_id, Run.state == RunState.INTERRUPTED)
+        sa.select(Run.id, Run.auto_resume).where(Run.bench_id == bench_id, Run.state == RunState.INTERRUPTED)
     ).all()
     waiting = False
-    for run_id, params in sorted(rows):
-        entry = (params or {}).get(AUTO_KEY)
+    for run_id, entry in sorted(rows):
         if not isinstance(entry, dict) or entry.get("gave_up") or "not_before" not in entry:
             continue
         try:

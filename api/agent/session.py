@@ -37,6 +37,7 @@ from db.migrate import open_database
 from db.models import Run, Unit
 from db.models import RunState as DbRunState
 from db.observer import DbRunObserver
+from db.repo.audit import command_line_actor
 from db.repo.recovery import ResumePoint, claim_for_resume, mark_interrupted_runs, mark_run_interrupted
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
@@ -236,7 +237,13 @@ def resume_run(
             if run is None:
                 raise ValueError(f"run {run_id!r} not found in {settings.effective_database_url}")
             try:
-                point = claim_for_resume(s, run_id, owner_pid=os.getpid(), owner_host=socket.gethostname())
+                point = claim_for_resume(
+                    s,
+                    run_id,
+                    owner_pid=os.getpid(),
+                    owner_host=socket.gethostname(),
+                    actor=command_line_actor(),
+                )
             except LookupError as exc:
                 raise ValueError(str(exc)) from exc
             procedure_name, params = run.procedure, dict(run.params)

@@ -95,12 +95,12 @@ def drift_checks_in_queue(s: Session) -> tuple[list[str], list[str]]:
     """Serials of the units whose drift check waits in a bench's queue, and of those whose check
     holds its bench (running, paused or suspended), each by serial."""
     rows = s.execute(
-        sa.select(Unit.serial, Run.state, Run.params)
+        sa.select(Unit.serial, Run.state)
         .join(Unit, Run.unit_id == Unit.id)
-        .where(Run.state.in_(list(ACTIVE_STATES)))
+        .where(Run.state.in_(list(ACTIVE_STATES)), Run.kind == "drift_check")
         .order_by(Unit.serial)
     ).all()
-    checks = [(serial, state) for serial, state, p in rows if p.get("service_kind") == "drift_check"]
+    checks = [(serial, state) for serial, state in rows]
     waiting = [serial for serial, state in checks if state is RunState.QUEUED]
     holding = [serial for serial, state in checks if state is not RunState.QUEUED]
     return waiting, holding

@@ -173,7 +173,7 @@ def history(serial: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
                 unreadable.append({"run_id": run.id, "error": str(exc)})
                 continue
             when = run.finished_at or run.started_at or run.created_at
-            kind = str(run.params.get("service_kind") or "other")
+            kind = str(run.kind or "other")
             points.append(HistoryPoint(run.id, when.isoformat() if when else "", fit, kind))
         channel_unit = unit.channel_unit or "?"
     out = coefficient_history(points, channel_unit)

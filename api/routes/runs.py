@@ -12,13 +12,22 @@ from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
 from api.certificates.conformity import unit_warnings
-from api.deps import OperatorDep, RunnerDep, ServicesDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
-from api.routes.views import live_out, run_out
+from api.deps import (
+    OperatorPrincipalDep,
+    RunnerDep,
+    ServicesDep,
+    SessionDep,
+    SettingsDep,
+    ViewerDep,
+    ViewerLinkDep,
+)
+from api.routes.views import audit_out, live_out, run_out
 from api.runs.events import RunSnapshot, SnapshotCache
 from api.runs.queue import NotResumable
 from api.runs.stream import run_events
-from api.schemas import AbortOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
+from api.schemas import AbortOut, AuditEntryOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
 from db.models import Certificate, RunState
+from db.repo.audit import run_audit
 from db.repo.progress import list_windows
 from db.repo.queue import finishing_since
 from db.repo.runs import get_run, list_runs
@@ -35,14 +44,16 @@ router = APIRouter(prefix="/api/runs", tags=["runs"])
     },
 )
 def start_run(
-    body: RunCreate, runner: RunnerDep, session: SessionDep, settings: SettingsDep, _: OperatorDep
+    body: RunCreate, runner: RunnerDep, session: SessionDep, settings: SettingsDep, who: OperatorPrincipalDep
 ) -> RunCreated:
     """Queue a procedure for a unit on the bench ``bench`` names, or (without it) on a free bench
     whose agent can run the procedure: the bench's agent starts it as soon as the bench is free
     (at once when idle; after the runs queued before it when busy). ``warnings`` says, e.g.,
     that the unit's model has no limits, so its certificate will make no statement of conformity."""
     try:
-        live = runner.start(body.unit_serial, body.procedure, dwell_s=body.dwell_s, bench=body.bench)
+        live = runner.start(
+            body.unit_serial, body.procedure, dwell_s=body.dwell_s, bench=body.bench, actor=who.actor
+        )
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
     with session.begin():
@@ -85,6 +96,7 @@ def run(run_id: str, session: SessionDep, runner: RunnerDep, settings: SettingsD
                 number,
                 with_diagnosis=True,
                 windows=list_windows(session, run_id),
+                audit=run_audit(session, run_id),
             )
     live = runner.live(run_id)
     if live is None:
@@ -92,15 +104,27 @@ def run(run_id: str, session: SessionDep, runner: RunnerDep, settings: SettingsD
     return live_out(live, settings.bench_name)
 
 
+@router.get(
+    "/{run_id}/audit", response_model=list[AuditEntryOut], responses={404: {"description": "no such run"}}
+)
+def audit(run_id: str, session: SessionDep, _: ViewerDep) -> list[AuditEntryOut]:
+    """Every action on the run, oldest first: who (the operator named by the token, ``agent`` or
+    ``system``), when (UTC) and what (a request, or the state it moved to and why)."""
+    with session.begin():
+        if get_run(session, run_id) is None:
+            raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
+        return [audit_out(a) for a in run_audit(session, run_id)]
+
+
 @router.post(
     "/{run_id}/abort",
     response_model=AbortOut,
     responses={404: {"description": "no such run"}, 409: {"description": "the run is not live"}},
 )
-def abort(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -> AbortOut:
+def abort(run_id: str, session: SessionDep, runner: RunnerDep, who: OperatorPrincipalDep) -> AbortOut:
     """Abort a live run: the table goes to its safe state, the recording is kept. A run still
     queued ends at once (``state`` ``aborted``); a live one is stopped by the bench's agent."""
-    if runner.abort(run_id):
+    if runner.abort(run_id, actor=who.actor):
         with session.begin():
             row = get_run(session, run_id)
             state = row.state if row is not None else RunState.RUNNING
@@ -133,11 +157,11 @@ def _not_live(session: SessionDep, run_id: str, what: str) -> HTTPException:
 
 
 @router.post("/{run_id}/pause", response_model=RunActionOut, responses=_NOT_LIVE)
-def pause(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
+def pause(run_id: str, session: SessionDep, runner: RunnerDep, who: OperatorPrincipalDep) -> RunActionOut:
     """Hold the live run: the table stops, the window in progress is dropped and recorded again
     when the run continues (``POST /api/runs/{id}/resume``). A run still waiting in the queue
     is held as soon as its agent starts it. Idempotent."""
-    if runner.pause(run_id):
+    if runner.pause(run_id, actor=who.actor):
         return RunActionOut(id=run_id, action="pause", state=RunState.PAUSED)
     raise _not_live(session, run_id, "nothing to pause")
 
@@ -151,7 +175,7 @@ def pause(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -
         409: {"description": "the run cannot be resumed (its state or recording says why)"},
     },
 )
-def resume(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) -> RunActionOut:
+def resume(run_id: str, session: SessionDep, runner: RunnerDep, who: OperatorPrincipalDep) -> RunActionOut:
     """Continue a run. A paused or suspended run holding the bench goes on (for a suspension,
     the operator's go-ahead: the table is prepared again once the interlock has closed). An
     ``interrupted`` run (its process died or the service shut down) is queued on its bench and
@@ -160,11 +184,11 @@ def resume(run_id: str, session: SessionDep, runner: RunnerDep, _: OperatorDep) 
     cur = runner.current
     if cur is not None and cur.id == run_id:
         # accepted while paused or suspended, or right after a pause its agent has not applied yet
-        if not runner.continue_run(run_id):
+        if not runner.continue_run(run_id, actor=who.actor):
             raise _not_live(session, run_id, "nothing to resume (no pause in effect or asked)")
         return RunActionOut(id=run_id, action="continue", state=RunState.RUNNING)
     try:
-        live = runner.resume(run_id)
+        live = runner.resume(run_id, actor=who.actor)
     except LookupError as exc:
         raise HTTPException(status.HTTP_404_NOT_FOUND, str(exc)) from None
     except NotResumable as exc:

@@ -25,6 +25,7 @@ def token_out(token: ApiToken) -> TokenOut:
         id=token.id,
         role=token.role.value,  # type: ignore[arg-type]
         label=token.label,
+        operator=token.operator,
         created_at=token.created_at,
         last_used_at=token.last_used_at,
         revoked_at=token.revoked_at,
@@ -35,7 +36,7 @@ def token_out(token: ApiToken) -> TokenOut:
 def create(body: TokenCreate, session: SessionDep, _: AdminDep) -> TokenCreated:
     """Create a token; the response carries its secret, which is not stored and not shown again."""
     with session.begin():
-        token, secret = create_token(session, TokenRole(body.role), body.label)
+        token, secret = create_token(session, TokenRole(body.role), body.label, operator=body.operator)
         return TokenCreated(**token_out(token).model_dump(), secret=secret)
 
 

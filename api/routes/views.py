@@ -5,18 +5,27 @@ from __future__ import annotations
 from typing import Any
 
 from api.runs.runner import LiveRun
-from api.schemas import CertificateOut, DriftCheckOut, LimitCheckOut, RunOut, SampleGapOut, WindowOut
+from api.schemas import (
+    AuditEntryOut,
+    CertificateOut,
+    DriftCheckOut,
+    LimitCheckOut,
+    RunOut,
+    SampleGapOut,
+    WindowOut,
+)
 from bench.diagnosis.stored import StoredDiagnosis
 from bench.fitted_model import ContractError
 from bench.limits import DECISION_RULES
-from db.models import Certificate, DriftCheck, Run, RunWindow
+from db.models import AuditAction, Certificate, DriftCheck, Run, RunAudit, RunWindow
+from db.models import run_params as rp
 from db.types import unreadable_reason
 
 
 def _kind(run: Run, live: LiveRun | None) -> str:
     if live is not None:
         return live.kind
-    kind = run.params.get("service_kind")
+    kind = run.kind
     return kind if kind in ("calibration", "drift_check") else "other"
 
 
@@ -28,16 +37,18 @@ def run_out(
     *,
     with_diagnosis: bool = False,
     windows: list[RunWindow] | None = None,
+    audit: list[RunAudit] | None = None,
 ) -> RunOut:
     """A stored run; a live one shows the runner's fresher progress. A stored value that cannot
     be parsed is shown empty and named in ``unreadable`` (:func:`unreadable_fields`).
 
     :param with_diagnosis: include the whole diagnosis object (one run's view, not lists).
     :param windows: the run's stored windows (one run's view), ``None`` in lists.
+    :param audit: the run's audit rows (one run's view), ``None`` in lists.
     """
     cal = run.params.get("calibration")
     diag, stored, note = _diagnosis(run)
-    raw_gaps = run.params.get("sample_gaps")
+    raw_gaps = run.params.get(rp.SAMPLE_GAPS)
     gaps = [SampleGapOut(**g) for g in raw_gaps if isinstance(g, dict)] if isinstance(raw_gaps, list) else []
     progress = run.progress
     if live is not None and run.state.is_live:
@@ -51,7 +62,7 @@ def run_out(
         progress=min(1.0, max(0.0, progress)),
         outcome=run.outcome,
         error=run.error,
-        bench=run.params.get("bench"),
+        bench=run.params.get(rp.BENCH),
         created_at=_readable(run.created_at),
         started_at=_readable(run.started_at),
         finished_at=_readable(run.finished_at),
@@ -64,17 +75,27 @@ def run_out(
         diagnosis_note=str(note) if diag is None and note else None,
         n_samples_lost=sum(g.n_lost or 0 for g in gaps) if run.n_samples is not None or gaps else None,
         gaps=gaps if with_diagnosis else None,
-        certificate_note=str(run.params["certificate_error"])
-        if run.params.get("certificate_error")
+        certificate_note=str(run.params[rp.CERTIFICATE_ERROR])
+        if run.params.get(rp.CERTIFICATE_ERROR)
         else None,
         limit_checks=[_check(c) for c in (run.limit_checks or [])],
         decision_rule=_rule(run.limit_checks),
         windows=[_window(w) for w in windows] if windows is not None else None,
         unreadable=unreadable_fields(run),
+        started_by=started_by(audit) if audit is not None else None,
+        audit=[audit_out(a) for a in audit] if audit is not None else None,
     )
 
 
-_RUN_FIELDS = ("params", "created_at", "started_at", "finished_at", "limit_checks")
+_RUN_FIELDS = (
+    "params",
+    "created_at",
+    "started_at",
+    "finished_at",
+    "limit_checks",
+    "live_progress",
+    "final_event",
+)
 
 
 def unreadable_fields(run: Run) -> str | None:
@@ -86,6 +107,23 @@ def unreadable_fields(run: Run) -> str | None:
 
 def _readable(value: Any) -> Any:
     return None if unreadable_reason(value) is not None else value
+
+
+def audit_out(row: RunAudit) -> AuditEntryOut:
+    """One audit row on the wire."""
+    return AuditEntryOut(
+        at=row.at,
+        actor=row.actor,
+        action=row.action.value,  # type: ignore[arg-type]
+        state=row.state,
+        detail=row.detail,
+        window_index=row.window_index,
+    )
+
+
+def started_by(audit: list[RunAudit]) -> str | None:
+    """Who asked for the run: the actor of its first start request."""
+    return next((a.actor for a in audit if a.action is AuditAction.START), None)
 
 
 def _diagnosis(run: Run) -> tuple[dict[str, Any] | None, StoredDiagnosis | None, object]:

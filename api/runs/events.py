@@ -1,8 +1,8 @@
 """A run's live events as the database holds them, for the event streams of any API process.
 
-The bench's agent writes a run's state, its latest progress (``params["live"]``,
+The bench's agent writes a run's state, its latest progress (``Run.live_progress``,
 :class:`api.runs.live.DbLiveObserver`), each complete window (``run_window``) and, once the
-results and certificate are stored, its final event (``params["service_finished"]``).
+results and certificate are stored, its final event (``Run.final_event``).
 :func:`run_snapshot` reads them in one short read-only transaction; the stream of
 ``GET /api/runs/{id}/events`` turns the differences between two snapshots into events. No
 in-process hub is needed, so every API worker streams every run, including after the
@@ -21,10 +21,9 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
-from api.runs.live import LIVE_KEY
-from api.runs.runner import FINISHED_KEY
 from api.runs.wakeup import EVENT_POLL_S
 from db.models import FINAL_STATES, Run, RunState, RunWindow
+from db.models.run_params import SAMPLE_GAPS
 from db.repo.recovery import DEFAULT_STALE_AFTER_S
 from db.types import utc_now
 
@@ -37,7 +36,7 @@ class RunSnapshot:
     :param last_window: index of the run's last complete window (``None``: none yet).
     :param live: the latest ``progress`` event's data, if the agent stored one.
     :param finished: the final event's data once the run is over and its results stored.
-    :param gaps: ``gap`` events: every sample gap recorded so far (``run.params["sample_gaps"]``).
+    :param gaps: ``gap`` events: every sample gap recorded so far (``run.params[SAMPLE_GAPS]``).
     """
 
     state: RunState
@@ -50,15 +49,15 @@ class RunSnapshot:
 
 
 def _finished(run: Run, now: dt.datetime) -> dict[str, Any] | None:
-    stored = run.params.get(FINISHED_KEY)
-    if isinstance(stored, dict) and run.state in (*FINAL_STATES, RunState.INTERRUPTED):
+    stored = run.final_event
+    if isinstance(stored, dict) and stored and run.state in (*FINAL_STATES, RunState.INTERRUPTED):
         return stored
     plain = {"state": run.state.value, "outcome": run.outcome, "error": run.error}
     if run.state is RunState.INTERRUPTED:
         return plain
     if run.state not in FINAL_STATES:
         return None
-    if run.params.get("service_kind") is None:  # not a service run: nothing more will be stored
+    if run.kind is None:  # not a service run: nothing more will be stored
         return plain
     ended = run.finished_at or run.heartbeat_at
     if ended is not None and (now - ended).total_seconds() > DEFAULT_STALE_AFTER_S:
@@ -95,7 +94,7 @@ def run_snapshot(
                 }
                 for w in rows
             ]
-        live = run.params.get(LIVE_KEY)
+        live = run.live_progress
         last = windows[-1]["index"] if windows else run.last_complete_window
         if after_window is not None and last is not None and last < after_window:
             last = after_window  # a resumed run re-records from an earlier window
@@ -106,7 +105,7 @@ def run_snapshot(
             tuple(windows),
             last,
             _finished(run, utc_now()),
-            tuple(g for g in run.params.get("sample_gaps") or () if isinstance(g, dict)),
+            tuple(g for g in run.params.get(SAMPLE_GAPS) or () if isinstance(g, dict)),
         )
 
 

@@ -3,7 +3,7 @@
 :class:`LiveRun` is the runner's view of one run (state, progress, control handle);
 :class:`HubObserver` publishes the run's state, progress and windows to the event streams;
 :class:`ServiceParamsObserver` stores with the run what a later resume needs (the kind of
-service run, the age of the simulated unit).
+service run, the age of the simulated unit); :class:`DbLiveObserver` its latest progress.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from typing import Any, Literal
 from sqlalchemy.orm import Session, sessionmaker
 
 from api.runs.hub import ProgressHub
-from api.runs.resume import SIM_AGE_KEY
 from bench.records import (
     GapRecord,
     Progress,
@@ -32,7 +31,7 @@ from bench.records import (
 )
 from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl
-from db.repo.runs import merge_params
+from db.repo.runs import set_live_progress, set_service_run
 
 RunKind = Literal["calibration", "drift_check"]
 
@@ -97,27 +96,22 @@ class HubObserver(NullObserver):
 
 
 class ServiceParamsObserver(NullObserver):
-    """Stores ``service_kind`` and, on a simulated bench, the simulated unit's age with the run
-    when it starts (or resumes), so a resume after a restart continues the same measurement."""
+    """Stores the kind of service run and, on a simulated bench, the simulated unit's age with
+    the run when it starts (or resumes), so a resume after a restart continues the same
+    measurement (``Run.kind``, ``Run.sim_age_days``)."""
 
     def __init__(self, live: LiveRun, sessions: sessionmaker[Session], sim: bool) -> None:
         self.live, self.sessions, self.sim = live, sessions, sim
 
     def on_start(self, start: RunStart) -> None:
-        extra: dict[str, Any] = {"service_kind": self.live.kind}
-        if self.sim:
-            extra[SIM_AGE_KEY] = self.live.age_days
         with self.sessions.begin() as s:
-            merge_params(s, start.run_id, extra)
-
-
-LIVE_KEY = "live"
-"""``Run.params`` key of the run's latest progress (the ``progress`` event's data), written by
-the bench's agent so that every API process can stream it."""
+            set_service_run(
+                s, start.run_id, self.live.kind, sim_age_days=self.live.age_days if self.sim else None
+            )
 
 
 class DbLiveObserver(NullObserver):
-    """Stores the latest progress of the run in ``params["live"]`` at most every
+    """Stores the latest progress of the run (``Run.live_progress``) at most every
     ``min_interval_s`` (and always on a state change), for the event streams of API processes
     that do not hold the bench.
 
@@ -140,7 +134,7 @@ class DbLiveObserver(NullObserver):
         self._last = now
         data = progress_data(progress)
         with self.sessions.begin() as s:
-            merge_params(s, run_id, {LIVE_KEY: data})
+            set_live_progress(s, run_id, data)
 
 
 def progress_data(progress: Progress) -> dict[str, Any]:

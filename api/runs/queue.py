@@ -24,12 +24,12 @@ from sqlalchemy.orm import Session, sessionmaker
 from api.runs import resume as service_resume
 from api.runs.live import LiveRun, RunKind
 from api.runs.resume import NotResumable
-from api.runs.runner import FINISHED_KEY
 from api.settings import Settings
 from bench.procedures import build_procedure, preview
 from bench.records import new_run_id, utc_now
 from bench.sequencer.control import RunControl, SequencerConfig
-from db.models import ACTIVE_STATES, FINAL_STATES, Run, Unit
+from db.models import ACTIVE_STATES, FINAL_STATES, SYSTEM, Run, Unit
+from db.models.run_params import BENCH
 from db.process import process_alive
 from db.repo.benches import bench_status, choose_bench, find_bench
 from db.repo.queue import (
@@ -44,10 +44,7 @@ from db.repo.queue import (
 from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs
 from db.repo.units import get_or_create_bench, get_or_create_unit, get_unit_by_serial
 
-__all__ = ["NIGHT_KEY", "NotResumable", "RunQueue", "UnknownBench"]
-
-NIGHT_KEY = "drift_night"
-"""Key of a nightly drift check's ``params``: the scheduled time of its night (ISO 8601)."""
+__all__ = ["NotResumable", "RunQueue", "UnknownBench"]
 
 
 class UnknownBench(ValueError):
@@ -107,13 +104,13 @@ class RunQueue:
             .limit(3)
         )
         for run in rows:
-            service = run.params.get("service_kind") is not None
+            service = run.kind is not None
             # a run aborted while queued was never owned: nothing is storing it
             owner_alive = run.owner_host is not None and (
                 run.owner_host != socket.gethostname()
                 or (run.owner_pid is not None and process_alive(run.owner_pid))
             )
-            if service and FINISHED_KEY not in run.params and owner_alive:
+            if service and run.final_event is None and owner_alive:
                 return run
         return None
 
@@ -130,6 +127,7 @@ class RunQueue:
         kind: RunKind = "calibration",
         bench: str | None = None,
         drift_night: str | None = None,
+        actor: str = SYSTEM,
     ) -> LiveRun:
         """Queue a run on ``bench`` (also while it is busy); its agent starts it when free.
         A drift check of a unit that has one queued or running already is that one, and so is a
@@ -139,7 +137,9 @@ class RunQueue:
         :param bench: a bench's name or its bench file's name; ``None``: a free bench that can run
             the procedure (:meth:`bench_for`), a drift check this API's bench.
         :param drift_night: the scheduled time of the night a drift check is for (ISO 8601, the
-            same in every API process); stored in the run's ``params`` (``drift_night``).
+            same in every API process); stored with the run (``Run.drift_night``).
+        :param actor: who asks (the operator's name; the drift scheduler: ``system``), stored in
+            the run's audit trail.
         :raises UnknownBench: no such bench, or it cannot run the procedure (named).
         :raises ValueError: unknown procedure or one the table limits refuse.
         """
@@ -150,25 +150,31 @@ class RunQueue:
             raise ValueError(f"{procedure}: " + "; ".join(pv.problems))
         now = self.clock()
         run_id = new_run_id(unit_serial, now)
-        params: dict[str, object] = {"service_kind": kind, "request": {"dwell_s": dwell_s}}
         with self.sessions.begin() as s:
             name = self.bench_for(s, procedure, bench, kind)
-            params["bench"] = name
+            params: dict[str, object] = {BENCH: name}
             bench_row = get_or_create_bench(s, name)
             unit = get_or_create_unit(s, unit_serial, bench_id=bench_row.id)
             if kind == "drift_check":  # every API process has a scheduler: one check per unit at a time
                 # the unit's row lock orders two processes queueing its check (PostgreSQL; SQLite
                 # writers are alone anyway)
                 s.execute(sa.select(Unit.id).where(Unit.id == unit.id).with_for_update())
-                for run in s.scalars(sa.select(Run).where(Run.unit_id == unit.id)):
-                    if run.params.get("service_kind") != "drift_check":
-                        continue
-                    same_night = drift_night is not None and run.params.get(NIGHT_KEY) == drift_night
+                for run in s.scalars(sa.select(Run).where(Run.unit_id == unit.id, Run.kind == "drift_check")):
+                    same_night = drift_night is not None and run.drift_night == drift_night
                     if run.state in ACTIVE_STATES or same_night:
                         return _live_of(run, unit_serial)
-                if drift_night is not None:
-                    params[NIGHT_KEY] = drift_night
-            queue_run(s, run_id, unit.id, bench_row.id, procedure, params)
+            queue_run(
+                s,
+                run_id,
+                unit.id,
+                bench_row.id,
+                procedure,
+                params,
+                kind=kind,
+                requested_dwell_s=dwell_s,
+                drift_night=drift_night if kind == "drift_check" else None,
+                actor=actor,
+            )
         created = LiveRun(run_id, unit_serial, procedure, kind, RunControl(), 0.0)
         created.extra["bench"] = name
         return created
@@ -196,8 +202,9 @@ class RunQueue:
             )
         return status.name
 
-    def resume(self, run_id: str) -> LiveRun:
-        """Queue an ``interrupted`` run to continue from the window after its last complete one.
+    def resume(self, run_id: str, actor: str = SYSTEM) -> LiveRun:
+        """Queue an ``interrupted`` run to continue from the window after its last complete one
+        (``actor`` asks: stored in its audit trail).
 
         :raises LookupError: no such run. :raises NotResumable: its state or recording forbids it.
         """
@@ -205,7 +212,7 @@ class RunQueue:
             mark_interrupted_runs(s, socket.gethostname())  # a run whose owner has died since
             run = service_resume.check_resumable(s, run_id)
             try:
-                point = queue_resume(s, run_id)
+                point = queue_resume(s, run_id, actor=actor)
             except ValueError as exc:
                 raise NotResumable(str(exc)) from None
             if point is None:
@@ -215,24 +222,25 @@ class RunQueue:
         live.extra["resumed_from_window"] = point.next_window_index
         return live
 
-    def _request(self, run_id: str, action: ControlAction, reason: str = "") -> bool:
+    def _request(self, run_id: str, action: ControlAction, reason: str = "", actor: str = SYSTEM) -> bool:
         try:
             with self.sessions.begin() as s:
-                return request_control(s, run_id, action, reason) is not None
+                return request_control(s, run_id, action, reason, actor=actor) is not None
         except LookupError:
             return False
 
-    def abort(self, run_id: str, reason: str = "operator abort over REST") -> bool:
-        """Ask the bench's agent to abort the run (a queued one ends at once); False if not live."""
-        return self._request(run_id, "abort", reason)
+    def abort(self, run_id: str, reason: str = "operator abort over REST", actor: str = SYSTEM) -> bool:
+        """Ask the bench's agent to abort the run (a queued one ends at once); False if not live.
+        ``actor`` (who asks) goes into the run's audit trail, as for every request below."""
+        return self._request(run_id, "abort", reason, actor)
 
-    def pause(self, run_id: str) -> bool:
+    def pause(self, run_id: str, actor: str = SYSTEM) -> bool:
         """Ask the agent to hold the run; False if it is not live."""
-        return self._request(run_id, "pause")
+        return self._request(run_id, "pause", actor=actor)
 
-    def continue_run(self, run_id: str) -> bool:
+    def continue_run(self, run_id: str, actor: str = SYSTEM) -> bool:
         """Ask the agent to let a paused or suspended run go on; False if it is not live."""
-        return self._request(run_id, "continue")
+        return self._request(run_id, "continue", actor=actor)
 
     def queued(self) -> list[str]:
         """Ids of the bench's queued runs, in the order the agent takes them."""
@@ -255,12 +263,11 @@ class RunQueue:
 
 
 def _live_of(run: Run, serial: str) -> LiveRun:
-    kind = run.params.get("service_kind")
     live = LiveRun(
         run.id,
         serial,
         run.procedure,
-        kind if kind in ("calibration", "drift_check") else "calibration",
+        "drift_check" if run.kind == "drift_check" else "calibration",
         RunControl(),
         0.0,
         state=run.state,

@@ -29,7 +29,8 @@ from api.settings import Settings
 from bench.records import RunRecord
 from bench.run_observer import RunObserver
 from bench.sequencer.control import RunControl
-from db.models import Run, RunState, Unit
+from db.models import SYSTEM, Run, RunState, Unit
+from db.repo.audit import record_state
 from db.repo.queue import ClaimedRun
 from db.repo.recovery import ResumePoint, claim_for_resume
 from db.types import utc_now
@@ -37,9 +38,6 @@ from drivers.sim.physics import SensorTruth
 
 SHUTDOWN_REASON = "service shutdown: resumable after the restart"
 """The abort reason of a run stopped by a service shutdown (it is in the stored error)."""
-
-SIM_AGE_KEY = "service_sim_age_days"
-"""``Run.params`` key: age (days) of the simulated unit the run started with."""
 
 
 class NotResumable(Exception):
@@ -61,7 +59,10 @@ def interrupt_shutdown_abort(session: Session, run_id: str) -> bool:
         )
         .execution_options(synchronize_session="fetch")
     )
-    return bool(getattr(result, "rowcount", 0) == 1)
+    changed = bool(getattr(result, "rowcount", 0) == 1)
+    if changed:
+        record_state(session, run_id, RunState.INTERRUPTED, SYSTEM, "the service shut down during the run")
+    return changed
 
 
 def recover_shutdown_aborts(session: Session) -> list[str]:
@@ -76,7 +77,7 @@ def recover_shutdown_aborts(session: Session) -> list[str]:
 class Claimed:
     """An interrupted run this process now owns, with what its continuation needs.
 
-    :param kind: ``calibration`` or ``drift_check`` (``params["service_kind"]``; a run
+    :param kind: ``calibration`` or ``drift_check`` (``Run.kind``; a run
         started from the CLI counts as a calibration).
     :param sim_age_days: age of the simulated unit at the run's start, ``None`` when the run
         was not started by the service's simulated bench (the seed's unit is used then).
@@ -110,28 +111,21 @@ def check_resumable(session: Session, run_id: str) -> Run:
     return run
 
 
-def claim(session: Session, run_id: str) -> Claimed:
-    """Claim ``run_id`` for this process (exactly once among concurrent claimers).
+def claim(session: Session, run_id: str, actor: str = SYSTEM) -> Claimed:
+    """Claim ``run_id`` for this process (exactly once among concurrent claimers), asked by
+    ``actor`` (stored in the run's audit trail).
 
     :raises LookupError: no such run. :raises NotResumable: not interrupted, or its recording
         cannot be cut at a window boundary (the message names the chunk or window).
     """
     run = check_resumable(session, run_id)
     try:
-        point = claim_for_resume(session, run_id, owner_pid=os.getpid(), owner_host=socket.gethostname())
+        point = claim_for_resume(
+            session, run_id, owner_pid=os.getpid(), owner_host=socket.gethostname(), actor=actor
+        )
     except ValueError as exc:
         raise NotResumable(str(exc)) from None
-    unit = session.get(Unit, run.unit_id)
-    return from_queue(
-        ClaimedRun(
-            run_id,
-            unit.serial if unit is not None else "?",
-            getattr(unit, "model", None),
-            run.procedure,
-            dict(run.params),
-            point,
-        )
-    )
+    return from_queue(ClaimedRun.of(run, session.get(Unit, run.unit_id), point))
 
 
 def from_queue(queued: ClaimedRun) -> Claimed:
@@ -139,8 +133,7 @@ def from_queue(queued: ClaimedRun) -> Claimed:
     agent, or by :func:`claim` in this process."""
     if queued.point is None:
         raise ValueError(f"run {queued.run_id} was queued as a fresh run, not a resume")
-    kind = queued.params.get("service_kind")
-    age = queued.params.get(SIM_AGE_KEY)
+    kind, age = queued.kind, queued.sim_age_days
     return Claimed(
         queued.run_id,
         queued.unit_serial,
@@ -149,7 +142,7 @@ def from_queue(queued: ClaimedRun) -> Claimed:
         queued.params,
         queued.point,
         kind if kind in ("calibration", "drift_check") else "calibration",
-        float(age) if isinstance(age, int | float) else None,
+        age,
     )
 
 

@@ -38,12 +38,12 @@ from bench.procedures import build_procedure, preview
 from bench.records import Outcome, RunRecord, RunState, new_run_id, utc_now
 from bench.run_observer import RunObserver
 from bench.sequencer.control import RunControl, SequencerConfig
-from db.models import Run
 from db.models import RunState as DbRunState
+from db.models.run_params import CERTIFICATE_ERROR
 from db.observer import finish_record
 from db.repo.queue import enter_finishing
 from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
-from db.repo.runs import finish_run, merge_params
+from db.repo.runs import finish_run, merge_params, set_final_event
 from db.repo.units import get_unit_by_serial
 from drivers.sim.physics import SensorTruth
 
@@ -52,9 +52,6 @@ __all__ = ["BenchBusy", "BenchRunner", "LiveRun", "NotResumable", "RunKind", "si
 log = logging.getLogger(__name__)
 
 Finisher = Callable[[LiveRun, RunRecord], None]
-FINISHED_KEY = "service_finished"
-"""``Run.params`` key of a service run's final event (state, outcome, error, certificate number
-or drift result), written once its results are stored."""
 
 
 class BenchBusy(Exception):
@@ -362,7 +359,7 @@ class BenchRunner:
         try:
             with self.sessions.begin() as s:
                 if finish_record(s, record) and live.error and live.error != record.error:
-                    merge_params(s, live.id, {"certificate_error": f"results not stored: {live.error}"})
+                    merge_params(s, live.id, {CERTIFICATE_ERROR: f"results not stored: {live.error}"})
         except Exception:
             log.exception("run %s: could not store its final state", live.id)
 
@@ -374,12 +371,12 @@ class BenchRunner:
             log.exception("run %s: could not store its error", live.id)
 
     def _store_finished(self, live: LiveRun, finished: dict[str, object]) -> None:
-        """The run's last event, in the run's params (``service_finished``): API processes end
-        their event streams with it (the results and certificate are stored by then)."""
+        """The run's last event (``Run.final_event``: state, outcome, error, certificate number or
+        drift result): API processes end their event streams with it (the results and
+        certificate are stored by then)."""
         try:
             with self.sessions.begin() as s:
-                if s.get(Run, live.id) is not None:
-                    merge_params(s, live.id, {FINISHED_KEY: finished})
+                set_final_event(s, live.id, finished)
         except Exception:
             log.exception("run %s: could not store its final event", live.id)
 

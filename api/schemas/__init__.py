@@ -26,6 +26,7 @@ from api.schemas.access import (
 from api.schemas.common import MIN_DWELL_S, SERIAL_PATTERN, RunStateName
 from api.schemas.runs import (
     AbortOut,
+    AuditEntryOut,
     BenchOut,
     LimitCheckOut,
     ProcedurePreviewOut,
@@ -53,6 +54,7 @@ __all__ = [
     "MIN_DWELL_S",
     "SERIAL_PATTERN",
     "AbortOut",
+    "AuditEntryOut",
     "BenchOut",
     "CertificateOut",
     "DriftCheckOut",

@@ -6,7 +6,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from api.schemas.common import stored_text
 
@@ -62,11 +62,24 @@ class TokenCreate(BaseModel):
 
     role: TokenRoleName
     label: str = Field(default="", max_length=200, description="who or what uses it, e.g. 'wall screen'")
+    operator: str = Field(
+        default="",
+        max_length=100,
+        description="the person the token stands for; every run action taken with it is stored under "
+        "this name (the run's audit trail); required for operator and admin tokens",
+        examples=["Ada Lovelace"],
+    )
 
-    @field_validator("label")
+    @field_validator("label", "operator")
     @classmethod
     def _plain_text(cls, value: str) -> str:
-        return stored_text(value) or ""
+        return (stored_text(value) or "").strip()
+
+    @model_validator(mode="after")
+    def _named_when_it_acts(self) -> TokenCreate:
+        if self.role in ("operator", "admin") and not self.operator:
+            raise ValueError(f"operator: an {self.role} token acts on runs: name the person it stands for")
+        return self
 
 
 class TokenOut(BaseModel):
@@ -75,6 +88,7 @@ class TokenOut(BaseModel):
     id: int
     role: TokenRoleName
     label: str
+    operator: str = Field(default="", description="the person the token stands for")
     created_at: dt.datetime
     last_used_at: dt.datetime | None = None
     revoked_at: dt.datetime | None = None

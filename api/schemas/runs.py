@@ -155,6 +155,21 @@ class WindowOut(BaseModel):
     pose_deg: list[float] = Field(default_factory=list)
 
 
+class AuditEntryOut(BaseModel):
+    """One action on a run (``run_audit``): who took it, when, and what it did."""
+
+    at: dt.datetime = Field(description="when (UTC)")
+    actor: str = Field(description="the operator's name (from the token), `agent` or `system`")
+    action: Literal["start", "pause", "continue", "abort", "resume", "state"] = Field(
+        description="an operator's request, or `state`: the run's state changed (to `state`)"
+    )
+    state: RunStateName | None = Field(default=None, description="the new state of a `state` action")
+    detail: str = Field(default="", description="the reason or request, e.g. `interlock open`")
+    window_index: int | None = Field(
+        default=None, description="the window being recorded at a state change; the first window of a resume"
+    )
+
+
 class RunOut(BaseModel):
     """One run as stored (or, before its first database write, as the bench's worker knows it)."""
 
@@ -211,6 +226,14 @@ class RunOut(BaseModel):
         default=None,
         description="stored values of the run that cannot be parsed, each named with the parser's message "
         "(those fields are shown empty); null when the whole row reads",
+    )
+    started_by: str | None = Field(
+        default=None, description="who asked for the run (in `GET /api/runs/{id}`; null in lists)"
+    )
+    audit: list[AuditEntryOut] | None = Field(
+        default=None,
+        description="every action on the run, oldest first: who, when, what (in `GET /api/runs/{id}`; "
+        "null in lists); also `GET /api/runs/{id}/audit`",
     )
 
 

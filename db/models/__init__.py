@@ -6,17 +6,19 @@ table              holds
 ``bench``          a rotary table + DAQ station (unique name, device URLs)
 ``unit``           a sensor under calibration (unique serial)
 ``run``            one procedure on one unit: state machine, owner process, progress
+``run_audit``      every action on a run: operator (or agent, system), time, state, reason
 ``run_window``     a completed window of a run (label, times, per-channel means)
 ``sample_chunk``   a durable chunk of the run's recording CSV (the CSV is the sample store)
 ``fit_model``      a fitted model: the ``calibrate --json`` dict and its covariance (.npy)
 ``finding``        a diagnosis finding (effect id, parameters, sigma, delta BIC)
 ``certificate``    an issued certificate: unique number, JSON content, sha256, optional PDF
 ``drift_check``    a nightly re-measurement compared with the unit's last certificate
-``api_token``      a hashed REST token with its role
+``api_token``      a hashed REST token with its role and the operator it names
 =================  ==========================================================================
 """
 
 from db.base import Base
+from db.models.audit import AGENT, SYSTEM, AuditAction, RunAudit
 from db.models.results import Certificate, DriftCheck, Finding, FitKind, FitModel
 from db.models.runs import (
     ACTIVE_STATES,
@@ -32,9 +34,12 @@ from db.models.units import Bench, Unit
 
 __all__ = [
     "ACTIVE_STATES",
+    "AGENT",
     "FINAL_STATES",
     "RESUMABLE_STATES",
+    "SYSTEM",
     "ApiToken",
+    "AuditAction",
     "Base",
     "Bench",
     "Certificate",
@@ -43,6 +48,7 @@ __all__ = [
     "FitKind",
     "FitModel",
     "Run",
+    "RunAudit",
     "RunState",
     "RunWindow",
     "SampleChunk",

@@ -20,6 +20,7 @@ from db.base import Base, IntId
 from db.models._enum import value_enum
 
 if TYPE_CHECKING:
+    from db.models.audit import RunAudit
     from db.models.units import Bench, Unit
 
 
@@ -34,7 +35,27 @@ class Run(Base):
     :param state: :class:`bench.records.RunState` (the one run vocabulary).
     :param outcome: ``PASS``/``FAIL``/``ERROR``/``ABORTED`` once finished, else ``None``.
     :param progress: fraction done, 0..1.
-    :param params: procedure parameters (JSON), including the dwell choice and its reason.
+    :param params: the procedure's parameters (JSON), including the dwell choice and its reason,
+        and the analysis results not yet in rows of their own; keys: :mod:`db.models.run_params`.
+    :param kind: ``calibration`` or ``drift_check`` for a run the service queued, ``None`` for a
+        run started from the command line.
+    :param requested_dwell_s: the dwell the request asked for (s), ``None``: decided by the run.
+    :param drift_night: a nightly drift check's scheduled night (ISO 8601), one check a night.
+    :param sim_age_days: age (days) of the simulated unit a run on a simulated bench started
+        with, so a resume measures the same sensor.
+    :param abort_request: the reason of an abort asked of the run (sticky), ``None``: none.
+    :param control_seq, control_action: the newest pause or continue request (numbered from 1;
+        0: none); its owner applies each number once.
+    :param resume_requested: an interrupted run queued to continue; the claim computes where.
+    :param finishing_since: when the owner had done every step (UTC): from then on abort, pause
+        and continue are refused (``db.repo.queue.enter_finishing``); ``None`` before.
+    :param auto_resume: the next automatic resume of a run a device fault interrupted
+        (``{"attempt", "not_before", "windows", "fault"}``; ``"gave_up": true`` once the tries are
+        spent; ``api.agent.fault_retry``), ``None``: none.
+    :param live_progress: the latest ``progress`` event's data, for the streams of every API
+        process.
+    :param final_event: the run's last event (state, outcome, error, certificate number), written
+        once its results are stored; the event streams end with it.
     :param heartbeat_at: last sign of life of the owner process (UTC).
     :param owner_pid, owner_host: the process that owns the run, so a restart can tell
         a dead owner.
@@ -66,9 +87,27 @@ class Run(Base):
     resume_count: Mapped[int] = mapped_column(default=0)
     n_samples: Mapped[int | None] = mapped_column(sa.BigInteger)
     limit_checks: Mapped[list[Any]] = mapped_column(default=list)
+    kind: Mapped[str | None] = mapped_column(sa.String(16))
+    requested_dwell_s: Mapped[float | None]
+    drift_night: Mapped[str | None] = mapped_column(sa.String(40))
+    sim_age_days: Mapped[float | None]
+    abort_request: Mapped[str | None] = mapped_column(sa.Text)
+    control_seq: Mapped[int] = mapped_column(default=0, server_default="0")
+    control_action: Mapped[str | None] = mapped_column(sa.String(16))
+    resume_requested: Mapped[bool] = mapped_column(default=False, server_default=sa.false())
+    finishing_since: Mapped[dt.datetime | None]
+    auto_resume: Mapped[dict[str, Any] | None]
+    live_progress: Mapped[dict[str, Any] | None]
+    final_event: Mapped[dict[str, Any] | None]
 
     unit: Mapped[Unit] = relationship(back_populates="runs", lazy="raise")
     bench: Mapped[Bench | None] = relationship(lazy="raise")
+    audit: Mapped[list[RunAudit]] = relationship(
+        lazy="raise",
+        order_by="RunAudit.id",
+        cascade="all, delete-orphan",
+        passive_deletes=True,
+    )
     windows: Mapped[list[RunWindow]] = relationship(
         back_populates="run",
         lazy="raise",

@@ -9,14 +9,15 @@ oldest queued run with ``SELECT … FOR UPDATE SKIP LOCKED`` (PostgreSQL) and mo
 ``running`` with a conditional ``UPDATE … WHERE state = 'queued'``: of two agents (or two
 claims) exactly one gets it, and a bench never runs two runs at once.
 
-Control requests (abort, pause, continue) are written into the run's ``params`` by
+Control requests (abort, pause, continue) are written into the run's columns by
 :func:`request_control`; the agent reads them with :func:`pending_control`. An abort is
-sticky (``params["abort_requested"]``); pause and continue are a numbered request
-(``params["control"] = {"seq", "action"}``): the agent applies the newest one it has not
+sticky (``run.abort_request``, its reason); pause and continue are a numbered request
+(``run.control_seq``, ``run.control_action``): the agent applies the newest one it has not
 applied, from the claim on, so a pause asked of a run still waiting in the queue holds it as
 soon as it starts. A resume of an ``interrupted`` run is queued like a fresh run
-(:func:`queue_resume`, ``params["resume_requested"]``); the claim then computes where the
+(:func:`queue_resume`, ``run.resume_requested``); the claim then computes where the
 recording is cut and deletes the chunk rows after it, as :func:`db.repo.recovery.claim_for_resume`.
+Every request is an audit row (``run_audit``) with the operator who made it.
 """
 
 from __future__ import annotations
@@ -28,29 +29,27 @@ from typing import Any, Literal
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from db.models import Bench, Run, RunState, SampleChunk, Unit
+from bench.records import HOLDING_STATES
+from db.models import SYSTEM, AuditAction, Bench, Run, RunState, SampleChunk, Unit
 from db.notify import notify_run
+from db.repo.audit import record_action, record_state
 from db.repo.lease import lease_is_current
 from db.repo.recovery import ResumePoint, resume_point
 from db.types import utc_now
 
 ControlAction = Literal["abort", "pause", "continue"]
-HOLDING_STATES = (RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED)
-"""States of a run that holds its bench (an owner process drives the table)."""
-RESUME_KEY = "resume_requested"
-ABORT_KEY = "abort_requested"
-CONTROL_KEY = "control"
-FINISHING_KEY = "finishing_since"
-"""``params`` key set by the owner when every step is done (:func:`enter_finishing`): from then
-on abort, pause and continue are refused."""
+_ACTION = {"abort": AuditAction.ABORT, "pause": AuditAction.PAUSE, "continue": AuditAction.CONTINUE}
 
 
 @dataclasses.dataclass(frozen=True)
 class ClaimedRun:
     """A run an agent has just claimed.
 
-    :param params: the run's parameters as queued (request, kind, …).
+    :param params: the run's parameters as stored.
     :param point: where a resumed run picks up; ``None`` for a fresh run.
+    :param kind: ``calibration``/``drift_check`` (``Run.kind``), ``None``: not queued by the service.
+    :param requested_dwell_s: the dwell the request asked for (s), ``None``: decided by the run.
+    :param sim_age_days: the simulated unit's age the run started with (``None``: not stored).
     """
 
     run_id: str
@@ -59,6 +58,24 @@ class ClaimedRun:
     procedure: str
     params: dict[str, Any]
     point: ResumePoint | None
+    kind: str | None = None
+    requested_dwell_s: float | None = None
+    sim_age_days: float | None = None
+
+    @classmethod
+    def of(cls, run: Run, unit: Unit | None, point: ResumePoint | None) -> ClaimedRun:
+        """The claim of ``run`` (its unit, where it picks up)."""
+        return cls(
+            run.id,
+            unit.serial if unit is not None else "?",
+            getattr(unit, "model", None),
+            run.procedure,
+            dict(run.params),
+            point,
+            run.kind,
+            run.requested_dwell_s,
+            run.sim_age_days,
+        )
 
 
 def _dialect(session: Session) -> str:
@@ -73,9 +90,17 @@ def queue_run(
     procedure: str,
     params: dict[str, Any],
     *,
+    kind: str | None = None,
+    requested_dwell_s: float | None = None,
+    drift_night: str | None = None,
+    actor: str = SYSTEM,
     now: dt.datetime | None = None,
 ) -> Run:
-    """Add a run ``queued`` for the bench, with no owner (an agent claims it)."""
+    """Add a run ``queued`` for the bench, with no owner (an agent claims it), and the audit row
+    of its start request by ``actor``.
+
+    :param kind: ``calibration`` or ``drift_check``; :param drift_night: a drift check's night.
+    """
     now = now or utc_now()
     run = Run(
         id=run_id,
@@ -85,18 +110,23 @@ def queue_run(
         state=RunState.QUEUED,
         progress=0.0,
         params=dict(params),
+        kind=kind,
+        requested_dwell_s=requested_dwell_s,
+        drift_night=drift_night,
         created_at=now,
         heartbeat_at=now,
     )
     session.add(run)
     session.flush()
+    dwell = f", dwell {requested_dwell_s:g} s" if requested_dwell_s is not None else ""
+    record_action(session, run_id, AuditAction.START, actor, detail=f"{procedure}{dwell}", at=now)
     return run
 
 
 def holding_run(session: Session, bench_id: int) -> Run | None:
     """The run that holds the bench (running, paused or suspended), if any."""
     return session.scalars(
-        sa.select(Run).where(Run.bench_id == bench_id, Run.state.in_(HOLDING_STATES)).limit(1)
+        sa.select(Run).where(Run.bench_id == bench_id, Run.state.in_(list(HOLDING_STATES))).limit(1)
     ).one_or_none()
 
 
@@ -157,37 +187,32 @@ def claim_next_run(
     run = session.get(Run, run_id, populate_existing=True)
     assert run is not None
     unit = session.get(Unit, run.unit_id)
-    params = dict(run.params)
     point = None
-    if params.get(RESUME_KEY):
+    if run.resume_requested:
         try:
             point = resume_point(session, run_id)
         except ValueError as exc:  # the recording changed since the request: not resumable now
             run.state, run.owner_pid, run.owner_host = RunState.INTERRUPTED, None, None
             run.error = f"interrupted: the queued resume was refused: {exc}"
-            run.params = {k: v for k, v in params.items() if k != RESUME_KEY}
+            run.resume_requested = False
             session.flush()
+            record_state(session, run_id, RunState.INTERRUPTED, SYSTEM, run.error, at=now)
             return None
         session.execute(
             sa.delete(SampleChunk).where(SampleChunk.run_id == run_id, SampleChunk.seq >= point.keep_chunks)
         )
         run.resume_count += 1
         run.error = None
-        run.params = {k: v for k, v in params.items() if k not in (RESUME_KEY, ABORT_KEY, FINISHING_KEY)}
+        run.resume_requested, run.abort_request, run.finishing_since = False, None, None
         session.flush()
-    return ClaimedRun(
-        run_id,
-        unit.serial if unit is not None else "?",
-        getattr(unit, "model", None),
-        run.procedure,
-        params,
-        point,
-    )
+    return ClaimedRun.of(run, unit, point)
 
 
-def queue_resume(session: Session, run_id: str, *, now: dt.datetime | None = None) -> ResumePoint | None:
-    """Queue an ``interrupted`` run to continue on its bench; where it will pick up (as of now),
-    or ``None`` if it is not interrupted.
+def queue_resume(
+    session: Session, run_id: str, *, actor: str = SYSTEM, now: dt.datetime | None = None
+) -> ResumePoint | None:
+    """Queue an ``interrupted`` run to continue on its bench (asked by ``actor``, an audit row);
+    where it will pick up (as of now), or ``None`` if it is not interrupted.
 
     :raises ValueError: its recording cannot be cut at a window boundary (named).
     """
@@ -195,21 +220,32 @@ def queue_resume(session: Session, run_id: str, *, now: dt.datetime | None = Non
     run = session.get(Run, run_id, with_for_update=True)
     if run is None or run.state is not RunState.INTERRUPTED:
         return None
-    dropped = (ABORT_KEY, CONTROL_KEY, FINISHING_KEY, "service_finished")
-    params = {k: v for k, v in run.params.items() if k not in dropped}
-    run.params = {**params, RESUME_KEY: True}
+    now = now or utc_now()
+    run.abort_request, run.control_seq, run.control_action, run.final_event = None, 0, None, None
+    run.finishing_since = None
+    run.resume_requested = True
     run.state = RunState.QUEUED
     run.owner_pid, run.owner_host = None, None
-    run.heartbeat_at = now or utc_now()
+    run.heartbeat_at = now
     session.flush()
+    record_action(
+        session,
+        run_id,
+        AuditAction.RESUME,
+        actor,
+        detail=f"from window {point.next_window_index}",
+        window_index=point.next_window_index,
+        at=now,
+    )
     notify_run(session, run_id)
     return point
 
 
 def request_control(
-    session: Session, run_id: str, action: ControlAction, reason: str = ""
+    session: Session, run_id: str, action: ControlAction, reason: str = "", *, actor: str = SYSTEM
 ) -> RunState | None:
-    """Ask the owner of a live run to ``abort``, ``pause`` or ``continue``.
+    """Ask the owner of a live run to ``abort``, ``pause`` or ``continue`` (``actor`` asks: an
+    audit row when the request applies).
 
     A queued run nobody has claimed is aborted at once (it never touched the table); a pause or
     continue asked of it is stored for its agent, which applies it once it has claimed the run.
@@ -223,25 +259,26 @@ def request_control(
     run = session.get(Run, run_id, with_for_update=True, populate_existing=True)
     if run is None:
         raise LookupError(f"run {run_id} not found")
+    now = utc_now()
     if run.state is RunState.QUEUED and run.owner_pid is None and action == "abort":
-        now = utc_now()
         run.state, run.outcome, run.finished_at, run.heartbeat_at = RunState.ABORTED, "ABORTED", now, now
         run.error = f"aborted before it started: {reason or 'operator abort'}"
         session.flush()
+        record_action(session, run_id, AuditAction.ABORT, actor, detail=reason or "operator abort", at=now)
+        record_state(session, run_id, RunState.ABORTED, SYSTEM, run.error, at=now)
         notify_run(session, run_id)
         return run.state
-    if run.state not in (RunState.QUEUED, *HOLDING_STATES) or run.params.get(FINISHING_KEY):
+    if run.state not in (RunState.QUEUED, *HOLDING_STATES) or run.finishing_since is not None:
         return None
-    prev = run.params.get(CONTROL_KEY)
-    newest = prev.get("action") if isinstance(prev, dict) else None
+    newest = run.control_action if run.control_seq else None
     if action == "continue" and run.state not in (RunState.PAUSED, RunState.SUSPENDED) and newest != "pause":
         return None  # nothing holds the run: no pause in effect, none asked
     if action == "abort":
-        run.params = {**run.params, ABORT_KEY: reason or "operator abort"}
+        run.abort_request = reason or "operator abort"
     else:
-        seq = int(prev["seq"]) + 1 if isinstance(prev, dict) else 1
-        run.params = {**run.params, CONTROL_KEY: {"seq": seq, "action": action}}
+        run.control_seq, run.control_action = run.control_seq + 1, action
     session.flush()
+    record_action(session, run_id, _ACTION[action], actor, detail=reason, at=now)
     return run.state
 
 
@@ -255,19 +292,17 @@ def enter_finishing(session: Session, run_id: str, *, now: dt.datetime | None = 
     run = session.get(Run, run_id, with_for_update=True, populate_existing=True)
     if run is None:
         raise LookupError(f"run {run_id} not found")
-    abort = run.params.get(ABORT_KEY)
-    if abort:
-        return str(abort)
-    run.params = {**run.params, FINISHING_KEY: (now or utc_now()).isoformat()}
+    if run.abort_request:
+        return run.abort_request
+    run.finishing_since = now or utc_now()
     session.flush()
     return None
 
 
 def finishing_since(session: Session, run_id: str) -> str | None:
     """When the run's owner began finishing it (ISO 8601), ``None`` when it has not."""
-    params = session.scalar(sa.select(Run.params).where(Run.id == run_id)) or {}
-    since = params.get(FINISHING_KEY)
-    return str(since) if since else None
+    since = session.scalar(sa.select(Run.finishing_since).where(Run.id == run_id))
+    return since.isoformat() if since is not None else None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -282,12 +317,13 @@ class PendingControl:
 
 def pending_control(session: Session, run_id: str) -> PendingControl:
     """The control requests stored for ``run_id`` (none for an unknown run)."""
-    params = session.scalar(sa.select(Run.params).where(Run.id == run_id)) or {}
-    abort = params.get(ABORT_KEY)
-    ctl = params.get(CONTROL_KEY)
-    if isinstance(ctl, dict):
-        return PendingControl(str(abort) if abort else None, int(ctl.get("seq", 0)), str(ctl.get("action")))
-    return PendingControl(str(abort) if abort else None, 0, None)
+    row = session.execute(
+        sa.select(Run.abort_request, Run.control_seq, Run.control_action).where(Run.id == run_id)
+    ).one_or_none()
+    if row is None:
+        return PendingControl(None, 0, None)
+    abort, seq, action = row
+    return PendingControl(abort or None, int(seq or 0), action if seq else None)
 
 
 def bench_id_of(session: Session, name: str) -> int | None:

@@ -17,9 +17,20 @@ from dataclasses import dataclass
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from db.models import ACTIVE_STATES, RESUMABLE_STATES, Run, RunState, RunWindow, SampleChunk
+from db.models import (
+    ACTIVE_STATES,
+    AGENT,
+    RESUMABLE_STATES,
+    SYSTEM,
+    AuditAction,
+    Run,
+    RunState,
+    RunWindow,
+    SampleChunk,
+)
 from db.notify import notify_run
 from db.process import process_alive
+from db.repo.audit import record_action, record_state
 from db.types import utc_now
 
 DEFAULT_STALE_AFTER_S = 300.0
@@ -65,6 +76,15 @@ def mark_interrupted_runs(
             .execution_options(synchronize_session="fetch")
         )
         if getattr(result, "rowcount", 0) == 1:
+            record_state(
+                session,
+                run_id,
+                RunState.INTERRUPTED,
+                SYSTEM,
+                reason,
+                window_index=_next_window(session, run_id),
+                at=now,
+            )
             marked.append(run_id)
     return marked
 
@@ -142,9 +162,16 @@ def resume_point(session: Session, run_id: str) -> ResumePoint:
 
 
 def claim_for_resume(
-    session: Session, run_id: str, *, owner_pid: int, owner_host: str, now: dt.datetime | None = None
+    session: Session,
+    run_id: str,
+    *,
+    owner_pid: int,
+    owner_host: str,
+    actor: str = SYSTEM,
+    now: dt.datetime | None = None,
 ) -> ResumePoint:
-    """Give an ``interrupted`` run to a new owner and return its resume point.
+    """Give an ``interrupted`` run to a new owner and return its resume point; ``actor`` (who
+    asked) is stored in the run's audit trail.
 
     Chunks past the resume point are deleted (the caller cuts the file to
     ``keep_end_byte``). Exactly one of several concurrent claimers succeeds.
@@ -175,23 +202,49 @@ def claim_for_resume(
     session.execute(
         sa.delete(SampleChunk).where(SampleChunk.run_id == run_id, SampleChunk.seq >= point.keep_chunks)
     )
+    record_action(
+        session,
+        run_id,
+        AuditAction.RESUME,
+        actor,
+        detail=f"from window {point.next_window_index}",
+        window_index=point.next_window_index,
+        at=now,
+    )
     return point
 
 
 def mark_run_interrupted(
-    session: Session, run_id: str, reason: str, *, now: dt.datetime | None = None
+    session: Session, run_id: str, reason: str, *, actor: str = AGENT, now: dt.datetime | None = None
 ) -> bool:
-    """A live run stops without finishing (its process is going away): ``interrupted``, resumable."""
+    """A live run stops without finishing (its process is going away): ``interrupted``, resumable
+    (an audit row by ``actor``, the run's owner by default)."""
+    now = now or utc_now()
     result = session.execute(
         sa.update(Run)
         .where(Run.id == run_id, Run.state.in_(list(ACTIVE_STATES)))
-        .values(state=RunState.INTERRUPTED, error=f"interrupted: {reason}", heartbeat_at=now or utc_now())
+        .values(state=RunState.INTERRUPTED, error=f"interrupted: {reason}", heartbeat_at=now)
         .execution_options(synchronize_session="fetch")
     )
     changed = bool(getattr(result, "rowcount", 0) == 1)
     if changed:
+        record_state(
+            session,
+            run_id,
+            RunState.INTERRUPTED,
+            actor,
+            reason,
+            window_index=_next_window(session, run_id),
+            at=now,
+        )
         notify_run(session, run_id)
     return changed
+
+
+def _next_window(session: Session, run_id: str) -> int:
+    """The window a run was recording (or about to record): the one after its last complete one."""
+    last = session.scalar(sa.select(Run.last_complete_window).where(Run.id == run_id))
+    return 0 if last is None else last + 1
 
 
 def rewind_run(session: Session, run_id: str, next_window_index: int) -> None:

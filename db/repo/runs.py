@@ -13,8 +13,9 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, selectinload
 
-from db.models import FINAL_STATES, Run, RunState, Unit
+from db.models import AGENT, FINAL_STATES, AuditAction, Run, RunState, Unit
 from db.notify import notify_run
+from db.repo.audit import command_line_actor, record_action, record_state
 from db.types import utc_now
 
 
@@ -31,8 +32,11 @@ def create_run(
     owner_pid: int | None = None,
     owner_host: str | None = None,
     now: dt.datetime | None = None,
+    actor: str | None = None,
 ) -> Run:
-    """Add a run (default ``queued``) with the bench's ``run_id`` and flush.
+    """Add a run (default ``queued``) with the bench's ``run_id`` and flush, with the audit row
+    of its start by ``actor`` (default: this machine's command-line user,
+    :func:`db.repo.audit.command_line_actor`).
 
     :param params: procedure parameters, including the dwell choice and its reason (JSON-able).
     """
@@ -58,6 +62,7 @@ def create_run(
     )
     session.add(run)
     session.flush()
+    record_action(session, run_id, AuditAction.START, actor or command_line_actor(), detail=procedure, at=now)
     return run
 
 
@@ -149,8 +154,10 @@ def finish_run(
     outcome: str | None = None,
     error: str | None = None,
     now: dt.datetime | None = None,
+    actor: str = AGENT,
 ) -> bool:
-    """Move a queued/running/suspended/interrupted run to a final ``state``.
+    """Move a queued/running/suspended/interrupted run to a final ``state`` (an audit row by
+    ``actor``, the run's owner by default).
 
     ``progress`` is set to 1 for ``completed``. False if the run was already final.
     """
@@ -169,15 +176,35 @@ def finish_run(
     if state is RunState.COMPLETED:
         values["progress"] = 1.0
     live = [s for s in RunState if s not in FINAL_STATES]
-    return _update_run(session, run_id, live, **values)
+    changed = _update_run(session, run_id, live, **values)
+    if changed:
+        detail = error or (f"outcome {outcome}" if outcome else "")
+        record_state(session, run_id, state, actor, detail, at=now)
+    return changed
 
 
-def set_live_state(session: Session, run_id: str, state: RunState, *, now: dt.datetime | None = None) -> bool:
-    """Move between live states (running, paused, suspended); False if the run is not live."""
+def set_live_state(
+    session: Session,
+    run_id: str,
+    state: RunState,
+    *,
+    now: dt.datetime | None = None,
+    reason: str = "",
+    actor: str = AGENT,
+) -> bool:
+    """Move between live states (running, paused, suspended); False if the run is not live.
+    The change is an audit row by ``actor`` (the run's owner by default) with ``reason`` and
+    the window being recorded (the one after the last complete one)."""
     live = [RunState.QUEUED, RunState.RUNNING, RunState.PAUSED, RunState.SUSPENDED]
     if state not in live:
         raise ValueError(f"run {run_id}: {state.value!r} is not a live state")
-    return _update_run(session, run_id, live, state=state, heartbeat_at=now or utc_now())
+    now = now or utc_now()
+    changed = _update_run(session, run_id, live, state=state, heartbeat_at=now)
+    if changed:
+        last = session.scalar(sa.select(Run.last_complete_window).where(Run.id == run_id))
+        window = 0 if last is None else last + 1
+        record_state(session, run_id, state, actor, reason, window_index=window, at=now)
+    return changed
 
 
 def set_recording_path(session: Session, run_id: str, recording_path: str) -> None:
@@ -194,3 +221,31 @@ def merge_params(session: Session, run_id: str, extra: dict[str, Any]) -> None:
     run.params = {**run.params, **extra}
     session.flush()
     notify_run(session, run_id)
+
+
+def set_service_run(session: Session, run_id: str, kind: str, *, sim_age_days: float | None = None) -> None:
+    """Mark a run as the service's (``calibration`` or ``drift_check``) and, on a simulated
+    bench, the age of the simulated unit it started with (a resume measures the same sensor).
+
+    :raises LookupError: no such run.
+    """
+    values: dict[str, Any] = {"kind": kind}
+    if sim_age_days is not None:
+        values["sim_age_days"] = float(sim_age_days)
+    result = session.execute(sa.update(Run).where(Run.id == run_id).values(**values))
+    if getattr(result, "rowcount", 0) != 1:
+        raise LookupError(f"run {run_id} not found")
+
+
+def set_live_progress(session: Session, run_id: str, data: dict[str, Any]) -> None:
+    """Store the run's latest ``progress`` event (``Run.live_progress``); listeners are told."""
+    session.execute(sa.update(Run).where(Run.id == run_id).values(live_progress=dict(data)))
+    notify_run(session, run_id)
+
+
+def set_final_event(session: Session, run_id: str, data: dict[str, Any]) -> bool:
+    """Store the run's last event (``Run.final_event``: its results are stored); listeners are
+    told. False when there is no such run."""
+    result = session.execute(sa.update(Run).where(Run.id == run_id).values(final_event=dict(data)))
+    notify_run(session, run_id)
+    return bool(getattr(result, "rowcount", 0) == 1)

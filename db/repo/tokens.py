@@ -18,10 +18,13 @@ def hash_token(secret: str) -> str:
     return hashlib.sha256(secret.encode("utf-8")).hexdigest()
 
 
-def create_token(session: Session, role: TokenRole | str, label: str = "") -> tuple[ApiToken, str]:
-    """A new token with ``role``; returns the row and the secret (shown once, never stored)."""
+def create_token(
+    session: Session, role: TokenRole | str, label: str = "", *, operator: str = ""
+) -> tuple[ApiToken, str]:
+    """A new token with ``role`` standing for ``operator`` (a person's name); returns the row and
+    the secret (shown once, never stored)."""
     secret = secrets.token_urlsafe(32)
-    token = ApiToken(role=TokenRole(role), token_hash=hash_token(secret), label=label)
+    token = ApiToken(role=TokenRole(role), token_hash=hash_token(secret), label=label, operator=operator)
     session.add(token)
     session.flush()
     return token, secret

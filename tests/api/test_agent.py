@@ -51,7 +51,7 @@ def test_a_run_left_live_by_a_failed_write_is_ended_as_error(tmp_path: Path) -> 
                 owner_host="another-host",
             )
             other = get_or_create_bench(s, "another-bench")
-            queue_run(s, "elsewhere", unit.id, other.id, "static-12", {"service_kind": "calibration"})
+            queue_run(s, "elsewhere", unit.id, other.id, "static-12", {}, kind="calibration")
         assert agent.tick() is None  # idle runner: the orphan is ended; the bench is held by the other
         with agent.sessions.begin() as s:
             orphan, held, elsewhere = (s.get(Run, i) for i in ("orphan", "other-owner", "elsewhere"))

@@ -10,7 +10,6 @@ from pathlib import Path
 import pytest
 
 from api.agent.fault_retry import (
-    AUTO_KEY,
     FAULT_PREFIX,
     ResumeFailed,
     RetryPolicy,
@@ -130,7 +129,7 @@ def test_the_schedule_is_due_after_its_wait_and_holds_the_bench_meanwhile(tmp_pa
             assert schedule(s, "run-1", "device fault: x", 3, policy, now=T0)["attempt"] == 2  # type: ignore[index]
             assert schedule(s, "run-1", "device fault: x", 3, policy, now=T0) is None  # spent
             run = s.get(Run, "run-1")
-            assert run is not None and run.params[AUTO_KEY]["gave_up"]
+            assert run is not None and run.auto_resume["gave_up"]
             assert "2 automatic resumes in a row recorded no window" in (run.error or "")
             assert due_resume(s, bench, now=T0 + dt.timedelta(hours=1)) == (None, False)
     finally:

@@ -62,10 +62,15 @@ def test_a_read_session_refuses_to_write(client: TestClient) -> None:
 
 
 def test_admin_creates_lists_and_revokes_tokens(client: TestClient) -> None:
-    r = client.post("/api/tokens", json={"role": "operator", "label": "bench PC"}, headers=ADMIN)
+    r = client.post(
+        "/api/tokens",
+        json={"role": "operator", "label": "bench PC", "operator": "Ada Lovelace"},
+        headers=ADMIN,
+    )
     assert r.status_code == 201, r.text
     made = r.json()
     assert made["role"] == "operator" and made["label"] == "bench PC" and len(made["secret"]) >= 32
+    assert made["operator"] == "Ada Lovelace"
     op = {"Authorization": f"Bearer {made['secret']}"}
     assert client.get("/api/whoami", headers=op).json() == {"role": "operator"}
 
@@ -92,7 +97,8 @@ def test_last_use_of_a_database_token_is_recorded(client: TestClient) -> None:
 @pytest.mark.parametrize(("headers", "status"), [({}, 401), (VIEW, 403), (OP, 403)])
 def test_token_management_is_admin_only(client: TestClient, headers: dict[str, str], status: int) -> None:
     assert client.get("/api/tokens", headers=headers).status_code == status
-    assert client.post("/api/tokens", json={"role": "admin"}, headers=headers).status_code == status
+    made = client.post("/api/tokens", json={"role": "admin", "operator": "Grace Hopper"}, headers=headers)
+    assert made.status_code == status
     assert client.delete("/api/tokens/1", headers=headers).status_code == status
 
 

@@ -21,7 +21,7 @@ from db.models import RunState
 from db.notify import LISTENER_NAME, RunListener, listen_url, notify_run
 from db.repo.progress import record_window
 from db.repo.recovery import mark_run_interrupted
-from db.repo.runs import finish_run, heartbeat, merge_params, set_live_state
+from db.repo.runs import finish_run, heartbeat, set_live_progress, set_live_state
 from tests.db._factories import make_run
 
 RUN = "20250101T000000Z-SN0001-aaaaaa"
@@ -108,7 +108,7 @@ def test_writes_the_streams_show_notify_and_a_heartbeat_does_not(
     assert received.until("M1") == ["M1"]
 
     writes = [
-        lambda s: merge_params(s, RUN, {"live": {"progress": 0.2}}),
+        lambda s: set_live_progress(s, RUN, {"progress": 0.2}),
         lambda s: record_window(s, RUN, 0, start_s=0.0, end_s=1.0, n_samples=100),
         lambda s: set_live_state(s, RUN, RunState.PAUSED),
         lambda s: mark_run_interrupted(s, RUN, "stopped"),

@@ -31,9 +31,7 @@ from db.types import utc_now
 def _queue(s: Session, run_id: str, bench: str = "bench-a", serial: str = "SN-Q") -> int:
     b = get_or_create_bench(s, bench)
     u = get_or_create_unit(s, serial, bench_id=b.id)
-    queue_run(
-        s, run_id, u.id, b.id, "static-12", {"service_kind": "calibration", "request": {"dwell_s": 3.0}}
-    )
+    queue_run(s, run_id, u.id, b.id, "static-12", {}, kind="calibration", requested_dwell_s=3.0)
     return b.id
 
 
@@ -46,7 +44,7 @@ def test_claims_in_order_one_run_per_bench(db_session_factory: sessionmaker[Sess
         assert [r.id for r in queued_runs(s, bench_a)] == ["r1", "r2"]
         first = claim_next_run(s, bench_a, owner_pid=11, owner_host="h")
         assert first is not None and first.run_id == "r1" and first.point is None
-        assert first.params["request"] == {"dwell_s": 3.0} and first.unit_serial == "SN-Q"
+        assert first.requested_dwell_s == 3.0 and first.kind == "calibration" and first.unit_serial == "SN-Q"
     with db_session_factory.begin() as s:
         # bench-a holds r1: nothing more for it; bench-b is another table
         assert claim_next_run(s, bench_a, owner_pid=12, owner_host="h") is None
@@ -171,6 +169,6 @@ def test_resume_is_queued_and_claimed_at_its_window(db_session_factory: sessionm
         assert claimed is not None and claimed.point is not None
         assert claimed.point.keep_end_byte == 2000 and claimed.point.next_window_index == 1
         run = s.get(Run, "r1")
-        assert run is not None and run.resume_count == 1 and "resume_requested" not in run.params
+        assert run is not None and run.resume_count == 1 and not run.resume_requested
         kept = s.query(SampleChunk.seq).filter(SampleChunk.run_id == "r1").order_by(SampleChunk.seq).all()
         assert [k for (k,) in kept] == [0, 1]  # the chunk after the last complete window is gone

@@ -24,7 +24,7 @@ import pytest
 from api.runs.wakeup import FALLBACK_POLL_S
 from db.engine import make_engine, make_session_factory
 from db.models import RunState
-from db.repo.runs import finish_run, merge_params
+from db.repo.runs import finish_run, set_live_progress
 from tests.db._factories import make_run
 from tests.e2e.helpers import RATE_HZ, SIM_SPEED, wall_budget_s
 from tests.e2e.service_process import CALBENCH, OP, OPERATOR, VIEW, VIEWER, free_port, wait_for
@@ -135,7 +135,7 @@ def test_a_write_in_another_process_reaches_an_open_stream_at_once(tmp_path: Pat
             progress = {"progress": (i + 1) / 4, "state": "running"}
             writing = time.monotonic()  # from before the write: the latency includes the commit
             with sessions.begin() as s:
-                merge_params(s, run_id, {"live": progress})
+                set_live_progress(s, run_id, progress)
             data, at = _next(events, "progress")
             assert data == progress
             latencies.append(at - writing)

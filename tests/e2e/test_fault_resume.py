@@ -114,11 +114,11 @@ def test_the_agent_resumes_a_run_whose_simulator_stalled(tmp_path: Path) -> None
             return run if run["state"] == "completed" and run.get("certificate_number") else None
 
         wait_for(done, wall_budget_s(RUN_SIM_S) + 120, f"run {run_id} to complete")
-        ((resumes, error, path, params),) = svc.sql(
-            "SELECT resume_count, error, recording_path, params FROM run WHERE id = ?", run_id
+        ((resumes, error, path, auto),) = svc.sql(
+            "SELECT resume_count, error, recording_path, auto_resume FROM run WHERE id = ?", run_id
         )
         assert resumes >= 1 and error is None
-        assert json.loads(params)["auto_resume"]["attempt"] >= 1
+        assert json.loads(auto)["attempt"] >= 1
         check_recording(path)
         assert svc.agent_pid() == agent
     finally:

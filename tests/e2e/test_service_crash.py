@@ -17,7 +17,6 @@ uncertainty.
 from __future__ import annotations
 
 import itertools
-import json
 import os
 import signal
 from pathlib import Path
@@ -99,8 +98,7 @@ def check_completed(svc: ServiceProcess, run_id: str, run: dict[str, Any], path:
     assert run["n_samples"] == len(rec.t_s)
     cert = svc.get(f"/api/runs/{run_id}/certificate")
     assert cert["number"] == run["certificate_number"] and len(cert["sha256"]) == 64
-    ((params,),) = svc.sql("SELECT params FROM run WHERE id = ?", run_id)
-    age = json.loads(params)["service_sim_age_days"]
+    ((age,),) = svc.sql("SELECT sim_age_days FROM run WHERE id = ?", run_id)
     z = z_scores(FittedModel.from_contract(run["calibration"]), simulated_unit(SERIAL, age))
     assert np.max(np.abs(z)) < 4.5, z
 

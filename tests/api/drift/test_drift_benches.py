@@ -95,12 +95,13 @@ def _drift_runs(sessions: sessionmaker[Session]) -> list[tuple[str, str, str]]:
     """(unit serial, bench name, state) of every drift-check run, by serial."""
     with sessions.begin() as s:
         rows = s.execute(
-            sa.select(Unit.serial, Bench.name, Run.state, Run.params)
+            sa.select(Unit.serial, Bench.name, Run.state)
             .join(Unit, Run.unit_id == Unit.id)
             .join(Bench, Run.bench_id == Bench.id)
+            .where(Run.kind == "drift_check")
             .order_by(Unit.serial, Run.created_at)
         ).all()
-    return [(u, b, st.value) for u, b, st, p in rows if p.get("service_kind") == "drift_check"]
+    return [(u, b, st.value) for u, b, st in rows]
 
 
 def _second_api(client: TestClient, clock: MovableClock) -> DriftScheduler:

@@ -1,0 +1,259 @@
+"""Migration 0004 on a database made at revision 0003 (the schema before it): every value a run
+kept in ``params`` (control requests, service bookkeeping, procedure parameters, results)
+arrives in its new home, on SQLite and on PostgreSQL; the downgrade gives the same ``params``
+back."""
+
+from __future__ import annotations
+
+import copy
+import datetime as dt
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import sqlalchemy as sa
+from sqlalchemy.engine import Engine
+
+from db.engine import make_engine
+from db.migrate import current_revision, downgrade, upgrade
+from tests.pg import pg_database, pg_unreachable_reason
+
+T0 = dt.datetime(2026, 11, 20, 2, 0, tzinfo=dt.UTC)
+
+# the tables as revision 0003 has them (not the models: they follow the newest revision)
+BENCH = sa.table("bench", sa.column("id", sa.Integer), sa.column("name", sa.String))
+UNIT = sa.table("unit", sa.column("id", sa.Integer), sa.column("serial", sa.String))
+RUN = sa.table(
+    "run",
+    sa.column("id", sa.String),
+    sa.column("unit_id", sa.Integer),
+    sa.column("bench_id", sa.Integer),
+    sa.column("procedure", sa.String),
+    sa.column("state", sa.String),
+    sa.column("progress", sa.Float),
+    sa.column("params", sa.JSON),
+    sa.column("resume_count", sa.Integer),
+    sa.column("limit_checks", sa.JSON),
+)
+AUTO = {"attempt": 2, "not_before": "2026-11-20T02:05:00+00:00", "windows": 3, "fault": "lost link"}
+SETUP = {
+    "run_id": "R-SERVICE",
+    "procedure": "static-12",
+    "parameters": {"dwell_s": 3.0, "n_poses": 12},
+    "sim": {"seed": 7},
+    "bench": "bench-a",
+    "bench_config": {"name": "sim", "version": 1, "sha256": "ab" * 32},
+    "sample_rate_hz": 100.0,
+    "n_axes": 3,
+    "n_windows": 12,
+    "expected_duration_s": 96.0,
+    "dwell": {"dwell_s": 3.0, "source": "fixed", "reason": "given", "details": {}},
+}
+RESULTS = {
+    "calibration": {"method": "static-12", "bias": [0.01, -0.02, 0.03]},
+    "diagnosis": {"findings": []},
+    "sample_gaps": [{"n_lost": 4, "window_index": 3, "cause": "dropped"}],
+    "certificate_error": "",
+}
+# params as main wrote them before 0004, each run with the columns the values move to
+RUNS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
+    "R-SERVICE": (
+        "completed",
+        {
+            **SETUP,
+            **RESULTS,
+            "service_kind": "calibration",
+            "request": {"dwell_s": 3.0},
+            "service_sim_age_days": 12.5,
+            "control": {"seq": 2, "action": "continue"},
+            "live": {"progress": 1.0, "window_index": 11, "state": "running"},
+            "finishing_since": "2026-11-20T02:10:00.250000+00:00",
+            "service_finished": {"state": "completed", "outcome": "PASS", "certificate_number": "C-1"},
+        },
+        {
+            "kind": "calibration",
+            "requested_dwell_s": 3.0,
+            "sim_age_days": 12.5,
+            "control_seq": 2,
+            "control_action": "continue",
+            "live_progress": {"progress": 1.0, "window_index": 11, "state": "running"},
+            "final_event": {"state": "completed", "outcome": "PASS", "certificate_number": "C-1"},
+            "abort_request": None,
+            "resume_requested": False,
+            "drift_night": None,
+            "finishing_since": dt.datetime(2026, 11, 20, 2, 10, 0, 250000, tzinfo=dt.UTC),
+            "auto_resume": None,
+        },
+    ),
+    "R-DRIFT": (
+        "queued",
+        {
+            "service_kind": "drift_check",
+            "auto_resume": {
+                "attempt": 2,
+                "not_before": "2026-11-20T02:05:00+00:00",
+                "windows": 3,
+                "fault": "f",
+            },
+            "request": {"dwell_s": None, "note": "kept"},
+            "bench": "bench-a",
+            "drift_night": "2026-11-20T02:00:00+00:00",
+            "resume_requested": True,
+            "abort_requested": "operator abort over REST",
+            "control": {"seq": 1, "action": "pause"},
+        },
+        {
+            "kind": "drift_check",
+            "requested_dwell_s": None,
+            "drift_night": "2026-11-20T02:00:00+00:00",
+            "resume_requested": True,
+            "abort_request": "operator abort over REST",
+            "control_seq": 1,
+            "control_action": "pause",
+            "live_progress": None,
+            "final_event": None,
+            "sim_age_days": None,
+            "finishing_since": None,
+            "auto_resume": {
+                "attempt": 2,
+                "not_before": "2026-11-20T02:05:00+00:00",
+                "windows": 3,
+                "fault": "f",
+            },
+        },
+    ),
+    "R-CLI": (
+        "interrupted",
+        {**SETUP, "run_id": "R-CLI", "sample_gaps": []},
+        {
+            "kind": None,
+            "requested_dwell_s": None,
+            "drift_night": None,
+            "sim_age_days": None,
+            "abort_request": None,
+            "control_seq": 0,
+            "control_action": None,
+            "resume_requested": False,
+            "live_progress": None,
+            "final_event": None,
+            "finishing_since": None,
+            "auto_resume": None,
+        },
+    ),
+}
+MOVED = {
+    "service_kind",
+    "service_sim_age_days",
+    "control",
+    "live",
+    "service_finished",
+    "drift_night",
+    "resume_requested",
+    "abort_requested",
+    "finishing_since",
+    "auto_resume",
+}
+
+
+def _expected_params(params: dict[str, Any]) -> dict[str, Any]:
+    """What ``params`` keeps: everything but the moved keys (``request``: its keys but dwell_s)."""
+    rest = {k: v for k, v in params.items() if k not in MOVED and k != "request"}
+    request = {k: v for k, v in (params.get("request") or {}).items() if k != "dwell_s"}
+    if request:
+        rest["request"] = request
+    return rest
+
+
+def _fill_at_0003(engine: Engine) -> None:
+    upgrade(engine, "0003")
+    assert current_revision(engine) == "0003"
+    with engine.begin() as conn:
+        conn.execute(sa.insert(BENCH).values(id=1, name="bench-a"))
+        conn.execute(sa.insert(UNIT).values(id=1, serial="SN-1"))
+        for run_id, (state, params, _) in RUNS.items():
+            conn.execute(
+                sa.insert(RUN).values(
+                    id=run_id,
+                    unit_id=1,
+                    bench_id=1,
+                    procedure="static-12",
+                    state=state,
+                    progress=0.5,
+                    params=copy.deepcopy(params),
+                    resume_count=1,
+                    limit_checks=[],
+                )
+            )
+
+
+def _check_upgrade_and_downgrade(engine: Engine) -> None:
+    _fill_at_0003(engine)
+    upgrade(engine)
+    assert current_revision(engine) == "0004"
+    from db.engine import make_session_factory
+    from db.models import Run, RunAudit
+
+    with make_session_factory(engine).begin() as s:
+        for run_id, (state, params, columns) in RUNS.items():
+            run = s.get(Run, run_id)
+            assert run is not None and run.state.value == state
+            assert run.params == _expected_params(params), run_id
+            got = {name: getattr(run, name) for name in columns}
+            assert got == columns, run_id
+        assert s.scalar(sa.select(sa.func.count()).select_from(RunAudit)) == 0
+    downgrade(engine, "0003")
+    with engine.connect() as conn:
+        stored = dict(conn.execute(sa.select(RUN.c.id, RUN.c.params)).all())
+    for run_id, (_, params, _) in RUNS.items():
+        assert stored[run_id] == params, run_id
+    assert "run_audit" not in sa.inspect(engine).get_table_names()
+
+
+@pytest.fixture
+def sqlite_engine(tmp_path: Path) -> Iterator[Engine]:
+    engine = make_engine(f"sqlite:///{tmp_path / 'at0003.db'}")
+    yield engine
+    engine.dispose()
+
+
+def test_0004_moves_every_value_on_sqlite(sqlite_engine: Engine) -> None:
+    _check_upgrade_and_downgrade(sqlite_engine)
+
+
+@pytest.mark.postgres
+def test_0004_moves_every_value_on_postgresql() -> None:
+    reason = pg_unreachable_reason()
+    if reason:
+        pytest.skip(reason)
+    with pg_database() as url:
+        engine = make_engine(url)
+        try:
+            _check_upgrade_and_downgrade(engine)
+        finally:
+            engine.dispose()
+
+
+def test_the_moved_values_work_after_the_upgrade(sqlite_engine: Engine) -> None:
+    """The claim and the control look-up read the migrated columns: a resume queued and the
+    requests asked before the upgrade are seen after it."""
+    from db.engine import make_session_factory
+    from db.repo.queue import claim_next_run, pending_control
+
+    _fill_at_0003(sqlite_engine)
+    upgrade(sqlite_engine)
+    with make_session_factory(sqlite_engine).begin() as s:
+        pending = pending_control(s, "R-DRIFT")
+        assert (pending.abort, pending.seq, pending.action) == ("operator abort over REST", 1, "pause")
+        assert pending_control(s, "R-CLI") == type(pending)(None, 0, None)
+        s.execute(sa.update(RUN).where(RUN.c.id != "R-DRIFT").values(state="completed"))
+        claimed = claim_next_run(s, 1, owner_pid=4242, owner_host="h")
+    # the resume requested before the upgrade is claimed as a resume, of a drift check
+    assert claimed is not None and claimed.run_id == "R-DRIFT" and claimed.kind == "drift_check"
+    assert claimed.point is not None and claimed.point.next_window_index == 0
+    with make_session_factory(sqlite_engine).begin() as s:
+        from db.models import Run
+
+        run = s.get(Run, "R-DRIFT")
+        assert run is not None and run.state.value == "running" and not run.resume_requested
+        assert run.abort_request is None and run.resume_count == 2

@@ -19,6 +19,7 @@ import importlib.metadata
 from typing import Any
 
 from api.certificates.conformity import check_uncertainties, conformity_statement
+from api.certificates.deviations import no_deviation, run_deviations, run_record_section
 from api.certificates.inputs import CertificateInputs, Laboratory, UnitFacts
 from api.certificates.results import g_check_section, results_section
 from api.certificates.statements import (
@@ -98,17 +99,24 @@ def _findings(inp: CertificateInputs) -> dict[str, Any]:
     return {"performed": True, "note": note, "findings": findings}
 
 
-def sample_integrity(gaps: Any) -> str:
-    """One line on samples lost while recording (``RunFacts.sample_gaps``: the stored gap records)."""
+def sample_integrity(gaps: Any, n_resumes: int = 0) -> str:
+    """One line on samples lost while recording (``RunFacts.sample_gaps``: the stored gap records)
+    and on the recording's interruptions (``n_resumes``: times the run was continued after one)."""
+    cut = (
+        f"; the recording was interrupted and continued {n_resumes} time{'s' if n_resumes > 1 else ''} "
+        "from its last complete window (the time between is not in it; see the deviations)"
+        if n_resumes
+        else ""
+    )
     if not isinstance(gaps, list) or not gaps:
-        return "every sample the DAQ produced was recorded (no gap)"
+        return ("every sample the DAQ produced was recorded (no gap)" if not cut else "no sample gap") + cut
     known = [g.get("n_lost") for g in gaps if isinstance(g, dict)]
     n = sum(int(v) for v in known if isinstance(v, int))
     unknown = " (and an unknown number across a DAQ restart)" if any(v is None for v in known) else ""
     spoiled = sum(1 for g in gaps if isinstance(g, dict) and g.get("window_index") is not None)
     return (
         f"{n} samples lost{unknown} in {len(gaps)} gaps, each recorded where it happened; "
-        f"{spoiled} fell inside a window, which was re-measured; no window with a gap was used"
+        f"{spoiled} fell inside a window, which was re-measured; no window with a gap was used{cut}"
     )
 
 
@@ -157,7 +165,7 @@ def certificate_content(
             "procedure_version": f"{procedure} as implemented by calbench {software()['version']}",
             "description": METHOD.get(procedure, procedure),
             "parameters": run.parameters,
-            "deviations": list(inp.deviations) or ["none"],
+            "deviations": [*run_deviations(run), *inp.deviations] or [no_deviation(run)],
             "sampling": "not applicable",
         },
         "item": _item(unit),
@@ -168,12 +176,15 @@ def certificate_content(
             "issued": _iso(issued_at),
         },
         "run_id": run.id,
+        "run_record": run_record_section(run),
         "bench": _stated(run.bench),
         "conditions": {
             "sensor_temperature": temp,
             "g_local_m_s2": _stated(inp.g_local_m_s2),
             "table": _stated(inp.table),
-            "sample_integrity": sample_integrity(run.sample_gaps),
+            "sample_integrity": sample_integrity(
+                run.sample_gaps, sum(1 for a in run.actions if a.action == "resume")
+            ),
             "bench_configuration": bench_configuration(run.bench_config),
             "ambient": SIMULATED_AMBIENT if inp.simulated else _stated(lab.ambient_conditions),
         },

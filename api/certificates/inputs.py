@@ -12,6 +12,25 @@ from api.certificates.budget import CertificateBudget
 from bench.diagnosis.stored import StoredDiagnosis
 from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
+from bench.records import RunState
+
+
+@dataclass(frozen=True)
+class ActionFact:
+    """One action on the run as its audit trail stores it (``db.models.RunAudit``).
+
+    :param at: when (UTC). :param actor: the operator's name, ``agent`` or ``system``.
+    :param action: ``start``, ``pause``, ``continue``, ``abort``, ``resume`` or ``state``.
+    :param state: the new state of a ``state`` action, else ``None``.
+    :param detail: the reason or request. :param window_index: the window it concerns, if any.
+    """
+
+    at: dt.datetime
+    actor: str
+    action: str
+    state: RunState | None = None
+    detail: str = ""
+    window_index: int | None = None
 
 
 @dataclass(frozen=True)
@@ -25,6 +44,7 @@ class RunFacts:
     :param sample_gaps: the run's gap records as stored (``bench.records.GapRecord`` as dicts);
         empty: none.
     :param bench_config: the bench file's identity (``bench.bench_config.BenchConfig.identity``).
+    :param actions: every action on the run, oldest first (its audit trail); empty: none stored.
     """
 
     id: str | None = None
@@ -35,6 +55,7 @@ class RunFacts:
     bench: str | None = None
     sample_gaps: list[dict[str, Any]] = field(default_factory=list)
     bench_config: dict[str, Any] | None = None
+    actions: tuple[ActionFact, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ from sqlalchemy.orm import Session
 from api.certificates.budget import CertificateBudget, TypeBSettings, certificate_budget
 from api.certificates.certificate import certificate_content
 from api.certificates.conformity import limits_choice
+from api.certificates.deviations import stored_actions
 from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.pdf import render_pdf
 from api.settings import Settings, placeholder_reason
@@ -305,6 +306,7 @@ def issue_for_run(
             bench=run.params.get("bench"),
             sample_gaps=run.params.get("sample_gaps", []),
             bench_config=run.params.get("bench_config"),
+            actions=stored_actions(s, run_id),
         ),
         unit=unit_inputs(unit),
         calibration=calibration,

@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 
 from api.certificates.pdf_budget import budget_section
 from api.certificates.pdf_layout import Flow, Page, wrap
+from api.certificates.pdf_record import record_section
 from api.certificates.rounding import format_significant
 from bench.calibration.dynamic import DYNAMIC_PROCEDURES
 
@@ -102,6 +103,7 @@ def _identification(f: Flow, c: dict[str, Any]) -> None:
             ("Date of issue", _when(dates["issued"])),
             ("Place of calibration", f"{c['location']}, bench {c.get('bench')}"),
             ("Run identifier", _text(c.get("run_id"))),
+            ("Run started by", _text(c.get("run_record", {}).get("started_by", "not stated"))),
         ],
         widths=(0.3, 0.7),
     )
@@ -215,7 +217,7 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
     )
     f.subheading(f"|g| check: |K⁻¹(raw − b)| − g_local {where} (m/s²)")
     rows = [("", "mean error", "U of the mean, k = 2", "standard deviation", "n")]
-    for when, label in (("before", "before adjustment (nominal)"), ("after", "after (this calibration)")):
+    for when, label in (("before", "with the nominal values"), ("after", "with this calibration")):
         v = g[when]
         rows.append(
             (
@@ -332,6 +334,7 @@ def certificate_pages(c: dict[str, Any]) -> list[Page]:
     f = Flow(top=0.915, bottom=0.065, left=0.07, right=0.93)
     _identification(f, c)
     _method_conditions(f, c)
+    record_section(f, c)
     _results(f, c)
     budget_section(f, c)
     _statements(f, c)

@@ -59,7 +59,8 @@ def g_check_section(
     checked_u = {c.name: c.expanded_uncertainty for c in checks if c.expanded_uncertainty is not None}
     out: dict[str, Any] = {
         "description": "|K⁻¹(raw − b)| − g_local over the static windows: mean error and standard "
-        "deviation, before adjustment (nominal scale) and after (this calibration)",
+        "deviation with the unit's nominal scale and zero-g output (its data sheet) and with this "
+        "calibration (the item itself was not adjusted)",
     }
     missing = {"before": f"{NOT_STATED}: no nominal scale known for this unit", "after": NOT_STATED}
     stated: dict[str, GCheckSummary | None] = {"before": fit.g_before, "after": fit.g_after}

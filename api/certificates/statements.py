@@ -58,8 +58,9 @@ REQUIRED_ITEMS = {
     "7.8.2.1 f software version": "software.version",
     "7.8.2.1 f procedure version": "method.procedure_version",
     "7.8.4.1 c traceability": "traceability",
-    "7.8.4.1 d before adjustment": "g_check.before",
-    "7.8.4.1 d after adjustment": "g_check.after",
+    "7.8.4.1 d adjustment (none: results as found)": "item.adjustment",
+    "7.8.4.1 d results with this calibration": "g_check.after",
+    "7.5.1 who performed the run": "run_record.started_by",
     "7.8.4.1 e conformity": "conformity",
     "7.8.4.1 f opinions": "diagnosis.note",
 }

@@ -107,6 +107,26 @@ function liveCard(run, session, act) {
   return { el, update, final, addGap: gaps.add };
 }
 
+// Every action on the run (its audit trail): when (UTC), who, what.
+function auditCard() {
+  const body = h("tbody", { id: "run-audit-rows" });
+  const el = h("section", { class: "card span", "aria-label": "Actions on the run", id: "run-audit", hidden: true },
+    h("h2", {}, "Actions on the run"),
+    h("div", { class: "table-wrap" }, h("table", {},
+      h("thead", {}, h("tr", {}, ["Time (UTC)", "Who", "Action", "Detail"].map((c) => h("th", { scope: "col" }, c)))),
+      body)));
+  const utc = (iso) => iso.replace("T", " ").replace(/\.\d+/, "").replace(/(\+00:00|Z)$/, "");
+  const show = (run) => {
+    const rows = run.audit || [];
+    el.hidden = !rows.length;
+    body.replaceChildren(...rows.map((a) => h("tr", {},
+      h("td", { class: "mono" }, utc(a.at)), h("td", {}, a.actor),
+      h("td", {}, a.action === "state" ? `state: ${a.state}` : `${a.action} requested`),
+      h("td", {}, [a.detail, a.window_index == null ? "" : `window index ${a.window_index}`].filter(Boolean).join(" · ")))));
+  };
+  return { el, show };
+}
+
 function verdictBanner() {
   const el = h("div", { id: "verdict", class: "verdict", role: "status", hidden: true });
   const show = (run) => {
@@ -324,7 +344,8 @@ async function renderResults(box, run, signal) {
 export async function runView(view, runId, session, signal) {
   let run = await getJson(`/api/runs/${enc(runId)}`, { signal });
   view.append(h("div", { class: "page-head" }, h("h1", {}, run.kind === "drift_check" ? "Drift check " : "Run ", h("span", { class: "mono" }, run.id)),
-    h("span", { class: "muted" }, "unit ", h("a", { href: `#/units/${enc(run.unit_serial)}` }, run.unit_serial), ` · ${run.procedure} · ${when(run.started_at || run.created_at)}`)));
+    h("span", { class: "muted" }, "unit ", h("a", { href: `#/units/${enc(run.unit_serial)}` }, run.unit_serial), ` · ${run.procedure} · ${when(run.started_at || run.created_at)}`,
+      run.started_by ? h("span", { id: "run-started-by" }, ` · started by ${run.started_by}`) : null)));
   const banner = verdictBanner();
   view.append(banner.el);
   banner.show(run);
@@ -347,7 +368,9 @@ export async function runView(view, runId, session, signal) {
     h("div", { class: "table-wrap" }, h("table", {},
       h("thead", {}, h("tr", {}, ["#", "Label", "Kind", "Table pose", "Samples"].map((c, i) => h("th", { scope: "col", class: [0, 3, 4].includes(i) ? "num" : null }, c)))),
       winBody)));
-  view.append(h("div", { class: "grid" }, live.el, winCard), status, results);
+  const audit = auditCard();
+  audit.show(run);
+  view.append(h("div", { class: "grid" }, live.el, winCard, audit.el), status, results);
   const seen = new Set();
   const addWindow = (w) => {
     if (seen.has(w.index)) return;
@@ -364,6 +387,7 @@ export async function runView(view, runId, session, signal) {
     if (LIVE.has(run.state)) live.update({ state: run.state, progress: run.progress });
     else live.final(run);
     banner.show(run);
+    audit.show(run);
     await renderResults(results, run, signal);
   };
   if (!LIVE.has(run.state)) { await finish(); return; }

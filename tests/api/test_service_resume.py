@@ -128,5 +128,15 @@ def test_shutdown_leaves_the_run_interrupted_and_resume_finishes_it(tmp_path: Pa
         assert body["last_complete_window"] == 11
         cert = second.get(f"/api/runs/{run_id}/certificate", headers=VIEW)
         assert cert.status_code == 200
+        # The certificate names the interruption and the resume as the audit trail stored them.
+        audit = second.get(f"/api/runs/{run_id}/audit", headers=VIEW).json()
+        stopped = next(a for a in audit if a["state"] == "interrupted")
+        resumed = next(a for a in audit if a["action"] == "resume")
+        assert resumed["window_index"] == done + 1 and stopped["actor"] == "system"
+        deviations = cert.json()["content"]["method"]["deviations"]
+        assert any(d.startswith("interrupted at ") and "shut down" in d for d in deviations), deviations
+        assert any(f"resumed at window {done + 1} on request of" in d for d in deviations), deviations
+        integrity = cert.json()["content"]["conditions"]["sample_integrity"]
+        assert "interrupted and continued 1 time" in integrity and "every sample" not in integrity
         # Resumed once; nothing else to resume.
         assert second.post(f"/api/runs/{run_id}/resume", headers=OP).status_code == 409

@@ -99,5 +99,15 @@ def test_resume_pause_and_continue_from_the_run_page(tmp_path: Path, browser: An
         page.wait_for_selector("#certificate strong", timeout=DEADLINE_S * 1000)
         done = poll(base, second, lambda b: b.get("certificate_number"), "the certificate")
         assert done["state"] == "completed"
+        # The page shows the run's audit trail as stored: who started it, every action and state.
+        page.wait_for_selector("#run-audit:visible")
+        rows = page.locator("#run-audit-rows tr")
+        assert rows.count() == len(done["audit"])
+        cells = [rows.nth(i).inner_text() for i in range(rows.count())]
+        for cell, stored in zip(cells, done["audit"], strict=True):
+            assert stored["actor"] in cell and stored["at"][:19].replace("T", " ") in cell
+        assert any("pause requested" in c for c in cells) and any("state: paused" in c for c in cells)
+        assert page.inner_text("#run-started-by") == f" · started by {done['started_by']}"
+        shot(page, "desk-run-audit")
         assert console.errors == []
         ctx.close()

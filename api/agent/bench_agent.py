@@ -55,6 +55,7 @@ from bench.sequencer.control import SequencerConfig
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import AGENT, Run, RunState
+from db.models.run_params import PARAMETERS
 from db.observer import finish_record
 from db.process import process_start_ticks
 from db.repo.benches import agent_alive, agent_gone
@@ -242,6 +243,7 @@ class BenchAgent:
                 dwell_s=claimed.requested_dwell_s,
                 kind="drift_check" if claimed.kind == "drift_check" else "calibration",
                 run_id=claimed.run_id,
+                parameters=claimed.params.get(PARAMETERS),
             )
         except (ValueError, BenchBusy) as exc:  # never leave a claimed run live without a worker
             log.error("run %s could not start: %s", claimed.run_id, exc)

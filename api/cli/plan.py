@@ -17,6 +17,7 @@ from typing import Any
 
 from api.cli import BadInput, decimal_arg
 from bench.planning.noise import G0_M_S2, UnitNoise
+from bench.planning.report import evaluation_dict, plan_dict
 from bench.planning.search import Evaluation, Targets, describe_sigmas, evaluate, plan
 from bench.procedures import build_procedure
 
@@ -58,26 +59,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the machine-readable result")
 
 
-def evaluation_json(e: Evaluation) -> dict[str, Any]:
-    """An evaluation as JSON: procedure, time, predicted U (k = 2) and the bound."""
-    u = e.predicted
-    ug = 1e6 / G0_M_S2
-    return {
-        "procedure": e.procedure.name,
-        "parameters": e.procedure.parameters,
-        "duration_s": e.duration_s,
-        "predicted_U_k2": {
-            "bias_ug": 2 * u.bias * ug,
-            "scale_ppm": 2e6 * u.scale,
-            "misalignment_urad": 2e6 * u.misalignment,
-        },
-        "k_rms_sigma_ppm": 1e6 * u.k_rms,
-        "bound_k_sigma_ppm": 1e6 * e.bound_k,
-        "bound_bias_sigma_ug": e.bound_bias_m_s2 * ug,
-        "k_fraction_of_bound": e.k_fraction_of_bound,
-    }
-
-
 def _line(e: Evaluation) -> str:
     return (
         f"{e.procedure.name} {json.dumps(e.procedure.parameters)}: {e.duration_s / 60:.1f} min, "
@@ -112,13 +93,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise BadInput(f"calbench plan: {exc}") from None
     if args.json:
-        out: dict[str, Any] = {
-            "noise": noise.describe(),
-            "plan": None if result.best is None else evaluation_json(result.best),
-            "closest": None if result.closest is None else evaluation_json(result.closest),
-            "problems": list(result.problems),
-            "compare": None if compare is None else evaluation_json(compare),
-        }
+        out: dict[str, Any] = plan_dict(result, noise.describe())
+        out["compare"] = None if compare is None else evaluation_dict(compare)
         print(json.dumps(out, indent=2))
     else:
         print(f"noise: {noise.describe()}")

@@ -10,6 +10,7 @@ from api.routes import (
     drift,
     health,
     links,
+    plans,
     procedures,
     recordings,
     runs,
@@ -18,5 +19,17 @@ from api.routes import (
 )
 
 api_router = APIRouter()
-for _module in (health, runs, benches, procedures, certificates, units, recordings, drift, tokens, links):
+for _module in (
+    health,
+    runs,
+    benches,
+    procedures,
+    plans,
+    certificates,
+    units,
+    recordings,
+    drift,
+    tokens,
+    links,
+):
     api_router.include_router(_module.router)

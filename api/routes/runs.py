@@ -52,7 +52,12 @@ def start_run(
     that the unit's model has no limits, so its certificate will make no statement of conformity."""
     try:
         live = runner.start(
-            body.unit_serial, body.procedure, dwell_s=body.dwell_s, bench=body.bench, actor=who.actor
+            body.unit_serial,
+            body.procedure,
+            dwell_s=body.dwell_s,
+            bench=body.bench,
+            parameters=body.parameters,
+            actor=who.actor,
         )
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None

@@ -29,7 +29,7 @@ from bench.procedures import build_procedure, preview
 from bench.records import new_run_id, utc_now
 from bench.sequencer.control import RunControl, SequencerConfig
 from db.models import ACTIVE_STATES, FINAL_STATES, SYSTEM, Run, Unit
-from db.models.run_params import BENCH
+from db.models.run_params import BENCH, PARAMETERS
 from db.process import process_alive
 from db.repo.benches import bench_status, choose_bench, find_bench
 from db.repo.queue import (
@@ -128,6 +128,7 @@ class RunQueue:
         bench: str | None = None,
         drift_night: str | None = None,
         actor: str = SYSTEM,
+        parameters: dict[str, float] | None = None,
     ) -> LiveRun:
         """Queue a run on ``bench`` (also while it is busy); its agent starts it when free.
         A drift check of a unit that has one queued or running already is that one, and so is a
@@ -140,11 +141,13 @@ class RunQueue:
             same in every API process); stored with the run (``Run.drift_night``).
         :param actor: who asks (the operator's name; the drift scheduler: ``system``), stored in
             the run's audit trail.
+        :param parameters: the procedure's own parameters (``build_procedure`` keywords), stored in
+            the run's ``params`` (``parameters``) for the agent.
         :raises UnknownBench: no such bench, or it cannot run the procedure (named).
         :raises ValueError: unknown procedure or one the table limits refuse.
         """
         dwell_s = dwell_s if dwell_s is not None else self.settings.run_dwell_s
-        proc = build_procedure(procedure, dwell_s=dwell_s)
+        proc = build_procedure(procedure, dwell_s=dwell_s, **(parameters or {}))
         pv = preview(proc, SequencerConfig(temp_band_c=self.settings.temp_band_c).limits)
         if not pv.ok:
             raise ValueError(f"{procedure}: " + "; ".join(pv.problems))
@@ -153,6 +156,8 @@ class RunQueue:
         with self.sessions.begin() as s:
             name = self.bench_for(s, procedure, bench, kind)
             params: dict[str, object] = {BENCH: name}
+            if parameters:
+                params[PARAMETERS] = dict(parameters)
             bench_row = get_or_create_bench(s, name)
             unit = get_or_create_unit(s, unit_serial, bench_id=bench_row.id)
             if kind == "drift_check":  # every API process has a scheduler: one check per unit at a time

@@ -142,16 +142,18 @@ class BenchRunner:
         dwell_s: float | None = None,
         kind: RunKind = "calibration",
         run_id: str | None = None,
+        parameters: dict[str, float] | None = None,
     ) -> LiveRun:
         """Start a run's worker.
 
         :param run_id: the id of a run this process has claimed from the queue
             (:mod:`db.repo.queue`); default: a new id.
+        :param parameters: the procedure's own parameters (``build_procedure`` keywords).
         :raises ValueError: unknown procedure or one the table limits refuse.
         :raises BenchBusy: another run holds the bench.
         """
         dwell_s = dwell_s if dwell_s is not None else self.settings.run_dwell_s
-        proc = build_procedure(procedure, dwell_s=dwell_s)
+        proc = build_procedure(procedure, dwell_s=dwell_s, **(parameters or {}))
         pv = preview(proc, SequencerConfig(temp_band_c=self.settings.temp_band_c).limits)
         if not pv.ok:
             raise ValueError(f"{procedure}: " + "; ".join(pv.problems))
@@ -166,6 +168,7 @@ class BenchRunner:
                 age,
             )
             live.extra["dwell_s"] = dwell_s
+            live.extra["procedure_kw"] = dict(parameters or {})
             self._claim_bench(live, self._work)
         self.hub.publish(live.id, "state", {"state": RunState.QUEUED.value, "reason": "accepted"})
         assert self._thread is not None
@@ -286,6 +289,7 @@ class BenchRunner:
             observers=self._observers(live),
             control=live.control,
             run_id=live.id,
+            procedure_kw=live.extra.get("procedure_kw") or None,
             truth=simulated_unit(live.unit_serial, live.age_days) if self.settings.sim else None,
             defer_final_state=True,
         )
@@ -335,7 +339,7 @@ class BenchRunner:
                 self._finalise(live, record)
             live.state = RunState.INTERRUPTED if interrupted else _final_state(record)
             live.progress = 1.0 if live.state is RunState.COMPLETED else live.progress
-            hidden = ("dwell_s", "claimed")
+            hidden = ("dwell_s", "claimed", "procedure_kw")
             finished = {
                 "state": live.state.value,
                 "outcome": record.outcome.value if record and record.outcome else None,

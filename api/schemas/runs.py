@@ -31,6 +31,13 @@ class RunCreate(BaseModel):
         le=3600.0,
         description="static dwell per pose (s), 0.5..3600; default: the service's setting or a noise window",
     )
+    parameters: dict[str, float] | None = Field(
+        default=None,
+        max_length=8,
+        description="the procedure's own parameters, by the names its factory takes (e.g. repeats and "
+        "settle_s of planned-static, as GET /api/plan gives them); stored with the run",
+        examples=[{"repeats": 3, "settle_s": 2.0}],
+    )
     bench: str | None = Field(
         default=None,
         min_length=1,

@@ -216,3 +216,38 @@ def describe_sigmas(u: PredictedUncertainty) -> str:
         f"U(k=2) bias {2 * u.bias * ug:.3g} ug, scale {2e6 * u.scale:.3g} ppm, "
         f"misalignment {2e6 * u.misalignment:.3g} urad"
     )
+
+
+def best_within(
+    noise: UnitNoise,
+    duration_s: float,
+    *,
+    limits: TableLimits = DEFAULT_TABLE_LIMITS,
+    settle_s: float = 2.0,
+    g_m_s2: float = 9.80665,
+    with_tilt: bool = True,
+) -> Evaluation:
+    """The planned-static design with the smallest RMS σ(K_ij) whose table time fits ``duration_s``.
+
+    For each dwell of :data:`DWELL_GRID_S` the most passes that fit are taken.
+
+    :raises ValueError: not even one pass of the shortest dwell fits.
+    """
+    best: Evaluation | None = None
+    for dwell in DWELL_GRID_S:
+        one = planned_static(dwell_s=dwell, repeats=1, settle_s=settle_s)
+        per_pass = preview(one, limits).duration_s
+        reps = min(MAX_WINDOWS // 12, int(duration_s // per_pass))
+        while reps >= 1:
+            proc = planned_static(dwell_s=dwell, repeats=reps, settle_s=settle_s)
+            if preview(proc, limits).duration_s <= duration_s:
+                break
+            reps -= 1
+        if reps < 1:
+            continue
+        e = evaluate(proc, noise, limits=limits, g_m_s2=g_m_s2, with_tilt=with_tilt)
+        if best is None or e.predicted.k_rms < best.predicted.k_rms:
+            best = e
+    if best is None:
+        raise ValueError(f"no planned design fits in {duration_s:g} s (one pass of 12 poses is longer)")
+    return best

@@ -6,6 +6,7 @@ steps); the sequencer executes it, :func:`preview` dry-runs it.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 
 from bench.procedures.oscillation import oscillation_2axis
@@ -27,12 +28,20 @@ PROCEDURES: dict[str, Callable[..., Procedure]] = {
 def build_procedure(name: str, dwell_s: float | None = None, **parameters: object) -> Procedure:
     """Build a registered procedure.
 
-    :raises ValueError: unknown name (the message lists the known ones).
+    :raises ValueError: unknown name (the message lists the known ones), or a parameter the
+        procedure does not take (named, with the ones it takes).
     """
     try:
         factory = PROCEDURES[name]
     except KeyError:
         raise ValueError(f"unknown procedure {name!r}; known: {', '.join(sorted(PROCEDURES))}") from None
+    accepted = set(inspect.signature(factory).parameters) - {"dwell_s"}
+    unknown = sorted(set(parameters) - accepted)
+    if unknown:
+        raise ValueError(
+            f"procedure {name!r} takes no parameter {', '.join(unknown)}; "
+            f"it takes: {', '.join(sorted(accepted)) or 'none'}"
+        )
     return factory(dwell_s=dwell_s, **parameters)
 
 

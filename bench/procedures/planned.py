@@ -41,7 +41,7 @@ def planned_poses_deg(repeats: int) -> list[tuple[float, float, float]]:
     ]
 
 
-def planned_static(dwell_s: float | None = None, repeats: int = 1, settle_s: float = 2.0) -> Procedure:
+def planned_static(dwell_s: float | None = None, repeats: float = 1, settle_s: float = 2.0) -> Procedure:
     """Build the planned static procedure.
 
     :param dwell_s: static window per visit (s); ``None`` takes :data:`DEFAULT_DWELL_S` (the
@@ -50,6 +50,8 @@ def planned_static(dwell_s: float | None = None, repeats: int = 1, settle_s: flo
     :param settle_s: settling allowance after each move (s).
     :raises ValueError: repeats outside 1..200.
     """
+    if repeats != int(repeats):
+        raise ValueError(f"planned-static repeats must be a whole number, got {repeats}")
     repeats = int(repeats)
     if not 1 <= repeats <= MAX_WINDOWS // 12:
         raise ValueError(f"planned-static repeats must be 1..{MAX_WINDOWS // 12}, got {repeats}")

@@ -1,0 +1,51 @@
+"""``GET /api/plan``: the planned procedure for a unit's noise and target uncertainties."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, HTTPException, Query, status
+
+from api.deps import SettingsDep, ViewerDep
+from bench.planning.noise import G0_M_S2, UnitNoise
+from bench.planning.report import plan_dict
+from bench.planning.search import Targets, plan
+from bench.sequencer.control import SequencerConfig
+
+router = APIRouter(prefix="/api", tags=["procedures"])
+
+MAX_PLAN_MINUTES = 120.0
+
+
+@router.get("/plan")
+def plan_procedure(
+    settings: SettingsDep,
+    _: ViewerDep,
+    white_ug_rt_hz: Annotated[float, Query(gt=0, le=1e6)],
+    wander_ug: Annotated[float, Query(ge=0, le=1e6)] = 0.0,
+    wander_tau_s: Annotated[float, Query(gt=0, le=1e6)] = 100.0,
+    random_walk_ug_rt_s: Annotated[float, Query(ge=0, le=1e6)] = 0.0,
+    bias_ug: Annotated[float | None, Query(gt=0, le=1e7)] = None,
+    scale_ppm: Annotated[float | None, Query(gt=0, le=1e6)] = None,
+    misalignment_urad: Annotated[float | None, Query(gt=0, le=1e6)] = None,
+    settle_s: Annotated[float, Query(ge=0, le=60)] = 2.0,
+    max_minutes: Annotated[float, Query(gt=0, le=MAX_PLAN_MINUTES)] = 60.0,
+) -> dict[str, Any]:
+    """The shortest ``planned-static`` design on this bench's table limits whose static window
+    fit meets the targets (U at k = 2: bias µg, scale ppm, misalignment µrad) for the unit's noise
+    (µg/√Hz white, µg wander with its correlation time, µg/√s random walk), its predicted U, table
+    time and the white-noise bound of any motion (docs/planning.md). ``plan`` is ``null`` and
+    ``problems`` says why when no design within ``max_minutes`` meets them; start the design with
+    ``POST /api/runs`` (procedure ``planned-static``, the plan's ``dwell_s``)."""
+    try:
+        noise = UnitNoise.from_ug(white_ug_rt_hz, wander_ug, wander_tau_s, random_walk_ug_rt_s)
+        targets = Targets(
+            None if bias_ug is None else bias_ug * 1e-6 * G0_M_S2,
+            None if scale_ppm is None else scale_ppm * 1e-6,
+            None if misalignment_urad is None else misalignment_urad * 1e-6,
+        )
+        limits = SequencerConfig(temp_band_c=settings.temp_band_c).limits
+        result = plan(noise, targets, limits=limits, settle_s=settle_s, max_duration_s=max_minutes * 60)
+    except ValueError as exc:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
+    return plan_dict(result, noise.describe())

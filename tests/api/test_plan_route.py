@@ -1,0 +1,53 @@
+"""GET /api/plan: the planner through the service (viewer role, 422 on impossible input)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from fastapi.testclient import TestClient
+
+from api.main import create_app
+from tests.support.service_helpers import VIEW, service_settings
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
+    app = create_app(service_settings(Path(tmp_path_factory.mktemp("plan"))), start_scheduler=False)
+    with TestClient(app) as c:
+        yield c
+
+
+def test_plan_route_gives_the_cli_plan(client: TestClient) -> None:
+    q = {"white_ug_rt_hz": 250, "wander_ug": 40, "wander_tau_s": 200, "scale_ppm": 80, "max_minutes": 20}
+    assert client.get("/api/plan", params=q).status_code == 401
+    r = client.get("/api/plan", params=q, headers=VIEW)
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["plan"]["procedure"] == "planned-static" and body["plan"]["predicted_U_k2"]["scale_ppm"] <= 80
+    assert body["plan"]["k_fraction_of_bound"] >= 1.0
+    bad = client.get("/api/plan", params={"white_ug_rt_hz": 250}, headers=VIEW)
+    assert bad.status_code == 422 and "at least one" in bad.json()["detail"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(400)
+def test_a_planned_procedure_runs_through_the_service(client: TestClient) -> None:
+    """A planned design (two passes, 2 s dwells) queued over REST with its parameters records its
+    24 windows on the simulated bench and is calibrated by the static fit."""
+    from tests.support.service_helpers import OP, wait_final
+
+    body = {
+        "unit_serial": "SN-PLAN-1",
+        "procedure": "planned-static",
+        "dwell_s": 2.0,
+        "parameters": {"repeats": 2, "settle_s": 1.0},
+    }
+    bad = client.post("/api/runs", json={**body, "parameters": {"passes": 2}}, headers=OP)
+    assert bad.status_code == 422 and "passes" in bad.json()["detail"]
+    r = client.post("/api/runs", json=body, headers=OP)
+    assert r.status_code == 202, r.text
+    run = wait_final(client, r.json()["id"])
+    assert run["state"] == "completed", run["error"]
+    assert run["last_complete_window"] == 23 and run["calibration"]["procedure"] == "planned-static"

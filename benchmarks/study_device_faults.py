@@ -18,8 +18,8 @@ axis (a step over 1.5 sample periods) is matched by a recorded gap — no sample
 Reported: faults by kind, automatic resumes, the success rate with a 95 % Wilson interval,
 and the wall time.
 
-Run: ``python -m benchmarks.study_device_faults [n_runs] [faults_per_run] [seed]``
-(default 18 runs × 3 faults = 54 faults).
+Run: ``python -m benchmarks.study_device_faults [n_runs] [faults_per_run] [seed] [parallel]``
+(default 12 runs × 5 faults = 60 faults, two runs at a time).
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ import tempfile
 import threading
 import time
 from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -156,21 +157,28 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
-    n_runs = int(args[0]) if args else 18
-    per_run = int(args[1]) if len(args) > 1 else 3
+    n_runs = int(args[0]) if args else 12
+    per_run = int(args[1]) if len(args) > 1 else 5
     rng = random.Random(int(args[2]) if len(args) > 2 else 2026)
+    parallel = int(args[3]) if len(args) > 3 else 2
     t0 = time.monotonic()
     results = []
     with tempfile.TemporaryDirectory(prefix="calbench-faults-") as tmp:
-        for i in range(n_runs):
-            r = one_run(Path(tmp), i, per_run, rng)
-            results.append(r)
-            kinds = ", ".join(f"{k}{f' {s:.1f} s' if s else ''}" for k, s in r["faults"])  # type: ignore[attr-defined]
-            print(
-                f"run {i:2d} {r['procedure']:18s} faults: {kinds or '-':50s} resumes {r['resumes']} "
-                f"{'ok' if r['ok'] else 'FAILED: ' + str(r['why'])} ({r['wall_s']:.0f} s)",
-                flush=True,
-            )
+        # two runs at a time, each with its own generator (the same faults whatever the order)
+        seeds = [rng.randrange(2**32) for _ in range(n_runs)]
+        with ThreadPoolExecutor(max_workers=parallel) as pool:
+            futures = [
+                pool.submit(one_run, Path(tmp), i, per_run, random.Random(seeds[i])) for i in range(n_runs)
+            ]
+            for i, future in enumerate(futures):
+                r = future.result()
+                results.append(r)
+                kinds = ", ".join(f"{k}{f' {s:.1f} s' if s else ''}" for k, s in r["faults"])  # type: ignore[attr-defined]
+                print(
+                    f"run {i:2d} {r['procedure']:18s} faults: {kinds or '-':50s} resumes {r['resumes']} "
+                    f"{'ok' if r['ok'] else 'FAILED: ' + str(r['why'])} ({r['wall_s']:.0f} s)",
+                    flush=True,
+                )
     kinds = Counter(k for r in results for k, _ in r["faults"])  # type: ignore[attr-defined]
     n_faults = sum(kinds.values())
     ok = sum(bool(r["ok"]) for r in results)

@@ -129,3 +129,26 @@ def test_a_pause_asked_while_the_run_waits_in_the_queue_holds_it_once_claimed(tm
         assert agent.runner.wait_idle(60.0)
     finally:
         agent.close()
+
+
+def test_an_embedded_service_and_a_second_run_are_refused_while_the_bench_is_driven(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv("CALBENCH_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("CALBENCH_DATABASE_URL", f"sqlite:///{tmp_path / 'calbench.db'}")
+    monkeypatch.setenv("CALBENCH_BENCH_NAME", "vm")
+    monkeypatch.setenv("CALBENCH_TOKENS", "operator:operator-secret-0001")
+    held = BenchLock(Settings(), "calbench run").acquire()  # e.g. a calbench run mid-run
+    try:
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            port = probe.getsockname()[1]
+        assert main(["serve", "--sim", "--agent", "embedded", "--port", str(port)]) == ALREADY_RUNNING
+        assert main(["resume", "some-run", "--sim"]) == ALREADY_RUNNING
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 2, lines
+        who = f"is driven by calbench run pid {os.getpid()} on host {socket.gethostname()} since "
+        assert lines[0].startswith("calbench serve: bench 'vm' ") and who in lines[0]
+        assert lines[1].startswith("calbench resume: bench 'vm' ") and who in lines[1]
+    finally:
+        held.release()

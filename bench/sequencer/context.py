@@ -46,6 +46,8 @@ class RunContext(Protocol):
     """Recording-clock time of the holds that have ended (s)."""
     hold_began_s: float | None
     """The recording clock when the hold in progress began (``None``: not held)."""
+    safe_faults: list[BaseException]
+    """What failed while making the table and acquisition safe at the end (exceptions)."""
 
     def notify(self, method: str, *args: object) -> None:
         """Tell every observer (``method`` of :class:`bench.run_observer.RunObserver`)."""

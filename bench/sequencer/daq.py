@@ -89,6 +89,8 @@ class DaqPump:
         max_read_failures: int = 3,
     ) -> None:
         self.daq = daq
+        self.stop_error: BaseException | None = None
+        """Why stopping the DAQ failed (:meth:`stop`), if it did."""
         self.max_samples = max_samples
         self.read_timeout_s = read_timeout_s
         self.idle_wait_s = idle_wait_s
@@ -203,6 +205,7 @@ class DaqPump:
         try:
             self.daq.stop()
         except Exception as exc:
+            self.stop_error = exc
             problem = f"DAQ stop failed: {type(exc).__name__}: {exc}"
         return problem
 

@@ -137,6 +137,7 @@ class Sequencer:
         self._daq_latches_table = False
         self._gaps = 0
         self._daq_epoch = 0
+        self.safe_faults: list[BaseException] = []
 
     # -- observers -----------------------------------------------------------------------
 
@@ -388,6 +389,9 @@ class Sequencer:
             problems = make_safe(self)
         if problems:
             error = "; ".join([error or "completed", *problems])
+            if outcome is None:  # every step done, the safe state unconfirmed: a lost link resumes
+                faults = [*self.safe_faults, *([self._pump.stop_error] if self._pump.stop_error else [])]
+                resumable = bool(faults) and all(resumable_fault(e) for e in faults)
             outcome = outcome or Outcome.ERROR
         return Acquisition(
             outcome,

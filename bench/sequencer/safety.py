@@ -42,7 +42,8 @@ def make_safe(seq: RunContext) -> list[str]:
     problems: list[str] = []
     try:
         call_with_deadline(lambda: _stop_table(seq, problems), seq.config.stop_timeout_s, "safe state")
-    except DeviceTimeout:
+    except DeviceTimeout as exc:
+        seq.safe_faults.append(exc)
         problems.append(f"table did not confirm stop within {seq.config.stop_timeout_s:g} s")
     # Samples still queued belong to the recording too.
     problems += seq.finish_acquisition()
@@ -51,6 +52,7 @@ def make_safe(seq: RunContext) -> list[str]:
         if chunk is not None:
             seq.notify("on_chunk", seq.start.run_id, chunk)
     except Exception as exc:
+        seq.safe_faults.append(exc)
         problems.append(f"closing the recording failed: {type(exc).__name__}: {exc}")
     return problems
 
@@ -64,4 +66,5 @@ def _stop_table(seq: RunContext, problems: list[str]) -> None:
         else:
             seq.table.stop()
     except Exception as exc:
+        seq.safe_faults.append(exc)
         problems.append(f"table safe state failed: {type(exc).__name__}: {exc}")

@@ -34,6 +34,8 @@ from api.certificates.statements import (
     TITLE,
     TYPE_A_ONLY_STATEMENT,
 )
+from bench.planning.report import predicted_and_achieved
+from bench.procedures.planned import NAME as PLANNED_STATIC
 
 
 def _iso(value: dt.datetime | None) -> str | None:
@@ -167,6 +169,15 @@ def certificate_content(
             "parameters": run.parameters,
             "deviations": [*run_deviations(run), *inp.deviations] or [no_deviation(run)],
             "sampling": "not applicable",
+            **(
+                {
+                    "planned_U_k2": predicted_and_achieved(
+                        run.parameters, inp.calibration.K, inp.calibration.K_sigma, inp.calibration.bias_sigma
+                    )
+                }
+                if procedure == PLANNED_STATIC
+                else {}
+            ),
         },
         "item": _item(unit),
         "dates": {

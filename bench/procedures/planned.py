@@ -11,6 +11,8 @@ wander between windows — the fit whose covariance the planner predicts.
 
 from __future__ import annotations
 
+import math
+
 from bench.procedures.static import (
     EXECUTION_ORDER,
     OUTER_ANGLES_DEG,
@@ -41,14 +43,24 @@ def planned_poses_deg(repeats: int) -> list[tuple[float, float, float]]:
     ]
 
 
-def planned_static(dwell_s: float | None = None, repeats: float = 1, settle_s: float = 2.0) -> Procedure:
+def planned_static(
+    dwell_s: float | None = None,
+    repeats: float = 1,
+    settle_s: float = 2.0,
+    predicted_bias_u_ug: float | None = None,
+    predicted_scale_u_ppm: float | None = None,
+    predicted_misalignment_u_urad: float | None = None,
+) -> Procedure:
     """Build the planned static procedure.
 
     :param dwell_s: static window per visit (s); ``None`` takes :data:`DEFAULT_DWELL_S` (the
         plan fixes it, so no noise window is recorded).
     :param repeats: passes over the twelve directions, 1..200.
     :param settle_s: settling allowance after each move (s).
-    :raises ValueError: repeats outside 1..200.
+    :param predicted_bias_u_ug: the planner's predicted U (k = 2) of the largest bias (µg), stored
+        with the run so the certificate can state it beside the achieved one; likewise
+        ``predicted_scale_u_ppm`` and ``predicted_misalignment_u_urad``. They change no step.
+    :raises ValueError: repeats outside 1..200, or a predicted U that is not a number > 0.
     """
     if repeats != int(repeats):
         raise ValueError(f"planned-static repeats must be a whole number, got {repeats}")
@@ -62,4 +74,13 @@ def planned_static(dwell_s: float | None = None, repeats: float = 1, settle_s: f
         steps.append(MoveTo(pose, label=label, settle_s=settle_s))
         steps.append(Dwell(label, duration_s=dwell))
     params: dict[str, object] = {"dwell_s": dwell, "repeats": repeats, "settle_s": settle_s}
+    for key, value in (
+        ("predicted_bias_u_ug", predicted_bias_u_ug),
+        ("predicted_scale_u_ppm", predicted_scale_u_ppm),
+        ("predicted_misalignment_u_urad", predicted_misalignment_u_urad),
+    ):
+        if value is not None:
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"planned-static {key} must be a number > 0, got {value!r}")
+            params[key] = float(value)
     return Procedure(NAME, tuple(steps), params, n_axes=3)

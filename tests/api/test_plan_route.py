@@ -26,6 +26,11 @@ def test_plan_route_gives_the_cli_plan(client: TestClient) -> None:
     assert r.status_code == 200, r.text
     body = r.json()
     assert body["plan"]["procedure"] == "planned-static" and body["plan"]["predicted_U_k2"]["scale_ppm"] <= 80
+    start = body["start"]
+    assert (
+        start["procedure"] == "planned-static" and start["dwell_s"] == body["plan"]["parameters"]["dwell_s"]
+    )
+    assert start["parameters"]["predicted_scale_u_ppm"] == body["plan"]["predicted_U_k2"]["scale_ppm"]
     assert body["plan"]["k_fraction_of_bound"] >= 1.0
     bad = client.get("/api/plan", params={"white_ug_rt_hz": 250}, headers=VIEW)
     assert bad.status_code == 422 and "at least one" in bad.json()["detail"]
@@ -42,7 +47,7 @@ def test_a_planned_procedure_runs_through_the_service(client: TestClient) -> Non
         "unit_serial": "SN-PLAN-1",
         "procedure": "planned-static",
         "dwell_s": 2.0,
-        "parameters": {"repeats": 2, "settle_s": 1.0},
+        "parameters": {"repeats": 2, "settle_s": 1.0, "predicted_scale_u_ppm": 1500.0},
     }
     bad = client.post("/api/runs", json={**body, "parameters": {"passes": 2}}, headers=OP)
     assert bad.status_code == 422 and "passes" in bad.json()["detail"]
@@ -51,3 +56,10 @@ def test_a_planned_procedure_runs_through_the_service(client: TestClient) -> Non
     run = wait_final(client, r.json()["id"])
     assert run["state"] == "completed", run["error"]
     assert run["last_complete_window"] == 23 and run["calibration"]["procedure"] == "planned-static"
+    cert = client.get(f"/api/runs/{run['id']}/certificate", headers=VIEW)
+    assert cert.status_code == 200, cert.text
+    method = cert.json()["content"]["method"]
+    assert method["parameters"]["repeats"] == 2
+    planned = method["planned_U_k2"]
+    assert planned["scale_ppm"]["predicted"] == 1500.0 and planned["bias_ug"]["predicted"] is None
+    assert all(v["achieved"] > 0 for v in planned.values())

@@ -127,3 +127,16 @@ def test_cli_plan_prints_a_plan_and_refuses_bad_input(capsys: pytest.CaptureFixt
     assert out["plan"]["procedure"] == "planned-static" and out["plan"]["predicted_U_k2"]["scale_ppm"] <= 80
     assert api.cli.main(["plan", "--white", "250"]) == 2
     assert "at least one" in capsys.readouterr().err
+
+
+def test_predicted_and_achieved_states_u_relative_to_the_fitted_scale() -> None:
+    from bench.planning.report import predicted_and_achieved
+
+    K = np.diag([2.0, 2.0, 4.0])
+    K_sigma = np.full((3, 3), 1e-6)
+    K_sigma[2, 1] = 8e-6  # 2e-6 relative to K_zz = 4: the largest off-diagonal
+    bias_sigma = np.array([2.0 * G0_M_S2 * 1e-6, 0.0, 0.0])  # 1 µg at scale 2
+    out = predicted_and_achieved({"predicted_scale_u_ppm": 3.0}, K, K_sigma, bias_sigma)
+    assert out["scale_ppm"] == {"predicted": 3.0, "achieved": pytest.approx(1.0)}  # 2 × 1e-6 / 2
+    assert out["misalignment_urad"]["achieved"] == pytest.approx(4.0)
+    assert out["bias_ug"]["achieved"] == pytest.approx(2.0) and out["bias_ug"]["predicted"] is None

@@ -29,6 +29,13 @@ parameter's variance is taken as the larger of the two, with the correlations of
 (Jᵀ W J)⁻¹: Cov = C·(Jᵀ W J)⁻¹·C, C = diag(max(1, sandwich_ii / white_ii)^½). Noise slower
 than the whole recording cannot be told from the bias by any estimator of one run; it is
 part of "the bias this run saw".
+
+The sandwich sees only the residuals; a slow wander that the fit absorbed into bias and K
+(long stretches of constant regressors: a rate table's poses) is estimated separately from
+the block means of the residuals (``dynamic_wander``, ``WANDER_BLOCKS`` blocks) and its
+covariance added to the white bound before the comparison with the sandwich:
+Cov = C·(H⁻¹ + Cov_wander)·C. With a correlated wander found the bias sigma describes the
+unit's long-run bias (``bias_reference``).
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ import numpy as np
 import numpy.typing as npt
 
 from bench.estimation.dynamic_model import ModelSpec, initial_theta, predict, specific_force
+from bench.estimation.dynamic_wander import BlockWander, fit_block_wander
 from bench.estimation.motion_data import MotionData
 from bench.estimation.observability import check_information
 
@@ -48,6 +56,7 @@ FloatArray = npt.NDArray[np.float64]
 CHUNK_SAMPLES = 20_000
 BLOCK_S = 1.0
 TARGET_BLOCKS = 50
+WANDER_BLOCKS = 200
 NW_LAGS = 2
 MAX_ITER = 40
 
@@ -88,6 +97,7 @@ class DynamicFit:
     iterations: int
     converged: bool
     bias_reference: BiasReference = "run_mean"
+    wander: BlockWander | None = None
 
     @property
     def sigma(self) -> FloatArray:
@@ -137,8 +147,13 @@ def _pass(
     lever: FloatArray,
     blocks: npt.NDArray[np.int64] | None,
     n_blocks: int,
+    sums: tuple[FloatArray, FloatArray, FloatArray, npt.NDArray[np.int64]] | None = None,
 ) -> tuple[float, FloatArray, FloatArray, FloatArray | None, FloatArray]:
-    """One pass over the data: cost, H, gradient Jᵀ W e, block scores, residual sum of squares per channel."""
+    """One pass over the data: cost, H, gradient Jᵀ W e, block scores, residual sum of squares per channel.
+
+    ``sums`` (with blocks): arrays (n_w, 3, p), (n_w, 3), (n_w,) that receive Σ J, Σ e and
+    the sample count per wander block, and each sample's wander block (n,).
+    """
     p = spec.n_params
     H, grad, ss = np.zeros((p, p)), np.zeros(p), np.zeros(3)
     scores = np.zeros((n_blocks, p)) if blocks is not None else None
@@ -160,6 +175,11 @@ def _pass(
         grad += s.sum(axis=0)
         if scores is not None and blocks is not None:
             np.add.at(scores, blocks[sel], s)
+            if sums is not None:
+                fine = sums[3][sel]
+                np.add.at(sums[0], fine, J)
+                np.add.at(sums[1], fine, e)
+                np.add.at(sums[2], fine, 1.0)
     return cost, H, grad, scores, ss
 
 
@@ -241,17 +261,32 @@ def fit_dynamic_batch(
             lam *= 10.0
             if lam > 1e8:
                 break
-    cost, H, grad, scores, ss = _pass(theta, m, Y, w, spec, g_m_s2, lever, blk, n_blocks)
+    fine_s = max(BLOCK_S, span_s / WANDER_BLOCKS)
+    fine = np.floor((m.t_s - m.t_s[0]) / fine_s).astype(np.int64)
+    n_fine = int(fine[-1]) + 1
+    sums = (np.zeros((n_fine, 3, p)), np.zeros((n_fine, 3)), np.zeros(n_fine), fine)
+    cost, H, grad, scores, ss = _pass(theta, m, Y, w, spec, g_m_s2, lever, blk, n_blocks, sums)
     check_information(H, spec.names)
     assert scores is not None
     scores = scores[np.any(scores != 0, axis=1)]
     nb = scores.shape[0]
     Hinv = np.linalg.inv(H)
     cov_white = 0.5 * (Hinv + Hinv.T)
+    used = sums[2] > 0
+    mid_s = np.asarray(m.t_s[0] + (np.flatnonzero(used) + 0.5) * fine_s, dtype=float)
+    wander = fit_block_wander(
+        sums[0][used],
+        sums[1][used],
+        sums[2][used],
+        mid_s,
+        np.sqrt(1.0 / w),
+        cov_white,
+        channel_gain=np.linalg.norm(theta[3:12].reshape(3, 3), axis=1),
+    )
+    model = cov_white if wander is None else cov_white + wander.cov
     small = nb / (nb - p) if nb > p + 1 else np.inf
-    sandwich = Hinv @ newey_west(scores) @ Hinv * small
-    c = np.sqrt(np.maximum(np.diag(sandwich) / np.diag(cov_white), 1.0))
-    cov = cov_white * np.outer(c, c)
+    c = np.sqrt(np.maximum(np.diag(Hinv @ newey_west(scores) @ Hinv) * small / np.diag(model), 1.0))
+    cov = model * np.outer(c, c)
     return DynamicFit(
         spec=spec,
         names=tuple(spec.names),
@@ -264,4 +299,6 @@ def fit_dynamic_batch(
         n_blocks=nb,
         iterations=it,
         converged=converged,
+        bias_reference="long_run" if wander is not None and wander.correlated else "run_mean",
+        wander=wander,
     )

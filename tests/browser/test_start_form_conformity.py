@@ -52,3 +52,31 @@ def test_the_form_warns_before_a_run_of_a_model_without_limits(browser: Any, ser
     page.locator("#start-serial").dispatch_event("change")
     expect(warning).to_have_text("")
     assert errors == []
+
+
+def test_the_plan_button_plans_and_the_start_sends_the_plan(browser: Any, service: str) -> None:
+    page = browser.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
+    page.goto(f"{service}/")
+    page.wait_for_selector("#start-run:not([disabled])")
+    page.locator("#start-plan summary").click()
+    page.fill("#plan-scale", "80")
+    page.fill("#plan-mis", "")
+    page.click("#plan-run")
+    expect(page.locator("#plan-result")).to_contain_text("planned-static:", timeout=60_000)
+    expect(page.locator("#start-procedure")).to_have_value("planned-static")
+    plan = httpx.get(
+        f"{service}/api/plan",
+        params={"white_ug_rt_hz": 250, "wander_ug": 40, "wander_tau_s": 200, "scale_ppm": 80},
+        headers=OP,
+        timeout=60,
+    ).json()
+    page.fill("#start-serial", "SN-PLANNED")
+    with page.expect_request(lambda r: r.url.endswith("/api/runs") and r.method == "POST") as req:
+        page.click("#start-run")
+    body = req.value.post_data_json
+    assert body["procedure"] == "planned-static" and body["dwell_s"] == plan["start"]["dwell_s"]
+    assert body["parameters"] == plan["start"]["parameters"]
+    assert errors == []

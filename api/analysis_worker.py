@@ -35,14 +35,14 @@ def analyse_upload(csv_path: str) -> AnalysisResult:
     :raises ValueError: the recording cannot be read or fitted (message names file and row).
     """
     from api.certificates.issue import DIAGNOSIS_AVAILABLE, diagnose
-    from bench.calibration import calibrate_recording
+    from bench.calibration.analysis import analyse
     from bench.recording import read_recording
 
     path = Path(csv_path)
     prefix = str(path.parent) + "/"
     try:
         rec = read_recording(path)
-        calibration = dict(calibrate_recording(rec).to_contract())
+        calibration = dict(analyse(rec).contract())
     except ValueError as exc:
         raise ValueError(str(exc).replace(prefix, "")) from None
     if not DIAGNOSIS_AVAILABLE:

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import savgol_filter
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -228,6 +227,8 @@ def derivatives(
     if t.shape[0] < 3 or np.any(dt <= 0) or not np.all(np.isfinite(t)):
         raise ValueError("t_s must be finite, strictly increasing, with at least 3 samples")
     if method == "savgol":
+        from scipy.signal import savgol_filter  # only where rates are differentiated (moving tables)
+
         h = float(np.median(dt))
         if t.shape[0] < _SAVGOL_WINDOW:
             raise ValueError(f"savgol needs at least {_SAVGOL_WINDOW} samples, got {t.shape[0]}")

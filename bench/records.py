@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 from bench.limit_check import LimitCheck
 
 if TYPE_CHECKING:
+    from bench.calibration.analysis import Analysis
     from bench.calibration.result import CalibrationResult
 
 
@@ -369,6 +370,9 @@ class RunRecord:
     :param fit_covariance: (p, p) covariance of the fitted parameters, or ``None``.
     :param fit_param_names: the p parameter names in covariance order.
     :param gaps: every sample gap of the run, in order (empty: no sample lost).
+    :param analysis: the recording analysed once (``bench.calibration.analysis.analyse``):
+        ``calibration`` is its fit; the service's finish adds the nominal |g| check, the
+        diagnosis and the certificate's budget to it without reading the recording again.
     """
 
     start: RunStart
@@ -384,6 +388,7 @@ class RunRecord:
     fit_covariance: tuple[tuple[float, ...], ...] | None = None
     fit_param_names: tuple[str, ...] = ()
     gaps: tuple[GapRecord, ...] = ()
+    analysis: Analysis | None = None
 
     @property
     def run_id(self) -> str:

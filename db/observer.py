@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import Any, TypeVar
 
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
@@ -29,9 +29,6 @@ from db.models import run_params as rp
 from db.notify import notify_run
 from db.repo import progress, recovery, results, runs, units
 from db.types import utc_now
-
-if TYPE_CHECKING:
-    from bench.calibration import CalibrationResult
 
 T = TypeVar("T")
 
@@ -55,14 +52,52 @@ def finish_record(s: Session, record: br.RunRecord) -> bool:
     )
 
 
-def fit_kind_for(procedure: str, fit: CalibrationResult) -> FitKind:
-    """``scalar`` for the orientation-free fit, ``dynamic`` for rate/oscillation procedures,
-    else ``static``."""
-    if fit.method == "scalar":
-        return FitKind.SCALAR
-    if any(word in procedure for word in ("rate", "oscillation", "dynamic")):
-        return FitKind.DYNAMIC
-    return FitKind.STATIC
+def store_fit(s: Session, record: br.RunRecord, *, replace: bool = True) -> None:
+    """Store the run's one fit, from its analysis (``record.analysis``, else ``record.calibration``):
+    the ``fit`` row (kind as the fit chose it, the ``calbench calibrate --json`` object, the
+    covariance and its parameter names) and the same object as ``params["calibration"]``, the
+    copy the run's API object shows. A fit already stored is replaced (``replace``) or kept.
+    """
+    fit = record.calibration
+    if fit is None:
+        raise ValueError(f"run {record.run_id} has no fit to store")
+    existing = results.list_fits(s, record.run_id)
+    if existing and not replace:
+        return
+    for row in existing:
+        s.delete(row)
+    contract = record.analysis.contract() if record.analysis is not None else fit.to_contract()
+    run = s.get(Run, record.run_id, with_for_update=True)
+    if run is None:
+        raise LookupError(f"run {record.run_id} not found")
+    run.params = {**run.params, "calibration": contract}
+    results.add_fit(
+        s,
+        record.run_id,
+        FitKind(fit.kind.value),
+        contract,
+        covariance=record.fit_covariance,
+        param_names=record.fit_param_names,
+    )
+
+
+def update_stored_fit(
+    s: Session, run_id: str, change: Callable[[dict[str, Any]], dict[str, Any] | None]
+) -> None:
+    """Change the run's stored fit: ``change`` gets the stored ``calibrate --json`` object and
+    gives the new one (``None``: no change), written to the ``fit`` row and to
+    ``params["calibration"]`` alike."""
+    run = s.get(Run, run_id, with_for_update=True)
+    stored = run.params.get("calibration") if run is not None else None
+    if run is None or not isinstance(stored, dict):
+        return
+    new = change(stored)
+    if new is None:
+        return
+    run.params = {**run.params, "calibration": new}
+    for row in results.list_fits(s, run_id):
+        row.contract = new
+    s.flush()
 
 
 class DbRunObserver(NullObserver):
@@ -249,9 +284,8 @@ class DbRunObserver(NullObserver):
         self._tx(write, notify=run_id)
 
     def on_finish(self, record: br.RunRecord) -> None:
-        """Outcome, error, limit checks, any window not yet stored, and the fit (the contract
-        object also in ``params["calibration"]``, with its covariance) — the only place a
-        bench run's fit is stored."""
+        """Outcome, error, limit checks, any window not yet stored, and the fit
+        (:func:`store_fit`) — the only place a bench run's fit is stored."""
         run_id = record.run_id
 
         def write(s: Session) -> None:
@@ -277,16 +311,7 @@ class DbRunObserver(NullObserver):
             else:
                 finish_record(s, record)
             if record.calibration is not None:
-                contract = record.calibration.to_contract()
-                run.params = {**run.params, "calibration": contract}
-                results.add_fit(
-                    s,
-                    run_id,
-                    fit_kind_for(run.procedure, record.calibration),
-                    contract,
-                    covariance=record.fit_covariance,
-                    param_names=record.fit_param_names,
-                )
+                store_fit(s, record)
 
         self._tx(write, notify=run_id)
         self._first_chunk_pending.discard(run_id)

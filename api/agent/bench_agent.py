@@ -41,7 +41,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from api.agent import fault_retry
 from api.agent.devices import bench_config_for
-from api.certificates.issue import analyse_run, finish_calibration, unit_nominal
+from api.certificates.issue import finish_calibration, prepare_run, unit_nominal
 from api.drift import record_drift_check
 from api.runs import resume as service_resume
 from api.runs.hub import ProgressHub
@@ -89,14 +89,18 @@ def make_finisher(
 ) -> Callable[[LiveRun, RunRecord], None]:
     """What the runner's worker does after a run: results, certificate or drift comparison.
 
-    The recording is read and diagnosed before the write transaction opens."""
+    Everything slow (the diagnosis, the certificate's budget: for a moving table minutes of
+    refits) is done on the run's analysis before the write transaction opens, so the API's
+    writes never wait for it."""
 
     def finish(live: LiveRun, record: RunRecord) -> None:
         analysis = None
         if live.kind == "calibration":
             with read_sessions.begin() as s:
                 nominal = unit_nominal(get_unit_by_serial(s, live.unit_serial))
-            analysis = analyse_run(record, nominal)
+                run = s.get(Run, record.run_id)
+                params = dict(run.params) if run is not None else {}
+            analysis = prepare_run(record, nominal, settings, params)
         with sessions.begin() as s:
             set_service_run(s, record.run_id, live.kind)
             # the final state commits in one transaction with the certificate (or drift check):

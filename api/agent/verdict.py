@@ -1,9 +1,11 @@
-"""The end of a bench run: fit the recording, judge it against the unit's limits, and tell the
+"""The end of a bench run: analyse the recording (read once, fitted once:
+``bench.calibration.analysis.analyse``), judge the fit against the unit's limits, and tell the
 run's observers, retrying one that cannot store it yet.
 
 :func:`execute` runs a prepared sequencer to its end and gives the :class:`~bench.records.RunRecord`
 (outcome PASS or FAIL from the limits, ERROR when the fit or the check fails, or the
-acquisition's own outcome); :func:`finish_observers` hands it to every observer.
+acquisition's own outcome) with its :class:`~bench.calibration.analysis.Analysis`, which the
+service's finish passes on; :func:`finish_observers` hands it to every observer.
 """
 
 from __future__ import annotations
@@ -12,39 +14,22 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
-
+from api.certificates.budget import TypeBSettings, analysis_budget
 from api.certificates.conformity import check_uncertainties
-from api.certificates.issue import limits_model_name, run_budget
+from api.certificates.issue import limits_model_name
 from api.settings import Settings
-from bench.calibration import CalibrationResult, calibrate_recording
-from bench.estimation.scalar_fit import PARAMETER_NAMES as SCALAR_NAMES
-from bench.estimation.static_design import PARAMETER_NAMES as STATIC_NAMES
+from bench.calibration.analysis import Analysis, analyse
 from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
 from bench.limits import UnitLimits, describe, load_limits, verdict
-from bench.recording import Recording
 from bench.recording.reader import read_recording
 from bench.records import Outcome, RunRecord, RunState
 from bench.run_observer import RunObserver
 from bench.sequencer.loop import Sequencer
 
 
-def fit_covariance(result: CalibrationResult) -> tuple[tuple[tuple[float, ...], ...], tuple[str, ...]]:
-    """The fit's parameter covariance and the names of its rows (static, scalar or dynamic fit)."""
-    dynamic = getattr(result, "fit", None)
-    if dynamic is not None:
-        names = tuple(dynamic.names)
-    else:
-        names = SCALAR_NAMES if result.method == "scalar" else STATIC_NAMES
-    cov = tuple(tuple(float(v) for v in row) for row in np.asarray(result.cov, dtype=float))
-    if len(cov) != len(names):
-        raise ValueError(f"fit covariance is {len(cov)}x{len(cov)} for {len(names)} parameter names")
-    return cov, names
-
-
 def judged_uncertainties(
-    rec: Recording, calibration: FittedModel, settings: Settings | None, g_check_n: int | None = None
+    analysis: Analysis, calibration: FittedModel, settings: Settings | None
 ) -> dict[str, float]:
     """The expanded uncertainty of each value the limits check: with ``settings``, as the
     certificate will state it (the uncertainty budget with the bench's Type B settings, needed
@@ -52,8 +37,8 @@ def judged_uncertainties(
     (simple acceptance, where U is stated beside the verdict; the certificate states its own)."""
     budget = None
     if settings is not None:
-        budget, _why = run_budget(rec, calibration, settings)
-    return check_uncertainties(calibration, budget, g_check_n)
+        budget, _why = analysis_budget(analysis, calibration, TypeBSettings.of(settings))
+    return check_uncertainties(calibration, budget, analysis.fit.g_after.error_m_s2.size)
 
 
 def run_record(
@@ -64,26 +49,23 @@ def run_record(
     limits: UnitLimits | None,
     settings: Settings | None = None,
 ) -> RunRecord:
-    calibration: CalibrationResult | None = None
+    analysis: Analysis | None = None
     outcome = acq_outcome
     checks: tuple[LimitCheck, ...] = ()
     cov: tuple[tuple[float, ...], ...] | None = None
     names: tuple[str, ...] = ()
-    rec: Recording | None = None
     if outcome is None:
         try:
-            rec = read_recording(csv_path)
-            calibration = calibrate_recording(rec)
-            cov, names = fit_covariance(calibration)
+            analysis = analyse(read_recording(csv_path))
+            cov, names = analysis.fit.covariance_rows()
         except ValueError as exc:
             outcome, error = Outcome.ERROR, f"fit failed: {exc}"
-    if calibration is not None and rec is not None:
+    if analysis is not None:
         try:
-            n_g = int(np.size(calibration.g_after.error_m_s2))
-            fitted = calibration.fitted_model()
+            fitted = analysis.fitted_model()
             # the budget (refits for a moving table) only where the decision needs it: a guard band
             guarded = limits is not None and limits.decision_rule == "guarded-acceptance"
-            us = judged_uncertainties(rec, fitted, settings if guarded else None, n_g) if limits else None
+            us = judged_uncertainties(analysis, fitted, settings if guarded else None) if limits else None
             outcome, checks = verdict(fitted, limits, us)
         except ValueError as exc:
             outcome, error = Outcome.ERROR, f"limits check failed: {exc}"
@@ -95,13 +77,14 @@ def run_record(
         outcome=outcome,
         windows=tuple(seq.recorder.windows),
         error=error,
-        calibration=calibration,
+        calibration=analysis.fit if analysis is not None else None,
         limit_checks=checks,
         n_samples=seq.recorder.n_rows,
         dwell=seq.dwell,
         fit_covariance=cov,
         fit_param_names=names,
         gaps=tuple(seq.recorder.gaps),
+        analysis=analysis,
     )
 
 

@@ -3,9 +3,12 @@ design from the recording, the budget of ``bench.uncertainty.budget`` passed on 
 (:class:`CertificateBudget`) and written as JSON only into the certificate's content
 (:meth:`CertificateBudget.to_content`).
 
-The design is the run's recording refitted by ``calibrate_recording`` (the same windows and
-specific forces as the stored fit); values and Type A standard uncertainties are the stored
-fit's (:class:`bench.fitted_model.FittedModel`). Inputs that do not apply are listed under ``not_evaluated``
+The design is the run's analysis's (``bench.calibration.analysis.budget_design``: the windows
+and specific forces of the one fit, or a moving fit's model terms), never a refit; values and
+Type A standard uncertainties are the stored fit's (:class:`bench.fitted_model.FittedModel`).
+A moving fit's sensitivities are refits of the changed recording (``bench.uncertainty.dynamic``),
+minutes of CPU: :func:`analysis_budget` forms a budget once per analysis and Type B settings,
+before any database transaction opens. Inputs that do not apply are listed under ``not_evaluated``
 with the reason (no table in the sidecar, no temperature channel, a digital output).
 """
 
@@ -17,9 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.calibration import calibrate_recording, select_windows
-from bench.calibration.dynamic import calibrate_dynamic, is_dynamic
-from bench.calibration.windows import table_window_angles
+from bench.calibration.analysis import Analysis, MovingDesign, StaticDesign, budget_design
 from bench.estimation.static_design import PARAMETER_NAMES
 from bench.fitted_model import FittedModel
 from bench.recording import Recording
@@ -63,37 +64,18 @@ def _sig3(x: float) -> float:
     return float(f"{x:.3g}")
 
 
-def _window_angles_rad(rec: Recording) -> np.ndarray | None:
-    """(m, k) mean table angles of the fit's windows (rad), ``None`` without a table."""
-    if rec.table_deg is None or rec.sidecar.table is None:
-        return None
-    return table_window_angles(rec, select_windows(rec))
-
-
-def _window_temps(rec: Recording) -> np.ndarray | None:
-    if rec.temp_c is None:
-        return None
-    t = np.array([float(np.mean(rec.temp_c[w.start : w.stop])) for w in select_windows(rec)])
-    return t if np.all(np.isfinite(t)) else None
-
-
 def budget_inputs(
-    rec: Recording, stored: FittedModel, tb: TypeBSettings
+    design: StaticDesign, g: float, stored: FittedModel, tb: TypeBSettings
 ) -> tuple[np.ndarray, np.ndarray, list[TypeBInput], list[str]]:
     """The design (f (m, 3), window covariances (m, 3, 3)), the Type B inputs and what was not evaluated.
 
-    :raises ValueError: the recording's fit is not the known-orientation static fit.
+    :param g: the recording's local gravity (m/s²).
     """
-    fit = calibrate_recording(rec)
-    if fit.method != "static" or any(w.f_m_s2 is None for w in fit.windows):
-        raise ValueError(f"the {fit.method} fit has no known specific force per window")
-    f = np.array([w.f_m_s2 for w in fit.windows], dtype=float)
-    S = np.array([np.diag(np.asarray(w.mean_sigma, dtype=float) ** 2) for w in fit.windows])
+    f, S = design.f_m_s2, design.window_cov
     b, K = np.asarray(stored.bias, dtype=float), np.asarray(stored.K, dtype=float)
-    g = rec.sidecar.g_local_m_s2
     inputs: list[TypeBInput] = [gravity_input(f, g, tb.g_local_u_m_s2)]
     skipped: list[str] = []
-    angles, table = _window_angles_rad(rec), rec.sidecar.table
+    angles, table = design.table_rad, design.table
     if angles is not None and table is not None and angles.shape[0] == f.shape[0]:
         inputs += table_inputs(
             table.axis_vectors, angles, table.mount_matrix, g,
@@ -107,7 +89,7 @@ def budget_inputs(
         inputs += daq_inputs(b + f @ K.T, tb.daq_gain_u_rel, tb.daq_offset_u, unit)
     else:
         skipped.append(f"DAQ gain and offset: the output ({unit}) is digital, not measured by the DAQ")
-    temps = _window_temps(rec)
+    temps = design.temp_c
     if temps is not None and temps.shape[0] == f.shape[0]:
         inputs += temperature_inputs(
             temps, f, K, tb.temp_coeff_bias_u_m_s2_per_k, tb.temp_coeff_scale_u_rel_per_k
@@ -189,29 +171,55 @@ class CertificateBudget:
         }
 
 
-def certificate_budget(rec: Recording, stored: FittedModel, tb: TypeBSettings) -> CertificateBudget:
-    """The budget of a stored fit whose recording is ``rec``.
+def certificate_budget(analysis: Analysis, stored: FittedModel, tb: TypeBSettings) -> CertificateBudget:
+    """The budget of a stored fit whose analysis is ``analysis``: the static budget of its
+    design, or for a moving fit the budget of ``bench.uncertainty.dynamic`` (sensitivities by
+    refits with the fit's own model terms).
 
-    A moving-table recording (``is_dynamic``) gets the budget of ``bench.uncertainty.dynamic``
-    (sensitivities by refits, the extra terms those the stored recording's fit chooses).
-
-    :raises ValueError: the fit is not a known-orientation static or a dynamic fit.
+    :raises ValueError: the fit has no design (an orientation-free fit), or a refit fails.
     """
     sigma = np.concatenate([np.asarray(stored.bias_sigma, float), np.asarray(stored.K_sigma, float).ravel()])
     b, K = np.asarray(stored.bias, dtype=float), np.asarray(stored.K, dtype=float)
-    if is_dynamic(rec):
-        return _dynamic_budget(rec, stored.channel_unit, tb, b, K, np.diag(sigma**2))
-    f, S, inputs, skipped = budget_inputs(rec, stored, tb)
+    design = budget_design(analysis)
+    rec = analysis.recording
+    if isinstance(design, MovingDesign):
+        return _dynamic_budget(rec, design.terms, stored.channel_unit, tb, b, K, np.diag(sigma**2))
+    f, S, inputs, skipped = budget_inputs(design, rec.sidecar.g_local_m_s2, stored, tb)
     budget = uncertainty_budget(f, b, K, np.diag(sigma**2), inputs, window_cov=S)
     return CertificateBudget(budget, stored.channel_unit, tuple(skipped))
 
 
+def analysis_budget(
+    analysis: Analysis, stored: FittedModel, tb: TypeBSettings
+) -> tuple[CertificateBudget | None, str]:
+    """:func:`certificate_budget`, or ``None`` and why not; formed once per analysis, stored fit
+    values and Type B settings (kept in ``analysis.memo``), so the verdict's guard band and the
+    certificate share one budget."""
+    key = ("certificate_budget", tb, _values(stored))
+    if key not in analysis.memo:
+        try:
+            analysis.memo[key] = (certificate_budget(analysis, stored, tb), "")
+        except (KeyError, ValueError) as exc:
+            analysis.memo[key] = (None, f"budget not formed: {exc}")
+    result: tuple[CertificateBudget | None, str] = analysis.memo[key]
+    return result
+
+
+def _values(stored: FittedModel) -> tuple[str | float, ...]:
+    """The stored unit, values and sigmas a budget is formed from, as a key."""
+    parts = (stored.bias, stored.K, stored.bias_sigma, stored.K_sigma)
+    return (stored.channel_unit, *(float(v) for p in parts for v in np.ravel(p)))
+
+
 def _dynamic_budget(
-    rec: Recording, unit: str, tb: TypeBSettings, b: np.ndarray, K: np.ndarray, cov: np.ndarray
+    rec: Recording,
+    terms: tuple[str, ...],
+    unit: str,
+    tb: TypeBSettings,
+    b: np.ndarray,
+    K: np.ndarray,
+    cov: np.ndarray,
 ) -> CertificateBudget:
-    fit = calibrate_dynamic(rec, cross_check=False)
-    assert fit.fit is not None
-    terms = fit.fit.spec.terms
     inputs, skipped = dynamic_inputs(
         rec, terms, b, K,
         angle_u_rad=math.radians(tb.table_angle_u_deg), tilt_u_rad=tb.base_tilt_u_rad,

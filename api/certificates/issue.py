@@ -1,7 +1,10 @@
 """After a run: diagnose it, store the fit and the diagnosis, issue the certificate.
 
-The slow part (reading the recording and diagnosing it, :func:`analyse_run`) happens before
-the write transaction opens; :func:`finish_calibration` then stores and issues in one.
+Everything slow happens before the write transaction opens, on the run's one
+:class:`~bench.calibration.analysis.Analysis` (the recording read once and fitted once by the
+verdict): :func:`prepare_run` adds the nominal |g| check and the diagnosis and forms the
+certificate's uncertainty budget (for a moving table, minutes of refits); :func:`finish_calibration`
+then stores and issues in one short transaction, reading neither the recording nor refitting.
 
 The certificate number is allocated race-free by ``db.repo.certificates.issue_certificate``
 (unique ``(year, serial)``, retried on conflict); the content, which names its own number,
@@ -12,7 +15,6 @@ transaction, so a number is never visible without its final content.
 from __future__ import annotations
 
 import datetime as dt
-import importlib.util
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -20,29 +22,35 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session
 
-from api.certificates.budget import CertificateBudget, TypeBSettings, certificate_budget
+from api.certificates.budget import CertificateBudget, TypeBSettings, analysis_budget
 from api.certificates.certificate import certificate_content
 from api.certificates.conformity import limits_choice
 from api.certificates.deviations import stored_actions
 from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.pdf import render_pdf
 from api.settings import Settings, placeholder_reason
-from bench.calibration import NATURAL_ZERO_UNITS, calibrate_recording, select_windows
-from bench.calibration.dynamic import is_dynamic
+from bench.calibration.analysis import (
+    DIAGNOSIS_AVAILABLE,
+    Analysis,
+    Nominal,
+    analyse,
+    with_diagnosis,
+    with_nominal,
+)
 from bench.diagnosis.result import Diagnosis
 from bench.diagnosis.stored import StoredDiagnosis
-from bench.fitted_model import FittedModel, GCheckSummary, NominalReference
+from bench.fitted_model import ContractError, FittedModel
 from bench.limit_check import LimitCheck
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
-from db.models import Certificate, FitKind, Run, RunState, Unit
+from db.models import Certificate, Run, RunState, Unit
+from db.observer import store_fit, update_stored_fit
 from db.repo.certificates import canonical_sha256, issue_certificate
-from db.repo.results import add_findings, add_fit, list_findings, list_fits
+from db.repo.results import add_findings, list_findings
 from db.repo.runs import merge_params
 from db.types import utc_now
 
-DIAGNOSIS_AVAILABLE = importlib.util.find_spec("bench.calibration.diagnose") is not None
-"""The diagnosis module is installed (it is optional for the service)."""
+__all__ = ["DIAGNOSIS_AVAILABLE", "Nominal"]
 
 
 def diagnose(rec: Recording) -> Diagnosis:
@@ -104,93 +112,121 @@ def _temperature(record: RunRecord) -> tuple[float, float, float] | None:
 class RunAnalysis:
     """What a finished run's recording gave, computed outside any transaction.
 
-    :param rec: the recording, or ``None`` when unreadable or not needed.
-    :param diagnosis: the recording's diagnosis, or ``None``.
+    :param analysis: the run's analysis (fit, nominal |g| check, diagnosis, budget's design),
+        or ``None`` when the recording is missing, unreadable or cannot be fitted.
     :param note: why there is no diagnosis (empty when there is one).
-    :param g_before: the |g| check with the unit's registered nominal scale (``before``
-        adjustment) when the fit had none, with its ``nominal``.
     """
 
-    rec: Recording | None
-    diagnosis: Diagnosis | None
+    analysis: Analysis | None
     note: str
-    g_before: GCheckSummary | None = None
+
+    @property
+    def diagnosis(self) -> Diagnosis | None:
+        """The recording's diagnosis, or ``None``."""
+        return self.analysis.diagnosis if self.analysis is not None else None
 
 
-Nominal = tuple[float, float | None]
-"""A unit's registered nominal scale (channel unit per m/s²) and zero-g output (channel unit)."""
+def certificate_settings(settings: Settings, params: dict[str, Any]) -> Settings:
+    """The settings a run's certificate is issued with: the bench file's u(g) for the g it gave
+    the recording (``params["bench_config"]["g_local_u_m_s2"]``), when it states one."""
+    bench_file = params.get("bench_config")
+    u_g = bench_file.get("g_local_u_m_s2") if isinstance(bench_file, dict) else None
+    return settings.model_copy(update={"g_local_u_m_s2": u_g}) if isinstance(u_g, float) else settings
 
 
-def g_check_before(rec: Recording, nominal: Nominal) -> GCheckSummary | None:
-    """The |g| check of ``rec`` with the nominal scale and zero-g output (no adjustment), with
-    that nominal; ``None`` if it cannot be formed (also when a V or count unit was registered
-    without its zero-g output: assuming 0 would give a meaningless check)."""
-    scale, bias = nominal
-    if bias is None and rec.sidecar.channel_unit not in NATURAL_ZERO_UNITS:
-        return None
-    try:
-        cal = calibrate_recording(rec, nominal_scale=scale, nominal_bias=np.full(3, bias or 0.0))
-    except ValueError:
-        return None
-    if cal.g_before is None:
-        return None
-    ref = NominalReference(scale, bias or 0.0, "unit registration")
-    return GCheckSummary(cal.g_before.mean_error_m_s2, cal.g_before.std_m_s2, ref)
+def _complete(analysis: Analysis, nominal: Nominal | None, diagnose: bool) -> RunAnalysis:
+    analysis = with_nominal(analysis, nominal)
+    if diagnose:
+        analysis = with_diagnosis(analysis)
+    return RunAnalysis(analysis, analysis.diagnosis_note)
 
 
-def analyse_recording(path: str | None, nominal: Nominal | None = None) -> RunAnalysis:
-    """Read the recording at ``path``, diagnose it and, with a nominal scale, form the |g|
-    check before adjustment (no database)."""
+def form_budget(
+    prepared: RunAnalysis, settings: Settings, params: dict[str, Any], stored: FittedModel | None = None
+) -> tuple[CertificateBudget | None, str]:
+    """The certificate's budget of the run's fit (``stored``, default the analysis's own) with
+    the bench's Type B settings, or ``None`` and why not; formed once per analysis, fit values
+    and settings and kept with the analysis (``api.certificates.budget.analysis_budget``), so
+    the budget :func:`prepare_run` forms before the transaction is the one issued in it."""
+    if prepared.analysis is None:
+        return None, "the run's recording cannot be read, so the fit's design is unknown"
+    if stored is None:
+        try:
+            stored = FittedModel.from_contract(prepared.analysis.contract(), "the run's fit")
+        except ContractError as exc:
+            return None, f"budget not formed: {exc}"
+    tb = TypeBSettings.of(certificate_settings(settings, params))
+    return analysis_budget(prepared.analysis, stored, tb)
+
+
+def prepare_run(
+    record: RunRecord, nominal: Nominal | None, settings: Settings, params: dict[str, Any]
+) -> RunAnalysis:
+    """Everything slow of a finished calibration run, before its transaction: the run's analysis
+    (from the verdict; read and fitted only when the record has none) with the nominal |g| check
+    when the fit has no ``before`` of its own, the diagnosis, and for a run that passed the
+    certificate's budget (``params``: the run's stored parameters, for the bench file's u(g))."""
+    if record.calibration is None:
+        return RunAnalysis(None, "diagnosis not performed: the run has no fit")
+    if record.analysis is None:
+        prepared = analyse_recording(str(record.start.recording_path), nominal)
+    else:
+        prepared = _complete(record.analysis, nominal, diagnose=True)
+    if record.outcome is not None and record.outcome.value == "PASS":
+        form_budget(prepared, settings, params)
+    return prepared
+
+
+def analyse_recording(
+    path: str | None, nominal: Nominal | None = None, *, diagnose: bool = True
+) -> RunAnalysis:
+    """Read the recording at ``path``, fit it, form the nominal |g| check and (``diagnose``)
+    diagnose it, for a run whose verdict left no analysis (no database)."""
     if not path:
-        return RunAnalysis(None, None, "diagnosis not performed: the run has no recording")
+        return RunAnalysis(None, "diagnosis not performed: the run has no recording")
     try:
         rec = read_recording(path)
     except (OSError, ValueError) as exc:
-        return RunAnalysis(None, None, f"diagnosis not performed: recording {path} cannot be read: {exc}")
-    before = g_check_before(rec, nominal) if nominal is not None else None
+        return RunAnalysis(None, f"diagnosis not performed: recording {path} cannot be read: {exc}")
     try:
-        return RunAnalysis(rec, diagnose(rec), "", before)
-    except (RuntimeError, ValueError) as exc:
-        return RunAnalysis(rec, None, f"diagnosis not performed: {exc}", before)
+        analysis = analyse(rec)
+    except ValueError as exc:
+        return RunAnalysis(None, f"diagnosis not performed: {exc}")
+    return _complete(analysis, nominal, diagnose)
 
 
-def analyse_run(record: RunRecord, nominal: Nominal | None = None) -> RunAnalysis:
-    """The analysis of a finished run: only a run with a fit is diagnosed; the nominal
-    |g| check is formed only when the fit has no ``before`` of its own."""
-    if record.calibration is None:
-        return RunAnalysis(None, None, "diagnosis not performed: the run has no fit")
-    if record.calibration.g_before is not None:
-        nominal = None
-    return analyse_recording(str(record.start.recording_path), nominal)
-
-
-def store_diagnosis(s: Session, run_id: str, analysis: RunAnalysis) -> None:
+def store_diagnosis(s: Session, run_id: str, prepared: RunAnalysis) -> None:
     """Store the findings (``finding`` rows) and the whole diagnosis object (run params), or
     why there is none."""
-    if analysis.diagnosis is None:
-        merge_params(s, run_id, {"diagnosis_error": analysis.note})
+    if prepared.diagnosis is None:
+        merge_params(s, run_id, {"diagnosis_error": prepared.note})
         return
-    add_findings(s, run_id, StoredDiagnosis.of(analysis.diagnosis).findings)
-    merge_params(s, run_id, {"diagnosis": dict(analysis.diagnosis.to_contract()), "diagnosis_error": None})
+    add_findings(s, run_id, StoredDiagnosis.of(prepared.diagnosis).findings)
+    merge_params(s, run_id, {"diagnosis": dict(prepared.diagnosis.to_contract()), "diagnosis_error": None})
 
 
-def store_g_before(s: Session, run_id: str, g_before: GCheckSummary | None) -> None:
-    """Add the nominal |g| check to the run's stored fit as ``g_check.before``."""
-    run = s.get(Run, run_id)
-    cal = run.params.get("calibration") if run is not None else None
-    if g_before is None or not isinstance(cal, dict) or "before" in cal.get("g_check", {}):
-        return
-    g_check = {**cal.get("g_check", {}), "before": g_before.to_contract()}
-    merge_params(s, run_id, {"calibration": {**cal, "g_check": g_check}})
+def store_g_before(s: Session, run_id: str, prepared: RunAnalysis) -> None:
+    """Add the nominal |g| check to the run's stored fit as ``g_check.before`` (when the stored
+    fit has none)."""
+    g_before = prepared.analysis.g_before if prepared.analysis is not None else None
+    if g_before is not None:
+        update_stored_fit(s, run_id, lambda c: _with_before(c, g_before.to_contract()))
 
 
-def store_results(s: Session, record: RunRecord, analysis: RunAnalysis) -> None:
+def _with_before(contract: dict[str, Any], before: dict[str, Any]) -> dict[str, Any] | None:
+    g_check = contract.get("g_check")
+    if not isinstance(g_check, dict) or "before" in g_check:
+        return None
+    return {**contract, "g_check": {**g_check, "before": before}}
+
+
+def store_results(s: Session, record: RunRecord, prepared: RunAnalysis) -> None:
     """Store the fit (unless the run's database observer already did), the nominal |g| check
     and the diagnosis (or why there is none)."""
-    if record.calibration is not None and not list_fits(s, record.run_id):
-        add_fit(s, record.run_id, FitKind.STATIC, record.calibration.to_contract())
-    store_g_before(s, record.run_id, analysis.g_before)
-    store_diagnosis(s, record.run_id, analysis)
+    if record.calibration is not None:
+        store_fit(s, record, replace=False)
+    store_g_before(s, record.run_id, prepared)
+    store_diagnosis(s, record.run_id, prepared)
 
 
 def unit_inputs(unit: Unit) -> UnitFacts:
@@ -216,17 +252,6 @@ def unit_nominal(unit: Unit | None) -> Nominal | None:
     return unit.nominal_scale, unit.nominal_bias
 
 
-def g_check_count(rec: Recording) -> int | None:
-    """Windows of the |g| check of a static fit (its static windows); ``None`` for a moving
-    recording (whose 1 s blocks only the dynamic fit forms)."""
-    if is_dynamic(rec):
-        return None
-    try:
-        return len(select_windows(rec))
-    except ValueError:
-        return None
-
-
 def limits_model_name(settings: Settings, model: str | None) -> str | None:
     """The unit model whose limits judge a unit registered as ``model``: ``model`` when the
     limits file has it; ``settings.limits_model`` only when the registration names no model;
@@ -238,24 +263,12 @@ def limits_model_name(settings: Settings, model: str | None) -> str | None:
     return choice.limits.model if choice.limits is not None else None
 
 
-def run_budget(
-    rec: Recording | None, calibration: FittedModel, settings: Settings
-) -> tuple[CertificateBudget | None, str]:
-    """The uncertainty budget of a run's fit with the bench's Type B settings, or ``None`` and why not."""
-    if rec is None:
-        return None, "the run's recording cannot be read, so the fit's design is unknown"
-    try:
-        return certificate_budget(rec, calibration, TypeBSettings.of(settings)), ""
-    except (KeyError, ValueError) as exc:
-        return None, f"budget not formed: {exc}"
-
-
 def issue_for_run(
     s: Session,
     settings: Settings,
     run_id: str,
     *,
-    rec: Recording | None = None,
+    prepared: RunAnalysis | None = None,
     diagnosis: StoredDiagnosis | None = None,
     diagnosis_note: str = "",
     temp_c: tuple[float, float, float] | None = None,
@@ -263,6 +276,9 @@ def issue_for_run(
 ) -> Certificate:
     """Issue the certificate of a completed run that has a fit.
 
+    :param prepared: the run's analysis from :func:`prepare_run` or :func:`analyse_recording`,
+        formed before the transaction; ``None``: the recording is read and fitted here (a run
+        stored without one).
     :param diagnosis: the run's diagnosis; ``None``: the one stored with the run, if any.
     :raises LookupError: no such run. :raises ValueError: the run has no fit or is not completed.
     :raises bench.fitted_model.ContractError: the stored fit or the stored diagnosis lacks a key
@@ -277,11 +293,9 @@ def issue_for_run(
     calibration = FittedModel.from_contract(stored, f"run {run_id}: stored fit")
     unit = s.get(Unit, run.unit_id)
     assert unit is not None
-    if rec is None and run.recording_path:
-        try:
-            rec = read_recording(run.recording_path)
-        except (OSError, ValueError):
-            rec = None
+    if prepared is None:
+        prepared = analyse_recording(run.recording_path, diagnose=False)
+    rec = prepared.analysis.recording if prepared.analysis is not None else None
     if diagnosis is None and run.params.get("diagnosis") is not None:
         diagnosis = StoredDiagnosis.from_contract(run.params["diagnosis"], f"run {run_id}: stored diagnosis")
     simulated = bool(run.params.get("sim"))
@@ -291,11 +305,8 @@ def issue_for_run(
             f"no certificate issued for run {run_id} from a real bench: " + "; ".join(blocking)
         )
     g_local = rec.sidecar.g_local_m_s2 if rec is not None else None
-    bench_file = run.params.get("bench_config")
-    u_g = bench_file.get("g_local_u_m_s2") if isinstance(bench_file, dict) else None
-    if isinstance(u_g, float):  # the bench file's u(g) for the g it gave the recording
-        settings = settings.model_copy(update={"g_local_u_m_s2": u_g})
-    budget, budget_note = run_budget(rec, calibration, settings)
+    budget, budget_note = form_budget(prepared, settings, run.params, calibration)
+    settings = certificate_settings(settings, run.params)
     inputs = CertificateInputs(
         run=RunFacts(
             id=run.id,
@@ -325,7 +336,7 @@ def issue_for_run(
         outcome=run.outcome,
         limits_model=limits_model_name(settings, unit.model) if run.limit_checks else None,
         limits_note="" if run.limit_checks else limits_choice(settings, unit.model, unit.channel_unit).reason,
-        g_check_n=g_check_count(rec) if rec is not None else None,
+        g_check_n=prepared.analysis.g_check_windows if prepared.analysis is not None else None,
     )
     now = now or utc_now()
     cert = issue_certificate(s, run_id, {"pending": run_id}, now=now)
@@ -341,9 +352,12 @@ def finish_calibration(
     s: Session, settings: Settings, record: RunRecord, analysis: RunAnalysis | None = None
 ) -> Certificate | None:
     """Store fit and diagnosis of a finished calibration run and issue its certificate when
-    it passed (``None``: no certificate). Pass ``analysis`` from :func:`analyse_run`, computed
-    before the transaction; without it the analysis runs here."""
-    analysis = analysis if analysis is not None else analyse_run(record)
+    it passed (``None``: no certificate). Pass ``analysis`` from :func:`prepare_run`, computed
+    before the transaction (its budget is then formed already); without it the analysis runs
+    here, inside the transaction."""
+    if analysis is None:
+        run = s.get(Run, record.run_id)
+        analysis = prepare_run(record, None, settings, dict(run.params) if run is not None else {})
     store_results(s, record, analysis)
     if record.calibration is None or record.outcome is None or record.outcome.value != "PASS":
         return None
@@ -359,7 +373,7 @@ def _issue_after_run(s: Session, settings: Settings, record: RunRecord, analysis
         s,
         settings,
         record.run_id,
-        rec=analysis.rec,
+        prepared=analysis,
         diagnosis=StoredDiagnosis.of(analysis.diagnosis) if analysis.diagnosis is not None else None,
         diagnosis_note=analysis.note,
         temp_c=_temperature(record),

@@ -24,7 +24,7 @@ from api.certificates.pdf_budget import budget_section
 from api.certificates.pdf_layout import Flow, Page, wrap
 from api.certificates.pdf_record import record_section
 from api.certificates.rounding import format_significant
-from bench.calibration.dynamic import DYNAMIC_PROCEDURES
+from bench.calibration.kind import MOVING_PROCEDURES
 
 A4_IN = (8.27, 11.69)
 AXES = ("x", "y", "z")
@@ -212,7 +212,7 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
     g = c["g_check"]
     where = (
         "over 1 s blocks of the moving recording, gravity with the fitted motion terms removed"
-        if c["method"]["procedure"] in DYNAMIC_PROCEDURES
+        if c["method"]["procedure"] in MOVING_PROCEDURES
         else "over the static positions"
     )
     f.subheading(f"|g| check: |K⁻¹(raw − b)| − g_local {where} (m/s²)")

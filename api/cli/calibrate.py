@@ -11,7 +11,7 @@ import argparse
 import json
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from api.cli import BadInput, decimal_arg
 
@@ -54,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
     """Calibrate one recording and print the result."""
     import numpy as np  # the numerical stack is imported by the command that needs it
 
-    from bench.calibration import NATURAL_ZERO_UNITS, calibrate_dynamic, calibrate_recording, is_dynamic
+    from bench.calibration import NATURAL_ZERO_UNITS, is_moving
+    from bench.calibration.analysis import analyse
     from bench.recording import read_recording
 
     path: Path = args.recording
@@ -73,18 +74,10 @@ def run(args: argparse.Namespace) -> int:
             f"(the nominal zero-g output; a {unit} output is not 0 at zero g)"
         )
     bias0 = None if args.nominal_bias is None else np.array(args.nominal_bias, dtype=float)
-    if args.terms is not None:
-        terms = _terms(path, args.terms)
-        if not is_dynamic(rec):
-            raise BadInput(f"{path}: --terms applies to moving-table recordings; this one is static")
-        try:
-            result: CalibrationResult = calibrate_dynamic(
-                rec, terms=terms, nominal_scale=args.nominal_scale, nominal_bias=bias0
-            )
-        except ValueError as exc:
-            raise BadInput(f"{path}: {exc}") from exc
-    else:
-        result = calibrate_recording(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0)
+    terms = None if args.terms is None else _terms(path, args.terms)
+    if terms is not None and not is_moving(rec):
+        raise BadInput(f"{path}: --terms applies to moving-table recordings; this one is static")
+    result = analyse(rec, nominal_scale=args.nominal_scale, nominal_bias=bias0, terms=terms).fit
     warn_implausible(result)
     if args.json:
         print(json.dumps(result.to_contract()))
@@ -95,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _terms(path: Path, text: str) -> tuple[str, ...]:
     """``--terms`` as a tuple of dynamic-model terms ('none': the first-order model)."""
-    from bench.calibration.dynamic import CANDIDATE_TERMS
+    from bench.calibration.kind import CANDIDATE_TERMS
 
     if text.strip().lower() == "none":
         return ()
@@ -129,7 +122,9 @@ def warn_implausible(r: CalibrationResult) -> None:
     """Warn when the fitted axes turn far from the nominal frame: a wrong ``mount_rotation`` or an
     encoder zero off by a quarter turn gives a perfect fit with every K element moved, which the
     residual cannot show (it is the same physics in another frame)."""
-    if r.method not in ("static", "dynamic"):  # orientation-free fits give K only up to a rotation
+    from bench.calibration.kind import FitKind
+
+    if r.kind is FitKind.ORIENTATION_FREE:  # orientation-free fits give K only up to a rotation
         return
     angle, reflected = misalignment_deg(r.K)
     if reflected:
@@ -148,27 +143,17 @@ def warn_implausible(r: CalibrationResult) -> None:
         )
 
 
-_FMT: Any = {"float_kind": lambda x: f"{x:.5g}"}
-
-
 def _pm(value: float, sigma: float) -> str:
     return f"{value: .8g} ± {sigma:.2g}"
 
 
 def format_human(r: CalibrationResult) -> str:
     """Readable report: coefficients, per-window table, |g| check."""
-    import numpy as np
+    from bench.calibration.kind import FitKind
 
     u = r.channel_unit
     lines = [
-        f"unit {r.unit_serial}   procedure {r.procedure}   fit: "
-        + (
-            "known orientations, bias + full K"
-            if r.method == "static"
-            else "moving table, dynamic model over every sample"
-            if r.method == "dynamic"
-            else "orientation-free |f| = g, K as L (K up to rotation)"
-        ),
+        f"unit {r.unit_serial}   procedure {r.procedure}   fit: {r.kind.text}",
         f"source {r.source}" if r.source else "",
         "",
         f"bias ({u}), one sigma:",
@@ -177,25 +162,15 @@ def format_human(r: CalibrationResult) -> str:
     lines += ["", f"scale matrix K ({u} per m/s²), raw = bias + K·f, one sigma:"]
     for i, ax in enumerate("xyz"):
         lines.append(f"  {ax}  " + "   ".join(_pm(r.K[i, j], r.K_sigma[i, j]) for j in range(3)))
-    extra, extra_sigma = getattr(r, "extra", {}), getattr(r, "extra_sigma", {})
-    for effect, params in extra.items():  # terms beyond bias and K (dynamic calibration)
-        for name, value in params.items():
-            sigma = extra_sigma.get(effect, {}).get(name, np.nan)
-            v, sg = (np.array2string(np.asarray(x), formatter=_FMT, separator=", ") for x in (value, sigma))
-            lines.append(f"{effect}.{name} = {v} ± {sg}".replace("\n", ""))
-    selection = getattr(r, "model_selection", {})
-    if selection:
-        lines.append(f"model: {' + '.join(r.terms)}, chosen by {selection['rule']}: {selection['text']}")
-    for term, why in getattr(r, "not_fitted", {}).items():
-        lines.append(f"  not fitted {term}: {why}")
-    scalar = r.method == "scalar"
+    lines += r.model_lines()  # terms beyond bias and K, and how they were chosen (moving table)
+    scalar = r.kind is FitKind.ORIENTATION_FREE
     lines += [
         "",
         "correction: f = K⁻¹ (raw − bias)   (m/s²)",
         f"noise model: {r.noise_model}",
         # a dynamic fit scales its residuals by their own fitted sigma: its chi2 is no test of fit
         f"residual rms {r.residual_rms:.3g} {u}"
-        + ("" if r.method == "dynamic" else f"   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}")
+        + ("" if r.kind is FitKind.MOVING else f"   chi2/dof (within-window noise) {r.chi2:.4g}/{r.dof}")
         + ("   ZERO REDUNDANCY" if r.zero_redundancy else ""),
         "",
         f"{'window':<10}{'t (s)':>17}{'n':>7}  {'residual x,y,z (' + u + ')':<36}"

@@ -132,7 +132,7 @@ def residual_series(cal: CalibrationResult) -> dict[str, Any]:
     """
     return {
         "channel_unit": cal.channel_unit,
-        "method": cal.method,
+        "method": cal.kind.value,
         "channels": list(CHANNELS),
         "labels": [w.label for w in cal.windows],
         "residual": [[float(v) for v in w.residual] for w in cal.windows],

@@ -9,6 +9,7 @@ from fastapi import APIRouter, HTTPException, Response, status
 
 from api.certificates.issue import (
     analyse_recording,
+    form_budget,
     issue_for_run,
     store_diagnosis,
     store_g_before,
@@ -17,6 +18,7 @@ from api.certificates.issue import (
 from api.deps import OperatorDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
 from api.routes.views import certificate_out
 from api.schemas import CertificateOut
+from bench.fitted_model import ContractError, FittedModel
 from db.models import Certificate, Unit
 from db.repo.certificates import get_certificate_by_number
 from db.repo.runs import get_run
@@ -78,7 +80,8 @@ def certificate_pdf(run_id: str, session: SessionDep, _: ViewerLinkDep) -> Respo
 )
 def issue(run_id: str, session: SessionDep, settings: SettingsDep, _: OperatorDep) -> CertificateOut:
     """Issue the certificate of a completed run that has none (e.g. one run from the CLI); a run
-    not yet diagnosed is diagnosed first and its findings stored."""
+    not yet diagnosed is diagnosed first and its findings stored. The recording is read, fitted,
+    diagnosed and its budget formed before the transaction that issues."""
     with session.begin():
         _issuable(session, run_id)
         run = get_run(session, run_id)
@@ -87,23 +90,23 @@ def issue(run_id: str, session: SessionDep, settings: SettingsDep, _: OperatorDe
         cal = run.params.get("calibration")
         g_check = cal.get("g_check", {}) if isinstance(cal, dict) else {}
         nominal = None if "before" in g_check else unit_nominal(session.get(Unit, run.unit_id))
-    analysis = None
-    if not diagnosed or nominal is not None:
-        analysis = analyse_recording(str(path) if path else None, nominal)
+        params = dict(run.params)
+    prepared = analyse_recording(str(path) if path else None, nominal, diagnose=not diagnosed)
+    stored = None
+    if isinstance(cal, dict):
+        try:
+            stored = FittedModel.from_contract(cal, f"run {run_id}: stored fit")
+        except ContractError:
+            stored = None  # issue_for_run names the bad key
+    if stored is not None:
+        form_budget(prepared, settings, params, stored)
     with session.begin():
         serial = _issuable(session, run_id)
-        if analysis is not None:
-            store_g_before(session, run_id, analysis.g_before)
-            if not diagnosed:
-                store_diagnosis(session, run_id, analysis)
+        store_g_before(session, run_id, prepared)
+        if not diagnosed:
+            store_diagnosis(session, run_id, prepared)
         try:
-            cert = issue_for_run(
-                session,
-                settings,
-                run_id,
-                rec=analysis.rec if analysis else None,
-                diagnosis_note=analysis.note if analysis else "",
-            )
+            cert = issue_for_run(session, settings, run_id, prepared=prepared, diagnosis_note=prepared.note)
         except ValueError as exc:
             raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
         return certificate_out(cert, serial)

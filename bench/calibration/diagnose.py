@@ -1,8 +1,9 @@
 """Diagnose a recording: windows -> window noise -> evidence -> ``bench.diagnosis.diagnose``.
 
-A moving-table recording (``dynamic.is_dynamic``, with a table) goes to
-``bench.diagnosis.dynamic.diagnose_dynamic`` instead. For the others, which specific force
-each window is compared with (``windows.known_specific_force``, as in the calibration):
+A moving-table recording (``kind.is_moving``, with a table) goes to
+``bench.diagnosis.dynamic.diagnose_dynamic`` instead (imported only then). For the others, which
+specific force each window is compared with (``windows.known_specific_force``, as in the
+calibration):
 
 * a table in the sidecar: f_w = Rᵀ [0, 0, g] at the window's mean encoder angles;
 * no table, every window labelled ``nominal_up`` (hand-held six-position): ±g along the
@@ -17,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from bench.calibration.dynamic import is_dynamic
+from bench.calibration.kind import is_moving
 from bench.calibration.windows import (
     choose_windows,
     known_specific_force,
@@ -28,7 +29,6 @@ from bench.calibration.windows import (
     window_means,
 )
 from bench.diagnosis import Diagnosis, StaticEvidence, diagnose
-from bench.diagnosis.dynamic import diagnose_dynamic
 from bench.diagnosis.hysteresis import last_move_sign
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.scalar_fit import fit_scalar
@@ -119,6 +119,8 @@ def _scalar_force(rec: Recording, y: np.ndarray, V: np.ndarray, g: float) -> np.
 
 
 def _diagnose_moving(rec: Recording, th: Thresholds) -> Diagnosis:
+    from bench.diagnosis.dynamic import diagnose_dynamic  # the moving stack, only for a moving recording
+
     geo = rec.sidecar.table
     assert geo is not None
     m, y = moving_samples(rec)
@@ -138,12 +140,12 @@ def _diagnose_moving(rec: Recording, th: Thresholds) -> Diagnosis:
 def diagnose_recording(rec: Recording, thresholds: Thresholds = THRESHOLDS) -> Diagnosis:
     """Diagnose one recording; every error message starts with the recording's path.
 
-    A moving-table recording (``dynamic.is_dynamic``) goes to
+    A moving-table recording (``kind.is_moving``) goes to
     ``bench.diagnosis.dynamic.diagnose_dynamic``; every other one to the static diagnosis.
     ``thresholds``: the diagnosis's knobs (``bench.diagnosis.thresholds``).
     """
     try:
-        if rec.sidecar.table is not None and rec.table_deg is not None and is_dynamic(rec):
+        if rec.sidecar.table is not None and rec.table_deg is not None and is_moving(rec):
             return _diagnose_moving(rec, thresholds)
         chosen = choose_windows(rec)
         ev = _evidence(rec, list(chosen.used))

@@ -34,8 +34,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from bench.calibration.kind import CANDIDATE_TERMS, FitKind
 from bench.calibration.result import CalibrationResult, WindowResult
-from bench.calibration.windows import MAX_TABLE_MOTION_RAD, moving_samples, select_windows
+from bench.calibration.windows import moving_samples, select_windows
 from bench.diagnosis.dynamic import select_terms
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_kalman import run_dynamic_kalman
@@ -49,31 +50,14 @@ from bench.recording import Recording
 
 FloatArray = npt.NDArray[np.float64]
 
-DYNAMIC_PROCEDURES = ("rate-1axis", "oscillation-2axis")
 DROP_ORDER = ("proof_mass_offsets", "nonlinearity_quadratic", "time_skew", "table_tilt", "lever_arm")
 """Which undetermined term goes first when the information is singular."""
-CANDIDATE_TERMS = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", "table_tilt", "time_skew")
 KALMAN_AGREEMENT_Z = 3.0
 """The filter and the batch fit agree when every |difference| / batch sigma is below this."""
 G_BLOCK_S = 1.0
+_FMT: Any = {"float_kind": lambda x: f"{x:.5g}"}
 MIN_BATCH_WINDOW = 40
 """Samples a still window needs for its batch-means noise (``window_noise``)."""
-
-
-def is_dynamic(rec: Recording) -> bool:
-    """A moving-table recording: a dynamic procedure, or (no procedure) a segment where the table turns."""
-    proc = rec.sidecar.procedure
-    if proc in DYNAMIC_PROCEDURES:
-        return True
-    if proc is not None or rec.table_deg is None or not rec.sidecar.segments:
-        return False
-    q = rec.table_rad_unwrapped()
-    assert q is not None
-    for s in rec.sidecar.segments:
-        sel = (rec.t_s >= s.start_s) & (rec.t_s <= s.end_s)
-        if sel.sum() > 1 and np.max(np.ptp(q[sel], axis=0)) > MAX_TABLE_MOTION_RAD:
-            return True
-    return False
 
 
 @dataclass(frozen=True)
@@ -100,6 +84,35 @@ class DynamicCalibrationResult(CalibrationResult):
     def terms(self) -> list[str]:
         """bias, scale_matrix and the fitted extra terms (contract effect ids)."""
         return ["bias", "scale_matrix", *self.extra]
+
+    @property
+    def model_terms(self) -> tuple[str, ...]:
+        """The dynamic model's terms beyond bias and K (``ModelSpec.terms``), in fit order."""
+        assert self.fit is not None
+        return tuple(self.fit.spec.terms)
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """The batch fit's parameter names (bias and K first, then the extra terms)."""
+        assert self.fit is not None
+        return tuple(self.fit.names)
+
+    def model_lines(self) -> list[str]:
+        """The extra terms with their sigmas, the rule that chose the model and why each other
+        candidate was left out, as ``calbench calibrate`` prints them."""
+        lines = []
+        for effect, params in self.extra.items():
+            for name, value in params.items():
+                sigma = self.extra_sigma.get(effect, {}).get(name, np.nan)
+                v, sg = (
+                    np.array2string(np.asarray(x), formatter=_FMT, separator=", ") for x in (value, sigma)
+                )
+                lines.append(f"{effect}.{name} = {v} ± {sg}".replace("\n", ""))
+        if self.model_selection:
+            sel = self.model_selection
+            lines.append(f"model: {' + '.join(self.terms)}, chosen by {sel['rule']}: {sel['text']}")
+        lines += [f"  not fitted {term}: {why}" for term, why in self.not_fitted.items()]
+        return lines
 
     def fitted_model(self) -> FittedModel:
         """The fitted model with the extra terms and the method (``dynamic-batch``)."""
@@ -260,6 +273,25 @@ def _g_from_magnitudes(mag: FloatArray, g: float) -> GCheck:
     )
 
 
+def nominal_g_check(
+    rec: Recording, y: FloatArray, nominal_scale: float | None, nominal_bias: FloatArray | None
+) -> GCheck | None:
+    """The |g| check before adjustment: |(y − b₀)/s| − g over blocks of :data:`G_BLOCK_S`, with
+    the nominal scale s (channel unit per m/s²) and zero-g output b₀ (3,), or the channel unit's
+    natural scale (m/s2, g) when no nominal is given; ``None`` without either.
+
+    :param y: (n, 3) raw samples (channel units), those of ``moving_samples``.
+    """
+    scale = nominal_scale
+    if scale is None:
+        scale = {"m/s2": 1.0, "g": 1.0 / G0_M_S2}.get(rec.sidecar.channel_unit)
+    if scale is None:
+        return None
+    b0n = np.zeros(3) if nominal_bias is None else np.asarray(nominal_bias, dtype=float)
+    norms = np.linalg.norm((y - b0n) / scale, axis=1)
+    return _g_from_magnitudes(_block_means(rec.t_s, norms), rec.sidecar.g_local_m_s2)
+
+
 def calibrate_dynamic(
     rec: Recording,
     *,
@@ -318,19 +350,15 @@ def calibrate_dynamic(
         }
     fg = _corrected_gravity(fit, m, y, lever)
     after = _g_from_magnitudes(_block_means(rec.t_s[m.valid], np.linalg.norm(fg[m.valid], axis=1)), g)
-    before = None
     unit = rec.sidecar.channel_unit
-    scale = nominal_scale if nominal_scale is not None else {"m/s2": 1.0, "g": 1.0 / G0_M_S2}.get(unit)
-    if scale is not None:
-        b0n = np.zeros(3) if nominal_bias is None else np.asarray(nominal_bias, dtype=float)
-        before = _g_from_magnitudes(_block_means(rec.t_s, np.linalg.norm((y - b0n) / scale, axis=1)), g)
+    before = nominal_g_check(rec, y, nominal_scale, nominal_bias)
     extra, extra_sigma = _extra(fit)
     th, sg = fit.theta, fit.sigma
     return DynamicCalibrationResult(
         unit_serial=rec.sidecar.unit_serial,
         channel_unit=unit,
         procedure=rec.sidecar.procedure or "dynamic",
-        method="dynamic",
+        kind=FitKind.MOVING,
         g_local_m_s2=g,
         bias=th[:3].copy(),
         K=th[3:12].reshape(3, 3).copy(),

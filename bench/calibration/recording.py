@@ -2,10 +2,11 @@
 calibration; the CLI (``calbench calibrate``), the service and ``diagnose`` all call
 :func:`calibrate_recording`.
 
-A moving-table recording (``dynamic.is_dynamic``: a ``rate-1axis`` or ``oscillation-2axis``
-procedure, or no procedure and a segment in which the table turns) gets the sample-by-sample
-dynamic fit (``dynamic.calibrate_dynamic``, method ``"dynamic"``); every other one the static
-or orientation-free fit of its windows (``static.calibrate_static``).
+The kind of fit is chosen here, once (``kind.FitKind``): a moving-table recording
+(``kind.is_moving``: a ``rate-1axis`` or ``oscillation-2axis`` procedure, or no procedure and a
+segment in which the table turns) gets the sample-by-sample dynamic fit
+(``dynamic.calibrate_dynamic``, imported only then); every other one the static or
+orientation-free fit of its windows (``static.calibrate_static``).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from bench.calibration.dynamic import calibrate_dynamic, is_dynamic
+from bench.calibration.kind import is_moving
 from bench.calibration.result import CalibrationResult
 from bench.calibration.static import NATURAL_ZERO_UNITS, calibrate_static
 from bench.calibration.windows import where
@@ -27,6 +28,7 @@ def calibrate_recording(
     *,
     nominal_scale: float | None = None,
     nominal_bias: FloatArray | None = None,
+    terms: tuple[str, ...] | None = None,
 ) -> CalibrationResult:
     """Fit bias and scale/misalignment to a recording (see the module docstring).
 
@@ -35,6 +37,8 @@ def calibrate_recording(
         g check of a channel unit without a natural scale (V, count).
     :param nominal_bias: (3,) nominal zero-g output (channel units) with ``nominal_scale``;
         required with it unless the channel unit is in :data:`NATURAL_ZERO_UNITS`.
+    :param terms: a moving recording's declared extra terms (``calbench calibrate --terms``);
+        ``None``: the terms its evidence supports.
     :returns: :class:`CalibrationResult`.
     :raises ValueError: a nominal scale without a zero-g output for a V or count channel, no
         usable windows, a degenerate orientation set (the message names the undeterminable
@@ -48,8 +52,12 @@ def calibrate_recording(
                 f"a nominal scale for a {unit} channel needs the nominal zero-g output (nominal_bias): "
                 f"a {unit} output is not 0 at zero g"
             )
-        if is_dynamic(rec):
-            return calibrate_dynamic(rec, nominal_scale=nominal_scale, nominal_bias=nominal_bias)
+        if is_moving(rec):
+            from bench.calibration.dynamic import calibrate_dynamic  # the moving fit's stack, only here
+
+            return calibrate_dynamic(rec, terms=terms, nominal_scale=nominal_scale, nominal_bias=nominal_bias)
+        if terms is not None:
+            raise ValueError("--terms applies to moving-table recordings; this one is static")
         return calibrate_static(rec, nominal_scale, nominal_bias)
     except ValueError as exc:
         msg = str(exc)

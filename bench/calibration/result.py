@@ -12,8 +12,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from bench.calibration.kind import FitKind
 from bench.calibration.windows import UnusedWindow
 from bench.estimation.g_check import GCheck
+from bench.estimation.scalar_fit import PARAMETER_NAMES as SCALAR_NAMES
+from bench.estimation.static_design import PARAMETER_NAMES as STATIC_NAMES
 from bench.fitted_model import FittedModel, GCheckSummary
 
 FloatArray = npt.NDArray[np.float64]
@@ -55,19 +58,19 @@ class WindowResult:
 class CalibrationResult:
     """A fitted first-order model of one recording, with its evidence.
 
-    :param method: ``"static"`` (known orientations), ``"scalar"`` (|f| = g only) or
-        ``"dynamic"`` (moving table; the instance is then a
+    :param kind: :class:`~bench.calibration.kind.FitKind`: ``STATIC`` (known orientations),
+        ``ORIENTATION_FREE`` (|f| = g only) or ``MOVING`` (the instance is then a
         :class:`bench.calibration.dynamic.DynamicCalibrationResult`).
     :param bias: (3,) channel units.
     :param K: (3, 3) channel unit per m/s² (lower-triangular L for ``"scalar"``).
-    :param cov: (12, 12) for ``"static"`` in ``static_design.PARAMETER_NAMES`` order,
-        (9, 9) for ``"scalar"`` in ``scalar_fit.PARAMETER_NAMES`` order, or (p, p) for
-        ``"dynamic"`` in ``fit.names`` order (bias and K first, then the extra terms).
+    :param cov: (p, p) in :attr:`parameter_names` order: 12 for ``STATIC``
+        (``static_design.PARAMETER_NAMES``), 9 for ``ORIENTATION_FREE``
+        (``scalar_fit.PARAMETER_NAMES``), bias and K then the extra terms for ``MOVING``.
     :param bias_sigma: (3,); :param K_sigma: (3, 3) one-sigma (Type A) uncertainties.
-    :param residual_rms: RMS of the window residuals (channel units); for ``"dynamic"`` the
+    :param residual_rms: RMS of the window residuals (channel units); for ``MOVING`` the
         RMS of the per-sample residuals.
     :param chi2: residual χ² against the within-window noise; :param dof: its degrees of
-        freedom. For ``"dynamic"``, whose residuals are scaled by their own fitted sigma,
+        freedom. For ``MOVING``, whose residuals are scaled by their own fitted sigma,
         ``chi2`` is 3·n_samples by construction and carries no goodness-of-fit information.
     :param unused_windows: declared segments / detected windows the fit left out, with why.
     :param warnings: what the reader must know before trusting the numbers (zero
@@ -77,7 +80,7 @@ class CalibrationResult:
     unit_serial: str
     channel_unit: str
     procedure: str
-    method: str
+    kind: FitKind
     g_local_m_s2: float
     bias: FloatArray
     K: FloatArray
@@ -98,14 +101,34 @@ class CalibrationResult:
     @property
     def zero_redundancy(self) -> bool:
         """As many fitted parameters as observations: nothing checks the model (``dof`` 0)."""
-        return self.method != "dynamic" and self.dof <= 0
+        return self.kind is not FitKind.MOVING and self.dof <= 0
 
     @property
     def terms(self) -> list[str]:
         """Model terms fitted, as listed in the contract."""
-        if self.method == "scalar":
+        if self.kind is FitKind.ORIENTATION_FREE:
             return ["bias", "scale_matrix_lower_triangular"]
         return ["bias", "scale_matrix"]
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """The names of :attr:`cov`'s rows, in order."""
+        return tuple(SCALAR_NAMES if self.kind is FitKind.ORIENTATION_FREE else STATIC_NAMES)
+
+    def covariance_rows(self) -> tuple[tuple[tuple[float, ...], ...], tuple[str, ...]]:
+        """:attr:`cov` as nested tuples of floats, with :attr:`parameter_names`.
+
+        :raises ValueError: the covariance and the names differ in size.
+        """
+        names = self.parameter_names
+        cov = tuple(tuple(float(v) for v in row) for row in np.asarray(self.cov, dtype=float))
+        if len(cov) != len(names):
+            raise ValueError(f"fit covariance is {len(cov)}x{len(cov)} for {len(names)} parameter names")
+        return cov, names
+
+    def model_lines(self) -> list[str]:
+        """Lines ``calbench calibrate`` prints about terms beyond bias and K (none here)."""
+        return []
 
     def fitted_model(self) -> FittedModel:
         """The fitted model as limits, certificates and exports read it (the values of

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from bench.calibration.kind import FitKind
 from bench.calibration.result import CalibrationResult, WindowResult, zero_redundancy_warning
 from bench.calibration.windows import choose_windows, known_specific_force, unused_warning, window_means
 from bench.estimation.g_check import correct, g_check
@@ -73,7 +74,7 @@ def calibrate_static(
         bias, K, cov = fit.bias, fit.K, fit.cov
         bias_sigma, K_sigma = fit.bias_sigma, fit.K_sigma
         resid, norm_resid = fit.residuals, fit.normalized_residuals
-        chi2, dof, model, method = fit.chi2, fit.dof, fit.noise_model, "static"
+        chi2, dof, model, kind = fit.chi2, fit.dof, fit.noise_model, FitKind.STATIC
         n_obs, n_params, what = 3 * len(wins), 12, "window-mean components (3 per window)"
     else:
         sf = fit_scalar(y, V, g)
@@ -88,7 +89,7 @@ def calibrate_static(
         dirs = fh / np.linalg.norm(fh, axis=1, keepdims=True)
         resid = (sf.residuals_m_s2[:, None] * dirs) @ K.T
         norm_resid = np.repeat((sf.residuals_m_s2 / sf.residual_sigma_m_s2)[:, None], 3, axis=1)
-        chi2, dof, method = sf.chi2, sf.dof, "scalar"
+        chi2, dof, kind = sf.chi2, sf.dof, FitKind.ORIENTATION_FREE
         n_obs, n_params, what = len(wins), 9, "window magnitudes (|f| = g, one per window)"
         model = (
             "window means: batch-means covariance from each window's samples; "
@@ -126,8 +127,8 @@ def calibrate_static(
     return CalibrationResult(
         unit_serial=rec.sidecar.unit_serial,
         channel_unit=rec.sidecar.channel_unit,
-        procedure=rec.sidecar.procedure or ("static" if method == "static" else "hand-held"),
-        method=method,
+        procedure=rec.sidecar.procedure or ("static" if kind is FitKind.STATIC else "hand-held"),
+        kind=kind,
         g_local_m_s2=g,
         bias=bias,
         K=K,

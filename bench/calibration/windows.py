@@ -16,16 +16,18 @@ glue (``bench.calibration.diagnose``), so all three read a recording the same wa
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.motion_data import MotionData, prepare_motion
 from bench.estimation.window_noise import WindowNoise, pooled_mean_covariances, window_noise
 from bench.estimation.windows import StaticWindow, detect_static_windows, windows_from_segments
 from bench.kinematics import attitude, static_specific_force
 from bench.recording import Recording
+
+if TYPE_CHECKING:
+    from bench.estimation.motion_data import MotionData
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -238,6 +240,8 @@ def moving_samples(rec: Recording) -> tuple[MotionData, FloatArray]:
         sidecar geometry, and the (n, 3) raw outputs (channel units).
     :raises ValueError: no table, or a raw sample that is not finite (named by row and time).
     """
+    from bench.estimation.motion_data import prepare_motion  # scipy.signal: moving recordings only
+
     geo = rec.sidecar.table
     q = rec.table_rad_unwrapped()
     if geo is None or q is None:

@@ -11,10 +11,11 @@ import sqlalchemy as sa
 from sqlalchemy.exc import OperationalError
 
 from bench import records as br
+from bench.calibration import FitKind as BenchFitKind
 from bench.limit_check import LimitCheck
 from bench.run_observer import RunObserver
 from db.models import FitKind, FitModel, Run, RunState, SampleChunk
-from db.observer import DbRunObserver, final_state, fit_kind_for
+from db.observer import DbRunObserver, final_state
 from db.repo import progress, recovery
 from tests.support.fits import calibration_result
 
@@ -263,10 +264,29 @@ def test_observer_satisfies_the_protocol(db_session_factory):
     assert isinstance(DbRunObserver(db_session_factory), RunObserver)
 
 
-def test_fit_kind_for():
-    assert fit_kind_for("static-12", FIT) is FitKind.STATIC
-    assert fit_kind_for("hand-held", calibration_result("scalar")) is FitKind.SCALAR
-    assert fit_kind_for("oscillation-2axis", FIT) is FitKind.DYNAMIC
+@pytest.mark.parametrize(
+    ("procedure", "kind", "stored"),
+    [
+        ("static-12", BenchFitKind.STATIC, FitKind.STATIC),
+        ("static-12", BenchFitKind.ORIENTATION_FREE, FitKind.SCALAR),
+        # the fit's own kind decides, never the procedure's name
+        ("oscillation-2axis", BenchFitKind.STATIC, FitKind.STATIC),
+    ],
+)
+def test_the_stored_kind_is_the_kind_the_fit_chose(db_session_factory, procedure, kind, stored):
+    start = dataclasses.replace(_start(pid=1), procedure=procedure)
+    obs = DbRunObserver(db_session_factory)
+    obs.on_start(start)
+    fit = calibration_result(kind, serial="SN-7")
+    cov, names = fit.covariance_rows()
+    obs.on_finish(
+        br.RunRecord(start, br.RunState.FINISHED, br.Outcome.PASS, (), calibration=fit,
+                     fit_covariance=cov, fit_param_names=names)
+    )  # fmt: skip
+    with db_session_factory() as s:
+        row = s.scalars(sa.select(FitModel)).one()
+        assert row.kind is stored and list(row.param_names) == list(names)
+        assert s.get(Run, start.run_id).params["calibration"] == row.contract
 
 
 def _gap(after_row: int, n_lost: int, window: int | None) -> br.GapRecord:

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.calibration import CalibrationResult
+from bench.calibration import CalibrationResult, FitKind
 from bench.estimation.g_check import GCheck
 from bench.fitted_model import FittedModel
 
@@ -32,17 +32,17 @@ def stored_fit(**keys: Any) -> FittedModel:
     return FittedModel.from_contract({**DEFAULTS, **keys}, "test fit")
 
 
-def calibration_result(method: str = "static", serial: str = "SN-TEST") -> CalibrationResult:
-    """A small fit of 12 windows without window detail (``method`` ``"static"`` or ``"scalar"``),
-    as a run hands it to its observers."""
-    n = 12 if method == "static" else 9
+def calibration_result(kind: FitKind = FitKind.STATIC, serial: str = "SN-TEST") -> CalibrationResult:
+    """A small fit of 12 windows without window detail (``kind`` ``STATIC`` or
+    ``ORIENTATION_FREE``), as a run hands it to its observers."""
+    n = 12 if kind is FitKind.STATIC else 9
     errors = np.linspace(-1e-4, 1e-4, 12)
     g_after = GCheck(9.81 + errors, errors, float(errors.mean()), float(errors.std(ddof=1)), 1e-4)
     return CalibrationResult(
         unit_serial=serial,
         channel_unit="V",
         procedure="static-12",
-        method=method,
+        kind=kind,
         g_local_m_s2=9.81,
         bias=np.array([1.5, 1.49, 1.51]),
         K=np.diag([0.02, 0.021, 0.019]),
@@ -51,7 +51,7 @@ def calibration_result(method: str = "static", serial: str = "SN-TEST") -> Calib
         K_sigma=np.full((3, 3), 1e-6),
         residual_rms=2e-5,
         chi2=20.0,
-        dof=24 if method == "static" else 3,
+        dof=24 if kind is FitKind.STATIC else 3,
         noise_model="white",
         g_after=g_after,
         g_before=None,

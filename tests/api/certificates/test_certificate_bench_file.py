@@ -13,6 +13,7 @@ from api.certificates.issue import issue_for_run
 from api.settings import Settings
 from api.simulated_recording import write_simulated
 from bench.calibration import calibrate_recording
+from bench.calibration.analysis import analyse
 from bench.fitted_model import FittedModel
 from bench.recording import read_recording
 from db.engine import make_session_factory
@@ -61,11 +62,11 @@ def test_the_budget_takes_u_g_from_the_bench_file_and_the_conditions_name_it(tmp
     assert "'bench-b' version 4 (SHA-256 abababababab…)" in content["conditions"]["bench_configuration"]
     assert "u = 0.0003 m/s², survey 2023" in content["conditions"]["bench_configuration"]
     expected = certificate_budget(
-        rec,
+        analyse(rec),
         FittedModel.from_contract(cal),
         TypeBSettings.of(settings.model_copy(update={"g_local_u_m_s2": U_G_FILE})),
     )
-    default = certificate_budget(rec, FittedModel.from_contract(cal), TypeBSettings.of(settings))
+    default = certificate_budget(analyse(rec), FittedModel.from_contract(cal), TypeBSettings.of(settings))
     stated = content["results"]["uncertainty_budget"]
     assert stated == expected.to_content()
     (gravity,) = [i for i in stated["inputs"] if i["group"] == "local gravity"]

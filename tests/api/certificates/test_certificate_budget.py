@@ -22,6 +22,7 @@ from api.certificates.rounding import round_expanded
 from api.settings import Settings
 from api.simulated_recording import write_simulated
 from bench.calibration import calibrate_recording
+from bench.calibration.analysis import analyse
 from bench.fitted_model import FittedModel
 from bench.recording import Recording, read_recording
 from db.repo.certificates import canonical_sha256
@@ -58,7 +59,7 @@ def _content(cal: dict[str, Any], budget: CertificateBudget | None) -> dict[str,
 
 def test_type_b_zero_gives_two_sigma_to_two_digits(recorded: tuple[Recording, dict[str, Any]]) -> None:
     rec, cal = recorded
-    budget = certificate_budget(rec, FittedModel.from_contract(cal), ZERO)
+    budget = certificate_budget(analyse(rec), FittedModel.from_contract(cal), ZERO)
     res = _content(cal, budget)["results"]
     assert res["bias"]["k"] == 2.0 and res["scale_matrix"]["k"] == 2.0
     for name, sig in (("bias", "bias_sigma"), ("scale_matrix", "scale_matrix_sigma")):
@@ -74,7 +75,7 @@ def test_default_type_b_inputs_raise_u_as_the_budget_says(recorded: tuple[Record
     rec, cal = recorded
     tb = TypeBSettings.of(Settings())
     assert tb.table_angle_u_deg == 0.001 and tb.g_local_u_m_s2 == 1e-5 and tb.daq_gain_u_rel == 1e-5
-    budget = certificate_budget(rec, FittedModel.from_contract(cal), tb)
+    budget = certificate_budget(analyse(rec), FittedModel.from_contract(cal), tb)
     names = {i.group for i in budget.budget.inputs}
     assert {"table angle", "base levelling x", "local gravity", "DAQ gain", "DAQ offset",
             "temperature: bias", "temperature: scale"} <= names  # fmt: skip
@@ -108,7 +109,9 @@ def test_digital_output_and_no_table_are_listed_as_not_evaluated(
     rec, cal = recorded
     bare = dataclasses.replace(rec, temp_c=None)
     budget = certificate_budget(
-        bare, FittedModel.from_contract({**cal, "channel_unit": "count"}), TypeBSettings.of(Settings())
+        analyse(bare),
+        FittedModel.from_contract({**cal, "channel_unit": "count"}),
+        TypeBSettings.of(Settings()),
     )
     notes = " ".join(budget.not_evaluated)
     assert "digital" in notes and "temperature" in notes
@@ -119,7 +122,9 @@ def test_digital_output_and_no_table_are_listed_as_not_evaluated(
 @pytest.mark.skipif(shutil.which("pdftotext") is None, reason="poppler-utils not installed")
 def test_pdf_shows_the_budget_tables(recorded: tuple[Recording, dict[str, Any]], tmp_path: Path) -> None:
     rec, cal = recorded
-    c = _content(cal, certificate_budget(rec, FittedModel.from_contract(cal), TypeBSettings.of(Settings())))
+    c = _content(
+        cal, certificate_budget(analyse(rec), FittedModel.from_contract(cal), TypeBSettings.of(Settings()))
+    )
     path = tmp_path / "c.pdf"
     path.write_bytes(render_pdf(c, canonical_sha256(c)))
     text = subprocess.run(["pdftotext", "-layout", str(path), "-"], capture_output=True, text=True,

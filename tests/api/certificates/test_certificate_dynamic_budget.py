@@ -14,7 +14,7 @@ from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, Uni
 from api.certificates.rounding import round_expanded
 from api.certificates.statements import DYNAMIC_COVERAGE_STATEMENT
 from api.settings import Settings
-from bench.calibration.dynamic import calibrate_dynamic
+from bench.calibration.analysis import Analysis, analyse
 from bench.fitted_model import FittedModel
 from bench.recording import Recording
 from tests.support.dynamic_sim import oscillation
@@ -26,9 +26,10 @@ ZERO = TypeBSettings(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @pytest.fixture(scope="module")
-def recorded() -> tuple[Recording, dict[str, Any]]:
+def recorded() -> tuple[Analysis, dict[str, Any]]:
     _, rec = oscillation(seed=4)
-    return rec, calibrate_dynamic(rec).to_contract()
+    analysis = analyse(rec)
+    return analysis, analysis.contract()
 
 
 def _content(rec: Recording, cal: dict[str, Any], budget: CertificateBudget | None) -> dict[str, Any]:
@@ -46,9 +47,10 @@ def _content(rec: Recording, cal: dict[str, Any], budget: CertificateBudget | No
     )
 
 
-def test_dynamic_certificate_has_a_budget(recorded: tuple[Recording, dict[str, Any]]) -> None:
-    rec, cal = recorded
-    typed = certificate_budget(rec, FittedModel.from_contract(cal), TypeBSettings.of(Settings()))
+def test_dynamic_certificate_has_a_budget(recorded: tuple[Analysis, dict[str, Any]]) -> None:
+    analysis, cal = recorded
+    rec = analysis.recording
+    typed = certificate_budget(analysis, FittedModel.from_contract(cal), TypeBSettings.of(Settings()))
     budget = typed.to_content()
     assert "refit" in budget["sensitivity_method"] and "sandwich" in budget["type_a"]
     groups = {i["group"] for i in budget["inputs"]}
@@ -71,9 +73,10 @@ def test_dynamic_certificate_has_a_budget(recorded: tuple[Recording, dict[str, A
     assert np.all(u > 2 * np.array(cal["bias_sigma"]))  # the DAQ gain (1e-5 × 1.5 V) adds to Type A
 
 
-def test_dynamic_budget_without_type_b_is_two_sigma(recorded: tuple[Recording, dict[str, Any]]) -> None:
-    rec, cal = recorded
-    res = _content(rec, cal, certificate_budget(rec, FittedModel.from_contract(cal), ZERO))["results"]
+def test_dynamic_budget_without_type_b_is_two_sigma(recorded: tuple[Analysis, dict[str, Any]]) -> None:
+    analysis, cal = recorded
+    rec = analysis.recording
+    res = _content(rec, cal, certificate_budget(analysis, FittedModel.from_contract(cal), ZERO))["results"]
     assert res["bias"]["k"] == 2.0 and res["scale_matrix"]["k"] == 2.0
     for name, sig in (("bias", "bias_sigma"), ("scale_matrix", "scale_matrix_sigma")):
         expected = [

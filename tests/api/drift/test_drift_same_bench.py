@@ -20,6 +20,7 @@ from api.drift import certificate_bench, compare
 from api.settings import Settings
 from api.simulated_recording import write_simulated
 from bench.calibration import calibrate_recording
+from bench.calibration.analysis import analyse
 from bench.fitted_model import FittedModel
 from bench.recording import read_recording
 from bench.uncertainty.budget import TYPE_A_NAME
@@ -39,7 +40,7 @@ def certified(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any],
     write_simulated(path, simulate_static(static12_poses_deg(), 5.0, physics, 100.0), serial="SN-D", seed=5)
     rec = read_recording(path)
     cal = calibrate_recording(rec).fitted_model()
-    budget = certificate_budget(rec, cal, TypeBSettings.of(Settings()))
+    budget = certificate_budget(analyse(rec), cal, TypeBSettings.of(Settings()))
     inputs = CertificateInputs(
         run=RunFacts(id="r1", procedure="static-12", bench="bench-A"),
         unit=UnitFacts("SN-D", channel_unit="V"), calibration=cal, g_local_m_s2=G, budget=budget,

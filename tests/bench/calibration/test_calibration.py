@@ -9,6 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from bench.calibration import calibrate_recording
+from bench.calibration.kind import FitKind
 from bench.recording import Recording, Segment, Sidecar, read_recording
 from tests.support.static_sim import G_LOCAL, random_truth
 
@@ -71,7 +72,7 @@ def test_six_position_hand_calibration_uses_nominal_up() -> None:
     ups = ["+x", "-x", "+y", "-y", "+z", "-z"]
     f = G_LOCAL * np.vstack([np.eye(3)[i // 2] * (1 if i % 2 == 0 else -1) for i in range(6)])
     res = calibrate_recording(_hand_recording(f, b, K, rng, nominal_up=ups))
-    assert res.method == "static" and res.dof == 6
+    assert res.kind is FitKind.STATIC and res.dof == 6
     z = (np.r_[res.bias, res.K.ravel()] - np.r_[b, K.ravel()]) / np.r_[res.bias_sigma, res.K_sigma.ravel()]
     assert np.all(np.abs(z) < 4.0), z
 
@@ -83,7 +84,7 @@ def test_recording_without_orientations_uses_the_scalar_fit() -> None:
     res = calibrate_recording(
         _hand_recording(f, b, K, rng), nominal_scale=0.0176, nominal_bias=np.full(3, 1.5)
     )
-    assert res.method == "scalar"
+    assert res.kind is FitKind.ORIENTATION_FREE
     assert res.to_contract()["terms"] == ["bias", "scale_matrix_lower_triangular"]
     assert np.all(np.abs((res.bias - b) / res.bias_sigma) < 4.0)
     np.testing.assert_allclose(res.K @ res.K.T, K @ K.T, rtol=0, atol=2e-3 * np.max(K @ K.T))

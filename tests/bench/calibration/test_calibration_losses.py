@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from api.cli import main
 from bench.calibration import calibrate_recording
 from bench.calibration.diagnose import diagnose_recording
+from bench.calibration.kind import FitKind
 from bench.calibration.windows import MIN_WINDOW_SAMPLES, choose_windows
 from bench.recording import Recording, Segment, Sidecar, write_recording
 from tests.support.static_sim import G_LOCAL, random_truth
@@ -51,7 +52,7 @@ def test_a_short_declared_segment_is_named_and_zero_redundancy_is_flagged() -> N
     assert [u.label for u in sel.unused] == ["p04"] and sel.unused[0].n_samples == 2
     assert f"fewer than the {MIN_WINDOW_SAMPLES}" in sel.unused[0].reason
     res = calibrate_recording(rec)
-    assert res.method == "scalar" and len(res.windows) == 9 and res.dof == 0
+    assert res.kind is FitKind.ORIENTATION_FREE and len(res.windows) == 9 and res.dof == 0
     # the fit passes through every window: the |g| scatter is zero to rounding
     assert res.g_after.std_m_s2 < 1e-9
     out = res.to_contract()

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from bench.calibration import calibrate_recording
-from bench.calibration.dynamic import DynamicCalibrationResult, calibrate_dynamic, is_dynamic
+from bench.calibration.dynamic import DynamicCalibrationResult, calibrate_dynamic
+from bench.calibration.kind import is_moving
 from bench.recording import read_recording
 from tests.support.dynamic_sim import DELAY_TRUE_S, EFFECTS, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
 
@@ -142,10 +143,10 @@ def test_unmodelled_lever_arm_is_biased_and_fitted_one_is_not() -> None:
 
 def test_dispatch_and_bad_input() -> None:
     _, rec = oscillation(duration_s=30.0)
-    assert is_dynamic(rec)
-    assert not is_dynamic(replace(rec, sidecar=replace(rec.sidecar, procedure="static-12")))
+    assert is_moving(rec)
+    assert not is_moving(replace(rec, sidecar=replace(rec.sidecar, procedure="static-12")))
     # no procedure, but a segment in which the table turns
-    assert is_dynamic(replace(rec, sidecar=replace(rec.sidecar, procedure=None)))
+    assert is_moving(replace(rec, sidecar=replace(rec.sidecar, procedure=None)))
     # a rate-1axis recording at one pose turning about the vertical only: K cannot be determined
     _, flat = rate(rates_deg_s=(50.0, 100.0), poses_deg=((0.0, 0.0),), dwell_s=3.0)
     with pytest.raises(ValueError, match=r"cannot be determined|cannot determine"):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from bench.calibration import calibrate_recording
+from bench.calibration.kind import FitKind
 from bench.convert import read_imu_tk, read_imucal_annotated, read_imucal_session
 from bench.estimation.g_check import g_check
 
@@ -22,7 +23,7 @@ def test_imucal_annotated_session_against_imucal_output(imucal_dir) -> None:
     """Same six windows: our |g| scatter after correction is imucal's (example_cal.json), no worse."""
     rec = read_imucal_annotated(imucal_dir / "annotated_session.csv", 204.8)
     res = calibrate_recording(rec)
-    assert res.method == "static" and [w.label for w in res.windows] == [
+    assert res.kind is FitKind.STATIC and [w.label for w in res.windows] == [
         "x_p",
         "x_a",
         "y_p",
@@ -82,7 +83,7 @@ def test_xsens_scalar_calibration(shared_dir) -> None:
         g_local_m_s2=9.81744,
     )
     res = calibrate_recording(rec)
-    assert res.method == "scalar" and len(res.windows) == 38
+    assert res.kind is FitKind.ORIENTATION_FREE and len(res.windows) == 38
     # reference fit in the data set's README: RMS 0.98 mm/s², bias ≈ [33124, 33275, 32364] counts
     assert res.g_after.rms_m_s2 == pytest.approx(0.985e-3, rel=0.02)
     np.testing.assert_allclose(res.bias, [33124, 33275, 32364], atol=2.0)

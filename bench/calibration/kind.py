@@ -1,0 +1,65 @@
+"""The kind of fit a recording gets, chosen once (:func:`bench.calibration.calibrate_recording`)
+and carried by the fit (``CalibrationResult.kind``) to everything that reads it.
+
+* :attr:`FitKind.MOVING`: the table turns while the DAQ samples (:func:`is_moving`): the
+  sample-by-sample dynamic fit (``bench.calibration.dynamic``), p = 12 + extra terms;
+* :attr:`FitKind.STATIC`: still windows whose specific force is known (a table in the sidecar,
+  or every window labelled ``nominal_up``): the 12-parameter known-orientation fit;
+* :attr:`FitKind.ORIENTATION_FREE`: still windows of unknown orientation: the 9-parameter fit of
+  |f| = g (K as the lower-triangular L, K up to a rotation).
+
+The values are the names the database's ``fit.kind`` column stores. This module imports no
+fit, so choosing costs nothing (the moving fit's stack, ``scipy.signal`` among it, is imported
+only for a moving recording).
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+import numpy as np
+
+from bench.calibration.windows import MAX_TABLE_MOTION_RAD
+from bench.recording import Recording
+
+MOVING_PROCEDURES = ("rate-1axis", "oscillation-2axis")
+"""Procedures whose table moves while it records."""
+CANDIDATE_TERMS = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", "table_tilt", "time_skew")
+"""The moving fit's terms beyond bias and K (``calbench calibrate --terms``)."""
+
+
+class FitKind(StrEnum):
+    """Which fit a recording gets (module docstring)."""
+
+    STATIC = "static"
+    ORIENTATION_FREE = "scalar"
+    MOVING = "dynamic"
+
+    @property
+    def text(self) -> str:
+        """The fit in words, as ``calbench calibrate`` states it."""
+        return _TEXT[self]
+
+
+_TEXT = {
+    FitKind.STATIC: "known orientations, bias + full K",
+    FitKind.ORIENTATION_FREE: "orientation-free |f| = g, K as L (K up to rotation)",
+    FitKind.MOVING: "moving table, dynamic model over every sample",
+}
+
+
+def is_moving(rec: Recording) -> bool:
+    """A moving-table recording: a moving procedure, or (no procedure) a declared segment in
+    which the encoder angles span more than ``MAX_TABLE_MOTION_RAD``."""
+    proc = rec.sidecar.procedure
+    if proc in MOVING_PROCEDURES:
+        return True
+    if proc is not None or rec.table_deg is None or not rec.sidecar.segments:
+        return False
+    q = rec.table_rad_unwrapped()
+    assert q is not None
+    for s in rec.sidecar.segments:
+        sel = (rec.t_s >= s.start_s) & (rec.t_s <= s.end_s)
+        if sel.sum() > 1 and np.max(np.ptp(q[sel], axis=0)) > MAX_TABLE_MOTION_RAD:
+            return True
+    return False

@@ -1,0 +1,66 @@
+"""A static recording's calibration and diagnosis load only what a static recording needs: the
+moving fit's stack (``scipy.signal``, the motion regressors, the dynamic fit and diagnosis) is
+imported at the moving-recording branch, in a fresh interpreter as the CLI runs."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from api.simulated_recording import write_simulated
+from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg
+from drivers.sim.physics import SensorPhysics, SensorTruth
+
+ROOT = Path(__file__).resolve().parents[3]
+MOVING_MODULES = ("scipy.signal", "bench.estimation.motion_data", "bench.calibration.dynamic")
+
+PROBE = """
+import contextlib, io, sys
+from api.cli import main
+with contextlib.redirect_stdout(io.StringIO()):
+    code = main(sys.argv[1:])
+print(code, *[m for m in {modules!r} if m in sys.modules])
+"""
+
+
+@pytest.fixture(scope="module")
+def static_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("startup") / "static.csv"
+    physics = SensorPhysics(SensorTruth.typical("V", seed=2), DEFAULT_AXES, None, 9.81, seed=3)
+    write_simulated(path, simulate_static(static12_poses_deg(), 2.0, physics, 100.0), serial="SN-S", seed=3)
+    return path
+
+
+def _loaded(*argv: str) -> list[str]:
+    """The exit code and the moving-stack modules loaded by ``calbench ARGV`` in a fresh process."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run(
+        [sys.executable, "-c", PROBE.format(modules=MOVING_MODULES), *argv],
+        capture_output=True, text=True, env=env, cwd=ROOT, timeout=300, check=True,
+    )  # fmt: skip
+    return out.stdout.split()
+
+
+@pytest.mark.parametrize("command", [("calibrate", "--json"), ("calibrate",), ("diagnose", "--json")])
+def test_a_static_recording_does_not_load_the_moving_stack(
+    static_recording: Path, command: tuple[str, ...]
+) -> None:
+    assert _loaded(command[0], str(static_recording), *command[1:]) == ["0"]
+
+
+def test_the_probe_sees_the_moving_stack_when_it_is_loaded(static_recording: Path) -> None:
+    """The same probe, after asking for the moving fit, names every module: the test above can fail."""
+    probe = PROBE.replace(
+        "from api.cli import main",
+        "from api.cli import main\nimport bench.calibration as c\nc.calibrate_dynamic",
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run(
+        [sys.executable, "-c", probe.format(modules=MOVING_MODULES), "calibrate", str(static_recording)],
+        capture_output=True, text=True, env=env, cwd=ROOT, timeout=300, check=True,
+    )  # fmt: skip
+    assert out.stdout.split() == ["0", *MOVING_MODULES]

@@ -67,7 +67,7 @@ def _moving_run(settings: Any, tmp_path: Path) -> RunRecord:
     start = RunStart("run-moving", "SN-DYN", "oscillation-2axis", settings.bench_name,
                      str(tmp_path / "gone.csv"), rec.sidecar.sample_rate_hz, 3, 2, 30.0)  # fmt: skip
     cov, names = analysis.fit.covariance_rows()
-    record = RunRecord(start, RunState.FINISHED, Outcome.PASS, (), calibration=analysis.fit,
+    record = RunRecord(start, RunState.COMPLETED, Outcome.PASS, (), calibration=analysis.fit,
                        fit_covariance=cov, fit_param_names=names, analysis=analysis)  # fmt: skip
     DbRunObserver(sessions, defer_final_state=True).on_finish(record)
     engine.dispose()

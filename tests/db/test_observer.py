@@ -280,7 +280,7 @@ def test_the_stored_kind_is_the_kind_the_fit_chose(db_session_factory, procedure
     fit = calibration_result(kind, serial="SN-7")
     cov, names = fit.covariance_rows()
     obs.on_finish(
-        br.RunRecord(start, br.RunState.FINISHED, br.Outcome.PASS, (), calibration=fit,
+        br.RunRecord(start, br.RunState.COMPLETED, br.Outcome.PASS, (), calibration=fit,
                      fit_covariance=cov, fit_param_names=names)
     )  # fmt: skip
     with db_session_factory() as s:

@@ -1,6 +1,9 @@
 """A static recording's calibration and diagnosis load only what a static recording needs: the
 moving fit's stack (``scipy.signal``, the motion regressors, the dynamic fit and diagnosis) is
-imported at the moving-recording branch, in a fresh interpreter as the CLI runs."""
+imported at the moving-recording branch, in a fresh interpreter as the CLI runs. (The static
+diagnosis's own evidence module still imports the motion regressors, and with them
+``scipy.signal``; of the moving stack, ``diagnose`` is checked for the dynamic fit and the
+dynamic diagnosis.)"""
 
 from __future__ import annotations
 
@@ -16,7 +19,13 @@ from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_de
 from drivers.sim.physics import SensorPhysics, SensorTruth
 
 ROOT = Path(__file__).resolve().parents[3]
-MOVING_MODULES = ("scipy.signal", "bench.estimation.motion_data", "bench.calibration.dynamic")
+MOVING_MODULES = (
+    "scipy.signal",
+    "bench.estimation.motion_data",
+    "bench.calibration.dynamic",
+    "bench.diagnosis.dynamic",
+)
+DIAGNOSE_MOVING = ("bench.calibration.dynamic", "bench.diagnosis.dynamic")
 
 PROBE = """
 import contextlib, io, sys
@@ -35,29 +44,32 @@ def static_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def _loaded(*argv: str) -> list[str]:
-    """The exit code and the moving-stack modules loaded by ``calbench ARGV`` in a fresh process."""
+def _loaded(*argv: str, modules: tuple[str, ...] = MOVING_MODULES) -> list[str]:
+    """The exit code and which of ``modules`` ``calbench ARGV`` loaded, in a fresh process."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run(
-        [sys.executable, "-c", PROBE.format(modules=MOVING_MODULES), *argv],
+        [sys.executable, "-c", PROBE.format(modules=modules), *argv],
         capture_output=True, text=True, env=env, cwd=ROOT, timeout=300, check=True,
     )  # fmt: skip
     return out.stdout.split()
 
 
-@pytest.mark.parametrize("command", [("calibrate", "--json"), ("calibrate",), ("diagnose", "--json")])
-def test_a_static_recording_does_not_load_the_moving_stack(
+@pytest.mark.parametrize("command", [("calibrate", "--json"), ("calibrate",)])
+def test_a_static_calibration_does_not_load_the_moving_stack(
     static_recording: Path, command: tuple[str, ...]
 ) -> None:
     assert _loaded(command[0], str(static_recording), *command[1:]) == ["0"]
 
 
+def test_a_static_diagnosis_does_not_load_the_moving_fit_or_diagnosis(static_recording: Path) -> None:
+    assert _loaded("diagnose", str(static_recording), "--json", modules=DIAGNOSE_MOVING) == ["0"]
+
+
 def test_the_probe_sees_the_moving_stack_when_it_is_loaded(static_recording: Path) -> None:
-    """The same probe, after asking for the moving fit, names every module: the test above can fail."""
-    probe = PROBE.replace(
-        "from api.cli import main",
-        "from api.cli import main\nimport bench.calibration as c\nc.calibrate_dynamic",
-    )
+    """The same probe, after asking for the moving fit and diagnosis, names every module: the
+    tests above can fail."""
+    moving = "import bench.calibration as c\nimport bench.diagnosis.dynamic\nc.calibrate_dynamic"
+    probe = PROBE.replace("from api.cli import main", "from api.cli import main\n" + moving)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run(
         [sys.executable, "-c", probe.format(modules=MOVING_MODULES), "calibrate", str(static_recording)],

@@ -70,7 +70,7 @@ def store_fit(s: Session, record: br.RunRecord, *, replace: bool = True) -> None
     run = s.get(Run, record.run_id, with_for_update=True)
     if run is None:
         raise LookupError(f"run {record.run_id} not found")
-    run.params = {**run.params, "calibration": contract}
+    run.params = {**run.params, rp.CALIBRATION: contract}
     results.add_fit(
         s,
         record.run_id,
@@ -88,13 +88,13 @@ def update_stored_fit(
     gives the new one (``None``: no change), written to the ``fit`` row and to
     ``params["calibration"]`` alike."""
     run = s.get(Run, run_id, with_for_update=True)
-    stored = run.params.get("calibration") if run is not None else None
+    stored = run.params.get(rp.CALIBRATION) if run is not None else None
     if run is None or not isinstance(stored, dict):
         return
     new = change(stored)
     if new is None:
         return
-    run.params = {**run.params, "calibration": new}
+    run.params = {**run.params, rp.CALIBRATION: new}
     for row in results.list_fits(s, run_id):
         row.contract = new
     s.flush()

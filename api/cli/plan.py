@@ -13,10 +13,13 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from api.cli import BadInput, decimal_arg
-from bench.planning.noise import G0_M_S2, UnitNoise
+from bench.planning.noise import G0_M_S2, UnitNoise, from_allan_terms
 from bench.planning.report import evaluation_dict, plan_dict
 from bench.planning.search import Evaluation, Targets, describe_sigmas, evaluate, plan
 from bench.procedures import build_procedure
@@ -25,7 +28,23 @@ from bench.procedures import build_procedure
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``calbench plan``."""
     parser.add_argument(
-        "--white", type=decimal_arg, required=True, metavar="UG_RT_HZ", help="white noise (µg/√Hz)"
+        "--white", type=decimal_arg, default=None, metavar="UG_RT_HZ", help="white noise (µg/√Hz)"
+    )
+    parser.add_argument(
+        "--noise-from",
+        type=Path,
+        default=None,
+        metavar="REC.csv",
+        help="take the noise from the Allan terms of a static stretch of this recording (m/s² or g channels; "
+        "the largest term over the channels), instead of --white/--wander/--random-walk",
+    )
+    parser.add_argument(
+        "--window-s",
+        type=decimal_arg,
+        nargs=2,
+        default=None,
+        metavar=("START", "END"),
+        help="that stretch (s)",
     )
     parser.add_argument("--wander", type=decimal_arg, default=0.0, metavar="UG", help="bias wander σ (µg)")
     parser.add_argument(
@@ -67,10 +86,49 @@ def _line(e: Evaluation) -> str:
     )
 
 
+def noise_from_recording(path: Path, window_s: list[float] | None) -> UnitNoise:
+    """The unit's noise from a recording's static stretch (selected as ``calbench allan`` does):
+    the IEEE 952 terms of each channel, the largest of each term over the channels, the floor's τ
+    where the worst channel's fitted curve is lowest (:func:`~bench.planning.noise.from_allan_terms`).
+
+    :raises BadInput: no such file, a channel unit other than m/s² or g, too short a stretch.
+    """
+    from api.cli.allan import _unit_and_data, select_stretch
+    from bench.estimation.allan import overlapping_allan
+    from bench.estimation.noise_terms import fit_noise_model
+    from bench.recording import read_recording
+
+    if not path.is_file():
+        raise BadInput(f"{path}: no such recording file")
+    rec = read_recording(path)
+    unit, data = _unit_and_data(rec)
+    if unit != "m/s2":
+        raise BadInput(f"{path}: channel unit {unit!r}; --noise-from needs a recording in m/s2 or g")
+    sl, _ = select_stretch(rec, window_s, False)
+    r = overlapping_allan(data[sl], rec.sidecar.sample_rate_hz)
+    if r.taus_s.size < 6:
+        raise BadInput(f"{path}: the stretch gives {r.taus_s.size} tau values; the noise fit needs 6")
+    fits = fit_noise_model(r)
+    worst = max(fits, key=lambda f: f.bias_instability_b)
+    taus = np.geomspace(float(r.taus_s[0]), float(r.taus_s[-1]), 200)
+    floor_tau = float(taus[int(np.argmin(worst.model_adev(taus)))])
+    return from_allan_terms(
+        max(f.white_n for f in fits),
+        max(f.bias_instability_b for f in fits),
+        max(f.rate_random_walk_k for f in fits),
+        floor_tau,
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Plan, print, exit 0 (a plan found) or 1 (the targets are out of reach)."""
     try:
-        noise = UnitNoise.from_ug(args.white, args.wander, args.wander_tau, args.random_walk)
+        if args.noise_from is not None:
+            noise = noise_from_recording(args.noise_from, args.window_s)
+        elif args.white is None:
+            raise ValueError("give the noise: --white (µg/√Hz) or --noise-from REC.csv")
+        else:
+            noise = UnitNoise.from_ug(args.white, args.wander, args.wander_tau, args.random_walk)
         targets = Targets(
             None if args.bias is None else args.bias * 1e-6 * G0_M_S2,
             None if args.scale is None else args.scale * 1e-6,

@@ -84,6 +84,32 @@ class UnitNoise:
         return ", ".join(parts)
 
 
+GM_ALLAN_PEAK = 0.6179
+"""Largest Allan deviation of a first-order Gauss-Markov process of standard deviation q, over q
+(reached at τ ≈ 1.89·T_c; IEEE Std 952 Annex C, C.7, exponentially correlated noise)."""
+GM_PEAK_TAU = 1.89
+"""τ of that peak over the correlation time T_c."""
+
+
+def from_allan_terms(
+    white_n: float, bias_instability_b: float, rate_random_walk_k: float, tau_floor_s: float
+) -> UnitNoise:
+    """The planner's noise from Allan terms of one channel (IEEE 952 model, SI units).
+
+    N and the random walk K carry over. The bias-instability floor σ_A = 0.664·B is represented by
+    a Gauss-Markov wander whose Allan peak matches it: q = 0.664·B / :data:`GM_ALLAN_PEAK`,
+    T_c = τ_floor / :data:`GM_PEAK_TAU` (τ_floor: where the fitted curve is lowest). A flicker floor
+    is flat over decades where the Gauss-Markov peak is about one decade wide, so the plan is
+    right for dwells and passes near τ_floor and conservative elsewhere.
+
+    :param tau_floor_s: τ of the Allan minimum (s), > 0.
+    """
+    if not (math.isfinite(tau_floor_s) and tau_floor_s > 0):
+        raise ValueError(f"tau_floor_s must be > 0, got {tau_floor_s!r}")
+    q = 0.664 * bias_instability_b / GM_ALLAN_PEAK
+    return UnitNoise(white_n, q, tau_floor_s / GM_PEAK_TAU if q > 0 else 100.0, rate_random_walk_k)
+
+
 def window_mean_covariance(noise: UnitNoise, start_s: FloatArray, duration_s: FloatArray) -> FloatArray:
     """(m, m) covariance of the m window means of one channel (m/s²)², see the module docstring.
 

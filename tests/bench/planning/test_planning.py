@@ -140,3 +140,41 @@ def test_predicted_and_achieved_states_u_relative_to_the_fitted_scale() -> None:
     assert out["scale_ppm"] == {"predicted": 3.0, "achieved": pytest.approx(1.0)}  # 2 × 1e-6 / 2
     assert out["misalignment_urad"]["achieved"] == pytest.approx(4.0)
     assert out["bias_ug"]["achieved"] == pytest.approx(2.0) and out["bias_ug"]["predicted"] is None
+
+
+def test_from_allan_terms_matches_the_gauss_markov_peak_to_the_floor() -> None:
+    from bench.planning.noise import GM_ALLAN_PEAK, GM_PEAK_TAU, from_allan_terms
+
+    n = from_allan_terms(1e-3, 3e-4, 1e-5, 189.0)
+    assert n.white_m_s2_rt_hz == 1e-3 and n.random_walk_m_s2_rt_s == 1e-5
+    assert (
+        n.wander_m_s2 * GM_ALLAN_PEAK == pytest.approx(0.664 * 3e-4) and n.wander_tau_s * GM_PEAK_TAU == 189.0
+    )
+
+
+def test_cli_plan_takes_the_noise_from_a_recording(
+    tmp_path: object, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Half an hour of white noise (2e-3 m/s²/√Hz = 204 µg/√Hz) and a bias random walk: the plan's
+    noise line gives the white density within 10 %."""
+    import json
+    from pathlib import Path
+
+    from bench.recording import Recording, Sidecar, write_recording
+    from tests.support.noise import rate_random_walk, white
+
+    fs, n_true = 50.0, 2e-3
+    rng = np.random.default_rng(5)
+    n = 90_000
+    a = white(rng, n, fs, n_true, 3) + rate_random_walk(rng, n, fs, 2e-5, 3)
+    a[:, 2] += 9.81
+    sc = Sidecar(unit_serial="SN-NOISE", channel_unit="m/s2", sample_rate_hz=fs, g_local_m_s2=9.81)
+    path = Path(str(tmp_path)) / "noise.csv"
+    write_recording(Recording(sidecar=sc, t_s=np.arange(n) / fs, accel_raw=a), path)
+    rc = api.cli.main(["plan", "--noise-from", str(path), "--scale", "200", "--max-minutes", "20", "--json"])
+    assert rc == 0
+    noise = json.loads(capsys.readouterr().out)["noise"]
+    white_ug = float(noise.split("white ")[1].split(" ")[0])
+    assert white_ug == pytest.approx(n_true / G0_M_S2 * 1e6, rel=0.1), noise
+    assert api.cli.main(["plan", "--scale", "200"]) == 2
+    assert "--noise-from" in capsys.readouterr().err

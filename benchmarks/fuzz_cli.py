@@ -1,12 +1,15 @@
 """Mutation fuzzer of the CLI: mutants of one valid recording, each through ``calibrate`` and ``diagnose``.
 
-``python -m benchmarks.fuzz_cli [N_MUTANTS] [SEED]`` (``make fuzz``) writes a small static-12
+``python -m benchmarks.fuzz_cli [N_MUTANTS] [SEED] [--moving]`` (``make fuzz``) writes a small static-12
 recording with ``calbench simulate``, makes N_MUTANTS (default 800) mutants of its CSV and
 sidecar (number spellings Python's ``float()`` reads but a recording must not, huge and
 non-finite numbers, huge fields, deep nesting, deleted/duplicated/swapped rows, truncation,
 byte flips, wrong types and units, offsets of the table angles, rates that disagree with the
 time column, text with NUL and bidi controls, a missing sidecar...) and runs both commands on
-each with ``--json``. Every outcome is classified:
+each with ``--json``. ``--moving`` fuzzes a rate-1axis recording (50 Hz) instead, with the
+faults a real table and DAQ have among its mutants (:func:`mutate_moving`: spikes, clipping,
+rounded and lagging encoders, a channel scaled or its sign flipped), and a warning counts only
+when it is in the JSON's ``warnings``. Every outcome is classified:
 
 - ``traceback``: an exception escaped ``calbench``'s ``main`` (a bug);
 - ``hang``: no answer within the time limit (a bug);
@@ -226,6 +229,79 @@ def mutate_csv(csv: str, rng: random.Random) -> tuple[str, str]:
     return "\n".join([header, *body]) + "\n", desc
 
 
+def _columns(csv: str) -> tuple[list[str], np.ndarray]:
+    lines = [ln for ln in _lines(csv) if ln]
+    names = lines[0].split(",")
+    data = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]], dtype=float)
+    return names, data
+
+
+def _csv(names: list[str], data: np.ndarray) -> str:
+    rows = [",".join(repr(float(v)) for v in row) for row in data]
+    return "\n".join([",".join(names), *rows]) + "\n"
+
+
+MOVING_KINDS = (
+    "spikes", "spike", "burst", "clip", "encoder_round", "encoder_lag", "channel_scale", "channel_sign", "csv"
+)  # fmt: skip
+"""Mutations of a moving recording: faults a real table and DAQ have (``csv``: one of :func:`mutate_csv`)."""
+
+
+def mutate_moving(csv: str, rng: random.Random) -> tuple[str, str]:
+    """One physical fault in a moving recording's data; returns (new text, description).
+
+    spikes: 1–30 single samples of one channel moved by 10–1000 times the channel's noise;
+    burst: a few consecutive samples; clip: one channel stuck at a rail below its peak;
+    encoder_round: every table angle rounded to 0.05–1°; encoder_lag: the encoder columns
+    delayed by 2–40 samples against the DAQ; channel_scale: one channel multiplied by 1e3–1e6;
+    channel_sign: one channel's sign flipped (a mirror image)."""
+    kind = rng.choice(MOVING_KINDS)
+    if kind == "csv":
+        text, desc = mutate_csv(csv, rng)
+        return text, f"csv: {desc}"
+    names, data = _columns(csv)
+    n = len(data)
+    acc = [names.index(c) for c in ("ax", "ay", "az")]
+    enc = [i for i, c in enumerate(names) if c.startswith("table_")]
+    c = rng.choice(acc)
+    noise = float(np.median(np.abs(np.diff(data[:, c])))) or 1e-6
+    if kind in ("spikes", "spike", "burst"):
+        count = 1 if kind == "spike" else rng.randint(2, 30) if kind == "spikes" else 1
+        width = rng.randint(2, 5) if kind == "burst" else 1
+        size = rng.choice([10.0, 30.0, 100.0, 1000.0]) * noise * rng.choice([-1.0, 1.0])
+        for _ in range(count):
+            i = rng.randrange(n - width)
+            data[i : i + width, c] += size
+        desc = f"{count} x {width}-sample spike(s) of {size:.3g} on {names[c]}"
+    elif kind == "clip":
+        lo, hi = np.percentile(data[:, c], [1, 99])
+        frac = rng.choice([0.3, 0.6, 0.9])
+        rail = hi - frac * (hi - lo) / 2 if rng.random() < 0.5 else None
+        if rail is not None:
+            data[:, c] = np.minimum(data[:, c], rail)
+            desc = f"{names[c]} clipped at {rail:.4g} (upper rail)"
+        else:
+            rail = lo + frac * (hi - lo) / 2
+            data[:, c] = np.maximum(data[:, c], rail)
+            desc = f"{names[c]} clipped at {rail:.4g} (lower rail)"
+    elif kind == "encoder_round":
+        q = rng.choice([0.05, 0.1, 0.25, 0.5, 1.0])
+        data[:, enc] = np.round(data[:, enc] / q) * q
+        desc = f"table angles rounded to {q:g} deg"
+    elif kind == "encoder_lag":
+        lag = rng.choice([2, 5, 10, 20, 40])
+        data[lag:, enc] = data[:-lag, enc].copy()
+        desc = f"encoders lag the DAQ by {lag} samples"
+    elif kind == "channel_scale":
+        f = rng.choice([1e3, 1e6, -1e6, 1e-6])
+        data[:, c] *= f
+        desc = f"{names[c]} multiplied by {f:g}"
+    else:
+        data[:, c] *= -1.0
+        desc = f"{names[c]} sign flipped"
+    return _csv(names, data), f"{kind}: {desc}"
+
+
 def _set(obj: dict[str, Any], path: list[str | int], value: Any) -> None:
     d: Any = obj
     for k in path[:-1]:
@@ -365,9 +441,18 @@ def _residual_grew(base: dict[str, Any], got: dict[str, Any]) -> bool:
 
 
 def classify(
-    cmd: str, code: Any, out: str, err: str, base: dict[str, Any] | None, equivalent: bool = False
+    cmd: str,
+    code: Any,
+    out: str,
+    err: str,
+    base: dict[str, Any] | None,
+    equivalent: bool = False,
+    json_warnings: bool = False,
 ) -> tuple[str, str]:
-    """(class, detail) of one outcome, see the module docstring."""
+    """(class, detail) of one outcome, see the module docstring.
+
+    :param json_warnings: a warning counts only when it is in the result's ``warnings`` (not
+        stderr alone)."""
     if code in ("traceback", "hang"):
         return code, err.strip().splitlines()[-1] if err.strip() else ""
     if code == 2:
@@ -381,6 +466,8 @@ def classify(
     if cmd != "calibrate" or base is None:
         return ("ok, flagged" if warned else "ok"), ""
     got = json.loads(out)
+    if json_warnings:
+        warned = bool(got.get("warnings"))
     z = _moved(base, got)
     if z > SIGMA_LIMIT and not warned and not _residual_grew(base, got):
         detail = f"moved {z:.1f} sigma, residual rms {got.get('residual_rms')}"
@@ -388,39 +475,59 @@ def classify(
     return ("ok, flagged" if (warned or _residual_grew(base, got)) else "ok"), f"{z:.1f} sigma"
 
 
-def run(n_mutants: int = 800, seed: int = 13, log: Callable[[str], None] = print) -> Counter[str]:
-    """Fuzz both commands with ``n_mutants`` mutants; returns the count of each class."""
+def run(
+    n_mutants: int = 800, seed: int = 13, log: Callable[[str], None] = print, moving: bool = False
+) -> Counter[str]:
+    """Fuzz both commands with ``n_mutants`` mutants; returns the count of each class.
+
+    :param moving: mutants of a rate-1axis recording (:func:`mutate_moving`), judged by the
+        JSON's ``warnings``; else of a static-12 one."""
     rng = random.Random(seed)
     worker = Worker()
     counts: Counter[str] = Counter()
+    kinds: Counter[str] = Counter()
     try:
         with tempfile.TemporaryDirectory(prefix="calbench-fuzz-") as d:
             base_csv = Path(d) / "base.csv"
-            code, _, err = worker.run(
-                ["simulate", "-o", str(base_csv), "--dwell-s", "3", "--sample-rate-hz", "50", "--seed", "7"]
-            )
+            simulate = ["simulate", "-o", str(base_csv), "--sample-rate-hz", "50", "--seed", "7"]
+            if moving:
+                simulate += ["--procedure", "rate-1axis"]
+            else:
+                simulate += ["--dwell-s", "3"]
+            code, _, err = worker.run(simulate)
             assert code == 0, err
             csv_text = base_csv.read_text()
             side = json.loads(base_csv.with_suffix(".json").read_text())
             code, out, err = worker.run(["calibrate", "--json", str(base_csv)])
             assert code == 0, err
             base = json.loads(out)
+            assert base["warnings"] == [], base["warnings"]
             t0 = time.perf_counter()
             for i in range(n_mutants):
                 path = Path(d) / f"m{i:04d}.csv"
-                if rng.random() < 0.55:
-                    text, desc = mutate_csv(csv_text, rng)
+                if moving and rng.random() < 0.85:
+                    text, desc = mutate_moving(csv_text, rng)
                     side_text: str | None = json.dumps(side)
+                    label = desc.split(":")[0]
+                elif not moving and rng.random() < 0.55:
+                    text, desc = mutate_csv(csv_text, rng)
+                    side_text = json.dumps(side)
+                    label = "csv"
                 else:
                     text, desc = csv_text, ""
                     side_text, desc = mutate_sidecar(side, rng)
+                    label = "sidecar"
                 path.write_bytes(text.encode("utf-8", "surrogateescape"))
                 if side_text is not None:
                     path.with_suffix(".json").write_text(side_text, encoding="utf-8")
                 for cmd in ("calibrate", "diagnose"):
                     c, o, e = worker.run([cmd, "--json", str(path)])
-                    cls, detail = classify(cmd, c, o, e, base, equivalent=EQUIVALENT in desc)
+                    cls, detail = classify(
+                        cmd, c, o, e, base, equivalent=EQUIVALENT in desc, json_warnings=moving
+                    )
                     counts[cls] += 1
+                    if moving and cmd == "calibrate":
+                        kinds[f"{label}: {cls}"] += 1
                     if cls == "moved, equivalent":
                         log(f"  equivalent: mutant {i} ({desc}) {cmd}: {detail}")
                     if cls in ("traceback", "hang", "exit2 multi-line", "silent") or cls.startswith("exit "):
@@ -430,9 +537,14 @@ def run(n_mutants: int = 800, seed: int = 13, log: Callable[[str], None] = print
             elapsed = time.perf_counter() - t0
     finally:
         worker.close()
-    log(f"{n_mutants} mutants x 2 commands in {elapsed:.0f} s (seed {seed}):")
+    what = "moving (rate-1axis)" if moving else "static-12"
+    log(f"{n_mutants} {what} mutants x 2 commands in {elapsed:.0f} s (seed {seed}):")
     for cls, n in sorted(counts.items()):
         log(f"  {cls:<18}{n:>6}")
+    if kinds:
+        log("calibrate, by fault:")
+        for cls, n in sorted(kinds.items()):
+            log(f"  {cls:<32}{n:>6}")
     return counts
 
 
@@ -441,9 +553,11 @@ BUGS = ("traceback", "hang", "exit2 multi-line", "silent")
 
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
+    moving = "--moving" in args
+    args = [a for a in args if a != "--moving"]
     n = int(args[0]) if args else 800
     seed = int(args[1]) if len(args) > 1 else 13
-    counts = run(n, seed)
+    counts = run(n, seed, moving=moving)
     bugs = sum(n for cls, n in counts.items() if cls in BUGS or cls.startswith("exit "))
     print(f"bugs: {bugs}")
     return 1 if bugs else 0

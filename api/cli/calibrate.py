@@ -102,45 +102,12 @@ def _terms(path: Path, text: str) -> tuple[str, ...]:
     return terms
 
 
-MAX_MISALIGNMENT_DEG = 5.0
-"""Largest rotation between the fitted sensor axes and the nominal frame believed without a warning."""
-
-
-def misalignment_deg(K: np.ndarray) -> tuple[float, bool]:
-    """Rotation angle (deg) of the orthogonal factor of K (polar decomposition K = R·S, R = U·Vᵀ from
-    the SVD K = U·Σ·Vᵀ; angle = arccos((tr R − 1)/2)), and whether R is a reflection (det < 0)."""
-    import numpy as np
-
-    U, _, Vt = np.linalg.svd(np.asarray(K, dtype=float))
-    R = U @ Vt
-    if np.linalg.det(R) < 0:
-        return 180.0, True
-    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))), False
-
-
 def warn_implausible(r: CalibrationResult) -> None:
-    """Warn when the fitted axes turn far from the nominal frame: a wrong ``mount_rotation`` or an
-    encoder zero off by a quarter turn gives a perfect fit with every K element moved, which the
-    residual cannot show (it is the same physics in another frame)."""
-    from bench.calibration.kind import FitKind
-
-    if r.kind is FitKind.ORIENTATION_FREE:  # orientation-free fits give K only up to a rotation
-        return
-    angle, reflected = misalignment_deg(r.K)
-    if reflected:
-        warnings.warn(
-            "the fitted sensor axes are a mirror image of the nominal frame (det K < 0): an axis sign or "
-            "the sidecar's mount_rotation is wrong",
-            UserWarning,
-            stacklevel=2,
-        )
-    elif angle > MAX_MISALIGNMENT_DEG:
-        warnings.warn(
-            f"the fitted sensor axes are turned {angle:.1f}° from the nominal frame (more than "
-            f"{MAX_MISALIGNMENT_DEG:g}°): check the sidecar's mount_rotation and the encoder zeros",
-            UserWarning,
-            stacklevel=2,
-        )
+    """Each of the result's warnings (the plausibility checks of ``bench.recording.plausibility``
+    among them: spikes, clipping, encoder resolution and lag, the fitted frame and gains) also on
+    stderr, one line each after the result."""
+    for text in r.warnings:
+        warnings.warn(text, UserWarning, stacklevel=2)
 
 
 def _pm(value: float, sigma: float) -> str:

@@ -32,6 +32,14 @@ power decays as e^(−2s/τ). Test (a narrow-band excess-power detector, frequen
   a nominal 0.1 % on clean recordings (benchmarks/study_settling_null.py);
 - the smallest p over the f_j, times their number (Bonferroni), is the test's p value.
 
+A ring is narrow-band; one altered sample (a spike, a byte flipped) is broadband: it raises
+every ordinate of its segment alike, and alone it would pass the test at every frequency.
+So an early segment-channel whose median ratio 2P/P_ref over the tested bins is beyond
+what stationary noise gives (each ratio ≈ χ²₂, so the median of nb of them exceeds x with
+probability ``binom.sf(ceil(nb/2) − 1, nb, e^(−x/2))``; below :data:`BROADBAND_FALSE_ALARM`)
+is left out of T_j and of n: a ring, which lifts one bin and its neighbours, leaves the median
+where it was.
+
 Duration (the contract's ``duration_s``): at the detected frequency the mean ratio
 R_k = mean_{w,c} P_k / P_ref of segment k (centre s_k after the window start) follows
 R_k = 1 + B e^(−2 s_k / τ); weighted least squares over the segments of the first half
@@ -49,11 +57,25 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import curve_fit
+from scipy.stats import binom
 from scipy.stats import f as f_dist
 
 from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
+
+BROADBAND_FALSE_ALARM = 1e-9
+"""Probability under no ring of an early segment-channel's median ratio at which it is taken
+for broadband (an outlying sample) and left out of the test."""
+
+
+def broadband(ratio: FloatArray) -> npt.NDArray[np.bool_]:
+    """(k, 3) early segment-channels whose ratios 2P/P_ref (``ratio``: (k, nb, 3), each ≈ χ²₂ under
+    no ring) are lifted across the band: median over the nb bins beyond :data:`BROADBAND_FALSE_ALARM`."""
+    nb = ratio.shape[1]
+    med = np.median(ratio, axis=1)
+    p = binom.sf(math.ceil(nb / 2) - 1, nb, np.exp(-med / 2.0))
+    return np.asarray(p < BROADBAND_FALSE_ALARM)
 
 
 @dataclass(frozen=True)
@@ -143,8 +165,10 @@ def frequency_p_values(
     n_early = th.settling_early_segments
     early = np.concatenate([s[: min(n_early, s.shape[0] // 2)] for s in spectra])  # (k, n_f, 3)
     bins = _bins(sample_rate_hz, ref.shape[0], th.settling_segment_s)
-    T = (2.0 * early[:, bins, :] / ref[None, bins, :]).sum(axis=(0, 2))
-    n = early.shape[0] * early.shape[2]
+    ratio = 2.0 * early[:, bins, :] / ref[None, bins, :]
+    keep = ~broadband(ratio)  # (k, 3): an outlying sample is not a ring (module docstring)
+    T = (ratio * keep[:, None, :]).sum(axis=(0, 2))
+    n = max(1, int(keep.sum()))
     d_ref = 3.0 * ref_dof[bins]
     return bins / th.settling_segment_s, T, f_dist.sf(T / (2 * n), 2 * n, d_ref), n, d_ref
 

@@ -80,3 +80,25 @@ def test_detrended_response_is_the_mean_periodogram_of_detrended_white_noise() -
     for j in (2, 3, 5):
         assert h[j] == pytest.approx(1.0 - 3.0 / (math.pi**2 * j**2), abs=2e-3)
     assert h[2] < 0.93 and h[20] > 0.999
+
+
+@pytest.mark.parametrize("size", [30.0, 300.0, 3000.0])
+def test_one_altered_sample_is_not_a_ring(size: float) -> None:
+    """A spike is broadband: its early segment is left out, so over 20 noise sets with one altered
+    sample in the first second of a window the test stays at its null (no p below 1e-3, where
+    the diagnosis would claim settling: the chance of one in 20 null sets is 2 %)."""
+    rng = np.random.default_rng(17)
+    for _ in range(20):
+        windows = list(_windows(rng))
+        w, i, c = rng.integers(12), rng.integers(round(RATE_HZ)), rng.integers(3)
+        windows[w] = windows[w].copy()
+        windows[w][i, c] += size * rng.choice([-1.0, 1.0])
+        assert settling_test(tuple(windows), RATE_HZ).p_value > 1e-3
+
+
+def test_a_ring_is_found_beside_an_altered_sample() -> None:
+    windows = list(_windows(np.random.default_rng(5), ring_amp=0.6))
+    windows[3] = windows[3].copy()
+    windows[3][50, 0] += 3000.0
+    st = settling_test(tuple(windows), RATE_HZ)
+    assert st.p_value < 1e-6 and st.frequency_hz == 7.0

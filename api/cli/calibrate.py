@@ -16,8 +16,6 @@ from typing import TYPE_CHECKING
 from api.cli import BadInput, decimal_arg
 
 if TYPE_CHECKING:
-    import numpy as np
-
     from bench.calibration import CalibrationResult
 
 

@@ -58,7 +58,6 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 from scipy.ndimage import median_filter
-from scipy.signal import savgol_filter
 
 from bench.recording.model import Recording
 
@@ -206,13 +205,25 @@ def _clipping(v: FloatArray, name: str) -> Finding | None:
     return None
 
 
+def _quadratic_fit(angle_deg: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(value, slope per sample) of the least-squares quadratic over :data:`ANGLE_SMOOTH_SAMPLES`
+    samples centred on each interior sample (Savitzky-Golay: rows 0 and 1 of the pseudo-inverse
+    of the window's Vandermonde matrix [1, x, x²], x = −h..h), for samples h..n−h−1."""
+    h = ANGLE_SMOOTH_SAMPLES // 2
+    x = np.arange(-h, h + 1, dtype=float)
+    coef = np.linalg.pinv(np.column_stack([np.ones_like(x), x, x * x]))
+    value = np.convolve(angle_deg, coef[0][::-1], mode="valid")
+    slope = np.convolve(angle_deg, coef[1][::-1], mode="valid")
+    return value, slope
+
+
 def _angle_scatter(angle_deg: FloatArray, name: str) -> Finding | None:
-    smooth = savgol_filter(angle_deg, ANGLE_SMOOTH_SAMPLES, 2, mode="interp")
-    slope = savgol_filter(angle_deg, ANGLE_SMOOTH_SAMPLES, 2, deriv=1, mode="interp")
+    smooth, slope = _quadratic_fit(angle_deg)
+    h = ANGLE_SMOOTH_SAMPLES // 2
     moving = np.abs(slope) > 1e-9
     if int(moving.sum()) < MIN_MOVING_SAMPLES:
         return None
-    sigma = 1.4826 * float(np.median(np.abs((angle_deg - smooth)[moving])))
+    sigma = 1.4826 * float(np.median(np.abs((angle_deg[h:-h] - smooth)[moving])))
     if sigma <= MAX_ANGLE_SCATTER_DEG:
         return None
     return Finding(

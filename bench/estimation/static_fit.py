@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from bench.estimation.dynamic_batch import BiasReference
 from bench.estimation.slow_noise import gls, window_covariance
 from bench.estimation.static_design import check_design, design_rows
 from bench.estimation.static_wander import fit_slow_wander
@@ -63,6 +64,11 @@ class StaticFit:
     :param excess_var: (m, 3) diagonal of the between-window covariance added to each
         window (pose scatter + own excess), channel units squared.
     :param noise_model: short description of the noise model used.
+    :param bias_reference: what the bias sigma describes
+        (:data:`~.dynamic_batch.BiasReference`): ``"long_run"`` when the correlated wander is
+        in the covariance (its GLS counts the wander's average over the session), else
+        ``"run_mean"`` (independent window errors: on a 12-window tumble with a 40 µg / 200 s
+        wander the error against the long-run bias is 1.7–2.0× the sigma, docs/noise-model.md).
     """
 
     bias: FloatArray
@@ -74,6 +80,7 @@ class StaticFit:
     dof: int
     excess_var: FloatArray
     noise_model: str
+    bias_reference: BiasReference = "run_mean"
 
     @property
     def params(self) -> FloatArray:
@@ -251,4 +258,5 @@ def fit_static(
         dof=3 * (m - 4),
         excess_var=excess_var,
         noise_model=model,
+        bias_reference="long_run" if slow is not None else "run_mean",
     )

@@ -29,6 +29,7 @@ def test_wander_correlated_over_many_windows_widens_the_bias_sigma() -> None:
         ind = fit_static(r["f"], r["y"], r["V"])
         tau_ch = cfg.wander_m_s2 * np.diag(r["K"])  # the wander in channel units
         assert "slow wander" in fit.noise_model
+        assert fit.bias_reference == "long_run"
         assert np.all(fit.bias_sigma > 0.25 * tau_ch) and np.all(fit.bias_sigma < 0.9 * tau_ch)
         assert np.all(ind.bias_sigma < 0.15 * tau_ch)  # what independent errors claim
         worst.append(np.max(np.abs(fit.bias - r["b"]) / fit.bias_sigma))
@@ -41,6 +42,7 @@ def test_short_clean_session_keeps_the_independent_model() -> None:
     fit = fit_static(r["f"], r["y"], r["V"], mid_s=r["mid_s"])
     ref = fit_static(r["f"], r["y"], r["V"])
     assert "slow wander" not in fit.noise_model
+    assert fit.bias_reference == "run_mean"
     np.testing.assert_allclose(fit.cov, ref.cov, rtol=1e-12)
 
 

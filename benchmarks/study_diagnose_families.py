@@ -1,7 +1,7 @@
 """Bench physics nobody listed: is each family named, and is nothing else claimed for it?
 
 ``python -m benchmarks.study_diagnose_families [N] [M] [FILTER]``: every case of
-``benchmarks/families_cases.py`` (filtered by a substring of its name) on N seeds (100…),
+``tests/support/families_cases.py`` (filtered by a substring of its name) on N seeds (100…),
 then M clean recordings of each kind (static, rate, oscillation; seeds 1000…). One markdown
 row per case: named (the truth within 3 sigma, or ``unexplained`` on its channel), median and
 largest |z| where named, recordings with a catalogue finding or discovered term the truth
@@ -18,9 +18,9 @@ from collections import Counter
 import numpy as np
 
 from bench.calibration.diagnose import diagnose_recording
-from benchmarks.families_cases import CATALOGUE_IDS, cases
 from tests.support.diagnose_cases import static_recording
 from tests.support.diagnose_dynamic_cases import moving_recording
+from tests.support.families_cases import CATALOGUE_IDS, cases
 
 
 def main(n: int = 3, m: int = 3, only: str = "") -> None:
@@ -28,7 +28,7 @@ def main(n: int = 3, m: int = 3, only: str = "") -> None:
     print("|---|---|---|---|---|---|---|")
     tot_named = tot_claim = tot = 0
     for case in cases():
-        if only and only not in case.name:
+        if n <= 0 or (only and only not in case.name):
             continue
         named = claimed = 0
         zs: list[float] = []

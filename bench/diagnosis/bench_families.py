@@ -13,18 +13,22 @@ beyond the catalogue"); it does not change the model the catalogue and library c
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import replace as dc_replace
 
 import numpy as np
 
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.harmonic_referee import head_to_head
 from bench.diagnosis.motion_families import (
+    Harmonic,
     clock_drift,
     drift_passes,
     harmonic_signal,
     search_harmonics,
 )
 from bench.diagnosis.periodic_lines import Line, find_periodic_lines, residual_stretches, without_lines
-from bench.diagnosis.result import Finding
+from bench.diagnosis.result import Diagnosis, Finding
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit
 from bench.estimation.dynamic_model import predict, specific_force
@@ -85,29 +89,10 @@ def static_line_findings(
     return [_line_finding(ln, channel_unit, n, rms_after) for ln in lines]
 
 
-def moving_findings(
-    t_s: FloatArray,
-    r: FloatArray,
-    f_m_s2: FloatArray,
-    K: FloatArray,
-    angles_rad: FloatArray,
-    valid: FloatArray,
-    sample_rate_hz: float,
-    channel_unit: str,
-    th: Thresholds = THRESHOLDS,
-) -> list[Finding]:
-    """Angle harmonics, clock drift and periodic lines in a moving recording's final residual.
-
-    :param t_s: (n,) time (s); :param r: (n, 3) the final model's residual (channel units).
-    :param f_m_s2: (n, 3) the final model's specific force (m/s²); :param K: (3, 3) its scale matrix.
-    :param angles_rad: (n, k) unwrapped encoder angles; :param valid: (n,) samples the fit used.
-    """
-    ok = np.asarray(valid, dtype=bool) & np.all(np.isfinite(r), axis=1)
-    t, rv, fv, qv = t_s[ok], r[ok], f_m_s2[ok], angles_rad[ok]
-    n = int(t.size)
-    out: list[Finding] = []
-    hs = search_harmonics(rv, fv, qv, th)
-    left = rv - harmonic_signal(hs, qv)
+def harmonic_findings(hs: tuple[Harmonic, ...], left: FloatArray, channel_unit: str) -> list[Finding]:
+    """One finding per (axis, harmonic); ``left`` (n, 3) the residual without them."""
+    n = left.shape[0]
+    out = []
     for h in hs:
         parts = ", ".join(
             f"{CHANNELS[i]} {h.amplitude[i]:.3g} ± {h.amplitude_sigma[i]:.2g} {channel_unit}"
@@ -134,6 +119,33 @@ def moving_findings(
                 explanation=HARMONIC_EXPLANATION,
             )
         )
+    return out
+
+
+def moving_findings(
+    t_s: FloatArray,
+    r: FloatArray,
+    f_m_s2: FloatArray,
+    K: FloatArray,
+    angles_rad: FloatArray,
+    valid: FloatArray,
+    sample_rate_hz: float,
+    channel_unit: str,
+    th: Thresholds = THRESHOLDS,
+) -> list[Finding]:
+    """Angle harmonics, clock drift and periodic lines in a moving recording's final residual.
+
+    :param t_s: (n,) time (s); :param r: (n, 3) the final model's residual (channel units).
+    :param f_m_s2: (n, 3) the final model's specific force (m/s²); :param K: (3, 3) its scale matrix.
+    :param angles_rad: (n, k) unwrapped encoder angles; :param valid: (n,) samples the fit used.
+    """
+    ok = np.asarray(valid, dtype=bool) & np.all(np.isfinite(r), axis=1)
+    t, rv, fv, qv = t_s[ok], r[ok], f_m_s2[ok], angles_rad[ok]
+    n = int(t.size)
+    out: list[Finding] = []
+    hs = search_harmonics(rv, fv, qv, th)
+    left = rv - harmonic_signal(hs, qv)
+    out += harmonic_findings(hs, left, channel_unit)
     fdot = np.gradient(fv, t, axis=0)
     cd = clock_drift(left, fv, fdot @ K.T, t, th)
     if drift_passes(cd, th):
@@ -171,16 +183,39 @@ def moving_stage(
     library: FloatArray | None,
     channel_unit: str,
     th: Thresholds = THRESHOLDS,
-) -> list[Finding]:
-    """:func:`moving_findings` on the final dynamic model's residual.
+    *,
+    baseline: DynamicFit | None = None,
+    n_claims: int = 0,
+    n_library: int = 0,
+    rerun: Callable[[FloatArray], Diagnosis] | None = None,
+) -> tuple[list[Finding], Diagnosis | None]:
+    """:func:`moving_findings` on the final dynamic model's residual; where an angle harmonic is
+    found beside ``n_claims`` catalogue steps or discovered terms and ``rerun`` is given, the head
+    to head of ``harmonic_referee``: the alternative diagnosis when it wins, else ``None``.
 
     :param library: (n, 3) the discovered terms' contribution (channel units) or ``None``.
+    :param baseline: the first-order fit; :param n_claims: catalogue steps and discovered terms;
+        :param n_library: discovered terms.
+    :param rerun: samples -> their diagnosis without the head to head.
     """
     model, _ = predict(final.theta, m, final.spec, g_m_s2, lever)
     r = y - model - (0.0 if library is None else library)
     f = specific_force(final.theta, m, final.spec, g_m_s2, lever)
     K = final.theta[3:12].reshape(3, 3)
-    return moving_findings(m.t_s, r, f, K, m.angles_rad, m.valid, 1.0 / m.step_s, channel_unit, th)
+    found = moving_findings(m.t_s, r, f, K, m.angles_rad, m.valid, 1.0 / m.step_s, channel_unit, th)
+    harm = [x for x in found if x.effect == "angle_harmonic"]
+    if not harm or not n_claims or rerun is None or baseline is None:
+        return found, None
+    ok = np.asarray(m.valid, dtype=bool) & np.all(np.isfinite(r), axis=1)
+    hs = search_harmonics(r[ok], f[ok], m.angles_rad[ok], th)
+    full_left = r[ok] - harmonic_signal(hs, m.angles_rad[ok])
+    k_full = len(final.theta) - 12 + n_library + 2 * sum(len(h.channels) for h in hs)
+    won = head_to_head(m, y, g_m_s2, lever, baseline, full_left, k_full, rerun, th)
+    if won is None:
+        return found, None
+    alt, hs_alt, left_alt, note = won
+    alt_findings = (*harmonic_findings(hs_alt, left_alt, channel_unit), *alt.findings)
+    return found, dc_replace(alt, findings=alt_findings, notes=(note, *alt.notes))
 
 
 __all__ = ["moving_findings", "moving_stage", "static_line_findings", "static_lines"]

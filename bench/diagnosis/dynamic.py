@@ -248,6 +248,7 @@ def diagnose_dynamic(
     source: str = "",
     library: bool = True,
     thresholds: Thresholds = THRESHOLDS,
+    head_to_head: bool = True,
 ) -> Diagnosis:
     """Diagnose a moving-table recording (module docstring).
 
@@ -255,6 +256,8 @@ def diagnose_dynamic(
     :param lever_arm_m: (3,) the lever arm the recording believes (m).
     :param temp_c: (n,) temperature (°C) or ``None``.
     :param library: search the moving library after the catalogue (``library_motion``).
+    :param head_to_head: an angle harmonic found beside catalogue claims is weighed against them
+        by running the diagnosis again without it (``harmonic_referee``).
     :param thresholds: the diagnosis's knobs (``thresholds``).
     :raises ValueError: a motion that cannot determine bias and K.
     """
@@ -305,9 +308,17 @@ def diagnose_dynamic(
             )
         )
     discovered = tuple(discovery(inc, final, channel_unit) for inc in lib.included)
-    findings += bench_stage(
-        m, y, g_m_s2, lever, final, lib.adjustment(vals) if lib.included else None, channel_unit, th
-    )
+    bench_found, alternative = bench_stage(
+        m, y, g_m_s2, lever, final, lib.adjustment(vals) if lib.included else None, channel_unit, th,
+        baseline=sel.fits[0], n_claims=len(steps) + len(lib.included), n_library=len(lib.included),
+        rerun=None if not head_to_head else lambda y2: diagnose_dynamic(
+            m, y2, g_m_s2, lever_arm_m, temp_c=temp_c, unit=unit, channel_unit=channel_unit, source=source,
+            library=library, thresholds=th, head_to_head=False,
+        ),
+    )  # fmt: skip
+    if alternative is not None:
+        return alternative
+    findings += bench_found
     regs = motion_regressors(m, y, final, g_m_s2, lever, temp_c)
     bs = block_summary(
         m, y, fits, g_m_s2, lever, sig_w, regs, n_obs,

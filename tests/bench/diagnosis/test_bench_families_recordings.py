@@ -2,7 +2,7 @@
 
 Rates measured by ``benchmarks/study_diagnose_families.py`` (docs/diagnose.md, "Bench physics
 beyond the catalogue"); here a sample of its cases on seeds 100-102, each asked to be named
-with nothing else claimed in at least 2 of 3 (the study: 5 of 5 for each case here), and clean
+with nothing else claimed in at least 2 of 3 (the study: all of 3 or 5 for each case here), and clean
 recordings of each kind with no bench-family finding.
 """
 

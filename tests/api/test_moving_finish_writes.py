@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,9 @@ import sqlalchemy as sa
 from fastapi.testclient import TestClient
 
 import bench.calibration.analysis
+import bench.calibration.dynamic
+import bench.calibration.recording
+import bench.recording.reader
 import bench.uncertainty.dynamic
 from api.agent.bench_agent import make_finisher
 from api.main import create_app
@@ -31,6 +35,7 @@ from db.models import RunState as DbRunState
 from db.observer import DbRunObserver
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
+from tests.support.counting import count_everywhere
 from tests.support.dynamic_sim import oscillation
 from tests.support.service_helpers import OP, service_settings
 
@@ -90,6 +95,11 @@ def test_api_writes_answer_while_a_moving_certificate_is_finished(
         return original(*args, **kwargs)
 
     monkeypatch.setattr(bench.uncertainty.dynamic, "refit_sensitivities", held)
+    # the finish reads nothing and fits nothing again: no reader, no term selection, no calibration
+    calls: Counter[str] = Counter()
+    count_everywhere(monkeypatch, calls, bench.recording.reader, "read_recording")
+    count_everywhere(monkeypatch, calls, bench.calibration.recording, "calibrate_recording")
+    count_everywhere(monkeypatch, calls, bench.calibration.dynamic, "select_terms")
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)
     finisher = make_finisher(settings, sessions, make_session_factory(engine, read_only=True))
@@ -129,5 +139,6 @@ def test_api_writes_answer_while_a_moving_certificate_is_finished(
         cert = s.scalars(sa.select(Certificate).where(Certificate.run_id == record.run_id)).one()
         budget = cert.content["results"]["uncertainty_budget"]
     assert "refit" in budget["sensitivity_method"]  # the moving budget, formed before the transaction
+    assert calls == Counter()
     assert live.extra["certificate_number"] == cert.number
     engine.dispose()

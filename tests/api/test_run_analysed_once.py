@@ -5,11 +5,8 @@ finish, with every reader and fit entry point counted wherever it is imported)."
 
 from __future__ import annotations
 
-import sys
 from collections import Counter
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import pytest
 import sqlalchemy as sa
@@ -30,22 +27,9 @@ from db.models import Certificate, FitKind, Run, Unit
 from db.repo.results import list_fits
 from db.repo.units import get_or_create_unit
 from tests.e2e.helpers import SIM_SPEED
+from tests.support.counting import count_everywhere
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]  # a whole simulated run
-
-
-def count_everywhere(monkeypatch: pytest.MonkeyPatch, calls: Counter[str], module: Any, name: str) -> None:
-    """Count the calls of ``module.name`` under every name it is imported as (any loaded module
-    holding the same function, and the lazy imports that fetch it from ``module`` later)."""
-    original: Callable[..., Any] = getattr(module, name)
-
-    def counted(*args: Any, **kwargs: Any) -> Any:
-        calls[name] += 1
-        return original(*args, **kwargs)
-
-    for mod in list(sys.modules.values()):
-        if mod is not None and getattr(mod, name, None) is original:
-            monkeypatch.setattr(mod, name, counted)
 
 
 def test_a_run_is_read_once_and_fitted_once_to_its_certificate(

@@ -11,6 +11,13 @@
   ``POST /api/links``. So an unauthenticated client can make the service neither read
   nor store anything. The route still checks its own role.
 
+- a client (by address) that presented :data:`MAX_AUTH_FAILURES` unknown tokens or bad links
+  (answers 401) within :data:`AUTH_FAILURE_WINDOW_S`: every request of it that carries a
+  credential is answered 429 with ``Retry-After`` until the oldest of those failures is that
+  old (:class:`FailedAuthLimiter`), so secrets cannot be guessed at the rate the service answers;
+- a body that stalls: no part of it for :data:`BODY_READ_TIMEOUT_S` (408; a slow client cannot
+  hold a worker with a request it never finishes);
+
 parses a JSON body once under the size rules of :mod:`bench.inputs` (nesting, integer digits,
 duplicate keys: **422** naming the rule) and hands it on, and adds the security headers to
 every response (:data:`SECURITY_HEADERS`, and `X-Calbench-Worker`: which API process answered):
@@ -26,13 +33,17 @@ integer out of range) is a 422 instead of a 500.
 
 from __future__ import annotations
 
+import collections
 import json
 import logging
 import math
 import re
+import threading
+import time
 from collections.abc import Awaitable, Callable, MutableMapping
 from typing import Any
 
+import anyio
 import anyio.to_thread
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -78,8 +89,61 @@ SECURITY_HEADERS: dict[str, str] = {
 }
 
 
+MAX_AUTH_FAILURES = 20
+"""Failed authentications (401) of one client within :data:`AUTH_FAILURE_WINDOW_S` before its
+requests with a credential are answered 429."""
+AUTH_FAILURE_WINDOW_S = 60.0
+BODY_READ_TIMEOUT_S = 30.0
+"""Longest wait for the next part of a request body (s)."""
+
+
 class _TooLarge(Exception):
     pass
+
+
+class _Stalled(Exception):
+    pass
+
+
+class FailedAuthLimiter:
+    """Failed authentications per client address in a sliding window (thread-safe).
+
+    :param limit: failures allowed within ``window_s``; :param clock: monotonic time (s), for tests.
+    """
+
+    def __init__(
+        self,
+        limit: int = MAX_AUTH_FAILURES,
+        window_s: float = AUTH_FAILURE_WINDOW_S,
+        clock: Any = time.monotonic,
+    ) -> None:
+        self.limit, self.window_s, self._clock = limit, window_s, clock
+        self._failures: dict[str, collections.deque[float]] = {}
+        self._lock = threading.Lock()
+
+    def _recent(self, client: str, now: float) -> collections.deque[float]:
+        q = self._failures.setdefault(client, collections.deque())
+        while q and now - q[0] > self.window_s:
+            q.popleft()
+        return q
+
+    def failed(self, client: str) -> None:
+        """Count one failed authentication of ``client``."""
+        with self._lock:
+            now = self._clock()
+            self._recent(client, now).append(now)
+            if len(self._failures) > 10_000:  # forget clients with no recent failure
+                for key in [k for k, q in self._failures.items() if not q or now - q[-1] > self.window_s]:
+                    del self._failures[key]
+
+    def retry_after_s(self, client: str) -> float | None:
+        """Seconds until ``client`` may try again, or ``None`` when it is under the limit."""
+        with self._lock:
+            now = self._clock()
+            q = self._recent(client, now)
+            if len(q) < self.limit:
+                return None
+            return max(1.0, self.window_s - (now - q[0]))
 
 
 def _is_json(scope: Scope) -> bool:
@@ -127,8 +191,9 @@ class RequestGuard:
     """ASGI middleware: URL and body-size limits, authentication before any body is read,
     security headers on every response (see the module docstring)."""
 
-    def __init__(self, app: ASGIApp) -> None:
+    def __init__(self, app: ASGIApp, limiter: FailedAuthLimiter | None = None) -> None:
         self.app = app
+        self.limiter = limiter or FailedAuthLimiter()
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -142,6 +207,8 @@ class RequestGuard:
         if services is not None:  # which API process answered (calbench serve --workers N)
             headers_to_add["x-calbench-worker"] = services.worker_id
         started = refused = False
+        client = str((scope.get("client") or ("?",))[0])
+        presented = _presents_credential(scope)
 
         async def send_with_headers(message: Message) -> None:
             nonlocal started
@@ -149,11 +216,21 @@ class RequestGuard:
                 return
             if message["type"] == "http.response.start":
                 started = True
+                if message.get("status") == 401 and presented:  # a wrong guess, not a missing token
+                    self.limiter.failed(client)
                 present = {k.decode("latin-1").lower() for k, _ in message.get("headers", [])}
                 extra = [(k.encode(), v.encode()) for k, v in headers_to_add.items() if k not in present]
                 message["headers"] = [*message.get("headers", []), *extra]
             await send(message)
 
+        wait_s = self.limiter.retry_after_s(client) if presented else None
+        if wait_s is not None:
+            detail = (
+                f"too many failed authentications from {client}: {self.limiter.limit} within "
+                f"{self.limiter.window_s:g} s; try again in {math.ceil(wait_s)} s"
+            )
+            await self._reply(send_with_headers, 429, detail, {"retry-after": str(math.ceil(wait_s))})
+            return
         refusal = await self._refusal(scope, path)
         if refusal is not None:
             status, detail, extra_headers = refusal
@@ -161,7 +238,11 @@ class RequestGuard:
             return
         limit = MAX_UPLOAD_BODY_BYTES if path in UPLOAD_PATHS else MAX_JSON_BODY_BYTES
         if scope.get("method") in BODY_METHODS and _is_json(scope):
-            body = await self._read_json_body(receive, limit)
+            try:
+                body = await self._read_json_body(receive, limit)
+            except _Stalled:
+                await self._reply(send_with_headers, 408, _stalled_detail(), {})
+                return
             problem = "too large" if body is None else _json_problem(body)
             if problem is not None:
                 if body is None:
@@ -175,7 +256,13 @@ class RequestGuard:
 
         async def counting_receive() -> Message:
             nonlocal received, refused
-            message = await receive()
+            try:
+                message = await _receive_within(receive)
+            except _Stalled:
+                if not started:
+                    await self._reply(send_with_headers, 408, _stalled_detail(), {})
+                    refused = True
+                raise
             if message["type"] == "http.request":
                 received += len(message.get("body", b""))
                 if received > limit:
@@ -190,7 +277,7 @@ class RequestGuard:
 
         try:
             await self.app(scope, counting_receive, send_with_headers)
-        except _TooLarge:
+        except (_TooLarge, _Stalled):
             if not refused:
                 raise
 
@@ -232,7 +319,7 @@ class RequestGuard:
         chunks: list[bytes] = []
         size = 0
         while True:
-            message = await receive()
+            message = await _receive_within(receive)
             if message["type"] != "http.request":
                 break
             chunk = message.get("body", b"")
@@ -255,6 +342,26 @@ class RequestGuard:
         ]
         await send({"type": "http.response.start", "status": status, "headers": raw})
         await send({"type": "http.response.body", "body": body})
+
+
+async def _receive_within(receive: Receive) -> Message:
+    """The next message of the client, or :class:`_Stalled` after :data:`BODY_READ_TIMEOUT_S`."""
+    with anyio.move_on_after(BODY_READ_TIMEOUT_S) as scope:
+        return await receive()
+    if scope.cancelled_caught:
+        raise _Stalled
+    raise _Stalled  # pragma: no cover - move_on_after either returns or cancels
+
+
+def _stalled_detail() -> str:
+    return f"request body stalled: nothing received for {BODY_READ_TIMEOUT_S:g} s"
+
+
+def _presents_credential(scope: Scope) -> bool:
+    """The request carries a token (``Authorization``) or a signed link (``?link=``)."""
+    if any(k.lower() == b"authorization" for k, _ in scope.get("headers", [])):
+        return True
+    return b"link=" in scope.get("query_string", b"")
 
 
 _SECRET_QUERY = re.compile(r"((?:^|[?&])(?:access_token|link|token)=)[^&#\s]*", re.IGNORECASE)

@@ -154,3 +154,10 @@ def test_a_killed_agent_of_this_host_shows_its_bench_offline_at_once(tmp_path: P
             if agent.poll() is None:
                 os.killpg(agent.pid, signal.SIGKILL)
                 agent.wait(timeout=30)
+
+
+def test_only_operators_see_the_bench_files_path(client: TestClient) -> None:
+    far = _benches(client)["bench-far"]
+    assert far["bench_file"] == {k: v for k, v in FAR_FILE.items() if k != "path"}
+    as_operator = {b["name"]: b for b in client.get("/api/benches", headers=OP).json()}
+    assert as_operator["bench-far"]["bench_file"] == FAR_FILE

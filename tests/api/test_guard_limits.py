@@ -1,0 +1,84 @@
+"""Token guesses are limited per client (429 with Retry-After) and a stalled body is cut off (408)
+(issue 24, item 8)."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+import api.guard
+from api.guard import MAX_AUTH_FAILURES, FailedAuthLimiter
+from api.main import create_app
+from tests.support.service_helpers import OP, VIEW, service_settings
+
+pytestmark = pytest.mark.timeout(120)
+
+
+@pytest.fixture()
+def client(tmp_path: Path) -> Iterator[TestClient]:
+    with TestClient(create_app(service_settings(tmp_path), start_scheduler=False)) as c:
+        yield c
+
+
+def test_token_guesses_past_the_limit_are_answered_429_with_retry_after(client: TestClient) -> None:
+    for i in range(MAX_AUTH_FAILURES):
+        assert client.get("/api/runs", headers={"Authorization": f"Bearer guess-{i:04d}"}).status_code == 401
+    r = client.get("/api/runs", headers={"Authorization": "Bearer guess-next"})
+    assert r.status_code == 429 and 1 <= int(r.headers["retry-after"]) <= 60
+    assert "too many failed authentications" in r.json()["detail"]
+    assert client.get("/api/runs", headers=VIEW).status_code == 429  # even the right one: by client
+    assert client.get("/api/health").status_code == 200  # no credential: not limited
+
+
+def test_missing_tokens_are_not_counted_as_guesses(client: TestClient) -> None:
+    for _ in range(MAX_AUTH_FAILURES + 5):
+        assert client.get("/api/runs").status_code == 401
+    assert client.get("/api/runs", headers=VIEW).status_code == 200
+
+
+def test_the_limiter_forgets_failures_older_than_its_window() -> None:
+    now = [0.0]
+    lim = FailedAuthLimiter(limit=3, window_s=60.0, clock=lambda: now[0])
+    for t in (0.0, 10.0, 20.0):
+        now[0] = t
+        assert lim.retry_after_s("a") is None
+        lim.failed("a")
+    assert lim.retry_after_s("a") == pytest.approx(40.0)
+    assert lim.retry_after_s("b") is None
+    now[0] = 60.5
+    assert lim.retry_after_s("a") is None
+
+
+def test_a_stalled_body_is_answered_408(client: TestClient, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(api.guard, "BODY_READ_TIMEOUT_S", 0.3)
+    statuses: list[int] = []
+    calls = 0
+
+    async def receive() -> dict[str, Any]:
+        nonlocal calls
+        calls += 1
+        if calls == 1:
+            return {"type": "http.request", "body": b'{"unit_serial": ', "more_body": True}
+        await asyncio.sleep(3600)  # the client never sends the rest
+        raise AssertionError
+
+    async def send(message: dict[str, Any]) -> None:
+        if message["type"] == "http.response.start":
+            statuses.append(message["status"])
+
+    for content_type in (b"application/json", b"multipart/form-data; boundary=x"):
+        scope = {
+            "type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1", "method": "POST",
+            "scheme": "http", "path": "/api/runs", "raw_path": b"/api/runs", "query_string": b"",
+            "root_path": "", "client": ("127.0.0.1", 1), "server": ("testserver", 80),
+            "headers": [(b"authorization", OP["Authorization"].encode()), (b"content-type", content_type)],
+        }  # fmt: skip
+        calls = 0
+        assert client.portal is not None
+        client.portal.call(client.app, scope, receive, send)
+    assert statuses == [408, 408]

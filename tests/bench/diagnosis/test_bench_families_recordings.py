@@ -19,6 +19,7 @@ from tests.support.families_cases import cases
 SAMPLED = (
     "table_axis_error: middle axis 0.05° off perpendicular",
     "angle_harmonic: outer axis, 2 per turn, ay, rate table, 1.0 mg",
+    "angle_harmonic: inner axis, once per turn, ax, oscillation, 1.0 mg",
     "periodic_line: 0.5 Hz on ax, static, 1.0 mg",
     "periodic_line: 23.4 Hz on az, oscillation, 1.0 mg",
     "clock_drift: 100 ppm, oscillation",

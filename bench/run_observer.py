@@ -7,6 +7,7 @@ go to the recording, not through observers.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Protocol, runtime_checkable
 
 from bench.records import (
@@ -62,6 +63,8 @@ class RunObserver(Protocol):
 
     # Optional: ``on_gap(run_id: str, gap: GapRecord) -> None`` is called, when an observer
     # defines it, as soon as a sample gap is recorded (before the window is re-measured).
+    # Optional: ``on_phase(run_id: str, phase: str) -> None`` (:func:`announce_phase`): the
+    # recording is over and the run is ``"analysing"`` (fit, verdict, diagnosis).
 
 
 class NullObserver(RunObserver):
@@ -70,3 +73,12 @@ class NullObserver(RunObserver):
 
     def on_gap(self, run_id: str, gap: GapRecord) -> None:
         """Ignored (the optional hook of the module's observers)."""
+
+
+def announce_phase(observers: Sequence[object], run_id: str, phase: str) -> None:
+    """Tell every observer that defines the optional ``on_phase(run_id, phase)`` hook that the
+    run entered ``phase`` (``"analysing"``: every step is done, the fit and verdict follow)."""
+    for obs in observers:
+        hook = getattr(obs, "on_phase", None)
+        if hook is not None:
+            hook(run_id, phase)

@@ -45,7 +45,7 @@ from api.certificates.issue import finish_calibration, prepare_run, unit_nominal
 from api.drift import record_drift_check
 from api.runs import resume as service_resume
 from api.runs.hub import ProgressHub
-from api.runs.live import LiveRun
+from api.runs.live import LiveRun, store_phase
 from api.runs.runner import BenchBusy, BenchRunner
 from api.settings import Settings
 from bench.bench_config import BenchConfig
@@ -101,6 +101,8 @@ def make_finisher(
                 run = s.get(Run, record.run_id)
                 params = dict(run.params) if run is not None else {}
             analysis = prepare_run(record, nominal, settings, params)
+        live.phase = "certificate"
+        store_phase(sessions, record.run_id, "certificate")
         with sessions.begin() as s:
             set_service_run(s, record.run_id, live.kind)
             # the final state commits in one transaction with the certificate (or drift check):

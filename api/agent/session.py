@@ -27,7 +27,7 @@ from bench.dwell_policy import fixed_dwell
 from bench.limits import UnitLimits
 from bench.procedures import build_procedure, preview
 from bench.records import DwellChoice, RunRecord, RunStart, RunState, new_run_id
-from bench.run_observer import RunObserver
+from bench.run_observer import RunObserver, announce_phase
 from bench.run_recorder import RunRecorder
 from bench.sequencer.control import RunControl, SequencerConfig
 from bench.sequencer.faults import resumable_fault
@@ -210,6 +210,8 @@ def execute_resumable(
             gaps=acq.gaps,
         )
     else:
+        if acq.outcome is None:  # every step done: the fit and the verdict follow
+            announce_phase(observers, seq.start.run_id, "analysing")
         record = run_record(seq, acq.outcome, acq.error, csv_path, limits, settings)
     finish_observers(observers, record)
     return record

@@ -24,7 +24,7 @@ from bench.limit_check import LimitCheck
 from bench.limits import UnitLimits, describe, load_limits, verdict
 from bench.recording.reader import read_recording
 from bench.records import Outcome, RunRecord, RunState
-from bench.run_observer import RunObserver
+from bench.run_observer import RunObserver, announce_phase
 from bench.sequencer.loop import Sequencer
 
 
@@ -131,6 +131,8 @@ def execute(
     settings: Settings | None = None,
 ) -> RunRecord:
     acq = seq.run()
+    if acq.outcome is None:  # every step done: the fit and the verdict follow
+        announce_phase(observers, seq.start.run_id, "analysing")
     record = run_record(seq, acq.outcome, acq.error, csv_path, limits, settings)
     finish_observers(observers, record)
     return record

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from api.runs.live import PHASES
 from api.runs.runner import LiveRun
 from api.schemas import (
     AuditEntryOut,
@@ -27,6 +28,16 @@ def _kind(run: Run, live: LiveRun | None) -> str:
         return live.kind
     kind = run.kind
     return kind if kind in ("calibration", "drift_check") else "other"
+
+
+def _phase(run: Run, live: LiveRun | None) -> str | None:
+    """A live run's phase (recording, analysing, certificate), the runner's or the stored one."""
+    if not run.state.is_live:
+        return None
+    if live is not None and live.phase != "recording":
+        return live.phase
+    stored = run.live_progress.get("phase") if isinstance(run.live_progress, dict) else None
+    return str(stored) if stored in PHASES else "recording"
 
 
 def run_out(
@@ -54,6 +65,7 @@ def run_out(
     if live is not None and run.state.is_live:
         progress = max(progress, live.progress)
     return RunOut(
+        phase=_phase(run, live),
         id=run.id,
         unit_serial=serial,
         procedure=run.procedure,

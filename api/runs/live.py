@@ -1,6 +1,6 @@
 """What the service knows of the run holding its bench, and the observers that tell it.
 
-:class:`LiveRun` is the runner's view of one run (state, progress, control handle);
+:class:`LiveRun` is the runner's view of one run (state, phase, progress, control handle);
 :class:`HubObserver` publishes the run's state, progress and windows to the event streams;
 :class:`ServiceParamsObserver` stores with the run what a later resume needs (the kind of
 service run, the age of the simulated unit); :class:`DbLiveObserver` its latest progress.
@@ -31,9 +31,14 @@ from bench.records import (
 )
 from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl
+from db.models import Run
 from db.repo.runs import set_live_progress, set_service_run
 
 RunKind = Literal["calibration", "drift_check"]
+Phase = Literal["recording", "analysing", "certificate"]
+"""What a live run is doing: recording its windows on the bench, analysing the recording (fit,
+verdict, diagnosis, budget: no pause or abort any more), storing its certificate or drift check."""
+PHASES: tuple[Phase, ...] = ("recording", "analysing", "certificate")
 
 
 @dataclasses.dataclass
@@ -51,6 +56,7 @@ class LiveRun:
     shutdown: bool = False
     state: RunState = RunState.QUEUED
     progress: float = 0.0
+    phase: Phase = "recording"
     created_at: dt.datetime = dataclasses.field(default_factory=utc_now)
     record: RunRecord | None = None
     error: str | None = None
@@ -76,6 +82,11 @@ class HubObserver(NullObserver):
         self.live.state = progress.state
         self.live.progress = progress.fraction
         self.hub.publish(run_id, "progress", progress_data(progress))
+
+    def on_phase(self, run_id: str, phase: Phase) -> None:
+        """The recording is over: the run is analysed (then its certificate is stored)."""
+        self.live.phase = phase
+        self.hub.publish(run_id, "progress", {"phase": phase, "state": self.live.state.value})
 
     def on_gap(self, run_id: str, gap: GapRecord) -> None:
         """A sample gap, as the run page shows it (``GET /api/runs/{id}`` ``gaps`` items)."""
@@ -136,11 +147,28 @@ class DbLiveObserver(NullObserver):
         with self.sessions.begin() as s:
             set_live_progress(s, run_id, data)
 
+    def on_phase(self, run_id: str, phase: Phase) -> None:
+        """Store the run's new phase with its latest progress (always, not rate-limited)."""
+        store_phase(self.sessions, run_id, phase)
+
+
+def store_phase(sessions: sessionmaker[Session], run_id: str, phase: Phase) -> None:
+    """Store ``phase`` in the run's latest progress (``Run.live_progress``), which the event
+    streams of every API process send as a ``progress`` event."""
+    with sessions.begin() as s:
+        run = s.get(Run, run_id)
+        last = run.live_progress if run is not None and isinstance(run.live_progress, dict) else {}
+        done = last.get("progress", 0.0) if phase == "recording" else 1.0  # the recording's fraction
+        set_live_progress(s, run_id, {**last, "phase": phase, "progress": done, "remaining_s": 0.0})
+
 
 def progress_data(progress: Progress) -> dict[str, Any]:
-    """The ``progress`` event's data."""
+    """The ``progress`` event's data: ``progress`` the recording's fraction done, ``remaining_s``
+    its remaining time on the bench clock (:mod:`bench.sequencer.progress`)."""
     return {
+        "phase": "recording",
         "progress": progress.fraction,
+        "remaining_s": max(0.0, progress.expected_total_s - progress.elapsed_s),
         "step_index": progress.step_index,
         "n_steps": progress.n_steps,
         "step_label": progress.step_label,

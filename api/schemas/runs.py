@@ -186,6 +186,11 @@ class RunOut(BaseModel):
     kind: Literal["calibration", "drift_check", "other"] = "other"
     state: RunStateName
     progress: float = Field(ge=0.0, le=1.0)
+    phase: Literal["recording", "analysing", "certificate"] | None = Field(
+        default=None,
+        description="a live run's phase: recording its windows, analysing (fit, verdict, "
+        "diagnosis; no pause or abort), storing its certificate; null once final",
+    )
     outcome: str | None = None
     error: str | None = None
     bench: str | None = None

@@ -35,13 +35,32 @@ function gapLine(run) {
   return { nodes: [dt, dd], add: (g) => { gaps.push(g); draw(); } };
 }
 
+// The phases of a live run: recording its windows on the bench, analysing the recording (fit,
+// verdict, diagnosis, budget), storing its certificate. Pause and Abort apply while recording.
+const PHASES = [["recording", "Recording"], ["analysing", "Analysing"], ["certificate", "Certificate"]];
+
+function phaseList() {
+  const items = PHASES.map(([key, label]) => h("li", { "data-phase": key }, label));
+  const el = h("ol", { class: "phases", id: "run-phases", "aria-label": "run phases" }, ...items);
+  const show = (phase, final) => {
+    const at = final ? PHASES.length : PHASES.findIndex(([k]) => k === phase);
+    items.forEach((li, i) => {
+      li.className = i < at ? "done" : i === at ? "current" : "todo";
+      if (i === at) li.setAttribute("aria-current", "step"); else li.removeAttribute("aria-current");
+    });
+  };
+  return { el, show };
+}
+
 function liveCard(run, session, act) {
-  const bar = progressBar(run.progress, true, "run progress");
+  const bar = progressBar(run.progress, true, "recording progress");
   const pct = h("strong", { id: "progress-text", class: "num" }, `${Math.round(run.progress * 100)} %`);
   const state = h("span", { id: "run-state" }, badge(run.state));
+  const phases = phaseList();
   const step = h("dd", { id: "run-step" }, "–");
   const windows = h("dd", { id: "run-window" }, "–");
   const time = h("dd", { id: "run-time" }, "–");
+  const left = h("dd", { id: "run-eta" }, "–");
   const pose = h("dd", { id: "run-pose", class: "num" }, "–");
   const poseLabel = h("dt", {}, "Table");
   const canAct = session.role === "operator" || session.role === "admin";
@@ -58,49 +77,56 @@ function liveCard(run, session, act) {
   const resume = h("button", { type: "button", id: "resume-run", disabled: !canAct,
     title: canAct ? "continue this run on the bench from the window after its last complete one" : needs,
     onclick: act.resume }, "Resume");
-  const controls = (st) => {
-    pause.hidden = !(st === "running" || st === "queued");
-    cont.hidden = !(st === "paused" || st === "suspended");
+  const busy = h("p", { class: "note", id: "analysing-note", hidden: true });
+  let st = run.state, phase = run.phase || "recording";
+  const controls = () => {
+    const recording = phase === "recording";
+    pause.hidden = !(recording && (st === "running" || st === "queued"));
+    cont.hidden = !(recording && (st === "paused" || st === "suspended"));
     resume.hidden = st !== "interrupted";
-    abort.hidden = !LIVE.has(st);
+    abort.hidden = !(recording && LIVE.has(st));
     abort.disabled = !canAct || !LIVE.has(st);
+    busy.hidden = recording || !LIVE.has(st);
+    busy.textContent = phase === "certificate" ? "The recording is analysed; the certificate is being stored."
+      : "Every window is recorded: the fit, the verdict and the diagnosis run now (the run can no longer be paused or aborted).";
+    state.replaceChildren(badge(LIVE.has(st) && !recording ? phase : st));
+    phases.show(phase, !LIVE.has(st));
   };
-  controls(run.state);
+  controls();
   const gaps = gapLine(run);
   const el = h("section", { class: "card span", "aria-label": "Progress" },
     h("header", {}, h("h2", {}, "Progress"), state),
+    phases.el,
     h("div", { class: "progress-line" }, bar, pct),
     h("dl", { class: "kv" }, h("dt", {}, "Step"), step, h("dt", {}, "Window"), windows,
-      h("dt", {}, "Time"), time, poseLabel, pose, ...gaps.nodes),
+      h("dt", {}, "Time"), time, h("dt", {}, "Time left"), left, poseLabel, pose, ...gaps.nodes),
+    busy,
     h("p", { class: "actions" }, pause, " ", cont, " ", resume, " ", abort),
     run.state === "interrupted" ? h("p", { class: "note", id: "interrupted-note" },
       "The run stopped before finishing. Every complete window is kept: Resume continues it on this bench "
       + "from the next window, and the certificate is issued at the end.") : null);
-  const t0 = Date.now();
-  let p0 = run.progress || 0;
-  const remaining = (p) => {
-    // wall-clock rate of the progress so far (the bench clock's estimate assumes a provisional dwell)
-    const dt = (Date.now() - t0) / 1000, dp = p - p0;
-    if (!(dt > 5 && dp > 0.02)) return "";
-    return ` · about ${seconds((1 - p) * dt / dp)} left at the pace so far`;
-  };
   const update = (p) => {
+    if (p.state) st = p.state;
+    if (p.phase) phase = p.phase;
     if (p.progress !== undefined) { setProgress(bar, p.progress); pct.textContent = `${Math.round(p.progress * 100)} %`; }
-    if (p.state) state.replaceChildren(badge(p.state));
     if (p.step_label !== undefined) step.textContent = `${Math.min(p.step_index + 1, p.n_steps)} of ${p.n_steps}: ${p.step_label}`;
     if (p.n_windows) windows.textContent = p.window_index == null ? `between windows (${p.n_windows} planned)` : `${p.window_index + 1} of ${p.n_windows}`;
-    if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} of about ${seconds(p.expected_total_s)} (bench clock)${remaining(p.progress ?? p.elapsed_s / p.expected_total_s)}`;
+    if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} recorded (bench clock)`;
+    if (phase !== "recording") left.textContent = "recording done; analysing";
+    else if (st === "paused" || st === "suspended") left.textContent = "on hold";
+    else if (Number.isFinite(p.remaining_s)) left.textContent = `about ${seconds(p.remaining_s)} of recording (from the pace so far)`;
     if (p.table_deg) pose.textContent = p.table_deg.map((a) => `${a.toFixed(1)}°`).join("  ");
-    if (p.state) controls(p.state);
+    controls();
   };
   const final = (r) => {
-    state.replaceChildren(badge(r.state));
-    controls(r.state);
+    st = r.state;
+    controls();
     setProgress(bar, r.progress); pct.textContent = `${Math.round(r.progress * 100)} %`;
     step.textContent = `ended ${r.state}${r.outcome ? ` (${r.outcome})` : ""}`;
     windows.textContent = r.last_complete_window == null ? "none complete" : `${r.last_complete_window + 1} complete`;
     const wall = (Date.parse(r.finished_at) - Date.parse(r.started_at)) / 1000;
     time.textContent = Number.isFinite(wall) ? `${seconds(wall)} (wall clock)` : "–";
+    left.textContent = "–";
     if (r.n_samples) { poseLabel.textContent = "Recording"; pose.textContent = `${r.n_samples} samples`; }
   };
   if (!LIVE.has(run.state)) final(run);
@@ -384,7 +410,7 @@ export async function runView(view, runId, session, signal) {
   const finish = async () => {
     run = await getJson(`/api/runs/${enc(runId)}`, { signal });
     for (const w of run.windows || []) addWindow(w);
-    if (LIVE.has(run.state)) live.update({ state: run.state, progress: run.progress });
+    if (LIVE.has(run.state)) live.update({ state: run.state, progress: run.progress, phase: run.phase || undefined });
     else live.final(run);
     banner.show(run);
     audit.show(run);
@@ -414,7 +440,7 @@ export async function runView(view, runId, session, signal) {
       await new Promise((r) => setTimeout(r, POLL_MS * 2));
       continue;
     }
-    live.update({ state: run.state, progress: run.progress });
+    live.update({ state: run.state, progress: run.progress, phase: run.phase || undefined });
     if (!LIVE.has(run.state)) break;
     await new Promise((r) => setTimeout(r, POLL_MS));
   }

@@ -52,7 +52,7 @@ from bench.sequencer.daq import DaqPump, Failed, Gap, Restarted
 from bench.sequencer.deadline import call_with_deadline
 from bench.sequencer.faults import resumable_fault
 from bench.sequencer.observers import ObserverError, Observers
-from bench.sequencer.progress import run_progress
+from bench.sequencer.progress import RemainingTime, run_progress
 from bench.sequencer.safety import make_safe, prepare_table
 from bench.sequencer.steps import execute_steps
 from bench.sequencer.window import WindowCollector
@@ -119,6 +119,10 @@ class Sequencer:
         self.now_s = recorder.last_t_s or 0.0
         self.held_s = 0.0
         self.hold_began_s: float | None = None
+        self.eta = RemainingTime(
+            procedure, self.config.limits, start_window, self.now_s, dwell.dwell_s if dwell else None
+        )
+        self._eta_dwell_s = dwell.dwell_s if dwell else None
         self.step_index = 0
         self.where = "start"
         self.last_temp_c = float("nan")
@@ -156,6 +160,11 @@ class Sequencer:
         if not force and now - self._last_progress_wall < self.config.progress_interval_s:
             return
         self._last_progress_wall = now
+        holding_s = 0.0 if self.hold_began_s is None else max(0.0, self.now_s - self.hold_began_s)
+        held_s = self.held_s + holding_s
+        if self.dwell is not None and self.dwell.dwell_s != self._eta_dwell_s:
+            self._eta_dwell_s = self.dwell.dwell_s
+            self.eta.set_dwell(self._eta_dwell_s)
         self.notify(
             "on_progress",
             self.start.run_id,
@@ -165,11 +174,10 @@ class Sequencer:
                 self.window.index if self.window else None,
                 self.next_window,
                 self.now_s,
-                self.start.expected_duration_s,
+                self.eta.remaining_s(self.now_s - held_s),
                 self.positions_deg,
                 self.state,
-                self.held_s
-                + (0.0 if self.hold_began_s is None else max(0.0, self.now_s - self.hold_began_s)),
+                held_s,
             ),
         )
 
@@ -357,6 +365,7 @@ class Sequencer:
             self.notify("on_chunk", self.start.run_id, chunk)
         self.notify("on_window", self.start.run_id, rec)
         self.next_window = rec.index + 1
+        self.eta.window_done(rec.index, self.now_s - self.held_s)
         return rec
 
     # -- life cycle ----------------------------------------------------------------------

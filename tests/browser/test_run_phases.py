@@ -1,0 +1,78 @@
+"""The run page shows the run's phases (recording → analysing → certificate), the time left from
+the pace so far while recording, and controls that match the phase: no Pause or Abort once every
+window is recorded and the fit, diagnosis and certificate run.
+
+Against a live simulated service running static-12.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import httpx
+import pytest
+from playwright.sync_api import expect
+
+from tests.browser.conftest import CHROMIUM
+from tests.browser.live_server import live_service
+from tests.browser.test_dashboard import DESK, ConsoleWatch
+from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings
+
+RUN_TIMEOUT_S = 300.0
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.timeout(600),
+    pytest.mark.skipif(
+        not CHROMIUM.exists(), reason="Debian's chromium is not installed at /usr/bin/chromium"
+    ),
+]
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    settings = service_settings(tmp_path_factory.mktemp("phases"), sim_speed=20.0, bench_name="bench-ph")
+    with live_service(settings) as base:
+        yield base
+
+
+def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any) -> None:
+    created = httpx.post(
+        f"{service}/api/runs", json={"unit_serial": "SN-PH-1", "procedure": "static-12"}, headers=OP
+    )
+    assert created.status_code == 202, created.text
+    run_id = created.json()["id"]
+    ctx = browser.new_context(viewport=DESK)
+    ctx.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
+    page = ctx.new_page()
+    console = ConsoleWatch(page)
+    page.goto(f"{service}/#/runs/{run_id}")
+    # recording: its phase current, Pause and Abort offered, a time left from the pace
+    expect(page.locator('#run-phases li[data-phase="recording"]')).to_have_class("current", timeout=60_000)
+    expect(page.locator("#pause-run")).to_be_visible()
+    expect(page.locator("#abort-run")).to_be_visible()
+    expect(page.locator("#run-eta")).to_contain_text("of recording", timeout=60_000)
+    # every window recorded: analysing (or already the certificate), no Pause or Abort
+    after = page.locator(
+        '#run-phases li[data-phase="analysing"].current, #run-phases li[data-phase="certificate"].current'
+    )
+    expect(after).to_have_count(1, timeout=RUN_TIMEOUT_S * 1000)
+    assert page.locator('#run-phases li[data-phase="recording"]').get_attribute("class") == "done"
+    expect(page.locator("#pause-run")).to_be_hidden()
+    expect(page.locator("#abort-run")).to_be_hidden()
+    expect(page.locator("#analysing-note")).to_be_visible()
+    assert page.inner_text("#run-eta") == "recording done; analysing"
+    # over the API the same phase, while the run is still live
+    run = httpx.get(f"{service}/api/runs/{run_id}", headers=VIEW).json()
+    assert run["phase"] in ("analysing", "certificate", None), run
+    # the end: every phase done, the verdict shown
+    expect(page.locator("#verdict-outcome")).to_have_text("PASS", timeout=RUN_TIMEOUT_S * 1000)
+    assert page.locator("#run-phases li.done").count() == 3
+    deadline = time.monotonic() + 10
+    while httpx.get(f"{service}/api/runs/{run_id}", headers=VIEW).json()["phase"] is not None:
+        assert time.monotonic() < deadline, "a final run still reports a phase"
+        time.sleep(0.2)
+    assert console.errors == []
+    ctx.close()

@@ -9,6 +9,7 @@ import re
 
 from bench.calibration import calibrate_recording
 from bench.calibration.diagnose import diagnose_recording
+from bench.diagnosis.bench_families import FINDING_PARAMETERS
 from bench.diagnosis.effects import EFFECTS
 from bench.recording import read_recording
 from bench.recording.sidecar import parse_sidecar
@@ -38,9 +39,9 @@ def test_the_effect_table_is_the_catalogue_with_its_parameter_names() -> None:
     table = _section((DOCS / "cli-contract.md").read_text(), "### Effect ids and their parameters")
     rows = [line for line in table.splitlines() if line.startswith("| `")]
     documented = {re.match(r"\| `([a-z_]+)`", r).group(1): r.split("|")[3] for r in rows}  # type: ignore[union-attr]
-    assert set(documented) == {e.id for e in EFFECTS}
+    assert set(documented) == {e.id for e in EFFECTS} | set(FINDING_PARAMETERS)
     for effect, params in documented.items():
-        for name in EFFECT_PARAMETERS[effect]:
+        for name in FINDING_PARAMETERS.get(effect) or EFFECT_PARAMETERS[effect]:
             assert f"`{name}`" in params, (effect, name)
 
 

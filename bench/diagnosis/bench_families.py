@@ -36,6 +36,13 @@ from bench.estimation.motion_data import MotionData
 
 FloatArray = np.ndarray
 CHANNELS = ("ax", "ay", "az")
+FINDING_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "periodic_line": ("frequency_hz", "amplitude", "phase_rad", "channels"),
+    "angle_harmonic": ("axis", "harmonic", "amplitude", "phase_rad", "channels"),
+    "clock_drift": ("delay_s_per_s",),
+}
+"""The findings this stage reports beside the catalogue: effect id -> parameter names
+(docs/cli-contract.md, "Effect ids and their parameters")."""
 LINE_EXPLANATION = (
     "a vibration, mains pick-up or a pump reaching the sensor: a sinusoid at one frequency "
     "on the samples, locked to time, not to the table's motion"

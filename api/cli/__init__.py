@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -77,6 +78,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+PRIVATE_FILES = frozenset({"serve", "agent", "run", "resume", "db"})
+"""Commands that create the database, recordings and certificates: their files are created
+readable by their owner only (umask 077: files 0600, directories 0700)."""
+
+
 def _one_line(text: str) -> str:
     """A message as one line: line breaks become ' / '."""
     return " / ".join(part.strip() for part in str(text).splitlines() if part.strip())
@@ -95,6 +101,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser(_command_in(words))
     args = parser.parse_args(words)
     hold = args.command in HOLD_WARNINGS
+    if args.command in PRIVATE_FILES:
+        os.umask(0o077)
     with warnings.catch_warnings(record=hold) as caught:
         if hold:
             warnings.simplefilter("always")

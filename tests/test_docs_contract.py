@@ -13,7 +13,6 @@ from bench.diagnosis.bench_families import FINDING_PARAMETERS
 from bench.diagnosis.effects import EFFECTS
 from bench.recording import read_recording
 from bench.recording.sidecar import parse_sidecar
-from drivers.sim.sensor_truth import EFFECT_PARAMETERS
 from tests.conftest import EXAMPLES, REPO_ROOT, STATIC_EXAMPLE
 
 DOCS = REPO_ROOT / "docs"
@@ -39,9 +38,10 @@ def test_the_effect_table_is_the_catalogue_with_its_parameter_names() -> None:
     table = _section((DOCS / "cli-contract.md").read_text(), "### Effect ids and their parameters")
     rows = [line for line in table.splitlines() if line.startswith("| `")]
     documented = {re.match(r"\| `([a-z_]+)`", r).group(1): r.split("|")[3] for r in rows}  # type: ignore[union-attr]
-    assert set(documented) == {e.id for e in EFFECTS} | set(FINDING_PARAMETERS)
+    reported = {e.id: tuple(p.name for p in e.parameters) for e in EFFECTS} | FINDING_PARAMETERS
+    assert set(documented) == set(reported)
     for effect, params in documented.items():
-        for name in FINDING_PARAMETERS.get(effect) or EFFECT_PARAMETERS[effect]:
+        for name in reported[effect]:
             assert f"`{name}`" in params, (effect, name)
 
 

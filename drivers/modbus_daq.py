@@ -101,7 +101,7 @@ class ModbusDaq:
         self._client = ModbusTcpClient(
             self.host, port=self.port, timeout=timeout_s, retries=retries, reconnect_delay=0.0
         )
-        if not self._client.connect():
+        if not self._client.connect():  # type: ignore[no-untyped-call]  # pymodbus leaves it unannotated
             raise LinkLost(f"{self._where}: connection refused or unreachable")
         self._next_seq = 0
         self._started = False
@@ -114,7 +114,7 @@ class ModbusDaq:
                 )
             self._stream = self._read_stream_status(self._deadline())
         except BaseException:
-            self._client.close()
+            self._client.close()  # type: ignore[no-untyped-call]  # pymodbus leaves it unannotated
             raise
 
     # -- Daq protocol --------------------------------------------------------------
@@ -236,7 +236,7 @@ class ModbusDaq:
 
     def close(self) -> None:
         """Close the TCP connection (idempotent)."""
-        self._client.close()
+        self._client.close()  # type: ignore[no-untyped-call]  # pymodbus leaves it unannotated
 
     def __enter__(self) -> ModbusDaq:
         return self

@@ -133,11 +133,12 @@ class LineTransport:
     def _read_some(self, remaining_s: float) -> bytes:
         try:
             self._port.timeout = remaining_s
-            first = self._port.read(1)
+            first: bytes = self._port.read(1)  # pyserial is untyped: read() returns bytes
             if not first:
                 return b""
             self._port.timeout = 0
-            return first + self._port.read(MAX_LINE_BYTES)
+            rest: bytes = self._port.read(MAX_LINE_BYTES)
+            return first + rest
         except (serial.SerialException, OSError) as exc:
             raise LinkLost(f"{self.url}: link lost while reading: {exc}") from exc
         except (TypeError, AttributeError) as exc:
@@ -150,7 +151,8 @@ class LineTransport:
         self._buffer.clear()
         try:
             self._port.timeout = 0
-            stale += self._port.read(MAX_LINE_BYTES)
+            late: bytes = self._port.read(MAX_LINE_BYTES)  # pyserial is untyped
+            stale += late
         except (serial.SerialException, OSError) as exc:
             raise LinkLost(f"{self.url}: link lost: {exc}") from exc
         if stale:

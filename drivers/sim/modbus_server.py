@@ -199,7 +199,7 @@ class DaqServer:
         try:
             await self._stop.wait()
         finally:
-            await server.shutdown()
+            await server.shutdown()  # type: ignore[no-untyped-call]  # pymodbus leaves it unannotated
 
     def _trace_packet(self, sending: bool, data: bytes) -> bytes:
         if not sending:

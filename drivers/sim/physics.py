@@ -207,7 +207,8 @@ class SensorPhysics:
         pairs = self._fx["pose_error"]["angles_rad"]
         w = np.clip(np.searchsorted(self._window_ends, t_s, side="left"), 0, pairs.shape[0] - 1)
         P = rot_xy(pairs[:, 0], pairs[:, 1])  # (n_w, 3, 3): true attitude = P_w · nominal
-        return np.einsum("nji,j->ni", P[w], g)  # P_wᵀ · g
+        g_sensor: FloatArray = np.einsum("nji,j->ni", P[w], g)  # P_wᵀ · g
+        return g_sensor
 
     def specific_force(self, kin: TableKinematics) -> FloatArray:
         """(n, 3) ideal specific force in the sensor frame (m/s²) from the true table state.
@@ -273,7 +274,7 @@ class SensorPhysics:
         if self._lp_state is None:
             t_prev, x_prev, y_prev = float(t[0]), x[0], x[0]
             t, x = t[1:], x[1:]
-            head = x_prev[None, :]
+            head: FloatArray = x_prev[None, :]
         else:
             (t_prev, x_prev, y_prev), head = self._lp_state, np.empty((0, 3))
         if t.shape[0] == 0:

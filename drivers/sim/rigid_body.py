@@ -36,14 +36,18 @@ def rot(axis: FloatArray, theta_rad: FloatArray) -> FloatArray:
     th = np.asarray(theta_rad, dtype=float).reshape(-1)
     ux = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
     ux2 = ux @ ux
-    return np.eye(3) + np.sin(th)[:, None, None] * ux + (1.0 - np.cos(th))[:, None, None] * ux2
+    out: FloatArray = np.eye(3) + np.sin(th)[:, None, None] * ux + (1.0 - np.cos(th))[:, None, None] * ux2
+    return out
 
 
 def rot_xy(a_rad: float | FloatArray, b_rad: float | FloatArray) -> FloatArray:
     """Rot(x, a)·Rot(y, b) for (n,) or scalar angles -> (n, 3, 3)."""
     a = np.atleast_1d(np.asarray(a_rad, dtype=float))
     b = np.atleast_1d(np.asarray(b_rad, dtype=float))
-    return np.einsum("nij,njk->nik", rot(np.array([1.0, 0.0, 0.0]), a), rot(np.array([0.0, 1.0, 0.0]), b))
+    out: FloatArray = np.einsum(
+        "nij,njk->nik", rot(np.array([1.0, 0.0, 0.0]), a), rot(np.array([0.0, 1.0, 0.0]), b)
+    )
+    return out
 
 
 def chain_state(
@@ -93,4 +97,5 @@ def specific_force_at(
     accel = np.cross(omega_dot, p) + np.cross(omega, np.cross(omega, p))
     total = accel + gravity_base
     in_inner = np.einsum("nji,nj->ni", r_inner, total)
-    return in_inner @ np.asarray(mount, dtype=float)
+    f: FloatArray = in_inner @ np.asarray(mount, dtype=float)
+    return f

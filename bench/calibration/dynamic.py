@@ -8,9 +8,10 @@ and K under ``extra`` (``docs/cli-contract.md``: ``lever_arm.r_m``, ``proof_mass
 ``nonlinearity_quadratic.k2_per_g``, ``table_tilt.tilt_rad``, ``time_skew.delay_s``).
 
 Terms: the model the evidence supports. By default the terms are those the diagnosis of
-the same recording admits (``bench.diagnosis.dynamic.select_terms``: each term the motion
+the same recording claims (``bench.diagnosis.dynamic.claim_catalogue``: each term the motion
 determines is tried, and enters only if its departure from the believed geometry passes a
-Wald test at the diagnosis's false-alarm rate and lowers the BIC); the believed geometry of
+Wald test at the diagnosis's false-alarm rate and lowers the BIC; steps that a term of the
+moving library explains better are left out, as the diagnosis leaves them); the believed geometry of
 the sidecar is kept for every term left out. Fitting a term that the data do not need only
 spreads the same information over more parameters: on a clean oscillation run the z-bias
 sigma of the all-terms fit is 3.7× the first-order fit's. ``terms=`` (``calbench calibrate
@@ -37,7 +38,7 @@ import numpy.typing as npt
 from bench.calibration.kind import CANDIDATE_TERMS, FitKind
 from bench.calibration.result import CalibrationResult, WindowResult
 from bench.calibration.windows import moving_samples, select_windows
-from bench.diagnosis.dynamic import select_terms
+from bench.diagnosis.dynamic import claim_catalogue
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_kalman import run_dynamic_kalman
 from bench.estimation.dynamic_model import G0_M_S2, ModelSpec, initial_theta, positions, predict
@@ -303,7 +304,9 @@ def calibrate_dynamic(
     """Fit the dynamic model to a moving-table recording (module docstring).
 
     :param terms: the extra terms to fit (declared, e.g. by the unit model); default: those
-        the recording's evidence supports (``select_terms``, module docstring).
+        the recording's evidence supports and its diagnosis claims (``claim_catalogue``: the
+        catalogue's greedy selection less the steps a library term explains better; module
+        docstring), so a calibration never fits a term the diagnosis would not claim.
     :param nominal_scale: nominal sensitivity (channel unit per m/s²) for the 'before' check.
     :param cross_check: run the Kalman filter over the same data and compare.
     :raises ValueError: no table, too few samples, or a motion that cannot determine bias and K.
@@ -315,9 +318,11 @@ def calibrate_dynamic(
     lever = np.asarray(geo.lever_arm_m, dtype=float)
     m, y = moving_samples(rec)
     if terms is None:
-        sel = select_terms(m, y, g, lever)
-        spec, fit = ModelSpec(sel.chosen), sel.fits[-1]
+        claim = claim_catalogue(m, y, g, lever, rec.temp_c)
+        sel = claim.selection
+        spec, fit = ModelSpec(claim.terms), claim.fit
         dropped = {**sel.unobservable, **sel.rejected}
+        dropped.update(dict.fromkeys(sel.chosen[claim.k :], f"replaced by the library: {claim.note}"))
         selection: dict[str, Any] = {
             "rule": "evidence",
             "text": (
@@ -325,7 +330,7 @@ def calibrate_dynamic(
                 f"Wald test passes at false alarm {sel.false_alarm:g} per step (over the terms tried) "
                 "and it lowers the BIC; the sidecar's geometry is kept for the others"
             ),
-            "steps": [{"term": t, "wald": w, "delta_bic": dbic} for t, dbic, w in sel.steps],
+            "steps": [{"term": t, "wald": w, "delta_bic": dbic} for t, dbic, w in sel.steps[: claim.k]],
         }
     else:
         spec = ModelSpec(tuple(terms))

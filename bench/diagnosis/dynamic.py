@@ -22,6 +22,7 @@ told apart, so a delay found is reported as ``time_skew`` confounded with ``sens
 After the catalogue, the moving term library (``library_motion``, searched by
 ``library_motion_search``, reported in ``discovered``); where a discovered term makes the
 catalogue's later steps redundant, the catalogue path is cut back (``library_motion_swap``).
+``claim_catalogue`` is that claim, shared with ``calibrate``'s term selection.
 
 Residuals and correlates: 1 s block means of the baseline residuals (the "windows" of the
 report) against ω² = −tr(B_sym)/2, |ω̇| (from the antisymmetric part of B), f_i², |f_i|, time
@@ -37,7 +38,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
 from bench.diagnosis.bench_families import moving_stage as bench_stage
-from bench.diagnosis.dynamic_summary import BlockSummary, block_summary, motion_regressors
+from bench.diagnosis.dynamic_summary import block_summary, motion_regressors, unexplained_blocks
 from bench.diagnosis.effects import CATALOGUE
 from bench.diagnosis.library_motion_search import (
     MotionLibraryResult,
@@ -47,7 +48,7 @@ from bench.diagnosis.library_motion_search import (
 )
 from bench.diagnosis.library_motion_swap import cut_catalogue, fit_bic
 from bench.diagnosis.residuals import where_text
-from bench.diagnosis.result import Diagnosis, Finding, Unexplained
+from bench.diagnosis.result import Diagnosis, Finding
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_model import TERM_ORDER, ModelSpec, initial_theta
@@ -236,6 +237,66 @@ def select_terms(
     )
 
 
+@dataclass(frozen=True)
+class CatalogueClaim:
+    """The catalogue terms a moving recording's diagnosis claims, shared with ``calibrate``.
+
+    :param selection: the greedy catalogue selection (``select_terms``).
+    :param k: how many of its steps are claimed: the first k (the later ones replaced by
+        library terms that explain the recording better without them, ``cut_catalogue``).
+    :param library: the library search after those k steps; :param values: its base values.
+    :param note: why steps were replaced, or ``None``.
+    """
+
+    selection: TermSelection
+    k: int
+    library: MotionLibraryResult
+    values: dict[str, FloatArray]
+    note: str | None
+
+    @property
+    def terms(self) -> tuple[str, ...]:
+        """The claimed catalogue terms, in order."""
+        return self.selection.chosen[: self.k]
+
+    @property
+    def fit(self) -> DynamicFit:
+        """The catalogue model of the claimed terms."""
+        return self.selection.fits[self.k]
+
+
+def claim_catalogue(
+    m: MotionData,
+    y: FloatArray,
+    g_m_s2: float,
+    lever: FloatArray,
+    temp_c: FloatArray | None,
+    *,
+    library: bool = True,
+    th: Thresholds = THRESHOLDS,
+) -> CatalogueClaim:
+    """The catalogue terms the recording supports and the diagnosis claims: the greedy selection,
+    then the steps a library path explains better replaced (``cut_catalogue``). ``library``
+    False: no library search, every selected step claimed. ``calibrate`` fits these terms, so it
+    never fits a term the diagnosis would not claim.
+    """
+    sel = select_terms(m, y, g_m_s2, lever, th=th)
+    if not library:
+        return CatalogueClaim(sel, len(sel.steps), MotionLibraryResult((), sel.fits[-1:], 0, ()), {}, None)
+
+    def search(k: int) -> tuple[MotionLibraryResult, dict[str, FloatArray]]:
+        span = _catalogue_span(sel, lever, k)
+        return search_motion_library(m, y, g_m_s2, lever, sel.fits[k], temp_c, span, th=th)
+
+    def rescore(k: int, full: MotionLibraryResult, vals: dict[str, FloatArray]) -> float:
+        coef = np.array([i.coefficient for i in full.included])
+        terms = [i.term for i in full.included]
+        return fit_bic(refit_terms(m, y, g_m_s2, lever, sel.fits[k], terms, coef, vals, th)[0], len(terms))
+
+    k, lib, vals, note = cut_catalogue(search, rescore, len(sel.steps), sel.chosen, th)
+    return CatalogueClaim(sel, k, lib, vals, note)
+
+
 def diagnose_dynamic(
     m: MotionData,
     y: FloatArray,
@@ -264,23 +325,10 @@ def diagnose_dynamic(
     lever = np.asarray(lever_arm_m, dtype=float).reshape(3)
     sig_w = np.maximum(white_sigma(y[m.valid]), 1e-12)
     th = thresholds
-    sel = select_terms(m, y, g_m_s2, lever, th=th)
+    claim = claim_catalogue(m, y, g_m_s2, lever, temp_c, library=library, th=th)
+    sel, k_cut, lib, vals, cut_note = claim.selection, claim.k, claim.library, claim.values, claim.note
     unobservable = {**STATIC_ONLY, **sel.unobservable}
     n_obs = 3 * int(m.valid.sum())
-
-    def search(k: int) -> tuple[MotionLibraryResult, dict[str, FloatArray]]:
-        span = _catalogue_span(sel, lever, k)
-        return search_motion_library(m, y, g_m_s2, lever, sel.fits[k], temp_c, span, th=th)
-
-    def rescore(k: int, full: MotionLibraryResult, vals: dict[str, FloatArray]) -> float:
-        coef = np.array([i.coefficient for i in full.included])
-        terms = [i.term for i in full.included]
-        return fit_bic(refit_terms(m, y, g_m_s2, lever, sel.fits[k], terms, coef, vals, th)[0], len(terms))
-
-    if library:
-        k_cut, lib, vals, cut_note = cut_catalogue(search, rescore, len(sel.steps), sel.chosen, th)
-    else:
-        k_cut, lib, vals, cut_note = len(sel.steps), MotionLibraryResult((), sel.fits[-1:], 0, ()), {}, None
     fits = [*sel.fits[: k_cut + 1], *lib.fits[1:]]
     steps = list(sel.steps[:k_cut])
     final = fits[-1]
@@ -333,7 +381,7 @@ def diagnose_dynamic(
         *lib.notes,
         *((cut_note,) if cut_note else ()),
     )
-    unexplained = _unexplained(bs, final, th)
+    unexplained = unexplained_blocks(bs, th)
     limit = f"{th.where_z:g} sigma in a {th.block_s:g} s block mean"
     return Diagnosis(
         unit=unit,
@@ -368,33 +416,3 @@ def _catalogue_span(sel: TermSelection, lever: FloatArray, k: int) -> tuple[Mode
     if spec.terms == final.spec.terms:
         return None
     return spec, _warm_start(final, spec, lever)
-
-
-def _unexplained(bs: BlockSummary, final: DynamicFit, th: Thresholds) -> Unexplained | None:
-    """The final model against the samples' white noise, per channel (``th.dynamic_ratio_limit``)."""
-    assert bs.final_ratio is not None
-    ratio = bs.final_ratio
-    ch = int(np.argmax(ratio))
-    if ratio[ch] <= th.dynamic_ratio_limit:
-        return None
-    z = bs.final.z
-    w = int(np.argmax(np.abs(z[:, ch])))
-    names: list[str] = []
-    for c in bs.final_correlations:
-        if c.significant and f"{c.regressor} on {CHANNELS[c.channel]}" not in names:
-            names.append(f"{c.regressor} on {CHANNELS[c.channel]}")
-    others = ", ".join(f"{CHANNELS[i]} {ratio[i]:.2f}" for i in range(3) if i != ch)
-    return Unexplained(
-        chi2_dof=float(bs.final.chi2_dof),
-        test=(
-            f"per-channel sum of (residual / white sigma)^2 over its dof above {th.dynamic_ratio_limit:g} "
-            "(clean simulated moving recordings: 0.93-1.10)"
-        ),
-        p_value=float("nan"),
-        where=(
-            f"{CHANNELS[ch]}: {ratio[ch]:.2f} times the white noise ({others}), strongest in the "
-            f"{th.block_s:g} s block {bs.labels[w]} (block mean {z[w, ch]:+.1f} sigma)"
-        ),
-        correlates_with=tuple(names),
-        channels={CHANNELS[i]: float(ratio[i]) for i in range(3)},
-    )

@@ -19,13 +19,14 @@ import numpy as np
 from scipy.stats import t as t_dist
 
 from bench.diagnosis.regressors import Correlation
-from bench.diagnosis.result import ModelSummary
+from bench.diagnosis.result import ModelSummary, Unexplained
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit
 from bench.estimation.dynamic_model import predict, specific_force
 from bench.estimation.motion_data import MotionData, sample_chunks
 
 FloatArray = np.ndarray
+CHANNELS = ("ax", "ay", "az")
 
 
 @dataclass(frozen=True)
@@ -195,3 +196,33 @@ def _block_correlations(
                 corr.append(Correlation(name, c, rho, bool(tval > crit)))
     corr.sort(key=lambda c: -abs(c.rho))
     return corr
+
+
+def unexplained_blocks(bs: BlockSummary, th: Thresholds) -> Unexplained | None:
+    """The final model against the samples' white noise, per channel (``th.dynamic_ratio_limit``)."""
+    assert bs.final_ratio is not None
+    ratio = bs.final_ratio
+    ch = int(np.argmax(ratio))
+    if ratio[ch] <= th.dynamic_ratio_limit:
+        return None
+    z = bs.final.z
+    w = int(np.argmax(np.abs(z[:, ch])))
+    names: list[str] = []
+    for c in bs.final_correlations:
+        if c.significant and f"{c.regressor} on {CHANNELS[c.channel]}" not in names:
+            names.append(f"{c.regressor} on {CHANNELS[c.channel]}")
+    others = ", ".join(f"{CHANNELS[i]} {ratio[i]:.2f}" for i in range(3) if i != ch)
+    return Unexplained(
+        chi2_dof=float(bs.final.chi2_dof),
+        test=(
+            f"per-channel sum of (residual / white sigma)^2 over its dof above {th.dynamic_ratio_limit:g} "
+            "(clean simulated moving recordings: 0.93-1.10)"
+        ),
+        p_value=float("nan"),
+        where=(
+            f"{CHANNELS[ch]}: {ratio[ch]:.2f} times the white noise ({others}), strongest in the "
+            f"{th.block_s:g} s block {bs.labels[w]} (block mean {z[w, ch]:+.1f} sigma)"
+        ),
+        correlates_with=tuple(names),
+        channels={CHANNELS[i]: float(ratio[i]) for i in range(3)},
+    )

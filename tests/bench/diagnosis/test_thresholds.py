@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import ast
+import re
 from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import bench.diagnosis
 from bench.diagnosis import StaticEvidence, diagnose
@@ -95,3 +97,13 @@ def test_the_knobs_reach_the_selection() -> None:
         for f in diagnose(ev, use_library=False, thresholds=replace(THRESHOLDS, false_alarm=1e-30)).findings
     ]
     assert len(found) == 1 and strict == []
+
+
+def test_docs_table_lists_every_knob_with_its_default() -> None:
+    """docs/diagnose.md's Thresholds table: one row per field, the default as the code has it
+    (printed to 6 significant digits)."""
+    doc = (PACKAGE.parents[1] / "docs" / "diagnose.md").read_text(encoding="utf-8")
+    rows = dict(re.findall(r"^\| `(\w+)` \| ([^|]+) \|", doc, flags=re.M))
+    for name, value, _ in table():
+        assert name in rows, name
+        assert float(rows[name]) == pytest.approx(float(value), rel=1e-5), name  # type: ignore[arg-type]

@@ -83,6 +83,9 @@ class Thresholds:
     """Length of one spectral segment (s); frequency resolution 1/segment, 0.5 Hz."""
     settling_early_segments: int = 3
     """Segments at the start of each window that the settling test compares with the rest."""
+    settling_broadband_alpha: float = 1e-9
+    """Probability under no ring of an early segment-channel's median ratio at which it is taken
+    for broadband (an outlying sample: a spike, a flipped byte) and left out of the settling test."""
     settling_ring_decades: float = math.log(0.05 / 1e-4)
     """ln(initial ring amplitude / floor) of the bench's settling convention
     (docs/physics-model.md): the reported duration is the time to ring down by this."""

@@ -36,7 +36,7 @@ A ring is narrow-band; one altered sample (a spike, a byte flipped) is broadband
 every ordinate of its segment alike, and alone it would pass the test at every frequency.
 So an early segment-channel whose median ratio 2P/P_ref over the tested bins is beyond
 what stationary noise gives (each ratio ≈ χ²₂, so the median of nb of them exceeds x with
-probability ``binom.sf(ceil(nb/2) − 1, nb, e^(−x/2))``; below :data:`BROADBAND_FALSE_ALARM`)
+probability ``binom.sf(ceil(nb/2) − 1, nb, e^(−x/2))``; below ``Thresholds.settling_broadband_alpha``)
 is left out of T_j and of n: a ring, which lifts one bin and its neighbours, leaves the median
 where it was.
 
@@ -64,18 +64,15 @@ from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
-BROADBAND_FALSE_ALARM = 1e-9
-"""Probability under no ring of an early segment-channel's median ratio at which it is taken
-for broadband (an outlying sample) and left out of the test."""
 
-
-def broadband(ratio: FloatArray) -> npt.NDArray[np.bool_]:
+def broadband(ratio: FloatArray, alpha: float) -> npt.NDArray[np.bool_]:
     """(k, 3) early segment-channels whose ratios 2P/P_ref (``ratio``: (k, nb, 3), each ≈ χ²₂ under
-    no ring) are lifted across the band: median over the nb bins beyond :data:`BROADBAND_FALSE_ALARM`."""
+    no ring) are lifted across the band: median over the nb bins beyond its level ``alpha``
+    (``Thresholds.settling_broadband_alpha``)."""
     nb = ratio.shape[1]
     med = np.median(ratio, axis=1)
     p = binom.sf(math.ceil(nb / 2) - 1, nb, np.exp(-med / 2.0))
-    return np.asarray(p < BROADBAND_FALSE_ALARM)
+    return np.asarray(p < alpha)
 
 
 @dataclass(frozen=True)
@@ -166,7 +163,8 @@ def frequency_p_values(
     early = np.concatenate([s[: min(n_early, s.shape[0] // 2)] for s in spectra])  # (k, n_f, 3)
     bins = _bins(sample_rate_hz, ref.shape[0], th.settling_segment_s)
     ratio = 2.0 * early[:, bins, :] / ref[None, bins, :]
-    keep = ~broadband(ratio)  # (k, 3): an outlying sample is not a ring (module docstring)
+    # (k, 3): an outlying sample is not a ring (module docstring)
+    keep = ~broadband(ratio, th.settling_broadband_alpha)
     T = (ratio * keep[:, None, :]).sum(axis=(0, 2))
     n = max(1, int(keep.sum()))
     d_ref = 3.0 * ref_dof[bins]

@@ -166,7 +166,9 @@ class NpyArray(TypeDecorator[npt.NDArray[Any]]):
     def process_result_value(self, value: bytes | None, dialect: Dialect) -> npt.NDArray[Any] | None:
         if value is None:
             return None
-        return np.load(io.BytesIO(bytes(value)), allow_pickle=False)
+        # process_bind_param writes one .npy file, so np.load gives an ndarray (not an NpzFile).
+        arr: npt.NDArray[Any] = np.load(io.BytesIO(bytes(value)), allow_pickle=False)
+        return arr
 
     def compare_values(self, x: Any, y: Any) -> bool:
         if x is None or y is None:

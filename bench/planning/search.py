@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
+from bench.planning.every_sample import every_sample_uncertainty
 from bench.planning.information import (
     PredictedUncertainty,
     predicted_uncertainty,
@@ -26,10 +28,19 @@ from bench.planning.information import (
     white_bound_k,
 )
 from bench.planning.noise import UnitNoise, window_mean_covariance
+from bench.planning.trajectory import angle_trajectory, specific_force
 from bench.procedures.planned import MAX_WINDOWS, planned_static
 from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits, preview
 from bench.procedures.steps import Dwell, Procedure
 from bench.records import WindowKind
+
+Fit = Literal["window", "every-sample"]
+"""``"window"``: the static window fit of the dwells; ``"every-sample"``: the dynamic batch fit
+of every sample, moves and settling included (``bench.planning.every_sample``)."""
+
+EVERY_SAMPLE_FS_HZ = 20.0
+"""Sample rate of the trajectory the every-sample prediction is computed on (Hz); the white
+part scales as N²·f_s·Σxxᵀ ≈ N²∫xxᵀdt, so the prediction does not depend on it."""
 
 DWELL_GRID_S = (2.0, 3.0, 5.0, 8.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0)
 """Dwell per visit tried by :func:`plan` (s)."""
@@ -71,6 +82,7 @@ class Evaluation:
     :param predicted: the fit's predicted σ (k = 1).
     :param bound_k: white-noise bound σ(K_ij) of any motion for ``duration_s``.
     :param bound_bias_m_s2: white-noise bound σ(b_i) for ``duration_s`` (m/s²).
+    :param fit: the fit the prediction is for (:data:`Fit`).
     """
 
     procedure: Procedure
@@ -78,6 +90,7 @@ class Evaluation:
     predicted: PredictedUncertainty
     bound_k: float
     bound_bias_m_s2: float
+    fit: Fit = "window"
 
     @property
     def k_fraction_of_bound(self) -> float:
@@ -121,8 +134,12 @@ def evaluate(
     limits: TableLimits = DEFAULT_TABLE_LIMITS,
     g_m_s2: float = 9.80665,
     with_tilt: bool = True,
+    fit: Fit = "window",
 ) -> Evaluation:
-    """Predict a static procedure's window-fit uncertainties and table time.
+    """Predict a static procedure's uncertainties under ``fit`` and its table time.
+
+    ``"every-sample"`` samples the procedure's specific-force trajectory on ``limits``
+    (``bench.planning.trajectory``) and predicts the every-sample fit's covariance on it.
 
     :raises ValueError: the procedure has no static windows with a fixed dwell, exceeds the
         table's limits, or does not identify the parameters.
@@ -135,13 +152,24 @@ def evaluate(
     wins = [w for w in pv.windows if w.kind == WindowKind.STATIC]
     if len(wins) < 4:
         raise ValueError(f"{proc.name}: {len(wins)} static windows, the window fit needs at least 4")
+    T = pv.duration_s
+    if fit == "every-sample":
+        t, ang = angle_trajectory(proc, EVERY_SAMPLE_FS_HZ, limits)
+        ue = every_sample_uncertainty(t, specific_force(ang, g_m_s2), noise)
+        return Evaluation(
+            proc,
+            T,
+            ue,
+            white_bound_k(noise.white_m_s2_rt_hz, T, g_m_s2),
+            white_bound_bias(noise.white_m_s2_rt_hz, T),
+            fit,
+        )
     starts = np.array([w.start_s for w in wins])
     durations = np.array([w.duration_s for w in wins])
     Rt = np.stack([rotation_deg(w.pose_deg).T for w in wins])
     f = Rt @ np.array([0.0, 0.0, g_m_s2])
     C = window_mean_covariance(noise, starts, durations)
     u = predicted_uncertainty(f, C, tilt_response(Rt, g_m_s2) if with_tilt else None)
-    T = pv.duration_s
     return Evaluation(
         proc,
         T,
@@ -160,8 +188,27 @@ def plan(
     g_m_s2: float = 9.80665,
     with_tilt: bool = True,
     max_duration_s: float = 2 * 3600.0,
+    fits: tuple[Fit, ...] = ("window",),
 ) -> Plan:
-    """The shortest planned-static design that meets ``targets`` (module docstring)."""
+    """The shortest planned-static design that meets ``targets`` under any of ``fits`` (module
+    docstring); the chosen :class:`Evaluation` names its fit."""
+    chosen = [_plan_one(noise, targets, limits, settle_s, g_m_s2, with_tilt, max_duration_s, f) for f in fits]
+    met = [p for p in chosen if p.best is not None]
+    if met:
+        return min(met, key=lambda p: p.best.duration_s if p.best is not None else math.inf)
+    return min(chosen, key=lambda p: p.closest.predicted.k_rms if p.closest is not None else math.inf)
+
+
+def _plan_one(
+    noise: UnitNoise,
+    targets: Targets,
+    limits: TableLimits,
+    settle_s: float,
+    g_m_s2: float,
+    with_tilt: bool,
+    max_duration_s: float,
+    fit: Fit,
+) -> Plan:
     best: Evaluation | None = None
     longest: Evaluation | None = None
 
@@ -172,6 +219,7 @@ def plan(
             limits=limits,
             g_m_s2=g_m_s2,
             with_tilt=with_tilt,
+            fit=fit,
         )
 
     for dwell in DWELL_GRID_S:
@@ -226,8 +274,10 @@ def best_within(
     settle_s: float = 2.0,
     g_m_s2: float = 9.80665,
     with_tilt: bool = True,
+    fit: Fit = "window",
 ) -> Evaluation:
-    """The planned-static design with the smallest RMS σ(K_ij) whose table time fits ``duration_s``.
+    """The planned-static design with the smallest RMS σ(K_ij) under ``fit`` whose table time
+    fits ``duration_s``.
 
     For each dwell of :data:`DWELL_GRID_S` the most passes that fit are taken.
 
@@ -245,7 +295,7 @@ def best_within(
             reps -= 1
         if reps < 1:
             continue
-        e = evaluate(proc, noise, limits=limits, g_m_s2=g_m_s2, with_tilt=with_tilt)
+        e = evaluate(proc, noise, limits=limits, g_m_s2=g_m_s2, with_tilt=with_tilt, fit=fit)
         if best is None or e.predicted.k_rms < best.predicted.k_rms:
             best = e
     if best is None:

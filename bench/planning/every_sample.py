@@ -1,0 +1,81 @@
+"""The covariance the every-sample fit reaches on a design's specific-force trajectory.
+
+The dynamic batch fit (``bench.estimation.dynamic_batch``, bias and K) is, per channel i and
+near K = I, the ordinary least squares of
+
+    y_i(t) = b_i + K_i·f(t) + e_i(t),   regressors x_t = [1, f(t)ᵀ] (4,),
+
+with one weight per channel, over every sample of the recording, moves included. With noise of
+covariance Σ (white + Gauss-Markov wander + random walk, ``bench.planning.noise``) the OLS
+estimate has the exact covariance (the sandwich; e.g. Greene, *Econometric Analysis*, §9.2)
+
+    Cov([b_i, K_i·]) = A⁻¹ B A⁻¹,   A = Σ_t x_t x_tᵀ,   B = Σ_{t,s} x_t x_sᵀ Σ(t, s),
+
+the same for the three channels (the same regressors and noise). The white part of B is
+σ²·A with σ² = N²·f_s the per-sample variance. The slow part (wander, random walk: correlated
+over ≫ 1 s) is constant over a block of ``block_s``, so with S_b = Σ_{t∈b} x_t
+
+    B_slow = Σ_{b,c} S_b S_cᵀ · C̄(b, c),
+
+C̄(b, c) the covariance of the slow noise's block means (``window_mean_covariance`` without the
+white term). Unlike the window fit's prediction this is the estimator's own error, not the GLS
+bound: the every-sample fit weights the samples equally.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from bench.planning.information import N_CORE, PredictedUncertainty
+from bench.planning.noise import UnitNoise, window_mean_covariance
+
+FloatArray = npt.NDArray[np.float64]
+
+BLOCK_S = 1.0
+"""Block over which the slow noise is taken as constant (s)."""
+
+
+def every_sample_uncertainty(
+    t_s: FloatArray, f_m_s2: FloatArray, noise: UnitNoise, block_s: float = BLOCK_S
+) -> PredictedUncertainty:
+    """Predicted σ of [b, K] of the every-sample fit (module docstring).
+
+    :param t_s: (n,) sample times (s, from the run's start), uniformly spaced.
+    :param f_m_s2: (n, 3) specific force at each sample (m/s²).
+    :param noise: the unit's noise.
+    :param block_s: block of the slow noise (s).
+    :raises ValueError: shapes disagree, fewer than 2 samples, or the trajectory does not
+        identify bias and K (its force does not span three directions).
+    """
+    t = np.asarray(t_s, dtype=float)
+    f = np.asarray(f_m_s2, dtype=float)
+    if t.ndim != 1 or f.shape != (len(t), 3) or len(t) < 2:
+        raise ValueError(f"trajectory: expected t (n,) and f (n, 3) with n >= 2, got {t.shape} and {f.shape}")
+    dt = float(t[1] - t[0])
+    x = np.column_stack([np.ones(len(t)), f])
+    A = x.T @ x
+    cond = np.linalg.cond(A)
+    if not np.isfinite(cond) or cond > 1e12:
+        raise ValueError(f"the trajectory does not identify bias and K (information condition {cond:.2g})")
+    B = noise.white_m_s2_rt_hz**2 / dt * A
+    if noise.wander_m_s2 > 0 or noise.random_walk_m_s2_rt_s > 0:
+        idx = np.floor((t - t[0]) / block_s).astype(int)
+        nb = int(idx[-1]) + 1
+        S = np.zeros((nb, 4))
+        np.add.at(S, idx, x)
+        counts = np.bincount(idx, minlength=nb).astype(float)
+        starts = t[0] + np.arange(nb) * block_s
+        durations = np.minimum(counts * dt, block_s)
+        C = window_mean_covariance(noise, starts, durations)
+        C -= np.diag(noise.white_m_s2_rt_hz**2 / durations)
+        B += S.T @ C @ S
+    Ai = np.linalg.inv(A)
+    cov4 = Ai @ B @ Ai
+    cov4 = 0.5 * (cov4 + cov4.T)
+    cov = np.zeros((N_CORE, N_CORE))
+    for i in range(3):
+        rows = [i, 3 + 3 * i, 4 + 3 * i, 5 + 3 * i]
+        cov[np.ix_(rows, rows)] = cov4
+    sd = np.sqrt(np.diag(cov))
+    return PredictedUncertainty(cov, sd[:3].copy(), sd[3:12].reshape(3, 3).copy(), np.zeros(0))

@@ -179,7 +179,9 @@ class RunRecorder:
         state = RecordingWriter.resume(path)
         writer = state.writer
         segs = list(writer.sidecar.segments or ())
-        meta = list(writer.sidecar.extra.get(WINDOWS_KEY, []))  # type: ignore[call-overload]
+        meta = writer.sidecar.extra.get(WINDOWS_KEY, [])
+        if not isinstance(meta, list):
+            raise ValueError(f"{path}: sidecar entry {WINDOWS_KEY!r} is not a list")
         if len(segs) < next_window or len(meta) < next_window:
             raise ValueError(
                 f"{path}: the sidecar holds {len(segs)} windows, cannot resume at window {next_window}"
@@ -197,7 +199,10 @@ class RunRecorder:
     @property
     def run_meta(self) -> dict[str, object]:
         """The ``calbench_run`` entry of the sidecar (run id, procedure parameters, dwell...)."""
-        return dict(self.writer.sidecar.extra.get(RUN_KEY, {}))  # type: ignore[call-overload]
+        meta = self.writer.sidecar.extra.get(RUN_KEY, {})
+        if not isinstance(meta, dict):
+            raise ValueError(f"{self.writer.csv_path}: sidecar entry {RUN_KEY!r} is not an object")
+        return dict(meta)
 
     def update_run_meta(self, **values: object) -> None:
         """Merge values into the sidecar's ``calbench_run`` entry (rewritten atomically)."""

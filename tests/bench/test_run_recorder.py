@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -91,6 +92,29 @@ def test_resume_refuses_a_window_the_files_do_not_hold(tmp_path: Path) -> None:
     rec.close()
     with pytest.raises(ValueError, match="cannot resume at window 3"):
         RunRecorder.resume(path, None, next_window=3, chunk_seq=1)
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("calbench_windows", {"0": {}}, "'calbench_windows' is not a list"),
+        ("calbench_run", [["run_id", "x"]], "'calbench_run' is not an object"),
+    ],
+)
+def test_resume_names_a_sidecar_entry_of_the_wrong_json_type(
+    tmp_path: Path, key: str, value: object, message: str
+) -> None:
+    path = tmp_path / "r.csv"
+    rec = RunRecorder.create(path, sidecar(), True, {"run_id": "x"}, chunk_s=1.0, min_chunk_wall_s=0.0)
+    block(rec, 0.0, 10, None)
+    rec.close()
+    sidecar_path = rec.writer.sidecar_path
+    doc = json.loads(sidecar_path.read_text())
+    doc[key] = value
+    sidecar_path.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=message) as err:
+        _ = RunRecorder.resume(path, None, next_window=0, chunk_seq=1).run_meta
+    assert str(path) in str(err.value)
 
 
 @pytest.mark.parametrize("where", ["flush", "write"])

@@ -58,11 +58,11 @@ def gap_from_json(d: dict[str, Any]) -> GapRecord:
     :raises KeyError, TypeError, ValueError: a required key is missing or not a number.
     """
 
-    def opt_int(v: object) -> int | None:
-        return None if v is None else int(v)  # type: ignore[call-overload]
+    def opt_int(v: int | float | str | None) -> int | None:
+        return None if v is None else int(v)
 
-    def opt_float(v: object) -> float | None:
-        return None if v is None else float(v)  # type: ignore[arg-type]
+    def opt_float(v: int | float | str | None) -> float | None:
+        return None if v is None else float(v)
 
     return GapRecord(
         first_lost_seq=opt_int(d.get("first_lost_seq")),

@@ -101,7 +101,8 @@ def design_matrix(f_m_s2: FloatArray, tilt_response: FloatArray | None = None) -
 def tilt_response(R_sensor_from_base: FloatArray, g_m_s2: float) -> FloatArray:
     """(m, 3, 2) ∂f_w/∂δ for rotations R_w (m, 3, 3) taking base vectors to the sensor frame."""
     D = g_m_s2 * np.array([[0.0, 1.0], [-1.0, 0.0], [0.0, 0.0]])
-    return np.einsum("wij,jk->wik", np.asarray(R_sensor_from_base, dtype=float), D)
+    response: FloatArray = np.einsum("wij,jk->wik", np.asarray(R_sensor_from_base, dtype=float), D)
+    return response
 
 
 def predicted_uncertainty(

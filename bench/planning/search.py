@@ -124,7 +124,8 @@ def rotation_deg(angles_deg: tuple[float, ...]) -> np.ndarray:
         return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
     o, m, i = (math.radians(a) for a in angles_deg)
-    return rz(o) @ rx(m) @ rz(i)
+    R: np.ndarray = rz(o) @ rx(m) @ rz(i)
+    return R
 
 
 def evaluate(

@@ -24,6 +24,8 @@ def format_block(block: np.ndarray) -> str:
     :param block: (n, k) float64; ±inf is written as ``inf`` (callers reject it first).
     :returns: n lines, each ending in ``"\\n"`` ("" for n = 0).
     """
+    n: int
+    k: int
     n, k = block.shape
     if n == 0:
         return ""
@@ -31,7 +33,7 @@ def format_block(block: np.ndarray) -> str:
     if missing.any():
         cells = block.astype(object)
         cells[missing] = ""
-        values = cells.ravel().tolist()
+        values: list[object] = cells.ravel().tolist()
     else:
         values = block.ravel().tolist()
     return ((",".join(("%s",) * k) + "\n") * n) % tuple(values)

@@ -118,7 +118,7 @@ def _parse_table(obj: Any, path: Path, extra: dict[str, object]) -> TableGeometr
                 key=f"{key}.axis",
             )
         axes.append(TableAxis(name=name, axis=(u[0], u[1], u[2])))
-    mount = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    mount: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
     if "mount_rotation" in obj:
         rows = obj["mount_rotation"]
         if not isinstance(rows, list) or len(rows) != 3:
@@ -138,7 +138,7 @@ def _parse_table(obj: Any, path: Path, extra: dict[str, object]) -> TableGeometr
                 f"expected orthonormal with determinant +1 (tolerance {UNIT_TOL:g})",
                 key="table.mount_rotation",
             )
-        mount = tuple((r[0], r[1], r[2]) for r in m)  # type: ignore[assignment]
+        mount = tuple((r[0], r[1], r[2]) for r in m)
     lever = (0.0, 0.0, 0.0)
     if "lever_arm_m" in obj:
         v = _vector(obj["lever_arm_m"], path, "table.lever_arm_m")

@@ -34,6 +34,7 @@ integer out of range) is a 422 instead of a 500.
 from __future__ import annotations
 
 import collections
+import errno
 import json
 import logging
 import math
@@ -48,7 +49,7 @@ import anyio.to_thread
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from sqlalchemy.exc import DataError
+from sqlalchemy.exc import DataError, OperationalError
 
 from api.auth import AuthError, Role
 from bench.inputs import InputError, loads_json
@@ -420,7 +421,58 @@ async def _data_error(request: Request, exc: Exception) -> JSONResponse:
     return JSONResponse(status_code=422, content={"detail": f"a value the database cannot store: {reason}"})
 
 
+DISK_FULL_LOG_INTERVAL_S = 60.0
+"""A full disk is logged at most once per this interval (s), not at every refused write."""
+_disk_full_logged = [-math.inf]
+
+
+def is_disk_full(exc: BaseException) -> bool:
+    """``exc`` says the disk (or the database's file system) is full: ``ENOSPC`` / ``EDQUOT``, or
+    SQLite's ``database or disk is full`` (SQLITE_FULL), PostgreSQL's ``could not extend file``."""
+    for e in (exc, getattr(exc, "orig", None), exc.__cause__, exc.__context__):
+        if isinstance(e, OSError) and e.errno in (errno.ENOSPC, errno.EDQUOT):
+            return True
+        text = str(e).lower() if e is not None else ""
+        if (
+            "database or disk is full" in text
+            or "no space left on device" in text
+            or "could not extend file" in text
+        ):
+            return True
+    return False
+
+
+async def _operational_error(request: Request, exc: Exception) -> JSONResponse:
+    if not is_disk_full(exc):
+        raise exc
+    return _disk_full(request, exc)
+
+
+async def _os_error(request: Request, exc: Exception) -> JSONResponse:
+    if not is_disk_full(exc):
+        raise exc
+    return _disk_full(request, exc)
+
+
+def _disk_full(request: Request, exc: Exception) -> JSONResponse:
+    now = time.monotonic()
+    if now - _disk_full_logged[0] >= DISK_FULL_LOG_INTERVAL_S:
+        _disk_full_logged[0] = now
+        reason = str(getattr(exc, "orig", None) or exc).splitlines()[0][:200]
+        log.error("disk full: %s %s refused (%s); further refusals are not logged for %g s",
+                  request.method, request.url.path, reason, DISK_FULL_LOG_INTERVAL_S)  # fmt: skip
+    return JSONResponse(
+        status_code=507,
+        content={
+            "detail": "the server's disk is full: nothing was stored; free space and send the request again"
+        },
+    )
+
+
 def install_error_handlers(app: FastAPI) -> None:
-    """Validation errors serialised without non-finite numbers; database data errors as 422."""
+    """Validation errors serialised without non-finite numbers; database data errors as 422; a
+    write refused because the disk is full as 507 with a clear message, logged once a minute."""
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(DataError, _data_error)
+    app.add_exception_handler(OperationalError, _operational_error)
+    app.add_exception_handler(OSError, _os_error)

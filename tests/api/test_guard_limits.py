@@ -82,3 +82,35 @@ def test_a_stalled_body_is_answered_408(client: TestClient, monkeypatch: pytest.
         assert client.portal is not None
         client.portal.call(client.app, scope, receive, send)
     assert statuses == [408, 408]
+
+
+def test_a_write_while_the_disk_is_full_is_507_and_logged_once(
+    client: TestClient, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    import sqlite3
+
+    from sqlalchemy.exc import OperationalError
+
+    def full(*_a: object, **_k: object) -> None:
+        raise OperationalError("INSERT INTO unit", {}, sqlite3.OperationalError("database or disk is full"))
+
+    monkeypatch.setattr("api.routes.units.get_or_create_unit", full)
+    monkeypatch.setattr(api.guard, "_disk_full_logged", [float("-inf")])
+    with caplog.at_level("ERROR", logger="api.guard"):
+        for _ in range(5):
+            r = client.put("/api/units/SN-FULL", json={"customer_name": "Acme"}, headers=OP)
+            assert r.status_code == 507 and "disk is full" in r.json()["detail"]
+    assert sum("disk full" in rec.getMessage() for rec in caplog.records) == 1
+
+
+def test_other_database_errors_are_not_called_a_full_disk() -> None:
+    import errno
+    import sqlite3
+
+    from sqlalchemy.exc import OperationalError
+
+    assert api.guard.is_disk_full(OSError(errno.ENOSPC, "No space left on device"))
+    assert not api.guard.is_disk_full(
+        OperationalError("SELECT", {}, sqlite3.OperationalError("database is locked"))
+    )
+    assert not api.guard.is_disk_full(OSError(errno.EACCES, "Permission denied"))

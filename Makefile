@@ -47,7 +47,7 @@ fuzz: install
 	CALBENCH_FUZZ_EXAMPLES=2000 $(BIN)/python -m pytest -q -p no:cacheprovider tests/bench/test_fuzz_inputs.py tests/api/test_fuzz_schemas.py
 	$(BIN)/python -m benchmarks.fuzz_cli 800
 
-# ruff (rules and format), mypy (strict on the pure packages: pyproject.toml), layer contracts.
+# ruff (rules and format), mypy (strict flags on every package: pyproject.toml), layer contracts.
 lint: install
 	$(BIN)/ruff check $(SRC)
 	$(BIN)/ruff format --check $(SRC)

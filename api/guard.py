@@ -116,7 +116,7 @@ class FailedAuthLimiter:
         self,
         limit: int = MAX_AUTH_FAILURES,
         window_s: float = AUTH_FAILURE_WINDOW_S,
-        clock: Any = time.monotonic,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.limit, self.window_s, self._clock = limit, window_s, clock
         self._failures: dict[str, collections.deque[float]] = {}

@@ -148,7 +148,7 @@ def to_json(
 ) -> dict[str, Any]:
     """The ``--json`` object."""
     by_ch = dict(zip(CHANNELS, range(3), strict=True))
-    return _clean(
+    doc: dict[str, Any] = _clean(  # a dict stays a dict through _clean
         {
             "unit": rec.sidecar.unit_serial,
             "channel_unit": rec.sidecar.channel_unit,
@@ -200,6 +200,7 @@ def to_json(
             },
         }
     )
+    return doc
 
 
 def _pm(value: float, sigma: float) -> str:

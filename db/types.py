@@ -102,7 +102,8 @@ class UtcDateTime(TypeDecorator[dt.datetime]):
 
         def process(value: Any) -> dt.datetime | None:
             try:
-                return inner(value)  # type: ignore[no-any-return]
+                parsed: dt.datetime | None = inner(value)  # SQLAlchemy types the processor's result Any
+                return parsed
             except (ValueError, TypeError, OverflowError) as exc:
                 return UnreadableTime.of(f"not a time: {_shown(value)} ({exc})")
 

@@ -9,6 +9,7 @@ Run through :mod:`db.migrate`, which passes an open connection in
 from __future__ import annotations
 
 from alembic import context
+from sqlalchemy.engine import Connection
 
 import db.models
 from db.engine import make_engine
@@ -17,7 +18,7 @@ config = context.config
 target_metadata = db.models.Base.metadata
 
 
-def _configure(connection) -> None:  # type: ignore[no-untyped-def]
+def _configure(connection: Connection) -> None:
     context.configure(
         connection=connection,
         target_metadata=target_metadata,

@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 FloatArray = npt.NDArray[np.float64]
 Evaluation = tuple[FloatArray, FloatArray, FloatArray]
@@ -237,9 +240,9 @@ def end_state(segment: Segment) -> tuple[float, float]:
     return float(angle[0]), float(rate[0])
 
 
-def _check_finite(segment: object) -> None:
+def _check_finite(segment: DataclassInstance) -> None:
     """Every dataclass field of ``segment`` is a finite number."""
-    for f in fields(segment):  # type: ignore[arg-type]
+    for f in fields(segment):
         value = getattr(segment, f.name)
         if not math.isfinite(value):
             raise ValueError(f"{type(segment).__name__}: {f.name} must be finite, got {value!r}")

@@ -7,6 +7,7 @@ One line in, one reply line out (``OK``, the query values joined by ``;``, or
 
 from __future__ import annotations
 
+import functools
 import logging
 import re
 from collections.abc import Callable
@@ -67,7 +68,7 @@ class CommandSet:
             ("ESTOP", "RESET"): lambda a: self._no_args(a, c.estop_reset),
         }
         for kw, m in _MODE_OF_KEYWORD.items():
-            self._commands[("MODE", kw)] = lambda a, m=m: c.set_mode(all_axes(a), m)  # type: ignore[misc]
+            self._commands[("MODE", kw)] = functools.partial(self._set_mode, mode=m)
         one = self._one_axis
         self._queries: dict[tuple[str, ...], Callable[[Args], str]] = {
             ("*IDN",): lambda a: self._no_args(a, c.identity),
@@ -167,6 +168,9 @@ class CommandSet:
         axis = self._one_axis(args[:1])
         amp, freq, phase = (self._number(t) for t in args[1:])
         self.ctl.demand_oscillation(axis, amp, freq, phase)
+
+    def _set_mode(self, args: Args, mode: AxisMode) -> None:
+        self.ctl.set_mode(self._axis_or_all(args), mode)
 
     def _set_limit(self, kind: str, args: Args) -> None:
         self._nargs(args, 3)

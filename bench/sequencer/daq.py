@@ -214,13 +214,13 @@ def join_blocks(blocks: list[SampleBlock]) -> SampleBlock:
     """One block of consecutive blocks (no gap between them: the driver reports gaps as items)."""
     if len(blocks) == 1:
         return blocks[0]
-    tables = [b.table_deg for b in blocks]
+    tables = [b.table_deg for b in blocks if b.table_deg is not None]
     flags = tuple(sorted({f for b in blocks for f in b.flags}))
     return SampleBlock(
         blocks[0].first_seq,
         np.concatenate([b.t_s for b in blocks]),
         np.concatenate([b.accel for b in blocks]),
         np.concatenate([b.temp_c for b in blocks]),
-        None if any(t is None for t in tables) else np.concatenate(tables),  # type: ignore[arg-type]
+        np.concatenate(tables) if len(tables) == len(blocks) else None,
         flags,
     )

@@ -30,13 +30,14 @@ def call_with_deadline(
     :raises DeviceTimeout: ``fn`` did not return within ``deadline_s``; the helper thread is
         a daemon and is left to finish or die with the process.
     """
-    box: dict[str, object] = {}
+    values: list[T] = []
+    errors: list[BaseException] = []
 
     def target() -> None:
         try:
-            box["value"] = fn()
+            values.append(fn())
         except BaseException as exc:
-            box["error"] = exc
+            errors.append(exc)
 
     worker = threading.Thread(target=target, name=f"table-{what}", daemon=True)
     worker.start()
@@ -48,7 +49,6 @@ def call_with_deadline(
             wait()
     if worker.is_alive():
         raise DeviceTimeout(f"table {what} did not return within {deadline_s:.3g} s")
-    error = box.get("error")
-    if isinstance(error, BaseException):
-        raise error
-    return box.get("value")  # type: ignore[return-value]
+    if errors:
+        raise errors[0]
+    return values[0]

@@ -9,6 +9,7 @@ table is where the window expects it; windows already complete are never recorde
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import time
 
@@ -154,7 +155,7 @@ def run_step(seq: RunContext, i: int) -> None:
     elif isinstance(step, Oscillate):
         for axis, amp, period in zip(step.axes, step.amplitudes_deg, step.periods_s, strict=True):
             seq.call(
-                lambda a=axis, m=amp, p=period: seq.table.start_oscillation(a, m, p),  # type: ignore[misc]
+                functools.partial(seq.table.start_oscillation, axis, amp, period),
                 seq.config.stop_timeout_s,
                 "start_oscillation",
             )

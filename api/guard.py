@@ -254,9 +254,12 @@ class RequestGuard:
                 return
             receive = _replay(body, receive)  # type: ignore[arg-type]
         received = 0
+        body_done = False
 
         async def counting_receive() -> Message:
-            nonlocal received, refused
+            nonlocal received, refused, body_done
+            if body_done:  # only the disconnect is left: a stream waits for it as long as it runs
+                return await receive()
             try:
                 message = await _receive_within(receive)
             except _Stalled:
@@ -265,6 +268,7 @@ class RequestGuard:
                     refused = True
                 raise
             if message["type"] == "http.request":
+                body_done = not message.get("more_body", False)
                 received += len(message.get("body", b""))
                 if received > limit:
                     # answered here: the app (FastAPI) turns any error while reading into a 400

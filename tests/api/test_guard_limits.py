@@ -114,3 +114,38 @@ def test_other_database_errors_are_not_called_a_full_disk() -> None:
         OperationalError("SELECT", {}, sqlite3.OperationalError("database is locked"))
     )
     assert not api.guard.is_disk_full(OSError(errno.EACCES, "Permission denied"))
+
+
+def test_a_response_that_outlives_the_body_timeout_is_not_cut(monkeypatch: pytest.MonkeyPatch) -> None:
+    """After the whole body, the next message is the disconnect: a stream (server-sent events)
+    waits for it as long as it runs, so no stall applies there."""
+    monkeypatch.setattr(api.guard, "BODY_READ_TIMEOUT_S", 0.2)
+    got: list[str] = []
+
+    async def app(scope: Any, receive: Any, send: Any) -> None:
+        got.append((await receive())["type"])
+        got.append((await receive())["type"])  # waits past the timeout for the disconnect
+        await send({"type": "http.response.start", "status": 200, "headers": []})
+        await send({"type": "http.response.body", "body": b"ok"})
+
+    messages = [{"type": "http.request", "body": b"", "more_body": False}, {"type": "http.disconnect"}]
+
+    async def receive() -> dict[str, Any]:
+        if len(messages) == 1:
+            await asyncio.sleep(0.6)
+        return messages.pop(0)
+
+    statuses: list[int] = []
+
+    async def send(message: dict[str, Any]) -> None:
+        if message["type"] == "http.response.start":
+            statuses.append(message["status"])
+
+    scope = {
+        "type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1", "method": "GET",
+        "scheme": "http", "path": "/api/runs/x/events", "raw_path": b"/api/runs/x/events",
+        "query_string": b"", "root_path": "", "client": ("127.0.0.1", 1), "server": ("testserver", 80),
+        "headers": [],
+    }  # fmt: skip
+    asyncio.run(api.guard.RequestGuard(app)(scope, receive, send))
+    assert got == ["http.request", "http.disconnect"] and statuses == [200]

@@ -23,7 +23,7 @@ from matplotlib.figure import Figure
 from api.certificates.pdf_budget import budget_section
 from api.certificates.pdf_layout import Flow, Page, wrap
 from api.certificates.pdf_record import record_section
-from api.certificates.rounding import format_significant
+from api.certificates.rounding import format_significant, value_and_u
 from bench.calibration.kind import MOVING_PROCEDURES
 
 A4_IN = (8.27, 11.69)
@@ -33,22 +33,6 @@ FONT = "DejaVu Sans"
 
 def _unit(text: str) -> str:
     return text.replace("m/s2", "m/s²")
-
-
-def _decimals(u: float) -> int | None:
-    """Decimal places that show U to two significant digits (``None``: use exponent form)."""
-    if not (math.isfinite(u) and u > 0):
-        return None
-    d = 1 - math.floor(math.log10(u))
-    return d if 0 <= d <= 9 else None
-
-
-def value_and_u(v: float, u: float) -> tuple[str, str]:
-    """``v`` and ``u`` printed to the decimal place of U's second significant digit."""
-    d = _decimals(u)
-    if d is None:
-        return f"{v:.4e}", f"{u:.1e}"
-    return f"{v:.{d}f}", f"{u:.{d}f}"
 
 
 def _when(value: Any) -> str:

@@ -83,3 +83,49 @@ def expanded_quantity(values: Any, sigmas: Any, unit: str, k: float = 2.0) -> di
     vr = np.array([p[0] for p in pairs]).reshape(v.shape)
     ur = np.array([p[1] for p in pairs]).reshape(v.shape)
     return {"value": vr.tolist(), "expanded_uncertainty": ur.tolist(), "unit": unit, "k": k}
+
+
+def _round_at(x: Decimal, place: int) -> Decimal:
+    """``x`` half-up (ties away from zero) to a multiple of 10^place."""
+    return x.quantize(Decimal(1).scaleb(place), rounding=ROUND_HALF_UP)
+
+
+def _fixed(x: Decimal, place: int) -> str:
+    """``x`` (already a multiple of 10^place) in fixed notation, ``max(0, −place)`` decimals."""
+    s = f"{x:f}" if place < 0 else f"{x.scaleb(0).to_integral_value():f}"
+    return "0" + s[2:] if s.startswith("-0") and not any(c in "123456789" for c in s) else s
+
+
+def format_with_uncertainty(value: float, u_expanded: float) -> str:
+    """``"value ± U"``: the one rule for every value with an uncertainty (dashboard and
+    certificate; the dashboard's ``fmtU`` in ``api/static/uncertainty.js`` gives the same
+    strings). U to two significant digits, the value rounded to the decimal place of U's last
+    digit (GUM 7.2.6), both in fixed notation: ``(1.49987, 4.3e-6)`` -> ``"1.4998700 ± 0.0000043"``,
+    ``(1234.5, 96)`` -> ``"1235 ± 96"``, ``(0.5, 9.96)`` -> ``"1 ± 10"``. Rounding is half-up on
+    the shortest decimal representation (0.0125 -> 0.013). U = 0: the value as given; a value or
+    U that is not finite: ``"–"``.
+
+    :raises ValueError: ``u_expanded`` negative.
+    """
+    value, u_expanded = float(value), float(u_expanded)
+    if not (math.isfinite(value) and math.isfinite(u_expanded)):
+        return "–"
+    if u_expanded < 0:
+        raise ValueError(f"expanded uncertainty {u_expanded!r} is negative")
+    if u_expanded == 0.0:
+        return f"{value!r} ± 0"
+    u = Decimal(repr(u_expanded))
+    place = u.adjusted() - (SIGNIFICANT_DIGITS - 1)
+    u_r = _round_at(u, place)
+    if u_r.adjusted() > u.adjusted():  # 9.96 -> 10: two significant digits, one place up
+        place += 1
+        u_r = _round_at(u, place)
+    v_r = _round_at(Decimal(repr(value)), place)
+    return f"{_fixed(v_r, place)} ± {_fixed(u_r, place)}"
+
+
+def value_and_u(value: float, u_expanded: float) -> tuple[str, str]:
+    """The two halves of :func:`format_with_uncertainty` (``"–"`` twice when not finite)."""
+    text = format_with_uncertainty(value, u_expanded)
+    value_s, _, u_s = text.partition(" ± ")
+    return value_s, u_s or "–"

@@ -70,6 +70,17 @@ def _bundle(session: Session, run_id: str) -> tuple[str, RunBundle]:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id}: {exc}") from None
 
 
+def _registered_nominal(session: Session, run_id: str) -> tuple[float | None, list[float] | None]:
+    """The run's unit's registered nominal scale and zero-g output (``None`` when not known)."""
+    with session.begin():
+        run = get_run(session, run_id, with_unit=True)
+        unit = run.unit if run is not None else None
+        if unit is None or unit.nominal_scale is None:
+            return None, None
+        bias = None if unit.nominal_bias is None else [float(unit.nominal_bias)] * 3
+        return float(unit.nominal_scale), bias
+
+
 def stored_fit(run: Run) -> FittedModel:
     """The run's stored fit, parsed.
 
@@ -108,9 +119,12 @@ def g_check(
         list[float] | None, Query(description="datasheet zero-g output, 3 values (channel unit)")
     ] = None,
 ) -> dict[str, Any]:
-    """|f̂| per static window after correction, and before: with the nominal scale (given, or
-    natural for m/s² and g channels) or else with the unit's previous calibration."""
+    """|f̂| per static window after correction, and before: with the nominal scale (given, else
+    the unit's registered one, which the fit's own 'before' check used; natural for m/s² and g
+    channels) or else with the unit's previous calibration."""
     bundle = _bundle(session, run_id)[1]
+    if nominal_scale is None:
+        nominal_scale, nominal_bias = _registered_nominal(session, run_id)
     previous = None if nominal_scale is not None else _previous_calibration(session, run_id)
     try:
         return bundle.g_check(nominal_scale, nominal_bias, previous)

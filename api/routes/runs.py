@@ -93,15 +93,18 @@ def run(run_id: str, session: SessionDep, runner: RunnerDep, settings: SettingsD
     with session.begin():
         row = get_run(session, run_id, with_unit=True)
         if row is not None:
-            number = session.scalar(sa.select(Certificate.number).where(Certificate.run_id == run_id))
+            cert = session.execute(
+                sa.select(Certificate.number, Certificate.content).where(Certificate.run_id == run_id)
+            ).first()
             return run_out(
                 row,
                 row.unit.serial,
                 runner.live(run_id),
-                number,
+                cert.number if cert is not None else None,
                 with_diagnosis=True,
                 windows=list_windows(session, run_id),
                 audit=run_audit(session, run_id),
+                certificate_content=cert.content if cert is not None else None,
             )
     live = runner.live(run_id)
     if live is None:

@@ -49,6 +49,7 @@ def run_out(
     with_diagnosis: bool = False,
     windows: list[RunWindow] | None = None,
     audit: list[RunAudit] | None = None,
+    certificate_content: dict[str, Any] | None = None,
 ) -> RunOut:
     """A stored run; a live one shows the runner's fresher progress. A stored value that cannot
     be parsed is shown empty and named in ``unreadable`` (:func:`unreadable_fields`).
@@ -56,7 +57,10 @@ def run_out(
     :param with_diagnosis: include the whole diagnosis object (one run's view, not lists).
     :param windows: the run's stored windows (one run's view), ``None`` in lists.
     :param audit: the run's audit rows (one run's view), ``None`` in lists.
+    :param certificate_content: the run's certificate (one run's view): its limit checks' U
+        replace the stored ones, so the page and the certificate state one U.
     """
+    certificate_u = certificate_check_u(certificate_content)
     cal = run.params.get("calibration")
     diag, stored, note = _diagnosis(run)
     raw_gaps = run.params.get(rp.SAMPLE_GAPS)
@@ -90,7 +94,7 @@ def run_out(
         certificate_note=str(run.params[rp.CERTIFICATE_ERROR])
         if run.params.get(rp.CERTIFICATE_ERROR)
         else None,
-        limit_checks=[_check(c) for c in (run.limit_checks or [])],
+        limit_checks=[_check(c, certificate_u) for c in (run.limit_checks or [])],
         decision_rule=_rule(run.limit_checks),
         windows=[_window(w) for w in windows] if windows is not None else None,
         unreadable=unreadable_fields(run),
@@ -151,9 +155,23 @@ def _diagnosis(run: Run) -> tuple[dict[str, Any] | None, StoredDiagnosis | None,
     return diag, stored, None
 
 
-def _check(c: dict[str, Any]) -> LimitCheckOut:
-    """A stored check; one stored before checks carried U has its tolerance as acceptance interval."""
+def certificate_check_u(content: dict[str, Any] | None) -> dict[str, Any]:
+    """The U of each limit check a certificate states, by quantity name (empty: none)."""
+    conformity = content.get("conformity") if isinstance(content, dict) else None
+    rows = conformity.get("checks") if isinstance(conformity, dict) else None
+    return {
+        str(r["quantity"]): r.get("expanded_uncertainty")
+        for r in rows or []
+        if isinstance(r, dict) and "quantity" in r
+    }
+
+
+def _check(c: dict[str, Any], certificate_u: dict[str, Any] | None = None) -> LimitCheckOut:
+    """A stored check; one stored before checks carried U has its tolerance as acceptance
+    interval. With a certificate, U is the certificate's (its budget), the one U the run states."""
     out = dict(c)
+    if certificate_u and isinstance(certificate_u.get(str(c.get("name"))), int | float):
+        out["expanded_uncertainty"] = certificate_u[str(c.get("name"))]
     if "acceptance_low" not in out:
         out["acceptance_low"], out["acceptance_high"] = out.get("low"), out.get("high")
     return LimitCheckOut(**{k: v for k, v in out.items() if k in LimitCheckOut.model_fields})

@@ -4,6 +4,7 @@
 import { downloadJson, followEvents, getJson, linkAnchor, postJson } from "./api.js";
 import { badge, card, h, message, progressBar, setProgress, table, when } from "./dom.js";
 import { CHANNEL_COLOURS, bars, chart, fmt, legend } from "./svgplot.js";
+import { fmtU, splitU } from "./uncertainty.js";
 
 const LIVE = new Set(["queued", "running", "paused", "suspended"]);
 const G0 = 9.80665; // standard gravity: datasheets give sensitivity per g0
@@ -176,7 +177,8 @@ function conformityCard(run) {
   const c = h("section", { class: "card span", "aria-label": "Limit checks", id: "limit-checks" }, h("h2", {}, "Limit checks"));
   if (!checks.length) { c.append(message("No limits apply to this unit's model: the certificate makes no statement of conformity.")); return c; }
   c.append(table(`decision rule: ${run.decision_rule}`, ["Quantity", "Value", "U", "Unit", "Tolerance", "Acceptance", "Verdict"],
-    checks.map((k) => [k.name, fmt(k.value, 6), k.expanded_uncertainty == null ? "–" : fmt(k.expanded_uncertainty, 2), k.unit.replace("m/s2", "m/s²"),
+    checks.map((k) => [k.name, ...(k.expanded_uncertainty == null ? [fmt(k.value, 6), "not stated"] : splitU(k.value, k.expanded_uncertainty)),
+      k.unit.replace("m/s2", "m/s²"),
       `[${k.low == null ? "−∞" : fmt(k.low, 6)}, ${bound(k.high)}]`,
       `[${k.acceptance_low == null ? "−∞" : fmt(k.acceptance_low, 6)}, ${bound(k.acceptance_high)}]`,
       badge(k.passed ? "pass" : "fail")]), [1, 2]));
@@ -187,18 +189,20 @@ function fitCard(cal) {
   const unit = cal.channel_unit;
   const ax = ["x", "y", "z"];
   const U = (s) => (Number.isFinite(s) ? 2 * s : NaN);
-  const bias = table(`bias (${unit}) ± U`, ["", "value", "U (k=2)"], ax.map((a, i) => [a, fmt(cal.bias[i], 7), fmt(U(cal.bias_sigma[i]), 2)]), [1, 2]);
+  const bias = table(`bias (${unit}), value ± U (k = 2)`, ["", "value ± U"], ax.map((a, i) => [a, fmtU(cal.bias[i], U(cal.bias_sigma[i]))]), [1]);
   const K = h("div", { class: "table-wrap" }, h("table", { class: "matrix" },
-    h("caption", {}, `scale matrix K (${unit} per m/s²), value ± U`),
+    h("caption", {}, `scale matrix K (${unit} per m/s²), value ± U (k = 2)`),
     h("tbody", {}, cal.scale_matrix.map((row, i) => h("tr", {}, h("th", { scope: "row" }, ax[i]),
-      row.map((v, j) => h("td", {}, `${fmt(v, 6)} ± ${fmt(U(cal.scale_matrix_sigma[i][j]), 2)}`)))))));
+      row.map((v, j) => h("td", {}, fmtU(v, U(cal.scale_matrix_sigma[i][j])))))))));
   const mv = unit === "V" ? 1000 : 1, sUnit = unit === "V" ? "mV/g" : `${unit}/g`;
-  const sheet = table(`data-sheet units: sensitivity S = K_ii·g_n, cross-axis K_ij/K_ii (mrad), ± U (k=2)`,
-    ["", `S (${sUnit})`, "U", "from x", "from y", "from z"],
-    ax.map((a, i) => [a, fmt(cal.scale_matrix[i][i] * G0 * mv, 6), fmt(U(cal.scale_matrix_sigma[i][i]) * G0 * mv, 2),
-      ...ax.map((_, j) => (i === j ? "–" : `${fmt(1000 * cal.scale_matrix[i][j] / cal.scale_matrix[i][i], 3)} ± ${fmt(1000 * U(Math.hypot(
-        cal.scale_matrix_sigma[i][j] / cal.scale_matrix[i][i],
-        cal.scale_matrix[i][j] * cal.scale_matrix_sigma[i][i] / cal.scale_matrix[i][i] ** 2)), 2)}`))]), [1, 2, 3, 4, 5]);
+  // cross-axis K_ij/K_ii in mrad everywhere (here and on the certificate), with its U
+  const cross = (i, j) => fmtU(1000 * cal.scale_matrix[i][j] / cal.scale_matrix[i][i], 1000 * U(Math.hypot(
+    cal.scale_matrix_sigma[i][j] / cal.scale_matrix[i][i],
+    cal.scale_matrix[i][j] * cal.scale_matrix_sigma[i][i] / cal.scale_matrix[i][i] ** 2)));
+  const sheet = table(`data-sheet units: sensitivity S = K_ii·g_n and cross-axis K_ij/K_ii, value ± U (k = 2)`,
+    ["", `S (${sUnit})`, "from x (mrad)", "from y (mrad)", "from z (mrad)"],
+    ax.map((a, i) => [a, fmtU(cal.scale_matrix[i][i] * G0 * mv, U(cal.scale_matrix_sigma[i][i]) * G0 * mv),
+      ...ax.map((_, j) => (i === j ? "–" : cross(i, j)))]), [1, 2, 3, 4]);
   const g = cal.g_check || {};
   const gRows = ["before", "after"].filter((k) => g[k]).map((k) => [k, fmt(g[k].mean_error_m_s2, 3), fmt(g[k].std_m_s2, 3)]);
   return card("Fitted model", sheet, bias, K,

@@ -100,6 +100,7 @@ def test_the_page_and_its_assets_are_served(client: TestClient) -> None:
         "api.js",
         "dom.js",
         "svgplot.js",
+        "uncertainty.js",
         "view_overview.js",
         "view_unit.js",
         "view_run.js",
@@ -297,3 +298,26 @@ def test_bundle_cache_computes_once_for_concurrent_readers(example: Path, tmp_pa
     k1 = BundleCache.key("r", str(copy_path))
     copy_path.write_text("t\n0\n1\n")
     assert BundleCache.key("r", str(copy_path)) != k1  # a rewritten recording is a new key
+
+
+def test_g_check_before_uses_the_units_registered_nominal(
+    client: TestClient, example: Path, contract: dict[str, Any]
+) -> None:
+    """The plot's 'before' is the registered nominal the fit's own 'before' check used, not "no
+    nominal is known" beside a fit that shows before values: |f̂| = |y − b0| / s per window."""
+    sessions = client.app.state.services.sessions  # type: ignore[attr-defined]
+    with sessions.begin() as s:
+        unit = get_or_create_unit(s, "SN-DASH-NOM", channel_unit="V")
+        unit.nominal_scale, unit.nominal_bias = 0.0178, 1.49
+        create_run(
+            s, "run-nom", unit.id, "static-12", params={"calibration": contract}, recording_path=str(example)
+        )
+        finish_run(s, "run-nom", RunState.COMPLETED, outcome="PASS")
+    body = client.get("/api/runs/run-nom/plots/g-check", headers=VIEW).json()
+    assert body["before_label"].startswith("nominal scale 0.0178")
+    rec = read_recording(example)
+    segs = [w for w in rec.sidecar.segments or () if w.label in body["labels"]]
+    means = np.array(
+        [rec.accel_raw[(rec.t_s >= w.start_s) & (rec.t_s <= w.end_s)].mean(axis=0) for w in segs]
+    )
+    np.testing.assert_allclose(body["before_m_s2"], np.linalg.norm(means - 1.49, axis=1) / 0.0178, rtol=1e-12)

@@ -15,6 +15,7 @@ import httpx
 import pytest
 from playwright.sync_api import expect
 
+from api.certificates.rounding import format_with_uncertainty
 from tests.browser.conftest import CHROMIUM
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch
@@ -74,5 +75,24 @@ def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any
     while httpx.get(f"{service}/api/runs/{run_id}", headers=VIEW).json()["phase"] is not None:
         assert time.monotonic() < deadline, "a final run still reports a phase"
         time.sleep(0.2)
+    # values with their uncertainty by the certificate's rule, cross-axis in mrad
+    run = httpx.get(f"{service}/api/runs/{run_id}", headers=VIEW).json()
+    cal = run["calibration"]
+    fit = page.locator('section[aria-label="Fitted model"]')
+    expect(fit).to_be_visible()
+    text = fit.inner_text()
+    for b, s in zip(cal["bias"], cal["bias_sigma"], strict=True):
+        assert format_with_uncertainty(b, 2 * s) in text
+    k, ks = cal["scale_matrix"], cal["scale_matrix_sigma"]
+    assert format_with_uncertainty(k[0][0], 2 * ks[0][0]) in text
+    assert "from y (mrad)" in text
+    # one U per check: the certificate's, on the page and over the API
+    content = httpx.get(f"{service}/api/runs/{run_id}/certificate", headers=VIEW).json()["content"]
+    stated = {r["quantity"]: r["expanded_uncertainty"] for r in content["conformity"]["checks"]}
+    assert stated and {c["name"]: c["expanded_uncertainty"] for c in run["limit_checks"]} == stated
+    for row in page.locator("#limit-checks tbody tr").all():
+        cells = row.locator("td").all_inner_texts()
+        value, u = cells[1], cells[2]
+        assert len(value.partition(".")[2]) == len(u.partition(".")[2]), cells
     assert console.errors == []
     ctx.close()

@@ -162,7 +162,7 @@ def test_warnings_before_bad_input_do_not_make_more_lines(
         warnings.warn("invalid value encountered in divide", RuntimeWarning, stacklevel=1)
         raise ValueError("the recording has no static window")
 
-    monkeypatch.setattr("bench.calibration.calibrate_recording", warn_then_refuse)
+    monkeypatch.setattr("bench.calibration.analysis.analyse", warn_then_refuse)
     code, _, err = _run("calibrate", base, capsys)
     assert code == 2 and err == "calbench calibrate: the recording has no static window\n"
 

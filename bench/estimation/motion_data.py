@@ -23,7 +23,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import savgol_filter
 
 from bench.kinematics import angular_acceleration, angular_velocity, inner_attitude
 
@@ -204,6 +203,8 @@ class MotionData:
             groups.append(
                 np.concatenate([np.arange(o, o + m) for o, m in zip(s_off[~edge], s_len[~edge], strict=True)])
             )
+        from scipy.signal import savgol_filter  # moving recordings only: a static path stays without it
+
         for g in groups:
             for k, (x, deriv) in enumerate(((G, 1), (B, 1), (G, 2), (B, 2))):
                 d[k][g] = savgol_filter(x[g], w, 3, deriv=deriv, delta=self.step_s, axis=0, mode="interp")
@@ -290,6 +291,8 @@ def prepare_motion(
     usable = np.zeros(t.shape[0], dtype=bool)
     for a, b in runs:
         usable[a:b] = True
+
+    from scipy.signal import savgol_filter  # moving recordings only: a static path stays without it
 
     def sg(x: FloatArray, deriv: int) -> FloatArray:
         """Savitzky–Golay derivative of x along time, run by run between gaps (zero outside runs)."""

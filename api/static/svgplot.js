@@ -1,6 +1,8 @@
 // Small SVG plots: line/point charts (linear or log axes, bands, reference lines), grouped bars,
-// and sparklines with an uncertainty band. No dependencies; every plot is an <svg role="img">
-// with a text label for screen readers.
+// and sparklines with an uncertainty band. Every plot is an <svg role="img"> with a text label
+// for screen readers.
+
+import { fmtU } from "./uncertainty.js";
 
 const NS = "http://www.w3.org/2000/svg";
 export const CHANNEL_COLOURS = ["var(--cx)", "var(--cy)", "var(--cz)"];
@@ -225,13 +227,13 @@ export function sparkline(values, U, label, width = 220, height = 56, hollow = [
     if (U[i] != null) svg.append(el("line", { x1: X(i), x2: X(i), y1: Y(lo[i]), y2: Y(hi[i]), stroke: "var(--accent)", "stroke-opacity": 0.5 }));
     const c = el("circle", { cx: X(i), cy: Y(v), r: i === n - 1 ? 3.5 : 2.4,
       fill: hollow[i] ? "#fff" : "var(--accent)", stroke: "var(--accent)", "stroke-width": 1.2 });
-    c.append(el("title", {}, `${fmt(v, 6)} ± ${fmt(U[i], 2)}${dates[i] ? ` · ${dates[i]}` : ""}`));
+    c.append(el("title", {}, `${U[i] == null ? fmt(v, 6) : fmtU(v, U[i])}${dates[i] ? ` · ${dates[i]}` : ""}`));
     svg.append(c);
   });
   return svg;
 }
 
-/** The y range and the dates a sparkline covers, as a caption row under it. */
+/** The y range and the first and last date of a trend (dates: one label per point). */
 export function sparkAxis(values, U, unit, dates) {
   const lo = Math.min(...values.map((v, i) => (U[i] == null ? v : v - U[i])));
   const hi = Math.max(...values.map((v, i) => (U[i] == null ? v : v + U[i])));
@@ -239,7 +241,9 @@ export function sparkAxis(values, U, unit, dates) {
   div.className = "spark-axis";
   const y = document.createElement("span");
   y.className = "num";
-  y.textContent = `y ${fmt(lo, 5)} … ${fmt(hi, 5)} ${unit}`;
+  // as many digits as the span needs: the two ends never print alike
+  const step = hi > lo ? (hi - lo) / 10 : Math.abs(hi) * 1e-6 || 1e-9;
+  y.textContent = `y ${tickLabel(lo, step)} … ${tickLabel(hi, step)} ${unit}`;
   const x = document.createElement("span");
   x.textContent = dates.length ? `${dates[0]} → ${dates[dates.length - 1]}` : "";
   div.append(y, x);

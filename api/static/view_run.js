@@ -263,17 +263,28 @@ function residualCard(rs) {
 // Noise in the units of a data sheet from the Allan curve and the fitted sensitivity K_ii:
 // white-noise density N = σ(τ₀)·√τ₀ at the shortest τ (σ ∝ τ^-1/2 there), bias instability
 // B = min σ(τ) / 0.664 (IEEE Std 952 Annex C), both divided by K_ii and g_n, in µg/√Hz and µg.
+// B is quoted only where the curve has its minimum inside the τ measured: a curve still falling
+// at its longest τ comes from a record too short to show the floor, and that is said instead.
+export function biasInstability(taus, adev) {
+  const finite = adev.map((v, i) => [v, taus[i]]).filter(([v]) => Number.isFinite(v));
+  if (finite.length < 3) return { reached: false, tauMax: taus[taus.length - 1] };
+  let k = 0;
+  finite.forEach(([v], i) => { if (v < finite[k][0]) k = i; });
+  const tauMax = finite[finite.length - 1][1];
+  return k >= finite.length - 1 ? { reached: false, tauMax } : { reached: true, sigma: finite[k][0], tau: finite[k][1], tauMax };
+}
+
 function noiseTable(al, cal) {
   if (!cal || !al.taus_s.length) return null;
   const scale = (k) => cal.scale_matrix[k][k] * G0 / 1e6; // channel unit per µg
   const rows = al.channels.map((c, k) => {
     const s0 = al.adev[k][0], t0 = al.taus_s[0];
-    const finite = al.adev[k].filter(Number.isFinite);
-    const minS = Math.min(...finite);
-    return [c, fmt(s0 * Math.sqrt(t0) / scale(k), 3), fmt(minS / 0.664 / scale(k), 3),
-      `${fmt(s0 * Math.sqrt(t0), 3)} ${al.unit}·√s`, `${fmt(minS / 0.664, 3)} ${al.unit}`];
+    const b = biasInstability(al.taus_s, al.adev[k]);
+    const short = `not reached: σ(τ) still falling at τ = ${fmt(b.tauMax, 3)} s (record too short)`;
+    return [c, fmt(s0 * Math.sqrt(t0) / scale(k), 3), b.reached ? `${fmt(b.sigma / 0.664 / scale(k), 3)} (τ = ${fmt(b.tau, 3)} s)` : short,
+      `${fmt(s0 * Math.sqrt(t0), 3)} ${al.unit}·√s`, b.reached ? `${fmt(b.sigma / 0.664, 3)} ${al.unit}` : "–"];
   });
-  return table("noise, from the curve and the fitted sensitivity", ["", "density (µg/√Hz)", "bias instability (µg)", "density (raw)", "instability (raw)"], rows, [1, 2, 3, 4]);
+  return table("noise, from the curve and the fitted sensitivity", ["", "density (µg/√Hz)", "bias instability (µg)", "density (raw)", "instability (raw)"], rows, [1, 3, 4]);
 }
 
 function allanCard(al, cal) {

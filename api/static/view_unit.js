@@ -3,12 +3,13 @@
 import { downloadJson, getJson, linkAnchor, postJson, putJson } from "./api.js";
 import { badge, card, h, message, table, when } from "./dom.js";
 import { fmt, sparkAxis, sparkline } from "./svgplot.js";
+import { fmtU } from "./uncertainty.js";
 
 function trends(hist) {
   const dates = (c) => c.run_index.map((k) => {
     const r = hist.runs[k];
-    const t = r && (r.finished_at || r.started_at);
-    return t ? new Date(t).toLocaleDateString(undefined, { dateStyle: "medium" }) : "";
+    const t = r && (r.at || r.finished_at || r.started_at);
+    return t ? `${new Date(t).toISOString().slice(0, 16).replace("T", " ")} UTC` : "";
   });
   const cs = hist.coefficients.filter((c) => c.value.length);
   if (!cs.length) return message("No calibrated run yet: trends appear after the first fit.");
@@ -19,7 +20,7 @@ function trends(hist) {
     box.append(h("figure", { class: "spark", style: "margin:0" },
       h("figcaption", {},
         h("div", { class: "name" }, `${c.label} (${c.unit})`),
-        h("div", { class: "value num" }, `${fmt(c.value[last], 6)}${u == null ? "" : ` ± ${fmt(u, 2)}`}`)),
+        h("div", { class: "value num" }, u == null ? fmt(c.value[last], 6) : fmtU(c.value[last], u))),
       sparkline(c.value, c.U, `${c.label} over ${c.value.length} runs, latest ${fmt(c.value[last], 6)} ${c.unit}`,
         220, 56, c.run_index.map((k) => hist.runs[k].kind === "drift_check"), dates(c)),
       sparkAxis(c.value, c.U, c.unit, dates(c))));

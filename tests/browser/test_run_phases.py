@@ -7,6 +7,7 @@ Against a live simulated service running static-12.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -94,5 +95,21 @@ def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any
         cells = row.locator("td").all_inner_texts()
         value, u = cells[1], cells[2]
         assert len(value.partition(".")[2]) == len(u.partition(".")[2]), cells
+    # bias instability only where the Allan curve has its minimum inside the τ measured
+    al = httpx.get(f"{service}/api/runs/{run_id}/plots/allan", headers=VIEW).json()
+    noise = page.locator("#allan table tbody tr")
+    expect(noise.first).to_be_visible()
+    for k, row in enumerate(noise.all()):
+        adev = [v for v in al["adev"][k] if v is not None and math.isfinite(v)]
+        reached = min(range(len(adev)), key=adev.__getitem__) < len(adev) - 1
+        cell = row.locator("td").nth(2).inner_text()
+        assert ("not reached" not in cell) == reached, (cell, adev[-3:])
+    # the unit's trends: dated, and a y range whose two ends print differently
+    page.goto(f"{service}/#/units/SN-PH-1")
+    axis = page.locator("#trends .spark-axis").first
+    expect(axis).to_contain_text("UTC")
+    y_range = axis.locator("span").first.inner_text()
+    lo, _, hi = y_range.removeprefix("y ").rpartition(" ")[0].partition(" … ")
+    assert lo != hi, y_range
     assert console.errors == []
     ctx.close()

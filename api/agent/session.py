@@ -299,11 +299,14 @@ def continue_run(
     csv_path = Path(str(point.recording_path))
     recorder = RunRecorder.resume(csv_path, point.keep_end_byte, point.next_window_index, point.keep_chunks)
     stored = recorder.run_meta
-    parameters = dict(stored.get("parameters", params.get("parameters", {})))  # type: ignore[call-overload]
+    stored_parameters = stored.get("parameters", params.get("parameters", {}))
+    if not isinstance(stored_parameters, dict):
+        raise ValueError(f"{csv_path}: the stored procedure parameters are not a JSON object")
+    parameters = dict(stored_parameters)
     dwell_s = parameters.pop("dwell_s", None)
     proc = build_procedure(procedure_name, dwell_s=dwell_s, **parameters_for(procedure_name, parameters))
     dwell_dict = stored.get("dwell")
-    dwell = DwellChoice(**dwell_dict) if isinstance(dwell_dict, dict) else None  # type: ignore[arg-type]
+    dwell = DwellChoice(**dwell_dict) if isinstance(dwell_dict, dict) else None
     sim_meta = stored.get("sim") or params.get("sim")
     seed = int(sim_meta.get("seed", 0)) if isinstance(sim_meta, dict) else 0
     config = _config(settings)

@@ -244,15 +244,15 @@ class RequestGuard:
             except _Stalled:
                 await self._reply(send_with_headers, 408, _stalled_detail(), {})
                 return
-            problem = "too large" if body is None else _json_problem(body)
-            if problem is not None:
-                if body is None:
-                    await self._reply(send_with_headers, 413, f"request body larger than {limit} bytes", {})
-                else:
-                    invalid = [{"type": "json_invalid", "loc": ["body"], "msg": problem, "input": None}]
-                    await self._reply(send_with_headers, 422, invalid, {})
+            if body is None:
+                await self._reply(send_with_headers, 413, f"request body larger than {limit} bytes", {})
                 return
-            receive = _replay(body, receive)  # type: ignore[arg-type]
+            problem = _json_problem(body)
+            if problem is not None:
+                invalid = [{"type": "json_invalid", "loc": ["body"], "msg": problem, "input": None}]
+                await self._reply(send_with_headers, 422, invalid, {})
+                return
+            receive = _replay(body, receive)
         received = 0
         body_done = False
 

@@ -25,6 +25,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from api.agent.session import continue_run
+from api.runs.live import RunKind
 from api.settings import Settings
 from bench.records import RunRecord
 from bench.run_observer import RunObserver
@@ -89,7 +90,7 @@ class Claimed:
     procedure: str
     params: dict[str, Any]
     point: ResumePoint
-    kind: str
+    kind: RunKind
     sim_age_days: float | None
 
 
@@ -133,7 +134,7 @@ def from_queue(queued: ClaimedRun) -> Claimed:
     agent, or by :func:`claim` in this process."""
     if queued.point is None:
         raise ValueError(f"run {queued.run_id} was queued as a fresh run, not a resume")
-    kind, age = queued.kind, queued.sim_age_days
+    kind: RunKind = "drift_check" if queued.kind == "drift_check" else "calibration"
     return Claimed(
         queued.run_id,
         queued.unit_serial,
@@ -141,8 +142,8 @@ def from_queue(queued: ClaimedRun) -> Claimed:
         queued.procedure,
         queued.params,
         queued.point,
-        kind if kind in ("calibration", "drift_check") else "calibration",
-        age,
+        kind,
+        queued.sim_age_days,
     )
 
 

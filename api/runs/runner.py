@@ -210,7 +210,7 @@ class BenchRunner:
             claimed.run_id,
             claimed.unit_serial,
             claimed.procedure,
-            claimed.kind,  # type: ignore[arg-type]
+            claimed.kind,
             RunControl(),
             age if age is not None else 0.0,
             resumed=True,

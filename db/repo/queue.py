@@ -247,7 +247,8 @@ def request_control(
     """Ask the owner of a live run to ``abort``, ``pause`` or ``continue`` (``actor`` asks: an
     audit row when the request applies).
 
-    A queued run nobody has claimed is aborted at once (it never touched the table); a pause or
+    A queued run nobody has claimed is aborted at once (it never touched the table), its final
+    event (``Run.final_event``) stored with it, so its event streams end at once; a pause or
     continue asked of it is stored for its agent, which applies it once it has claimed the run.
     Returns the run's state after the request, or ``None`` when the request does not apply:
     the run is final or interrupted, or finishing (every step done, :func:`enter_finishing`), or
@@ -263,6 +264,8 @@ def request_control(
     if run.state is RunState.QUEUED and run.owner_pid is None and action == "abort":
         run.state, run.outcome, run.finished_at, run.heartbeat_at = RunState.ABORTED, "ABORTED", now, now
         run.error = f"aborted before it started: {reason or 'operator abort'}"
+        # nothing more will be stored for it: its last event now, so its streams end at once
+        run.final_event = {"state": RunState.ABORTED.value, "outcome": "ABORTED", "error": run.error}
         session.flush()
         record_action(session, run_id, AuditAction.ABORT, actor, detail=reason or "operator abort", at=now)
         record_state(session, run_id, RunState.ABORTED, SYSTEM, run.error, at=now)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from api.runs.live import PHASES
+from api.runs.live import PHASES, window_means
 from api.runs.runner import LiveRun
 from api.schemas import (
     AuditEntryOut,
@@ -193,6 +193,7 @@ def _window(w: RunWindow) -> WindowOut:
         end_s=w.end_s,
         n_samples=w.n_samples,
         pose_deg=[float(a) for a in (w.pose_deg or [])],
+        means=window_means(w.means),
     )
 
 

@@ -21,6 +21,7 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
+from api.runs.live import window_means
 from api.runs.wakeup import EVENT_POLL_S
 from db.models import FINAL_STATES, Run, RunState, RunWindow
 from db.models.run_params import SAMPLE_GAPS
@@ -91,6 +92,7 @@ def run_snapshot(
                     "kind": w.kind,
                     "pose_deg": list(w.pose_deg),
                     "n_samples": w.n_samples,
+                    "means": window_means(w.means),
                 }
                 for w in rows
             ]

@@ -102,6 +102,7 @@ class HubObserver(NullObserver):
                 "kind": window.kind.value,
                 "pose_deg": list(window.pose_deg),
                 "n_samples": window.n_samples,
+                "means": window_means(window.means),
             },
         )
 
@@ -160,6 +161,13 @@ def store_phase(sessions: sessionmaker[Session], run_id: str, phase: Phase) -> N
         last = run.live_progress if run is not None and isinstance(run.live_progress, dict) else {}
         done = last.get("progress", 0.0) if phase == "recording" else 1.0  # the recording's fraction
         set_live_progress(s, run_id, {**last, "phase": phase, "progress": done, "remaining_s": 0.0})
+
+
+def window_means(means: Any) -> dict[str, float]:
+    """A window's stored per-channel means (finite numbers only; other entries are not shown)."""
+    if not isinstance(means, dict):
+        return {}
+    return {str(k): float(v) for k, v in means.items() if isinstance(v, int | float) and math.isfinite(v)}
 
 
 def progress_data(progress: Progress) -> dict[str, Any]:

@@ -160,6 +160,9 @@ class WindowOut(BaseModel):
     end_s: float
     n_samples: int
     pose_deg: list[float] = Field(default_factory=list)
+    means: dict[str, float] = Field(
+        default_factory=dict, description="per-channel means over the window (recording units)"
+    )
 
 
 class AuditEntryOut(BaseModel):

@@ -405,9 +405,9 @@ export async function runView(view, runId, session, signal) {
   const results = h("div", { id: "results" });
   const winBody = h("tbody");
   const winCard = h("section", { class: "card span", "aria-label": "Completed windows", id: "windows", hidden: true },
-    h("h2", {}, "Completed windows"),
+    h("h2", {}, "Completed windows"), h("p", { class: "note" }, "Each window's values as it completes: its channel means in the recording's units."),
     h("div", { class: "table-wrap" }, h("table", {},
-      h("thead", {}, h("tr", {}, ["#", "Label", "Kind", "Table pose", "Samples"].map((c, i) => h("th", { scope: "col", class: [0, 3, 4].includes(i) ? "num" : null }, c)))),
+      h("thead", {}, h("tr", {}, ["#", "Label", "Kind", "Table pose", "Samples", "Channel means"].map((c, i) => h("th", { scope: "col", class: [0, 3, 4, 5].includes(i) ? "num" : null }, c)))),
       winBody)));
   const audit = auditCard();
   audit.show(run);
@@ -419,7 +419,8 @@ export async function runView(view, runId, session, signal) {
     winCard.hidden = false;
     winBody.prepend(h("tr", {}, h("td", { class: "num" }, String(w.index + 1)), h("td", {}, w.label), h("td", {}, w.kind),
       h("td", { class: "num" }, (w.pose_deg || []).map((a) => `${Number(a).toFixed(1)}°`).join("  ")),
-      h("td", { class: "num" }, String(w.n_samples))));
+      h("td", { class: "num" }, String(w.n_samples)),
+      h("td", { class: "num window-means" }, Object.entries(w.means || {}).filter(([, v]) => Number.isFinite(v)).map(([c, v]) => `${c} ${fmt(v, 6)}`).join("  "))));
   };
   for (const w of run.windows || []) addWindow(w);
   const finish = async () => {

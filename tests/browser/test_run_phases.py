@@ -56,6 +56,8 @@ def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any
     expect(page.locator("#pause-run")).to_be_visible()
     expect(page.locator("#abort-run")).to_be_visible()
     expect(page.locator("#run-eta")).to_contain_text("of recording", timeout=60_000)
+    # each window's values as it completes: its channel means, while the run records
+    expect(page.locator("#windows .window-means").first).to_contain_text("ax", timeout=120_000)
     # every window recorded: analysing (or already the certificate), no Pause or Abort
     after = page.locator(
         '#run-phases li[data-phase="analysing"].current, #run-phases li[data-phase="certificate"].current'
@@ -95,6 +97,15 @@ def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any
         cells = row.locator("td").all_inner_texts()
         value, u = cells[1], cells[2]
         assert len(value.partition(".")[2]) == len(u.partition(".")[2]), cells
+    # the windows' means on the page are the stored ones
+    stored = {w["index"] + 1: w["means"] for w in run["windows"]}
+    for row in page.locator("#windows tbody tr").all():
+        cells = row.locator("td").all_inner_texts()
+        shown = cells[5].split()
+        means = stored[int(cells[0])]
+        assert shown[0::2] == list(means), cells
+        for text, ch in zip(shown[1::2], means, strict=True):
+            assert float(text) == pytest.approx(means[ch], rel=1e-5, abs=1e-9), (cells, means)
     # bias instability only where the Allan curve has its minimum inside the τ measured
     al = httpx.get(f"{service}/api/runs/{run_id}/plots/allan", headers=VIEW).json()
     noise = page.locator("#allan table tbody tr")

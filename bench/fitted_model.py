@@ -25,6 +25,8 @@ FloatArray = npt.NDArray[np.float64]
 
 DYNAMIC_BATCH = "dynamic-batch"
 """The contract's ``method`` of a moving-table (sample-by-sample) fit."""
+BIAS_REFERENCES = ("run_mean", "long_run")
+"""The values of the contract's ``bias_reference`` (``bench.estimation.dynamic_batch.BiasReference``)."""
 
 
 class ContractError(ValueError):
@@ -80,6 +82,9 @@ class FittedModel:
         free-form JSON as the contract gives it).
     :param method: the contract's ``method`` (:data:`DYNAMIC_BATCH` for a moving-table fit),
         ``None`` for a static or orientation-free fit.
+    :param bias_reference: what ``bias_sigma`` describes: ``"long_run"`` (the unit's long-run
+        bias, a wander's average over the run included) or ``"run_mean"`` (the run's mean bias
+        only); ``None`` for a stored fit from before the key existed.
     """
 
     unit_serial: str
@@ -95,6 +100,7 @@ class FittedModel:
     g_before: GCheckSummary | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     method: str | None = None
+    bias_reference: str | None = None
 
     @property
     def is_dynamic_batch(self) -> bool:
@@ -118,6 +124,12 @@ class FittedModel:
         method = c.get("method")
         if method is not None and not isinstance(method, str):
             raise ContractError(f"{where}: key 'method' must be a string, got {_kind(method)}")
+        reference = c.get("bias_reference")
+        if reference is not None and reference not in BIAS_REFERENCES:
+            raise ContractError(
+                f"{where}: key 'bias_reference' must be one of {', '.join(BIAS_REFERENCES)}, "
+                f"got {_kind(reference)}"
+            )
         terms = _key(c, "terms", where, "")
         if not (isinstance(terms, list) and all(isinstance(t, str) for t in terms)):
             raise ContractError(f"{where}: key 'terms' must be a list of strings, got {_kind(terms)}")
@@ -136,6 +148,7 @@ class FittedModel:
             g_before=None if before is None else _g_summary(before, where, "g_check.before"),
             extra=extra,
             method=method,
+            bias_reference=reference,
         )
 
 

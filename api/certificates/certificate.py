@@ -21,7 +21,7 @@ from typing import Any
 from api.certificates.conformity import check_uncertainties, conformity_statement
 from api.certificates.deviations import no_deviation, run_deviations, run_record_section
 from api.certificates.inputs import CertificateInputs, Laboratory, UnitFacts
-from api.certificates.results import g_check_section, results_section
+from api.certificates.results import bias_statements, g_check_section, results_section
 from api.certificates.statements import (
     COVERAGE_STATEMENT,
     DYNAMIC_COVERAGE_STATEMENT,
@@ -220,7 +220,7 @@ def certificate_content(
             inp.limits_note,
         ),
         "traceability": traceability,
-        "statements": [ONLY_ITEM, NOT_REPRODUCED],
+        "statements": [ONLY_ITEM, *bias_statements(inp.calibration), NOT_REPRODUCED],
         "authorized_by": lab.authorized_by,
         "authorization": "Authorised for issue by the person named above; the SHA-256 of this content "
         "identifies the authorised version.",

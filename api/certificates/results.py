@@ -19,7 +19,7 @@ from api.certificates.budget import CertificateBudget
 from api.certificates.conformity import G_CHECK_U_BASIS, g_check_u
 from api.certificates.datasheet_units import datasheet_results
 from api.certificates.rounding import expanded_quantity, round_significant
-from api.certificates.statements import COVERAGE_K, NOT_STATED
+from api.certificates.statements import COVERAGE_K, NOT_STATED, RUN_MEAN_BIAS
 from bench.fitted_model import FittedModel, GCheckSummary
 from bench.limit_check import LimitCheck
 
@@ -51,6 +51,13 @@ def results_section(fit: FittedModel, budget: CertificateBudget | None) -> dict[
         "extra": fit.extra,
     }
     return results
+
+
+def bias_statements(fit: FittedModel) -> list[str]:
+    """The certificate's statements about which bias its bias U describes: :data:`RUN_MEAN_BIAS`
+    where the fit's ``bias_reference`` is ``"run_mean"``; none where it is the unit's long-run
+    bias or not stated."""
+    return [RUN_MEAN_BIAS] if fit.bias_reference == "run_mean" else []
 
 
 def g_check_section(

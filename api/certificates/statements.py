@@ -75,6 +75,11 @@ SIMULATED_AMBIENT = "simulated bench: no ambient conditions"
 NOT_STATED = "not stated"
 """What a certificate says where the laboratory did not give an item (never a null)."""
 ONLY_ITEM = "The results relate only to the item calibrated."
+RUN_MEAN_BIAS = (
+    "The expanded uncertainty of the bias is that of the unit's mean bias over this run; it does not "
+    "include how far the bias wanders from its long-run value between runs."
+)
+"""Said where the fit's bias sigma describes the run's mean bias (``bias_reference`` ``"run_mean"``)."""
 NOT_REPRODUCED = (
     "This certificate shall not be reproduced except in full without the approval of the laboratory."
 )

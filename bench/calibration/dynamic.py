@@ -387,4 +387,5 @@ def calibrate_dynamic(
         not_fitted=dropped,
         kalman=kal,
         model_selection=selection,
+        bias_reference=fit.bias_reference,
     )

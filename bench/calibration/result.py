@@ -14,6 +14,7 @@ import numpy.typing as npt
 
 from bench.calibration.kind import FitKind
 from bench.calibration.windows import UnusedWindow
+from bench.estimation.dynamic_batch import BiasReference
 from bench.estimation.g_check import GCheck
 from bench.estimation.scalar_fit import PARAMETER_NAMES as SCALAR_NAMES
 from bench.estimation.static_design import PARAMETER_NAMES as STATIC_NAMES
@@ -75,6 +76,9 @@ class CalibrationResult:
     :param unused_windows: declared segments / detected windows the fit left out, with why.
     :param warnings: what the reader must know before trusting the numbers (zero
         redundancy, unused windows), one sentence each.
+    :param bias_reference: what ``bias_sigma`` describes: ``"long_run"`` when a wander shared
+        by the windows (or the blocks of a moving run) is in the covariance, so the sigma
+        covers the unit's long-run bias; ``"run_mean"`` when it covers only the run's mean bias.
     """
 
     unit_serial: str
@@ -97,6 +101,7 @@ class CalibrationResult:
     source: str = ""
     unused_windows: tuple[UnusedWindow, ...] = ()
     warnings: tuple[str, ...] = ()
+    bias_reference: BiasReference = "run_mean"
 
     @property
     def zero_redundancy(self) -> bool:
@@ -145,6 +150,7 @@ class CalibrationResult:
             residual_rms=self.residual_rms,
             g_after=_g_summary(self.g_after),
             g_before=None if self.g_before is None else _g_summary(self.g_before),
+            bias_reference=self.bias_reference,
         )
 
     def to_contract(self) -> dict[str, Any]:
@@ -169,6 +175,7 @@ class CalibrationResult:
             "zero_redundancy": self.zero_redundancy,
             "unused_windows": [u.to_contract() for u in self.unused_windows],
             "warnings": list(self.warnings),
+            "bias_reference": self.bias_reference,
         }
 
 

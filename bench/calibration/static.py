@@ -24,6 +24,7 @@ import numpy.typing as npt
 from bench.calibration.kind import FitKind
 from bench.calibration.result import CalibrationResult, WindowResult, zero_redundancy_warning
 from bench.calibration.windows import choose_windows, known_specific_force, unused_warning, window_means
+from bench.estimation.dynamic_batch import BiasReference
 from bench.estimation.g_check import correct, g_check
 from bench.estimation.scalar_fit import fit_scalar
 from bench.estimation.scalar_wander import scalar_wander
@@ -69,12 +70,14 @@ def calibrate_static(
     g = rec.sidecar.g_local_m_s2
     f = known_specific_force(rec, wins)
     mid_s = np.array([(rec.t_s[w.start] + rec.t_s[w.stop - 1]) / 2 for w in wins])
+    reference: BiasReference
     if f is not None:
         fit = fit_static(f, y, V, mid_s=mid_s)
         bias, K, cov = fit.bias, fit.K, fit.cov
         bias_sigma, K_sigma = fit.bias_sigma, fit.K_sigma
         resid, norm_resid = fit.residuals, fit.normalized_residuals
         chi2, dof, model, kind = fit.chi2, fit.dof, fit.noise_model, FitKind.STATIC
+        reference = fit.bias_reference
         n_obs, n_params, what = 3 * len(wins), 12, "window-mean components (3 per window)"
     else:
         sf = fit_scalar(y, V, g)
@@ -82,6 +85,7 @@ def calibrate_static(
         wander = scalar_wander(sf, y, g, mid_s)
         if wander is not None:  # windows sharing a slow wander: their errors are not independent
             cov = wander.cov
+        reference = "long_run" if wander is not None else "run_mean"
         sig = np.sqrt(np.diag(cov))
         bias_sigma, K_sigma = sig[:3], np.zeros((3, 3))
         K_sigma[np.tril_indices(3)] = sig[3:]
@@ -145,4 +149,5 @@ def calibrate_static(
         source=rec.source,
         unused_windows=chosen.unused,
         warnings=tuple(warnings),
+        bias_reference=reference,
     )

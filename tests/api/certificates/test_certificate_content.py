@@ -14,10 +14,13 @@ from api.certificates.certificate import certificate_content
 from api.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from api.certificates.pdf import render_pdf
 from api.certificates.rounding import expanded_quantity, round_expanded
-from api.certificates.statements import REQUIRED_ITEMS
+from api.certificates.statements import NOT_REPRODUCED, ONLY_ITEM, REQUIRED_ITEMS, RUN_MEAN_BIAS
+from bench.calibration import calibrate_recording
 from bench.diagnosis.stored import StoredDiagnosis, StoredFinding
-from bench.fitted_model import FittedModel
+from bench.fitted_model import ContractError, FittedModel
+from bench.recording import read_recording
 from db.repo.certificates import canonical_sha256
+from tests.conftest import STATIC_EXAMPLE, copy_example
 
 
 @pytest.mark.parametrize(
@@ -61,7 +64,7 @@ CAL = {
 FIT = FittedModel.from_contract(CAL)
 
 
-def _content() -> dict[str, object]:
+def _content(fit: FittedModel = FIT) -> dict[str, object]:
     inputs = CertificateInputs(
         run=RunFacts(
             id="r1",
@@ -71,7 +74,7 @@ def _content() -> dict[str, object]:
             parameters={"dwell_s": 8.0},
         ),
         unit=UnitFacts("SN-C", model="ADXL325", channel_unit="V"),
-        calibration=FIT,
+        calibration=fit,
         g_local_m_s2=9.81535,
         temp_c=(24.4, 24.6, 24.9),
         diagnosis=StoredDiagnosis(
@@ -169,3 +172,20 @@ def _at(content: dict[str, object], path: str) -> object:
 
 def _blank(value: object) -> bool:
     return value is None or value == "" or value == [] or value == {}
+
+
+def test_a_run_mean_bias_u_is_said_to_be_the_runs_mean(tmp_path: Path) -> None:
+    """A 12-window static fit keeps the independent-window model (no wander can be shown), so its
+    bias sigma is the run's mean bias's: the contract says so and the certificate states it."""
+    contract = calibrate_recording(read_recording(copy_example(STATIC_EXAMPLE, tmp_path))).to_contract()
+    assert contract["bias_reference"] == "run_mean"
+    statements = _content(FittedModel.from_contract(contract))["statements"]
+    assert statements == [ONLY_ITEM, RUN_MEAN_BIAS, NOT_REPRODUCED]
+    long_run = FittedModel.from_contract({**contract, "bias_reference": "long_run"})
+    assert _content(long_run)["statements"] == [ONLY_ITEM, NOT_REPRODUCED]
+    assert _content()["statements"] == [ONLY_ITEM, NOT_REPRODUCED]  # a fit stored without the key
+
+
+def test_an_unknown_bias_reference_is_refused_by_name() -> None:
+    with pytest.raises(ContractError, match="bias_reference"):
+        FittedModel.from_contract({**CAL, "bias_reference": "mean"})

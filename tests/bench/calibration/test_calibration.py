@@ -18,6 +18,8 @@ CONTRACT_KEYS = {
     "terms", "extra", "residual_rms", "g_check",
     # added (fields may be added): redundancy and what was not used
     "dof", "zero_redundancy", "unused_windows", "warnings",
+    # which bias bias_sigma describes
+    "bias_reference",
 }  # fmt: skip
 
 

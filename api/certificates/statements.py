@@ -90,4 +90,6 @@ METHOD = {
     "oscillation-2axis": "two-axis quasi-harmonic oscillation",
     "planned-static": "static multi-position, planned (12 orientations in antipodal order, repeated with "
     "short dwells, calbench plan); weighted least squares of raw = b + K·f with the wander between windows",
+    "planned-tumble": "planned tumble (12 orientations in antipodal order, repeated with short dwells, "
+    "calbench plan); dynamic model over every sample, moves included",
 }

@@ -1,7 +1,8 @@
 """``calbench plan --white UG [--wander UG --wander-tau S] [--random-walk UG] --scale PPM ... [--json]``.
 
-Designs the static procedure (``planned-static``) that reaches the target expanded
-uncertainties (k = 2) of the static window fit in the least table time on the table's limits,
+Designs the procedure (``planned-static``, fitted by the static window fit, or
+``planned-tumble``, the same tumble fitted by the every-sample fit; ``--fit``) that reaches the
+target expanded uncertainties (k = 2) in the least table time on the table's limits,
 for the unit's noise (µg/√Hz white, µg Gauss-Markov wander with its correlation time, µg/√s
 random walk), and states its predicted U per group, the total table time (moves and settling
 included) and the white-noise bound of any motion for that time (docs/planning.md).
@@ -70,6 +71,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-tilt", action="store_true", help="do not carry the base tilt as a nuisance parameter"
     )
+    parser.add_argument(
+        "--fit",
+        choices=("best", "window", "every-sample"),
+        default="best",
+        help="design family: planned-static (window fit), planned-tumble (every-sample fit), or the "
+        "shorter of the two (default)",
+    )
     parser.add_argument("--max-minutes", type=decimal_arg, default=120.0, help="longest design tried (min)")
     parser.add_argument(
         "--compare", default=None, metavar="PROC", help="also predict this procedure (static)"
@@ -80,7 +88,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _line(e: Evaluation) -> str:
     return (
-        f"{e.procedure.name} {json.dumps(e.procedure.parameters)}: {e.duration_s / 60:.1f} min, "
+        f"{e.procedure.name} ({e.fit} fit) {json.dumps(e.procedure.parameters)}: "
+        f"{e.duration_s / 60:.1f} min, "
         f"{describe_sigmas(e.predicted)}; K sigma {1e6 * e.predicted.k_rms:.3g} ppm rms = "
         f"{e.k_fraction_of_bound:.2f} x the bound of any motion ({1e6 * e.bound_k:.3g} ppm)"
     )
@@ -147,6 +156,7 @@ def run(args: argparse.Namespace) -> int:
             settle_s=args.settle_s,
             with_tilt=not args.no_tilt,
             max_duration_s=args.max_minutes * 60,
+            fits=("window", "every-sample") if args.fit == "best" else (args.fit,),
         )
     except ValueError as exc:
         raise BadInput(f"calbench plan: {exc}") from None

@@ -22,7 +22,7 @@ import numpy as np
 from bench.calibration.windows import MAX_TABLE_MOTION_RAD
 from bench.recording import Recording
 
-MOVING_PROCEDURES = ("rate-1axis", "oscillation-2axis")
+MOVING_PROCEDURES = ("rate-1axis", "oscillation-2axis", "planned-tumble")
 """Procedures whose table moves while it records."""
 CANDIDATE_TERMS = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", "table_tilt", "time_skew")
 """The moving fit's terms beyond bias and K (``calbench calibrate --terms``)."""

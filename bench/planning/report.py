@@ -18,6 +18,7 @@ def evaluation_dict(e: Evaluation) -> dict[str, Any]:
     ug = 1e6 / G0_M_S2
     return {
         "procedure": e.procedure.name,
+        "fit": e.fit,
         "parameters": e.procedure.parameters,
         "duration_s": e.duration_s,
         "predicted_U_k2": {

@@ -29,7 +29,7 @@ from bench.planning.information import (
 )
 from bench.planning.noise import UnitNoise, window_mean_covariance
 from bench.planning.trajectory import angle_trajectory, specific_force
-from bench.procedures.planned import MAX_WINDOWS, planned_static
+from bench.procedures.planned import MAX_WINDOWS, planned_static, planned_tumble
 from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits, preview
 from bench.procedures.steps import Dwell, Procedure
 from bench.records import WindowKind
@@ -41,6 +41,9 @@ of every sample, moves and settling included (``bench.planning.every_sample``)."
 EVERY_SAMPLE_FS_HZ = 20.0
 """Sample rate of the trajectory the every-sample prediction is computed on (Hz); the white
 part scales as N²·f_s·Σxxᵀ ≈ N²∫xxᵀdt, so the prediction does not depend on it."""
+
+FAMILY = {"window": planned_static, "every-sample": planned_tumble}
+"""The procedure each fit family plans: planned-static (window fit), planned-tumble (every sample)."""
 
 DWELL_GRID_S = (2.0, 3.0, 5.0, 8.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0)
 """Dwell per visit tried by :func:`plan` (s)."""
@@ -215,7 +218,7 @@ def _plan_one(
 
     def ev(dwell: float, reps: int) -> Evaluation:
         return evaluate(
-            planned_static(dwell_s=dwell, repeats=reps, settle_s=settle_s),
+            FAMILY[fit](dwell_s=dwell, repeats=reps, settle_s=settle_s),
             noise,
             limits=limits,
             g_m_s2=g_m_s2,
@@ -286,11 +289,11 @@ def best_within(
     """
     best: Evaluation | None = None
     for dwell in DWELL_GRID_S:
-        one = planned_static(dwell_s=dwell, repeats=1, settle_s=settle_s)
+        one = FAMILY[fit](dwell_s=dwell, repeats=1, settle_s=settle_s)
         per_pass = preview(one, limits).duration_s
         reps = min(MAX_WINDOWS // 12, int(duration_s // per_pass))
         while reps >= 1:
-            proc = planned_static(dwell_s=dwell, repeats=reps, settle_s=settle_s)
+            proc = FAMILY[fit](dwell_s=dwell, repeats=reps, settle_s=settle_s)
             if preview(proc, limits).duration_s <= duration_s:
                 break
             reps -= 1

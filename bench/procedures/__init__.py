@@ -10,7 +10,7 @@ import inspect
 from collections.abc import Callable
 
 from bench.procedures.oscillation import oscillation_2axis
-from bench.procedures.planned import planned_static
+from bench.procedures.planned import planned_static, planned_tumble
 from bench.procedures.preview import DEFAULT_TABLE_LIMITS, Preview, TableLimits, preview
 from bench.procedures.rate import rate_1axis
 from bench.procedures.static import static_12
@@ -21,6 +21,7 @@ PROCEDURES: dict[str, Callable[..., Procedure]] = {
     "rate-1axis": rate_1axis,
     "oscillation-2axis": oscillation_2axis,
     "planned-static": planned_static,
+    "planned-tumble": planned_tumble,
 }
 """Registry: procedure name -> factory taking ``dwell_s`` (``None``: noise window first)."""
 

@@ -7,6 +7,10 @@ passes cancels), the outer axis stepping 0°, 90°, 180°, −90° from visit to
 stays separable. Every window is an ordinary static window (labels ``p001``, ``p002``, …) and the
 recording is calibrated by the static window fit (``bench.estimation.static_fit``) with its slow
 wander between windows — the fit whose covariance the planner predicts.
+
+planned-tumble (:func:`planned_tumble`): the same steps, recorded and calibrated by the
+dynamic batch fit of every sample (``bench.calibration.kind.MOVING_PROCEDURES``), so the moves
+and the settling count as information (``bench.planning.every_sample``).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from bench.procedures.static import (
 from bench.procedures.steps import Dwell, MoveTo, Procedure, Step
 
 NAME = "planned-static"
+TUMBLE_NAME = "planned-tumble"
 DEFAULT_DWELL_S = 10.0
 MAX_WINDOWS = 2400
 
@@ -50,8 +55,10 @@ def planned_static(
     predicted_bias_u_ug: float | None = None,
     predicted_scale_u_ppm: float | None = None,
     predicted_misalignment_u_urad: float | None = None,
+    *,
+    name: str = NAME,
 ) -> Procedure:
-    """Build the planned static procedure.
+    """Build the planned static procedure (``name``: :data:`NAME` or :data:`TUMBLE_NAME`).
 
     :param dwell_s: static window per visit (s); ``None`` takes :data:`DEFAULT_DWELL_S` (the
         plan fixes it, so no noise window is recorded).
@@ -63,10 +70,10 @@ def planned_static(
     :raises ValueError: repeats outside 1..200, or a predicted U that is not a number > 0.
     """
     if repeats != int(repeats):
-        raise ValueError(f"planned-static repeats must be a whole number, got {repeats}")
+        raise ValueError(f"{name} repeats must be a whole number, got {repeats}")
     repeats = int(repeats)
     if not 1 <= repeats <= MAX_WINDOWS // 12:
-        raise ValueError(f"planned-static repeats must be 1..{MAX_WINDOWS // 12}, got {repeats}")
+        raise ValueError(f"{name} repeats must be 1..{MAX_WINDOWS // 12}, got {repeats}")
     dwell = DEFAULT_DWELL_S if dwell_s is None else float(dwell_s)
     steps: list[Step] = []
     for i, pose in enumerate(planned_poses_deg(repeats)):
@@ -81,6 +88,27 @@ def planned_static(
     ):
         if value is not None:
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"planned-static {key} must be a number > 0, got {value!r}")
+                raise ValueError(f"{name} {key} must be a number > 0, got {value!r}")
             params[key] = float(value)
-    return Procedure(NAME, tuple(steps), params, n_axes=3)
+    return Procedure(name, tuple(steps), params, n_axes=3)
+
+
+def planned_tumble(
+    dwell_s: float | None = None,
+    repeats: float = 1,
+    settle_s: float = 2.0,
+    predicted_bias_u_ug: float | None = None,
+    predicted_scale_u_ppm: float | None = None,
+    predicted_misalignment_u_urad: float | None = None,
+) -> Procedure:
+    """planned-tumble: :func:`planned_static`'s steps, fitted by the every-sample fit (module
+    docstring); the same parameters and errors."""
+    return planned_static(
+        dwell_s,
+        repeats,
+        settle_s,
+        predicted_bias_u_ug,
+        predicted_scale_u_ppm,
+        predicted_misalignment_u_urad,
+        name=TUMBLE_NAME,
+    )

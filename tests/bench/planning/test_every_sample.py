@@ -80,3 +80,13 @@ def test_every_sample_designs_sit_at_the_bound_where_static_dwells_do_not() -> N
     w = best_within(noise, 180.0)
     assert e.fit == "every-sample" and e.k_fraction_of_bound < 1.05
     assert w.k_fraction_of_bound > 1.15
+
+
+def test_planned_tumble_is_the_planned_tumble_fitted_by_every_sample() -> None:
+    from bench.calibration.kind import MOVING_PROCEDURES
+    from bench.procedures import build_procedure
+
+    a = build_procedure("planned-tumble", dwell_s=3.0, repeats=2)
+    b = planned_static(dwell_s=3.0, repeats=2)
+    assert a.name == "planned-tumble" and a.steps == b.steps and a.parameters == b.parameters
+    assert a.name in MOVING_PROCEDURES and b.name not in MOVING_PROCEDURES

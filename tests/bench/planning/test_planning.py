@@ -124,7 +124,14 @@ def test_cli_plan_prints_a_plan_and_refuses_bad_input(capsys: pytest.CaptureFixt
     import json
 
     out = json.loads(capsys.readouterr().out)
-    assert out["plan"]["procedure"] == "planned-static" and out["plan"]["predicted_U_k2"]["scale_ppm"] <= 80
+    # both families are planned; the tumble fitted by every sample also uses the moves: shorter
+    assert out["plan"]["procedure"] == "planned-tumble" and out["plan"]["fit"] == "every-sample"
+    assert out["plan"]["predicted_U_k2"]["scale_ppm"] <= 80 and out["start"]["procedure"] == "planned-tumble"
+    rc = api.cli.main(["plan", "--white", "250", "--wander", "40", "--wander-tau", "200", "--scale", "80",
+                       "--max-minutes", "20", "--json", "--fit", "window"])  # fmt: skip
+    window = json.loads(capsys.readouterr().out)["plan"]
+    assert rc == 0 and window["procedure"] == "planned-static" and window["fit"] == "window"
+    assert window["duration_s"] > out["plan"]["duration_s"]
     assert api.cli.main(["plan", "--white", "250"]) == 2
     assert "at least one" in capsys.readouterr().err
 

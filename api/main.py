@@ -36,6 +36,7 @@ import threading
 from collections.abc import AsyncIterator, Callable, Iterator
 from contextlib import asynccontextmanager, contextmanager
 from pathlib import Path
+from types import FrameType
 
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
@@ -144,6 +145,10 @@ def start_listener(settings: Settings, services: Services) -> RunListener | None
     return listener
 
 
+SignalHandler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
+"""What ``signal.getsignal`` returns (``None``: a handler not installed from Python)."""
+
+
 @contextmanager
 def streams_end_on_signal(services: Services) -> Iterator[None]:
     """While the server runs, SIGTERM and SIGINT first end every open event stream, then go to
@@ -153,9 +158,9 @@ def streams_end_on_signal(services: Services) -> Iterator[None]:
         yield
         return
     loop = asyncio.get_running_loop()
-    previous: dict[signal.Signals, object] = {}
+    previous: dict[signal.Signals, SignalHandler] = {}
 
-    def handler(signum: int, frame: object) -> None:
+    def handler(signum: int, frame: FrameType | None) -> None:
         reason = f"the service is stopping ({signal.Signals(signum).name})"
         loop.call_soon_threadsafe(end_streams, services, reason)
         prev = previous.get(signal.Signals(signum))
@@ -169,7 +174,8 @@ def streams_end_on_signal(services: Services) -> Iterator[None]:
         yield
     finally:
         for sig, prev in previous.items():
-            signal.signal(sig, prev)  # type: ignore[arg-type]
+            # getsignal gives None for a handler not installed from Python: the default then
+            signal.signal(sig, signal.SIG_DFL if prev is None else prev)
 
 
 def create_app(

@@ -233,8 +233,8 @@ def create_app(
             services.engine.dispose()
 
     app = FastAPI(title="calbench", version="0.1.0", description=DESCRIPTION, lifespan=lifespan)
-    app.add_middleware(DocumentCache)  # type: ignore[arg-type]
-    app.add_middleware(RequestGuard)  # type: ignore[arg-type]  # outermost: it heads every answer
+    app.add_middleware(DocumentCache)
+    app.add_middleware(RequestGuard)  # outermost: it heads every answer
     install_error_handlers(app)
     app.include_router(api_router)
     if importlib.util.find_spec("api.routes.dashboard") is not None:

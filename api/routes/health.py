@@ -42,4 +42,4 @@ def health(services: ServicesDep) -> Health:
 @router.get("/whoami", response_model=WhoAmI)
 def whoami(role: ViewerDep) -> WhoAmI:
     """The role of the presented token (``anonymous`` where reads are public)."""
-    return WhoAmI(role=role.label)  # type: ignore[arg-type]
+    return WhoAmI(role=role.label)

@@ -23,7 +23,7 @@ def token_out(token: ApiToken) -> TokenOut:
     """A stored token without its secret."""
     return TokenOut(
         id=token.id,
-        role=token.role.value,  # type: ignore[arg-type]
+        role=token.role.value,
         label=token.label,
         operator=token.operator,
         created_at=token.created_at,

@@ -73,7 +73,7 @@ def run_out(
         id=run.id,
         unit_serial=serial,
         procedure=run.procedure,
-        kind=_kind(run, live),  # type: ignore[arg-type]
+        kind=_kind(run, live),
         state=run.state,
         progress=min(1.0, max(0.0, progress)),
         outcome=run.outcome,
@@ -130,7 +130,7 @@ def audit_out(row: RunAudit) -> AuditEntryOut:
     return AuditEntryOut(
         at=row.at,
         actor=row.actor,
-        action=row.action.value,  # type: ignore[arg-type]
+        action=row.action.value,
         state=row.state,
         detail=row.detail,
         window_index=row.window_index,

@@ -9,6 +9,7 @@ time T_c and the pose scatter, and keeps it only when it beats independent windo
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,9 +99,9 @@ def fit_slow_wander(
     g2 = float(np.median(np.sum(f * f, axis=1)))
     init = NoiseParams(tau2=np.maximum(own, floor), pose_var_rad2=max(t / g2, 1e-12))
     nugget = own[None, :, None] * np.eye(3)[None] * np.ones((m, 1, 1))
-    common = {"J_pose": J, "estimate_pose": True, "init": init, "fixed": nugget}
-    _, f0 = fit_noise(X, z, V, mid_s, corr_times_s=[0.0], **common)  # type: ignore[arg-type]
-    n1, f1 = fit_noise(X, z, V, mid_s, corr_times_s=grid, refine_corr_time=True, **common)  # type: ignore[arg-type]
+    fit = functools.partial(fit_noise, X, z, V, mid_s, J_pose=J, estimate_pose=True, init=init, fixed=nugget)
+    _, f0 = fit(corr_times_s=[0.0])
+    n1, f1 = fit(corr_times_s=grid, refine_corr_time=True)
     lr = 2.0 * (f1.loglik_reml - f0.loglik_reml)
     if lr <= WANDER_GATE or not np.any(n1.tau2 > 0):
         return None

@@ -41,6 +41,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from api.agent import fault_retry
 from api.agent.devices import bench_config_for
+from api.agent.disk_full import DiskFullWatch
 from api.certificates.issue import finish_calibration, prepare_run, unit_nominal
 from api.drift import record_drift_check
 from api.runs import resume as service_resume
@@ -157,6 +158,7 @@ class BenchAgent:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._applied: tuple[str, int, bool] | None = None  # (run id, control seq, abort sent)
+        self.disk_full = DiskFullWatch(log, f"bench agent {settings.bench_name}")
 
     def recover(self) -> list[str]:
         """Mark runs left live by a dead owner (a previous agent) ``interrupted``; their ids."""
@@ -276,13 +278,18 @@ class BenchAgent:
         self._applied = (run_id, seq, aborted)
 
     def run_forever(self) -> None:
-        """Poll until :meth:`stop`; a failing poll is logged and the next one tries again."""
+        """Poll until :meth:`stop`; a failing poll is logged and the next one tries again. A
+        full disk is logged once (then once a minute, and when it clears), not at every poll,
+        and polled less often while it lasts (:class:`~api.agent.disk_full.DiskFullWatch`)."""
         while not self._stop.is_set():
             try:
                 self.tick()
-            except Exception:
-                log.exception("bench agent %s: poll failed", self.settings.bench_name)
-            self._stop.wait(self.poll_s)
+            except Exception as exc:
+                if not self.disk_full.failed(exc):
+                    log.exception("bench agent %s: poll failed", self.settings.bench_name)
+            else:
+                self.disk_full.succeeded()
+            self._stop.wait(self.disk_full.wait_s(self.poll_s))
 
     def start(self) -> None:
         """Recover, then poll in a thread of this process."""

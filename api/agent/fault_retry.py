@@ -28,6 +28,7 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
+from api.guard import is_disk_full
 from bench.records import RunRecord, RunState
 from bench.sequencer.control import RunControl
 from db.models import Run
@@ -149,8 +150,11 @@ def schedule_logged(
     try:
         with sessions.begin() as s:
             entry = schedule(s, run_id, fault, windows, policy)
-    except Exception:
-        log.exception("run %s: could not schedule its automatic resume", run_id)
+    except Exception as exc:
+        if is_disk_full(exc):  # one line: the agent's poll says the disk is full, once a minute
+            log.error("run %s: could not schedule its automatic resume: the disk is full", run_id)
+        else:
+            log.exception("run %s: could not schedule its automatic resume", run_id)
         return None
     if entry is None:
         log.error("run %s: %s; automatic resumes spent, it waits for an operator", run_id, fault)

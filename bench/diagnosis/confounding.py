@@ -109,11 +109,14 @@ def discovery(
             f"{name} (|cos| = {cos:.2f})" for cos, name in alike[:4]
         )
     step = next(s for s in state.steps if s.effect == key)
+    coefficient, coefficient_sigma = params["coefficient"], sigma["coefficient"]
+    if not isinstance(coefficient, float) or not isinstance(coefficient_sigma, float):
+        raise TypeError(f"effect {key!r}: its contract coefficient and sigma are not numbers")
     return Discovery(
         channel=CHANNELS[t.channel],
         term=t.term,
-        coefficient=float(params["coefficient"]),  # type: ignore[arg-type]
-        sigma=float(sigma["coefficient"]),  # type: ignore[arg-type]
+        coefficient=coefficient,
+        sigma=coefficient_sigma,
         unit=f"{channel_unit or 'channel unit'} per {t.unit}",
         delta_bic=float(seq[k + 1].bic - seq[k].bic),
         residual_rms_after=float(np.sqrt(np.mean(seq[k + 1].resid ** 2))),

@@ -9,9 +9,11 @@ recording that has gone missing or cannot be read 422 naming the file.
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Query, Response, status
+from fastapi.responses import FileResponse
 from sqlalchemy.orm import Session
 
 from api.deps import SessionDep, ViewerDep, ViewerLinkDep
@@ -21,6 +23,7 @@ from api.plots.run_bundle import BundleCache, RunBundle, build_bundle
 from api.plots.run_series import PreviousCalibration
 from bench.export import FORMATS, MEDIA_TYPES, SUFFIX
 from bench.fitted_model import ContractError, FittedModel
+from bench.recording.reader import sidecar_path_for
 from db.models import ACTIVE_STATES, Run
 from db.repo.certificates import certificate_of_run
 from db.repo.progress import list_windows
@@ -231,3 +234,45 @@ def export(run_id: str, fmt: str, session: SessionDep, _: ViewerLinkDep) -> Resp
     return Response(
         text, media_type=MEDIA_TYPES[fmt], headers={"Content-Disposition": f'attachment; filename="{name}"'}
     )
+
+
+RECORDING_PARTS = {"csv": ("", "text/csv"), "sidecar": (".json", "application/json")}
+"""The parts of a raw recording: the samples (CSV) and the sidecar beside it (JSON)."""
+
+
+@router.get(
+    "/api/runs/{run_id}/recording/{part}",
+    response_class=FileResponse,
+    responses={
+        **_404,
+        409: {"description": "the run is live: its recording is still being written"},
+        422: {"description": "the run has no recording on this host"},
+        200: {"content": {"text/csv": {}, "application/json": {}}},
+    },
+)
+def recording(run_id: str, part: str, session: SessionDep, _: ViewerLinkDep) -> FileResponse:
+    """The run's raw recording as stored on the bench: ``csv`` (the samples) or ``sidecar`` (its
+    JSON description: channels, rates, windows, geometry), for analysis in other tools."""
+    if part not in RECORDING_PARTS:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND, f"unknown recording part {part!r}; known: {', '.join(RECORDING_PARTS)}"
+        )
+    with session.begin():
+        run = get_run(session, run_id)
+        if run is None:
+            raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
+        if run.state in ACTIVE_STATES:
+            raise HTTPException(
+                status.HTTP_409_CONFLICT,
+                f"run {run_id} is {run.state.value}: its recording is still being written",
+            )
+        path = run.recording_path
+    if not path:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id} has no recording path")
+    csv_path = Path(path)
+    file = sidecar_path_for(csv_path) if part == "sidecar" else csv_path
+    if not file.is_file():
+        raise HTTPException(
+            status.HTTP_422_UNPROCESSABLE_CONTENT, f"run {run_id}: {file.name} is not on this host"
+        )
+    return FileResponse(file, media_type=RECORDING_PARTS[part][1], filename=f"{run_id}{file.suffix}")

@@ -10,7 +10,10 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from api.schemas.common import stored_text
 
-LINK_PATH_PATTERN = r"^/api/runs/[A-Za-z0-9._~%-]{1,200}/(events|certificate\.pdf|export/[a-z-]{1,20})$"
+LINK_PATH_PATTERN = (
+    r"^/api/runs/[A-Za-z0-9._~%-]{1,200}/"
+    r"(events|certificate\.pdf|export/[a-z-]{1,20}|recording/(csv|sidecar))$"
+)
 
 
 class Health(BaseModel):
@@ -108,7 +111,8 @@ class LinkRequest(BaseModel):
     path: str = Field(
         pattern=LINK_PATH_PATTERN,
         max_length=300,
-        description="/api/runs/{id}/certificate.pdf, /api/runs/{id}/events or /api/runs/{id}/export/{format}",
+        description="/api/runs/{id}/certificate.pdf, /api/runs/{id}/events, /api/runs/{id}/export/{format} "
+        "or /api/runs/{id}/recording/{csv,sidecar}",
         examples=["/api/runs/R-20250101-0001/certificate.pdf"],
     )
 

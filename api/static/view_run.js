@@ -362,6 +362,9 @@ async function driftCard(run, signal) {
 async function renderResults(box, run, signal) {
   box.replaceChildren();
   const grid = h("div", { class: "grid wide" });
+  if (run.n_samples) box.append(h("p", { class: "note", id: "raw-recording" }, "Raw recording as stored: ",
+    linkAnchor(h, { download: "", "data-part": "csv" }, "samples (CSV)", `/api/runs/${enc(run.id)}/recording/csv`), " · ",
+    linkAnchor(h, { download: "", "data-part": "sidecar" }, "sidecar (JSON)", `/api/runs/${enc(run.id)}/recording/sidecar`)));
   box.append(grid);
   if (run.kind === "drift_check") grid.append(await driftCard(run, signal));
   if (run.calibration) grid.append(fitCard(run.calibration));

@@ -321,3 +321,18 @@ def test_g_check_before_uses_the_units_registered_nominal(
         [rec.accel_raw[(rec.t_s >= w.start_s) & (rec.t_s <= w.end_s)].mean(axis=0) for w in segs]
     )
     np.testing.assert_allclose(body["before_m_s2"], np.linalg.norm(means - 1.49, axis=1) / 0.0178, rtol=1e-12)
+
+
+def test_the_raw_recording_is_downloaded_as_stored(client: TestClient, example: Path) -> None:
+    csv = client.get("/api/runs/run-new/recording/csv", headers=VIEW)
+    assert csv.status_code == 200 and csv.content == example.read_bytes()
+    assert 'filename="run-new.csv"' in csv.headers["content-disposition"]
+    sidecar = client.get("/api/runs/run-new/recording/sidecar", headers=VIEW)
+    assert sidecar.status_code == 200 and sidecar.content == example.with_suffix(".json").read_bytes()
+    assert client.get("/api/runs/run-new/recording/csv").status_code == 401
+    r = client.get("/api/runs/run-new/recording/zip", headers=VIEW)
+    assert r.status_code == 404 and "csv, sidecar" in r.json()["detail"]
+    r = client.get("/api/runs/run-live/recording/csv", headers=VIEW)
+    assert r.status_code == 409 and "still being written" in r.json()["detail"]
+    r = client.get("/api/runs/run-gone/recording/csv", headers=VIEW)
+    assert r.status_code == 422 and "missing.csv is not on this host" in r.json()["detail"]

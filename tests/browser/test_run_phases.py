@@ -8,6 +8,7 @@ Against a live simulated service running static-12.
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -97,6 +98,15 @@ def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any
         cells = row.locator("td").all_inner_texts()
         value, u = cells[1], cells[2]
         assert len(value.partition(".")[2]) == len(u.partition(".")[2]), cells
+    # the raw recording: the page's signed link gives the stored samples
+    link = page.locator('#raw-recording a[data-part="csv"]')
+    expect(link).to_have_attribute("href", re.compile(rf"/api/runs/{run_id}/recording/csv\?link="))
+    href = link.get_attribute("href")
+    assert href is not None
+    got = page.request.get(f"{service}/{href.lstrip('/')}")
+    stored = httpx.get(f"{service}/api/runs/{run_id}/recording/csv", headers=VIEW)
+    assert got.status == 200 and got.body() == stored.content
+    assert stored.content.count(b"\n") > run["n_samples"]  # the header and every sample
     # the windows' means on the page are the stored ones
     stored = {w["index"] + 1: w["means"] for w in run["windows"]}
     for row in page.locator("#windows tbody tr").all():

@@ -26,7 +26,7 @@ from bench.calibration.result import CalibrationResult, WindowResult, zero_redun
 from bench.calibration.windows import choose_windows, known_specific_force, unused_warning, window_means
 from bench.estimation.dynamic_batch import BiasReference
 from bench.estimation.g_check import correct, g_check
-from bench.estimation.scalar_fit import fit_scalar
+from bench.estimation.scalar_fit import fit_scalar, floor_by_sandwich
 from bench.estimation.scalar_wander import scalar_wander
 from bench.estimation.static_fit import fit_static
 from bench.recording import G0_M_S2, Recording
@@ -84,7 +84,7 @@ def calibrate_static(
         bias, K, cov = sf.bias, sf.L, sf.cov
         wander = scalar_wander(sf, y, g, mid_s)
         if wander is not None:  # windows sharing a slow wander: their errors are not independent
-            cov = wander.cov
+            cov = floor_by_sandwich(wander.cov, sf.sandwich_cov)
         reference = "long_run" if wander is not None else "run_mean"
         sig = np.sqrt(np.diag(cov))
         bias_sigma, K_sigma = sig[:3], np.zeros((3, 3))

@@ -16,7 +16,10 @@ Weighted Gauss-Newton (scipy ``least_squares``, analytic Jacobian):
 
 with the variance of r_w from the window-mean covariance V_w: σ_w² = nᵀ L⁻¹ V_w L⁻ᵀ n,
 plus an additive between-window variance (Paule-Mandel, as in ``window_noise``) when
-the windows scatter more than their noise. Covariance (Jᵀ W J)⁻¹. Needs ≥ 9 windows,
+the windows scatter more than their noise. Covariance (Jᵀ W J)⁻¹, each variance at least the
+sandwich's over windows (White's HC1), which carries a scatter that differs between windows
+(motion in the windows near one pose) with its leverage; a fixed error that follows the pose
+is absorbed into b and L and reaches neither (docs/noise-model.md). Needs ≥ 9 windows,
 and more (imu_tk asks for ≥ 12, well spread) for a useful redundancy.
 """
 
@@ -49,6 +52,8 @@ class ScalarFit:
     :param chi2: Σ r² / σ_w² against the within-window noise alone.
     :param dof: m − 9.
     :param excess_var_m_s2: additive between-window variance (m/s²)².
+    :param sandwich_cov: (9, 9) the sandwich covariance over windows (:func:`window_sandwich`);
+        ``cov``'s variances are at least its.
     """
 
     bias: FloatArray
@@ -59,6 +64,7 @@ class ScalarFit:
     chi2: float
     dof: int
     excess_var_m_s2: float
+    sandwich_cov: FloatArray
 
     @property
     def sigma(self) -> FloatArray:
@@ -113,6 +119,25 @@ def _excess(r: FloatArray, sig2: FloatArray, dof: int) -> float:
     if dof <= 0:
         return 0.0
     return solve_decreasing(lambda t: float(np.sum(r**2 / (sig2 + t))), dof, float(np.median(sig2)))
+
+
+def window_sandwich(cov: FloatArray, Jw: FloatArray, rw: FloatArray) -> FloatArray:
+    """(p, p) sandwich covariance over windows (White's HC1): the windows' weighted residuals
+    ``rw`` (m,) stand in for their own variance, so a misfit that differs between windows
+    (motion in some, errors that follow the pose) reaches the parameters with its leverage.
+
+        S = C (Σ_w j_w j_wᵀ r̃_w²) C · m / (m − p),   C = (J̃ᵀ J̃)⁻¹,  j_w the rows of ``Jw`` (m, p).
+    """
+    m, p = Jw.shape
+    meat = (Jw * rw[:, None]).T @ (Jw * rw[:, None])
+    return np.asarray(cov @ meat @ cov * (m / max(m - p, 1)), dtype=float)
+
+
+def floor_by_sandwich(cov: FloatArray, sandwich: FloatArray) -> FloatArray:
+    """``cov`` (p, p) scaled so that each variance is at least the sandwich's (correlations kept):
+    D C D with D = diag(max(1, √(S_ii / C_ii)))."""
+    d = np.sqrt(np.maximum(1.0, np.diag(sandwich) / np.diag(cov)))
+    return np.asarray(cov * np.outer(d, d), dtype=float)
 
 
 def _initial_guess(y: FloatArray, g: float) -> FloatArray:
@@ -184,13 +209,16 @@ def fit_scalar(y_mean: FloatArray, y_cov: FloatArray, g_local_m_s2: float) -> Sc
             "the static windows' orientations are too poorly spread to determine bias and scale "
             "from |f| = g alone (Jacobian rank-deficient): add orientations covering all axes"
         )
-    cov = np.linalg.inv(Jw.T @ Jw)
+    cov: FloatArray = np.asarray(np.linalg.inv(Jw.T @ Jw), dtype=float)
+    sandwich = window_sandwich(cov, Jw, r / np.sqrt(sig2 + tau2))
+    cov = floor_by_sandwich(cov, sandwich)
     b, L = _unpack(theta)
     sign = np.sign(np.diag(L))  # L Lᵀ is unchanged by flipping a column's sign
     L = L * sign[None, :]
-    cov = cov * np.outer(
+    flip = np.outer(
         np.concatenate([np.ones(3), sign[_TRIL[1]]]), np.concatenate([np.ones(3), sign[_TRIL[1]]])
     )
+    cov, sandwich = cov * flip, sandwich * flip
     return ScalarFit(
         bias=b,
         L=L,
@@ -200,4 +228,5 @@ def fit_scalar(y_mean: FloatArray, y_cov: FloatArray, g_local_m_s2: float) -> Sc
         chi2=float(np.sum(r**2 / sig2)),
         dof=m - 9,
         excess_var_m_s2=float(tau2),
+        sandwich_cov=0.5 * (sandwich + sandwich.T),
     )

@@ -365,7 +365,7 @@ class Sequencer:
             self.notify("on_chunk", self.start.run_id, chunk)
         self.notify("on_window", self.start.run_id, rec)
         self.next_window = rec.index + 1
-        self.eta.window_done(rec.index, self.now_s - self.held_s)
+        self.eta.window_done(rec.index, self.now_s - self.held_s, rec.end_s - rec.start_s)
         return rec
 
     # -- life cycle ----------------------------------------------------------------------

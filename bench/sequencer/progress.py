@@ -2,23 +2,26 @@
 time from measured rates.
 
 The nominal schedule is the procedure's preview (:func:`bench.procedures.preview.preview`)
-with the dwell the run actually uses once it is chosen: ``E_j`` (s) the nominal end of window
-``j``, ``T`` the nominal end of the procedure. With ``a`` the last window done before this
-process started (``E_a = 0`` for a fresh run, working time ``w_a`` then), ``d`` the last window
-done since, at working time ``w_d`` (recording clock minus time held), the measured ratio of
-actual to nominal time is
+with the dwell the run actually uses once it is chosen: window ``j`` lasts ``D_j`` (s), ends
+at ``E_j``, and is preceded by the gap ``G_j = E_j − D_j − E_{j−1}`` (moves, settling,
+spin-up, stopping: what the preview cannot know; ``E_{−1} = 0``); ``T`` is the nominal end.
+A window lasts what its sample count says, so only the gaps are scaled, each by the measured
+ratio of actual to nominal gap time of windows of its kind (static, rate, oscillation: their
+gaps differ in nature), shrunk towards the ratio of all kinds pooled while the kind has little
+measured time::
 
-    r = (w_d − w_a) / (E_d − E_a)          (r = 1 before the first window is done),
+    r_pool = (ΣA + c) / (ΣN + c),     r_k = (A_k + c·r_pool) / (N_k + c),
 
-and the remaining working time at working time ``w`` is the remaining steps' nominal duration
-scaled by it,
+with ``A_k``, ``N_k`` the actual and nominal gap time of the windows of kind ``k`` this process
+completed (working time: recording clock minus time held) and ``c = 0.1·ΣG`` (s) the weight of
+the prior ratio 1. After window ``d``, done at working time ``w_d``, the remaining working time
+at working time ``w`` is
 
-    remaining = max(r·(T − E_{d+1}), w_d + r·(T − E_d) − w),
+    rest(k) = Σ_{j>k} (D_j + r_{kind j}·G_j) + r_pool·(T − E_last),
+    remaining = max(rest(d + 1), w_d + rest(d) − w),
 
-the floor being the nominal rest after the window in progress (a window that overruns keeps
-the estimate from reaching zero early). The ratio absorbs what the preview cannot know (move
-and settling times of the real table, re-measured windows), so the estimate converges on the
-truth as windows complete; the benchmark ``benchmarks/bench_eta.py`` measures it.
+the floor being the rest after the window in progress (a window that overruns keeps the
+estimate from reaching zero early). The benchmark ``benchmarks/bench_eta.py`` measures it.
 """
 
 from __future__ import annotations
@@ -41,6 +44,9 @@ class RemainingTime:
     :param dwell_s: the dwell chosen, ``None`` until known.
     """
 
+    PRIOR_FRACTION = 0.1
+    """Weight of the prior ratio 1, as a fraction of the run's nominal gap time."""
+
     def __init__(
         self,
         procedure: Procedure,
@@ -53,40 +59,63 @@ class RemainingTime:
         self.first_window, self.start_work_s = first_window, start_work_s
         self.done_window: int | None = None
         self.done_work_s = start_work_s
+        self._actual: dict[str, float] = {}
+        self._nominal: dict[str, float] = {}
         self.set_dwell(dwell_s)
 
     def set_dwell(self, dwell_s: float | None) -> None:
         """Re-plan the nominal schedule with the dwell the run uses (s)."""
         pv = preview(self._procedure, self._limits, provisional_dwell_s=dwell_s or PROVISIONAL_DWELL_S)
         self.ends_s = tuple(w.start_s + w.duration_s for w in pv.windows)
+        self.lengths_s = tuple(w.duration_s for w in pv.windows)
+        self.gaps_s = tuple(
+            max(0.0, w.start_s - (self.ends_s[i - 1] if i else 0.0)) for i, w in enumerate(pv.windows)
+        )
+        self.kinds = tuple(w.kind.value for w in pv.windows)
         self.total_s = pv.duration_s
 
-    def window_done(self, index: int, work_s: float) -> None:
-        """Window ``index`` completed at working time ``work_s`` (s)."""
-        if index >= self.first_window:
-            self.done_window, self.done_work_s = index, work_s
+    def window_done(self, index: int, work_s: float, recorded_s: float) -> None:
+        """Window ``index`` completed at working time ``work_s`` after ``recorded_s`` s of it."""
+        if index < self.first_window or index >= len(self.gaps_s):
+            return
+        previous_s = self.done_work_s if self.done_window is not None else self.start_work_s
+        kind = self.kinds[index]
+        self._actual[kind] = self._actual.get(kind, 0.0) + max(0.0, work_s - recorded_s - previous_s)
+        self._nominal[kind] = self._nominal.get(kind, 0.0) + self.gaps_s[index]
+        self.done_window, self.done_work_s = index, work_s
 
-    def _end(self, index: int) -> float:
-        if index < 0 or not self.ends_s:
-            return 0.0
-        return self.ends_s[min(index, len(self.ends_s) - 1)]
+    def _prior_s(self) -> float:
+        return self.PRIOR_FRACTION * sum(self.gaps_s)
 
     @property
     def ratio(self) -> float:
-        """Measured actual / nominal time over the windows this process completed (1 before)."""
-        if self.done_window is None:
-            return 1.0
-        nominal = self._end(self.done_window) - self._end(self.first_window - 1)
-        actual = self.done_work_s - self.start_work_s
-        return actual / nominal if nominal > 0 and actual > 0 else 1.0
+        """Measured actual / nominal gap time over every kind, pulled towards 1 (``r_pool``)."""
+        c = self._prior_s()
+        actual, nominal = sum(self._actual.values()), sum(self._nominal.values())
+        return (actual + c) / (nominal + c) if nominal + c > 0 else 1.0
+
+    def kind_ratio(self, kind: str) -> float:
+        """``r_k`` of the module's equation for windows of ``kind`` (a WindowKind value)."""
+        c, pool = self._prior_s(), self.ratio
+        nominal = self._nominal.get(kind, 0.0)
+        return (self._actual.get(kind, 0.0) + c * pool) / (nominal + c) if nominal + c > 0 else pool
+
+    def _rest(self, k: int) -> float:
+        ratios = {kind: self.kind_ratio(kind) for kind in set(self.kinds[k + 1 :])}
+        rest = sum(
+            d + ratios[kind] * g
+            for d, g, kind in zip(
+                self.lengths_s[k + 1 :], self.gaps_s[k + 1 :], self.kinds[k + 1 :], strict=True
+            )
+        )
+        tail = self.total_s - (self.ends_s[-1] if self.ends_s else 0.0)
+        return rest + self.ratio * max(0.0, tail)
 
     def remaining_s(self, work_s: float) -> float:
         """Remaining working time (s) at working time ``work_s`` (the module's equation)."""
-        r = self.ratio
         last = self.first_window - 1 if self.done_window is None else self.done_window
-        anchor_work = self.done_work_s
-        projected = anchor_work + r * (self.total_s - self._end(last)) - work_s
-        floor = r * (self.total_s - self._end(last + 1)) if last + 1 < len(self.ends_s) else 0.0
+        projected = self.done_work_s + self._rest(last) - work_s
+        floor = self._rest(last + 1) if last + 1 < len(self.ends_s) else 0.0
         return max(0.0, floor, projected)
 
 

@@ -58,29 +58,76 @@ def test_the_gap_hook_is_optional() -> None:
     assert seen == [("r2", GAP)]
 
 
-def test_a_run_at_a_steady_pace_is_predicted_exactly_from_its_first_window() -> None:
-    """A run taking r times every nominal duration ends at r·T: from the first window done, the
-    remaining time is that end minus the working time so far."""
+class NoPrior(RemainingTime):
+    PRIOR_FRACTION = 0.0
+
+
+def _actual_end(pv, k: int, r: float) -> float:
+    """End of window k when windows last their length and everything else r times nominal."""
+    windows = sum(w.duration_s for w in pv.windows[: k + 1])
+    return windows + r * ((pv.windows[k].start_s + pv.windows[k].duration_s) - windows)
+
+
+def test_moves_at_a_steady_pace_are_predicted_exactly_from_the_first_move_measured() -> None:
+    """Moves and settling taking r times their nominal time, windows their length: the run ends
+    at ΣD + r·(T − ΣD), and the remaining time is that end minus the working time so far."""
     proc = build_procedure("static-12", settle_s=0.2, noise_window_s=30.0)
     pv = preview(proc, provisional_dwell_s=5.0)
-    ends = [w.start_s + w.duration_s for w in pv.windows]
-    eta = RemainingTime(proc, dwell_s=5.0)
+    windows = sum(w.duration_s for w in pv.windows)
+    eta = NoPrior(proc, dwell_s=5.0)
     assert eta.remaining_s(0.0) == pytest.approx(pv.duration_s)  # nothing measured: the preview
-    r = 0.7
-    for k in (0, 3, 9):
-        eta.window_done(k, r * ends[k])
-        assert eta.ratio == pytest.approx(r)
-        assert eta.remaining_s(r * ends[k]) == pytest.approx(r * pv.duration_s - r * ends[k])
-    # part way to the next window's end: the same end, nearer
-    w = r * (ends[9] + 0.5 * (ends[10] - ends[9]))
-    assert eta.remaining_s(w) == pytest.approx(r * pv.duration_s - w)
+    r = 4.0
+    end = windows + r * (pv.duration_s - windows)
+    for k in range(0, 10):
+        eta.window_done(k, _actual_end(pv, k, r), pv.windows[k].duration_s)
+    assert eta.ratio == pytest.approx(r)
+    w9 = _actual_end(pv, 9, r)
+    assert eta.remaining_s(w9) == pytest.approx(end - w9)
+    w = w9 + 0.5 * (_actual_end(pv, 10, r) - w9)  # part way to the next window's end
+    assert eta.remaining_s(w) == pytest.approx(end - w)
+
+
+def test_the_prior_pulls_an_early_ratio_towards_one() -> None:
+    proc = build_procedure("static-12", settle_s=0.2, noise_window_s=30.0)
+    pv = preview(proc, provisional_dwell_s=5.0)
+    eta = RemainingTime(proc, dwell_s=5.0)
+    last = pv.windows[-1]
+    c = 0.1 * (last.start_s + last.duration_s - sum(w.duration_s for w in pv.windows))  # 0.1·ΣG
+    nominal_0 = pv.windows[0].start_s  # the time before the first window
+    eta.window_done(0, 10.0 * nominal_0 + pv.windows[0].duration_s, pv.windows[0].duration_s)
+    assert eta.ratio == pytest.approx((10.0 * nominal_0 + c) / (nominal_0 + c))
+
+
+def test_each_kind_of_window_has_its_own_ratio() -> None:
+    """rate-1axis with static approaches on time and rate approaches (stop, move, spin-up) 3
+    times their nominal time: each kind's ratio is measured, and the remaining time is the
+    rate windows' at 3 times, the static ones' at 1."""
+    proc = build_procedure("rate-1axis")
+    eta = NoPrior(proc, dwell_s=20.0)
+    pv = preview(proc, provisional_dwell_s=20.0)
+    ratio = {"rate": 3.0}
+    w = 0.0
+    actual = []
+    for k, win in enumerate(pv.windows):
+        gap = win.start_s - (pv.windows[k - 1].start_s + pv.windows[k - 1].duration_s if k else 0.0)
+        w += ratio.get(win.kind.value, 1.0) * gap + win.duration_s
+        actual.append(w)
+    d = next(k for k, win in enumerate(pv.windows) if k > 10 and win.kind.value == "rate")
+    for k in range(d + 1):
+        eta.window_done(k, actual[k], pv.windows[k].duration_s)
+    assert eta.kind_ratio("rate") == pytest.approx(3.0)
+    assert eta.kind_ratio("static") == pytest.approx(1.0)
+    tail = pv.duration_s - eta.ends_s[-1]
+    assert eta.remaining_s(actual[d]) == pytest.approx(actual[-1] - actual[d] + eta.ratio * tail)
 
 
 def test_an_overrunning_window_keeps_the_rest_of_the_procedure_as_remaining() -> None:
     proc = build_procedure("static-12", settle_s=0.2, noise_window_s=30.0)
-    eta = RemainingTime(proc, dwell_s=5.0)
+    eta = NoPrior(proc, dwell_s=5.0)
     ends, total = eta.ends_s, eta.total_s
-    eta.window_done(4, ends[4])
+    for k in range(5):  # on schedule to window 4
+        eta.window_done(k, ends[k], eta.lengths_s[k])
+    assert eta.ratio == pytest.approx(1.0, abs=1e-6)
     # far past the projected end while window 5 is recorded: what follows window 5 is left
     assert eta.remaining_s(10 * total) == pytest.approx(total - ends[5])
 
@@ -90,13 +137,17 @@ def test_the_dwell_chosen_replans_and_a_resumed_run_measures_its_own_pace() -> N
     eta = RemainingTime(proc)  # no dwell yet: the preview's provisional one
     assert eta.total_s == pytest.approx(preview(proc).duration_s)
     eta.set_dwell(3.0)
-    assert eta.total_s == pytest.approx(preview(proc, provisional_dwell_s=3.0).duration_s)
-    # resumed at window 5 with 1000 s on the clock; twice the nominal time since
-    res = RemainingTime(proc, first_window=5, start_work_s=1000.0, dwell_s=3.0)
-    ends, total = res.ends_s, res.total_s
-    res.window_done(7, 1000.0 + 2.0 * (ends[7] - ends[4]))
+    pv = preview(proc, provisional_dwell_s=3.0)
+    assert eta.total_s == pytest.approx(pv.duration_s)
+    # resumed at window 5 with 1000 s on the clock; moves twice their nominal time since
+    res = NoPrior(proc, first_window=5, start_work_s=1000.0, dwell_s=3.0)
+    base = _actual_end(pv, 4, 2.0)
+    for k in (5, 6, 7):
+        res.window_done(k, 1000.0 + _actual_end(pv, k, 2.0) - base, pv.windows[k].duration_s)
     assert res.ratio == pytest.approx(2.0)
-    assert res.remaining_s(1000.0 + 2.0 * (ends[7] - ends[4])) == pytest.approx(2.0 * (total - ends[7]))
+    end = 1000.0 + _actual_end(pv, len(pv.windows) - 1, 2.0) - base + 2.0 * (pv.duration_s - res.ends_s[-1])
+    w = 1000.0 + _actual_end(pv, 7, 2.0) - base
+    assert res.remaining_s(w) == pytest.approx(end - w)
 
 
 def test_the_progress_event_counts_working_time_only() -> None:

@@ -16,6 +16,9 @@ an admin token is generated and printed once on stderr (it may also create datab
 at ``/api/tokens``), so there is never an unauthenticated write endpoint; with ``--sim``
 and no tokens, reads are also opened (``CALBENCH_PUBLIC_READ`` set explicitly wins) so the
 dashboard of a development bench opens without a token.
+
+A client gets :data:`api.slow_clients.HEADER_READ_TIMEOUT_S` to send a request's headers
+(:mod:`api.slow_clients`); a stalled body is cut by :mod:`api.guard`.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from api.auth import new_secret, parse_tokens
 from api.cli import BadInput
 from api.drift import parse_time_of_day
 from api.settings import Settings
+from api.slow_clients import PROTOCOL
 from api.startup_check import check_configuration
 
 if TYPE_CHECKING:
@@ -231,11 +235,14 @@ def run(args: argparse.Namespace) -> int:
                 host=args.host,
                 port=args.port,
                 log_level=args.log_level,
+                http=PROTOCOL,
             )
         else:
             stop_agent = supervisor.stop if supervisor is not None else None
             app = create_app(settings, extra_tokens=generated, on_shutdown=stop_agent)
-            server_config = uvicorn.Config(app, host=args.host, port=args.port, log_level=args.log_level)
+            server_config = uvicorn.Config(
+                app, host=args.host, port=args.port, log_level=args.log_level, http=PROTOCOL
+            )
             uvicorn.Server(server_config).run(sockets=[sock])
     finally:  # also when the app never started; stopping twice is harmless
         if supervisor is not None:

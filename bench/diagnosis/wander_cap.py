@@ -8,13 +8,19 @@ process alone (block means of a first-order Gauss-Markov process),
     E[d²] = τ² g(h, T_c),
     g(h, T) = 2 [ 2 (T/h)² (h/T − 1 + e^(−h/T)) − (T/h)² (1 − e^(−h/T))² ],
 
-and the white noise only adds to it. So, with D_w = d_w² / g(h_w, T_c) pooled over the m
-windows of one channel, the upper confidence bound
+and the white noise adds w_w = 4 s_w² / n_w, s_w² = ⟨(x_{k+1} − x_k)²⟩ / 2 the window's
+sample variance read from successive differences (blind to the slow noise). Each
+channel's d_w ~ N(0, τ² g_w + w_w), nearly independent between windows, so
 
-    τ² ≤ τ²_max(T_c) = Σ_w D_w / χ²_{m}(α)     (α = ``Thresholds.cap_alpha``)
+    S(τ²) = Σ_w d_w² / (τ² g(h_w, T_c) + w_w) ~ χ²_m
 
-holds whatever the white noise is (dropping it only makes the bound looser). On a
-recording whose wander is what the noise model says, the bound lies far above the REML
+and S falls as τ² grows: the upper confidence bound τ²_max(T_c) is the root of
+S(τ²) = χ²_m(α) (α = ``Thresholds.cap_alpha``, lower-tail quantile), 0 when even
+S(0) < χ²_m(α). Positively correlated samples (a DAQ's anti-alias filter) make s_w²
+read low, which only loosens the bound; with w_w = 0 it is the white-blind bound
+Σ_w (d_w² / g_w) / χ²_m(α), which it never exceeds. Each channel is bounded by its own
+samples, so a mismatch on one channel cannot raise the slow noise the others are allowed.
+On a recording whose wander is what the noise model says, the bound lies above the REML
 estimate (inactive); on a recording whose window means disagree by more than any wander
 the within-window data allow (a hand-held unit not where its labels say), it stops the
 slow noise from absorbing that disagreement, which is then left to the effects (e.g.
@@ -24,6 +30,7 @@ slow noise from absorbing that disagreement, which is then left to the effects (
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import brentq
 from scipy.stats import chi2 as chi2_dist
 
 from bench.diagnosis.evidence import FloatArray, StaticEvidence
@@ -39,24 +46,47 @@ def half_difference_factor(h_s: FloatArray, corr_time_s: float) -> FloatArray:
     return 2.0 * (var_mean - cov_adj)
 
 
-def half_differences(ev: StaticEvidence) -> tuple[FloatArray, FloatArray] | None:
-    """Squared half-window differences d_w² (m', 3) and half lengths h_w (m',) in s.
+def half_differences(ev: StaticEvidence) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+    """Squared half-window differences d_w² (m', 3), half lengths h_w (m',) in s and the white
+    noise's share of d_w², w_w = 4 s_w² / n_w (m', 3), of the module docstring.
 
     ``None`` when the evidence carries no window samples or fewer than two usable windows.
     """
     if ev.window_samples is None or ev.sample_rate_hz is None:
         return None
-    d2, h = [], []
+    d2, h, w = [], [], []
     for x in ev.window_samples:
         n = x.shape[0] // 2
         if n < 2:
             continue
         d = x[n : 2 * n].mean(axis=0) - x[:n].mean(axis=0)
+        s2 = np.mean(np.diff(x[: 2 * n], axis=0) ** 2, axis=0) / 2.0
         d2.append(d * d)
         h.append(n / ev.sample_rate_hz)
+        w.append(2.0 * s2 / n)
     if len(d2) < 2:
         return None
-    return np.array(d2), np.array(h)
+    return np.array(d2), np.array(h), np.array(w)
+
+
+def upper_bound(d2: FloatArray, g: FloatArray, w: FloatArray, q: float) -> float:
+    """Root τ² ≥ 0 of Σ d2 / (τ² g + w) = q for one channel (d2, g, w: (m,)); 0 if none.
+
+    S(τ²) of the module docstring falls monotonically from S(0) to 0, so the root is unique.
+    """
+    if not np.any(d2 > 0):
+        return 0.0
+
+    def excess(t2: float) -> float:
+        return float(np.sum(d2 / (t2 * g + w))) - q
+
+    hi = float(np.sum(d2 / g)) / q  # the white-blind bound: S(hi) ≤ q there
+    lo = 0.0 if np.all(w > 0) else 1e-12 * hi  # S(0) is infinite where a window has w = 0
+    if excess(lo) <= 0:
+        return lo
+    if excess(hi) >= 0:
+        return hi
+    return float(brentq(excess, lo, hi, xtol=1e-6 * hi, rtol=1e-10))
 
 
 class SlowNoiseCap:
@@ -70,9 +100,10 @@ class SlowNoiseCap:
         """(3,) upper bound τ²_max per channel (channel units²); ``None`` if it cannot be formed."""
         if self._hd is None or corr_time_s <= 0:
             return None
-        d2, h = self._hd
-        D = d2 / half_difference_factor(h, corr_time_s)[:, None]
-        return np.asarray(D.sum(axis=0) / float(chi2_dist.ppf(self._alpha, D.shape[0])), dtype=float)
+        d2, h, w = self._hd
+        g = half_difference_factor(h, corr_time_s)
+        q = float(chi2_dist.ppf(self._alpha, d2.shape[0]))
+        return np.array([upper_bound(d2[:, c], g, w[:, c], q) for c in range(d2.shape[1])])
 
 
 def slow_noise_cap(ev: StaticEvidence, corr_time_s: float, th: Thresholds = THRESHOLDS) -> FloatArray | None:

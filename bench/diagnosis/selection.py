@@ -202,7 +202,30 @@ def _structured(
             and abs(float(sig(a[1]) @ s_top)) > th.alike_cosine
         ]
         best = min(alike, key=lambda a: (simplicity.get(a[1].label, 0), -a[3][1].loglik_ml))
+    else:
+        # effects whose signatures coincide beyond the model and fit alike are a tie, not a
+        # choice the data make: the one listed first in the pool (the catalogue's order) enters
+        alike = [
+            a
+            for a in admissible
+            if a[0] <= best[0] + th.tie_chi2 and same_signature(ev, K, X, a[1], best[1], th)
+        ]
+        best = min(alike, key=lambda a: tried.index(a[1]))
     return best
+
+
+def same_signature(
+    ev: StaticEvidence, K: FloatArray, X: FloatArray, a: Candidate, b: Candidate, th: Thresholds
+) -> bool:
+    """Whether every column of ``a`` lies in ``b``'s span beyond X, to |cos| > 1 − ``th.alias_tol``."""
+    if a is b:
+        return True
+    Qx, _ = np.linalg.qr(X)
+    A, B = a.columns(ev, K), b.columns(ev, K)
+    A, B = A - Qx @ (Qx.T @ A), B - Qx @ (Qx.T @ B)
+    Qb, _ = np.linalg.qr(B)
+    na = np.maximum(np.linalg.norm(A, axis=0), 1e-300)
+    return bool(np.all(np.linalg.norm(Qb.T @ A, axis=0) / na > 1.0 - th.alias_tol))
 
 
 def _swap(

@@ -70,7 +70,8 @@ class Thresholds:
     terms; each degree multiplies the terms tried, and so tightens the library's gate."""
     alias_tol: float = 1e-6
     """Two monomials whose signatures beyond the first-order model have |cos| > 1 − this are one
-    term (f_x·f_y² and f_x on the ±g poses)."""
+    term (f_x·f_y² and f_x on the ±g poses); two effects whose columns coincide so, and fit
+    within ``tie_chi2``, are a tie the catalogue's order decides."""
     min_temperature_span_c: float = 0.05
     """Temperature must vary by more than this over the windows (°C) to say anything about a
     temperature coefficient (below it the channel's own resolution makes the span)."""

@@ -74,10 +74,23 @@ def runs(
     unit_serial: Annotated[str | None, Query(max_length=64)] = None,
     state: RunStateName | None = None,
     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+    offset: Annotated[int, Query(ge=0, description="runs skipped from the newest (paging)")] = 0,
+    procedure: Annotated[str | None, Query(max_length=64)] = None,
+    q: Annotated[str | None, Query(max_length=64, description="text in the run id or unit serial")] = None,
 ) -> list[RunOut]:
-    """Runs, newest first (queued ones included: every run is stored from its request on)."""
+    """Runs, newest first (queued ones included: every run is stored from its request on),
+    filtered by unit, state, procedure and a text in the run id or serial; paged by
+    ``limit`` and ``offset``."""
     with session.begin():
-        rows = list_runs(session, unit_serial=unit_serial, states=[state] if state else None, limit=limit)
+        rows = list_runs(
+            session,
+            unit_serial=unit_serial,
+            states=[state] if state else None,
+            limit=limit,
+            offset=offset,
+            procedure=procedure,
+            search=q,
+        )
         ids = [r.id for r in rows]
         found = session.execute(
             sa.select(Certificate.run_id, Certificate.number).where(Certificate.run_id.in_(ids))

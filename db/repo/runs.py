@@ -81,19 +81,41 @@ def list_runs(
     states: Collection[RunState] | None = None,
     bench_id: int | None = None,
     limit: int | None = None,
+    offset: int = 0,
+    procedure: str | None = None,
+    search: str | None = None,
 ) -> list[Run]:
-    """Runs, newest first, with ``run.unit`` and ``run.bench`` loaded."""
+    """Runs, newest first, with ``run.unit`` and ``run.bench`` loaded.
+
+    :param offset: runs skipped from the newest (paging with ``limit``).
+    :param procedure: only runs of this procedure.
+    :param search: only runs whose id or unit serial contains this text (case-insensitive).
+    """
     stmt = (
         sa.select(Run)
         .options(selectinload(Run.unit), selectinload(Run.bench))
         .order_by(Run.created_at.desc(), Run.id.desc())
     )
+    if unit_serial is not None or search:
+        stmt = stmt.join(Unit, Run.unit_id == Unit.id)
     if unit_serial is not None:
-        stmt = stmt.join(Unit, Run.unit_id == Unit.id).where(Unit.serial == unit_serial)
+        stmt = stmt.where(Unit.serial == unit_serial)
+    if search:
+        pattern = "%" + search.lower().replace("\\", "\\\\").replace("%", "\\%").replace("_", "\\_") + "%"
+        stmt = stmt.where(
+            sa.or_(
+                sa.func.lower(Run.id).like(pattern, escape="\\"),
+                sa.func.lower(Unit.serial).like(pattern, escape="\\"),
+            )
+        )
+    if procedure is not None:
+        stmt = stmt.where(Run.procedure == procedure)
     if states is not None:
         stmt = stmt.where(Run.state.in_(list(states)))
     if bench_id is not None:
         stmt = stmt.where(Run.bench_id == bench_id)
+    if offset:
+        stmt = stmt.offset(offset)
     if limit is not None:
         stmt = stmt.limit(limit)
     return list(session.scalars(stmt))

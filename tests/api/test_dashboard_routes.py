@@ -336,3 +336,25 @@ def test_the_raw_recording_is_downloaded_as_stored(client: TestClient, example: 
     assert r.status_code == 409 and "still being written" in r.json()["detail"]
     r = client.get("/api/runs/run-gone/recording/csv", headers=VIEW)
     assert r.status_code == 422 and "missing.csv is not on this host" in r.json()["detail"]
+
+
+def test_runs_are_searched_filtered_and_paged(client: TestClient) -> None:
+    everything = [r["id"] for r in client.get("/api/runs", headers=VIEW, params={"limit": 1000}).json()]
+    assert len(everything) >= 4
+    # pages of two, newest first, together the whole list in order
+    pages = [
+        [r["id"] for r in client.get("/api/runs", headers=VIEW, params={"limit": 2, "offset": o}).json()]
+        for o in range(0, len(everything), 2)
+    ]
+    assert [i for p in pages for i in p] == everything and all(len(p) <= 2 for p in pages)
+    # text in the run id (case-insensitive), or in the serial; '_' and '%' are plain text
+    found = client.get("/api/runs", headers=VIEW, params={"q": "RUN-NE"}).json()
+    assert [r["id"] for r in found] == ["run-new"]
+    by_serial = {r["id"] for r in client.get("/api/runs", headers=VIEW, params={"q": "dash-1"}).json()}
+    assert {"run-old", "run-new", "run-live", "run-gone"} <= by_serial
+    assert client.get("/api/runs", headers=VIEW, params={"q": "run_new"}).json() == []
+    assert client.get("/api/runs", headers=VIEW, params={"q": "%"}).json() == []
+    live = client.get("/api/runs", headers=VIEW, params={"state": "running", "procedure": "static-12"}).json()
+    assert [r["id"] for r in live] == ["run-live"]
+    assert client.get("/api/runs", headers=VIEW, params={"procedure": "rate-1axis"}).json() == []
+    assert client.get("/api/runs", headers=VIEW, params={"offset": -1}).status_code == 422

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import t as t_dist
 
+from bench.diagnosis.dynamic_coherence import Coherence, block_coherence
 from bench.diagnosis.regressors import Correlation
 from bench.diagnosis.result import ModelSummary, Unexplained
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
@@ -47,6 +48,8 @@ class BlockSummary:
     """(3,) the final model's per-channel Σ (r/σ_w)² / (n_used − 4)."""
     final_correlations: tuple[Correlation, ...] = ()
     """Regressor correlations of the final model's block residuals."""
+    coherence: Coherence | None = None
+    """The final model's block means against their own noise (``dynamic_coherence``)."""
 
 
 def motion_regressors(
@@ -168,6 +171,7 @@ def block_summary(
         final_correlations=tuple(
             _block_correlations(summaries[1].resid, breg, F, th.correlation_significance)
         ),
+        coherence=block_coherence(summaries[1].resid, cnt, F, th.coherence_trend_degree),
     )
 
 
@@ -199,12 +203,19 @@ def _block_correlations(
 
 
 def unexplained_blocks(bs: BlockSummary, th: Thresholds) -> Unexplained | None:
-    """The final model against the samples' white noise, per channel (``th.dynamic_ratio_limit``)."""
+    """The final model against the recording's own noise, per channel: the samples' excess over
+    the white noise (``th.dynamic_ratio_limit``) and the coherence of the 1 s block means
+    (``dynamic_coherence``, lower tail at ``th.unexplained_alpha`` / 3 per channel)."""
     assert bs.final_ratio is not None
     ratio = bs.final_ratio
-    ch = int(np.argmax(ratio))
-    if ratio[ch] <= th.dynamic_ratio_limit:
+    coh = bs.coherence
+    alpha = th.unexplained_alpha / 3
+    p_coh = coh.p_value if coh is not None else np.ones(3)
+    excess = ratio > th.dynamic_ratio_limit
+    coherent = p_coh < alpha
+    if not (excess.any() or coherent.any()):
         return None
+    ch = int(np.argmin(p_coh)) if coherent.any() else int(np.argmax(ratio))
     z = bs.final.z
     w = int(np.argmax(np.abs(z[:, ch])))
     names: list[str] = []
@@ -212,15 +223,24 @@ def unexplained_blocks(bs: BlockSummary, th: Thresholds) -> Unexplained | None:
         if c.significant and f"{c.regressor} on {CHANNELS[c.channel]}" not in names:
             names.append(f"{c.regressor} on {CHANNELS[c.channel]}")
     others = ", ".join(f"{CHANNELS[i]} {ratio[i]:.2f}" for i in range(3) if i != ch)
+    coh_text = (
+        ""
+        if coh is None
+        else f"; block means coherent (von Neumann ratio {coh.ratio[ch]:.2f}, "
+        f"expected {coh.expected[ch]:.2f} "
+        f"for independent blocks, p = {p_coh[ch]:.2g})"
+    )
     return Unexplained(
         chi2_dof=float(bs.final.chi2_dof),
         test=(
-            f"per-channel sum of (residual / white sigma)^2 over its dof above {th.dynamic_ratio_limit:g} "
+            f"per channel: the {th.block_s:g} s block means' von Neumann ratio after bias, K and a "
+            f"degree-{th.coherence_trend_degree} trend, lower tail at {alpha:.2g}; and the sum of "
+            f"(residual / white sigma)^2 over its dof above {th.dynamic_ratio_limit:g} "
             "(clean simulated moving recordings: 0.93-1.10)"
         ),
-        p_value=float("nan"),
+        p_value=float(min(1.0, 3.0 * float(np.min(p_coh)))),
         where=(
-            f"{CHANNELS[ch]}: {ratio[ch]:.2f} times the white noise ({others}), strongest in the "
+            f"{CHANNELS[ch]}: {ratio[ch]:.2f} times the white noise ({others}){coh_text}, strongest in the "
             f"{th.block_s:g} s block {bs.labels[w]} (block mean {z[w, ch]:+.1f} sigma)"
         ),
         correlates_with=tuple(names),

@@ -105,6 +105,10 @@ class Thresholds:
     recordings scatter between 0.93 and 1.10 (docs/diagnose.md)."""
     block_s: float = 1.0
     """Block length (s) of a moving recording's block-mean residuals (``where``)."""
+    coherence_trend_degree: int = 3
+    """Legendre degree of the slow trend taken out of a moving residual's block means before
+    their coherence is tested (``dynamic_coherence``): the slow part of a bias wander over one
+    run; a step or a disturbance faster than a cubic over the run stays in the test."""
     where_z: float = 4.0
     """A block residual beyond this many sigmas is named in ``where`` (moving recordings)."""
     where_ratio: float = 2.0

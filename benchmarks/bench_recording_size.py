@@ -15,7 +15,12 @@ squares in log-log over the lengths).
 
 Run: ``python -m benchmarks recording_size`` (10 min, 1 h); a short check with
 ``python -m benchmarks.bench_recording_size --quick`` (2.5, 5, 10 min), or lengths in minutes
-as arguments (``python -m benchmarks.bench_recording_size 10 60``).
+as arguments (``python -m benchmarks.bench_recording_size 10 60``). Options: ``--keep-mib X``
+runs ``calibrate`` and ``diagnose`` with ``bench.estimation.motion_data.KEEP_BYTES`` lowered to
+X MiB, so the regressors' keep-or-form-per-chunk threshold falls between two short lengths and
+its cost is measured in minutes (``--keep-mib 100 2.5 5``: 2.5 min keeps its 65 MB of
+regressors, 5 min forms them per chunk); ``--only KIND`` (``static`` or ``oscillation``) and
+``--commands C,…`` restrict the sweep.
 """
 
 from __future__ import annotations
@@ -58,6 +63,11 @@ BASE_SCRIPTS = {
 """What each command's process holds before it reads a sample: its peak RSS is the base that the
 memory per sample is counted above."""
 READ_SCRIPT = "import sys; from bench.recording import read_recording; read_recording(sys.argv[1])"
+CLI_SCRIPT = (
+    "import sys; import bench.estimation.motion_data as md; md.KEEP_BYTES = int(sys.argv[1]); "
+    "from api.cli import main; sys.exit(main(sys.argv[2:]))"
+)
+"""``calbench`` with the regressors' keep threshold set to ``argv[1]`` bytes (``--keep-mib``)."""
 
 
 @dataclass(frozen=True)
@@ -118,10 +128,13 @@ def simulate(kind: str, length_s: float, seed: int = 11) -> SimulatedRun:
     return simulate_oscillation(physics, RATE_HZ, duration_s=duration)
 
 
-def command_argv(command: str, csv_path: Path) -> list[str]:
-    """The child process of ``command`` on ``csv_path``, run as a user runs it."""
+def command_argv(command: str, csv_path: Path, keep_bytes: int | None = None) -> list[str]:
+    """The child process of ``command`` on ``csv_path``, run as a user runs it (with
+    ``keep_bytes``: as :data:`CLI_SCRIPT`, the regressors kept up to that many bytes)."""
     if command == "read":
         return [sys.executable, "-c", READ_SCRIPT, str(csv_path)]
+    if keep_bytes is not None:
+        return [sys.executable, "-c", CLI_SCRIPT, str(keep_bytes), command, str(csv_path), "--json"]
     cli = Path(sys.executable).with_name("calbench")
     return [str(cli), command, str(csv_path), "--json"]
 
@@ -133,21 +146,29 @@ def growth_exponent(n: list[float], y: list[float]) -> float:
     return float(np.polyfit(np.log(n), np.log(y), 1)[0])
 
 
-def main(lengths_min: tuple[float, ...] = LENGTHS_MIN) -> None:
-    """Print the sweep (module docstring)."""
+def main(
+    lengths_min: tuple[float, ...] = LENGTHS_MIN,
+    *,
+    keep_bytes: int | None = None,
+    kinds: tuple[str, ...] = ("static", "oscillation"),
+    commands: tuple[str, ...] = COMMANDS,
+) -> None:
+    """Print the sweep (module docstring); ``keep_bytes``: :data:`CLI_SCRIPT`'s threshold."""
     base = {c: run_child([sys.executable, "-c", script]).peak_rss_bytes for c, script in BASE_SCRIPTS.items()}
     print(
         f"load average {os.getloadavg()[0]:.1f}; {RATE_HZ:.0f} Hz; base (interpreter + imports) peak RSS MB: "
         + ", ".join(f"{c} {b / 1e6:.0f}" for c, b in base.items())
     )
-    for kind in ("static", "oscillation"):
+    if keep_bytes is not None:
+        print(f"regressors kept up to {keep_bytes / 2**20:.0f} MiB ({keep_bytes // 432} samples)")
+    for kind in kinds:
         print(
             f"\n{kind}: {'length':>8} {'n':>10} {'command':>9} {'wall s':>8} {'cpu s':>8} "
             f"{'peak MB':>8} {'raw MB':>7} {'(peak-base)/raw':>15}"
         )
         ns: list[float] = []
-        cpu: dict[str, list[float]] = {c: [] for c in COMMANDS}
-        mem: dict[str, list[float]] = {c: [] for c in COMMANDS}
+        cpu: dict[str, list[float]] = {c: [] for c in commands}
+        mem: dict[str, list[float]] = {c: [] for c in commands}
         for minutes in lengths_min:
             with tempfile.TemporaryDirectory() as d:
                 path = Path(d) / f"{kind}.csv"
@@ -157,8 +178,8 @@ def main(lengths_min: tuple[float, ...] = LENGTHS_MIN) -> None:
                 raw_bytes = n * (4 + DEFAULT_AXES.shape[0] + (rec.temp_c is not None)) * 8
                 del run, rec
                 ns.append(float(n))
-                for command in COMMANDS:
-                    cost = run_child(command_argv(command, path))
+                for command in commands:
+                    cost = run_child(command_argv(command, path, keep_bytes))
                     if command != "read":
                         json.loads(cost.stdout)  # the answer is a whole JSON document
                     over = cost.peak_rss_bytes - base[command]
@@ -169,15 +190,35 @@ def main(lengths_min: tuple[float, ...] = LENGTHS_MIN) -> None:
                         f"{cost.peak_rss_bytes / 1e6:8.0f} {raw_bytes / 1e6:7.0f} {over / raw_bytes:15.2f}",
                         flush=True,
                     )
-        for command in COMMANDS:
+        for command in commands:
             a = growth_exponent(ns, cpu[command])
             b = growth_exponent(ns, mem[command])
             print(f"  {command:>9}: cpu ∝ n^{a:.2f}, peak - base ∝ n^{b:.2f}")
 
 
+def _option(args: list[str], name: str) -> str | None:
+    """Remove ``name VALUE`` from ``args`` and return VALUE (``None`` when absent)."""
+    if name not in args:
+        return None
+    i = args.index(name)
+    if i + 1 >= len(args):
+        raise SystemExit(f"bench_recording_size: {name} needs a value")
+    value = args[i + 1]
+    del args[i : i + 2]
+    return value
+
+
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "--quick"]
-    if args:
-        main(tuple(float(a) for a in args))
-    else:
-        main(QUICK_LENGTHS_MIN if "--quick" in sys.argv[1:] else LENGTHS_MIN)
+    args = sys.argv[1:]
+    keep_mib = _option(args, "--keep-mib")
+    only = _option(args, "--only")
+    picked = _option(args, "--commands")
+    quick = "--quick" in args
+    args = [a for a in args if a != "--quick"]
+    lengths = tuple(float(a) for a in args) if args else QUICK_LENGTHS_MIN if quick else LENGTHS_MIN
+    main(
+        lengths,
+        keep_bytes=None if keep_mib is None else int(float(keep_mib) * 2**20),
+        kinds=("static", "oscillation") if only is None else (only,),
+        commands=COMMANDS if picked is None else tuple(picked.split(",")),
+    )

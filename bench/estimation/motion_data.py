@@ -43,11 +43,11 @@ KINEMATICS_CHUNK = 1 << 15
 and :meth:`MotionData.take` (with their derivative windows): the rotation products, skew
 matrices and G, B before differentiation are (chunk, 3, 3) temporaries, not (n, 3, 3)."""
 KEEP_BYTES = 1 << 30
-"""The (n, 3, 3) regressors G, Ġ, B, Ḃ, G̈, B̈ of a recording up to this size (432 bytes per
-sample: 2.5 M samples, 41 min at 1 kHz) are formed once in :func:`prepare_motion` and kept;
-a longer recording forms them per chunk where they are used, each Gauss–Newton pass again
-(about half the peak memory of keeping them, four to seven times the CPU time,
-docs/benchmarks.md)."""
+"""The (n, 3, 3) regressors G, Ġ, B, Ḃ, G̈, B̈ are formed once in :func:`prepare_motion` and
+kept for the recording's first samples up to this size (432 bytes per sample: 2.5 M samples,
+41 min at 1 kHz); the samples beyond are formed per chunk where they are used, each Gauss–Newton
+pass again, so a pass costs the kept share's copy plus the rest's forming (about seven times the
+CPU time per sample, docs/benchmarks.md) and memory stays at most this size above the chunks'."""
 PREDICT_CHUNK = 1 << 15
 """Samples whose prediction or specific force :func:`predict` and :func:`specific_force` form at
 once: with ``time_skew`` the corrected regressors G_δ, B_δ and their δ-derivatives are
@@ -97,8 +97,8 @@ class MotionSamples:
 class MotionData:
     """The table motion of a whole recording, reduced to what the model needs (all (n, …)).
 
-    Holds the angles and their derivatives, and the (n, 3, 3) regressors only when they fit in
-    :data:`KEEP_BYTES` (``kept``): otherwise :meth:`take` forms them for the samples asked, bit
+    Holds the angles and their derivatives, and the (n, 3, 3) regressors of the first samples
+    that fit in :data:`KEEP_BYTES` (``kept``): :meth:`take` forms them for the other samples, bit
     for bit as a whole-recording computation would (each Savitzky–Golay output depends on the
     ``window`` samples around it, or on the first or last ``window`` samples of its stretch
     near the stretch's ends).
@@ -111,7 +111,7 @@ class MotionData:
     :param runs: [a, b) sample ranges between gaps at least ``window`` long.
     :param valid: (n,) samples the fit may use (not at a rate-profile corner).
     :param peak_rate_rad_s: max |ω| (rad/s).
-    :param kept: the regressors of every sample, formed once (``None``: formed where used).
+    :param kept: the regressors of samples [0, kept.n), formed once (``None``: all formed where used).
     """
 
     t_s: FloatArray
@@ -135,13 +135,25 @@ class MotionData:
     def take(self, idx: slice | npt.NDArray[np.int64]) -> MotionSamples:
         """G, B and their derivatives at the samples ``idx`` (a slice or index array), in its order.
 
-        From ``kept`` when the regressors are kept; otherwise formed :data:`KINEMATICS_CHUNK`
+        From ``kept`` for the samples it holds; the others formed :data:`KINEMATICS_CHUNK`
         samples of derivative windows at a time, so a slice of the whole recording holds
         (chunk, 3, 3) temporaries beside its (len(idx), 3, 3) result.
         """
-        if self.kept is not None:
+        if self.kept is not None and self.kept.n == self.n:
             return self.kept.take(idx)
         sel = np.arange(*idx.indices(self.n)) if isinstance(idx, slice) else np.asarray(idx, dtype=np.int64)
+        if self.kept is not None and np.any(sel < self.kept.n):  # the kept first samples, the rest formed
+            old = sel < self.kept.n
+            mine, rest = self.kept.take(sel[old]), self._formed(sel[~old])
+            parts = [np.empty((sel.size, 3, 3)) for _ in range(6)]
+            for name, o in zip(_REGRESSORS, parts, strict=True):
+                o[old], o[~old] = getattr(mine, name), getattr(rest, name)
+            G, G_dot, B, B_dot, G_ddot, B_ddot = parts
+            return MotionSamples(self.t_s[sel], G, G_dot, B, B_dot, G_ddot, B_ddot, self.valid[sel])
+        return self._formed(sel)
+
+    def _formed(self, sel: npt.NDArray[np.int64]) -> MotionSamples:
+        """G, B and their derivatives formed at the samples ``sel`` (index array), in its order."""
         pts, inv = np.unique(sel, return_inverse=True)
         out = [np.empty((pts.size, 3, 3)) for _ in range(6)]
         for piece in _pieces(self, pts):
@@ -212,6 +224,9 @@ class MotionData:
         for o, v in zip(out, (G, d[0], B, d[1], d[2], d[3]), strict=True):
             o[inside] = v[at]
         return tuple(out)
+
+
+_REGRESSORS = ("G", "G_dot", "B", "B_dot", "G_ddot", "B_ddot")
 
 
 def _pieces(m: MotionData, pts: npt.NDArray[np.int64]) -> list[slice]:
@@ -331,6 +346,7 @@ def prepare_motion(
         peak_rate_rad_s=peak_rate,
     )
     limit = KEEP_BYTES if keep_bytes is None else keep_bytes
-    if 6 * 9 * 8 * t.shape[0] <= limit:
-        motion = replace(motion, kept=motion.take(slice(None)))
+    n_kept = min(t.shape[0], max(limit, 0) // (6 * 9 * 8))
+    if n_kept > 0:
+        motion = replace(motion, kept=motion.take(slice(0, n_kept)))
     return motion

@@ -177,6 +177,21 @@ def test_regressors_taken_at_any_samples_are_the_whole_recording_ones(
         ms = kept.take(idx)
         for name, whole in ref.items():
             np.testing.assert_array_equal(getattr(ms, name), whole[idx], err_msg=f"kept {case} {name}")
+    part = m.runs[1][0] + 2  # a budget that keeps the first samples, up to just inside the second run
+    partly = prepare_motion(
+        rec.t_s[keep],
+        rec.table_rad_unwrapped()[keep],
+        run.axis_vectors,
+        run.mount,
+        keep_bytes=432 * part + 431,
+    )
+    assert partly.kept is not None and partly.kept.n == part
+    for case, idx in cases.items():
+        ms = partly.take(idx)
+        for name, whole in ref.items():
+            np.testing.assert_array_equal(getattr(ms, name), whole[idx], err_msg=f"partly kept {case} {name}")
+        np.testing.assert_array_equal(ms.t_s, m.t_s[idx])
+        np.testing.assert_array_equal(ms.valid, m.valid[idx])
     whole_peak = m.peak_rate_rad_s
     monkeypatch.setattr(motion_data, "KINEMATICS_CHUNK", 7)
     chunked = prepare_motion(

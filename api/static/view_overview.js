@@ -5,6 +5,7 @@ import { badge, card, h, message, progressBar, table, when } from "./dom.js";
 
 const PROCEDURES = ["static-12", "rate-1axis", "oscillation-2axis", "planned-static"];
 const LIVE = new Set(["queued", "running", "paused", "suspended"]);
+const RUN_STATES = ["queued", "running", "paused", "suspended", "interrupted", "completed", "failed", "error", "aborted"];
 const REFRESH_MS = 3000;
 
 function unitLink(serial) { return h("a", { href: `#/units/${encodeURIComponent(serial)}` }, serial); }
@@ -113,11 +114,41 @@ export async function overviewView(view, session, signal) {
   view.append(h("div", { class: "page-head" }, h("h1", {}, "Bench overview")));
   const runsBox = h("div", {}, message("Loading runs…"));
   const unitsBox = h("div", {}, message("Loading units…"));
-  view.append(h("div", { class: "grid wide" }, startForm(session), card("Units", unitsBox), h("section", { class: "card span", "aria-label": "Runs" }, h("h2", {}, "Runs"), runsBox)));
+  // search (text in the run id or serial), state filter and pages of PAGE runs
+  const PAGE = 20;
+  let offset = 0;
+  const search = h("input", { id: "runs-search", type: "search", placeholder: "run id or serial", "aria-label": "search runs", maxlength: "64" });
+  const stateSel = h("select", { id: "runs-state", "aria-label": "filter runs by state" },
+    h("option", { value: "" }, "any state"), ...RUN_STATES.map((st) => h("option", { value: st }, st)));
+  const prev = h("button", { type: "button", class: "ghost", id: "runs-prev", disabled: true }, "Newer");
+  const next = h("button", { type: "button", class: "ghost", id: "runs-next", disabled: true }, "Older");
+  const pageNote = h("span", { class: "note", id: "runs-page" });
+  const runsQuery = () => {
+    const q = new URLSearchParams({ limit: String(PAGE + 1), offset: String(offset) });
+    if (search.value.trim()) q.set("q", search.value.trim());
+    if (stateSel.value) q.set("state", stateSel.value);
+    return `/api/runs?${q}`;
+  };
+  const showRuns = (runs) => {
+    prev.disabled = offset === 0;
+    next.disabled = runs.length <= PAGE;
+    const shown = runs.slice(0, PAGE);
+    pageNote.textContent = shown.length ? `runs ${offset + 1}–${offset + shown.length}` : "";
+    const filtered = offset || search.value.trim() || stateSel.value;
+    runsBox.replaceChildren(shown.length || !filtered ? runsTable(shown) : message("No run matches."));
+  };
+  const reloadRuns = async () => { try { showRuns(await getJson(runsQuery(), { signal })); } catch (err) { if (err.name !== "AbortError") runsBox.replaceChildren(message(`Not available: ${err.message}`)); } };
+  let typing = 0;
+  search.addEventListener("input", () => { clearTimeout(typing); typing = setTimeout(() => { offset = 0; reloadRuns(); }, 250); });
+  stateSel.addEventListener("change", () => { offset = 0; reloadRuns(); });
+  prev.addEventListener("click", () => { offset = Math.max(0, offset - PAGE); reloadRuns(); });
+  next.addEventListener("click", () => { offset += PAGE; reloadRuns(); });
+  view.append(h("div", { class: "grid wide" }, startForm(session), card("Units", unitsBox), h("section", { class: "card span", "aria-label": "Runs" }, h("h2", {}, "Runs"),
+    h("p", { class: "actions runs-filter" }, search, " ", stateSel, " ", prev, " ", next, " ", pageNote), runsBox)));
   const load = async () => {
-    const [runs, units, drift] = await Promise.all([getJson("/api/runs?limit=20", { signal }), getJson("/api/units", { signal }),
+    const [runs, units, drift] = await Promise.all([getJson(runsQuery(), { signal }), getJson("/api/units", { signal }),
       getJson("/api/drift", { signal }).catch(() => null)]);
-    runsBox.replaceChildren(runsTable(runs));
+    showRuns(runs);
     const next = drift && drift.enabled && drift.next_run_at
       ? `Nightly drift check of every certified unit, on its bench: next ${when(drift.next_run_at)}${drift.pending_units.length ? ` · waiting: ${drift.pending_units.join(", ")}` : ""}. Run one now from a unit's page.`
       : "No nightly drift check is scheduled (CALBENCH_DRIFT_TIME); run one from a unit's page.";

@@ -54,7 +54,7 @@ function phaseList() {
 }
 
 function liveCard(run, session, act) {
-  const bar = progressBar(run.progress, true, "recording progress");
+  const bar = progressBar(run.progress, true, "run progress");
   const pct = h("strong", { id: "progress-text", class: "num" }, `${Math.round(run.progress * 100)} %`);
   const state = h("span", { id: "run-state" }, badge(run.state));
   const phases = phaseList();

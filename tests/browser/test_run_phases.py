@@ -134,3 +134,34 @@ def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any
     assert lo != hi, y_range
     assert console.errors == []
     ctx.close()
+
+
+def test_runs_are_searched_and_filtered_on_the_overview(service: str, browser: Any) -> None:
+    created = httpx.post(
+        f"{service}/api/runs", json={"unit_serial": "SN-PH-2", "procedure": "static-12"}, headers=OP
+    )
+    assert created.status_code == 202, created.text
+    run_id = created.json()["id"]
+    ctx = browser.new_context(viewport=DESK)
+    ctx.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
+    page = ctx.new_page()
+    console = ConsoleWatch(page)
+    page.goto(f"{service}/")
+    runs = page.locator('section[aria-label="Runs"] tbody tr')
+    expect(runs.first).to_be_visible(timeout=30_000)
+    page.fill("#runs-search", "sn-ph-2")  # the serial, any case
+    expect(runs).to_have_count(1)
+    assert run_id in runs.first.inner_text()
+    page.fill("#runs-search", "no-such-run")
+    expect(page.locator('section[aria-label="Runs"]')).to_contain_text("No run matches.")
+    page.fill("#runs-search", "")
+    page.select_option("#runs-state", "aborted")
+    expect(page.locator('section[aria-label="Runs"]')).to_contain_text("No run matches.")
+    page.select_option("#runs-state", "")
+    expect(runs.first).to_be_visible()
+    expect(page.locator("#runs-page")).to_contain_text("runs 1–")
+    assert page.locator("#runs-prev").is_disabled()
+    assert page.locator("#runs-next").is_disabled() == (runs.count() <= 20)
+    httpx.post(f"{service}/api/runs/{run_id}/abort", headers=OP)
+    assert console.errors == []
+    ctx.close()

@@ -269,13 +269,17 @@ def test_event_stream_ends_when_its_token_is_revoked(client: TestClient) -> None
     client.post(f"/api/runs/{run_id}/abort", headers=OP)
 
 
-def test_a_run_aborted_while_queued_does_not_hold_the_bench(client: TestClient) -> None:
-    """Nobody ever owned it, so nobody is storing its results: the bench is free at once."""
-    run_id = client.post(
-        "/api/runs", json={"unit_serial": "SN-QAB", "procedure": "static-12"}, headers=OP
-    ).json()["id"]
-    assert client.post(f"/api/runs/{run_id}/abort", headers=OP).json()["state"] == "aborted"
-    assert client.app.state.services.runner.current is None  # type: ignore[attr-defined]
+def test_a_run_aborted_while_queued_does_not_hold_the_bench(tmp_path: Path) -> None:
+    """Nobody ever owned it, so nobody is storing its results: the bench is free at once. The
+    agent is another process that is not running, so the run stays queued until the abort."""
+    settings = service_settings(tmp_path, agent="external")
+    with TestClient(create_app(settings, start_scheduler=False)) as client:
+        run_id = client.post(
+            "/api/runs", json={"unit_serial": "SN-QAB", "procedure": "static-12"}, headers=OP
+        ).json()["id"]
+        assert client.post(f"/api/runs/{run_id}/abort", headers=OP).json()["state"] == "aborted"
+        assert client.app.state.services.runner.current is None  # type: ignore[attr-defined]
+        assert client.get(f"/api/runs/{run_id}", headers=OP).json()["state"] == "aborted"
 
 
 def test_invalid_utf8_in_one_run_does_not_break_the_list(client: TestClient, tmp_path: Path) -> None:

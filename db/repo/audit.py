@@ -48,6 +48,22 @@ def record_action(
     return row
 
 
+def record_resume(
+    session: Session, run_id: str, actor: str, next_window_index: int, at: dt.datetime | None = None
+) -> RunAudit:
+    """The audit row of a resume asked by ``actor``: the run picks up at ``next_window_index``
+    (a queued resume and a resume claimed at once write the same row)."""
+    return record_action(
+        session,
+        run_id,
+        AuditAction.RESUME,
+        actor,
+        detail=f"from window {next_window_index}",
+        window_index=next_window_index,
+        at=at,
+    )
+
+
 def record_state(
     session: Session,
     run_id: str,

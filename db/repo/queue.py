@@ -32,7 +32,7 @@ from sqlalchemy.orm import Session
 from bench.records import HOLDING_STATES
 from db.models import SYSTEM, AuditAction, Bench, Run, RunState, SampleChunk, Unit
 from db.notify import notify_run
-from db.repo.audit import record_action, record_state
+from db.repo.audit import record_action, record_resume, record_state
 from db.repo.lease import lease_is_current
 from db.repo.recovery import ResumePoint, resume_point
 from db.types import utc_now
@@ -228,15 +228,7 @@ def queue_resume(
     run.owner_pid, run.owner_host = None, None
     run.heartbeat_at = now
     session.flush()
-    record_action(
-        session,
-        run_id,
-        AuditAction.RESUME,
-        actor,
-        detail=f"from window {point.next_window_index}",
-        window_index=point.next_window_index,
-        at=now,
-    )
+    record_resume(session, run_id, actor, point.next_window_index, at=now)
     notify_run(session, run_id)
     return point
 

@@ -22,7 +22,6 @@ from db.models import (
     AGENT,
     RESUMABLE_STATES,
     SYSTEM,
-    AuditAction,
     Run,
     RunState,
     RunWindow,
@@ -30,7 +29,7 @@ from db.models import (
 )
 from db.notify import notify_run
 from db.process import process_alive
-from db.repo.audit import record_action, record_state
+from db.repo.audit import record_resume, record_state
 from db.types import utc_now
 
 DEFAULT_STALE_AFTER_S = 300.0
@@ -202,15 +201,7 @@ def claim_for_resume(
     session.execute(
         sa.delete(SampleChunk).where(SampleChunk.run_id == run_id, SampleChunk.seq >= point.keep_chunks)
     )
-    record_action(
-        session,
-        run_id,
-        AuditAction.RESUME,
-        actor,
-        detail=f"from window {point.next_window_index}",
-        window_index=point.next_window_index,
-        at=now,
-    )
+    record_resume(session, run_id, actor, point.next_window_index, at=now)
     return point
 
 

@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-from bench.diagnosis.effects.base import Candidate, Effect, ParamSpec, first_order_design, leverage
+from bench.diagnosis.effects.base import (
+    Candidate,
+    Effect,
+    EffectKind,
+    ParamSpec,
+    first_order_design,
+    leverage,
+)
 from bench.diagnosis.effects.geometry import ENCODER_OFFSET, POSE_ERROR, TILT, pose_response
 from bench.diagnosis.effects.last_move import LAST_MOVE
 from bench.diagnosis.effects.motion import LEVER_ARM, LOWPASS, PROOF_MASS, TIME_SKEW
@@ -41,19 +48,7 @@ EFFECTS: tuple[Effect, ...] = (*CATALOGUE, *BENCH_EFFECTS)
 
 BY_ID = {e.id: e for e in EFFECTS}
 
-NEEDS_TABLE = frozenset(
-    {
-        "lever_arm",
-        "proof_mass_offsets",
-        "time_skew",
-        "table_tilt",
-        "encoder_offset",
-        "sensor_lowpass",
-        "settling",
-        "table_axis_error",
-        "hysteresis",
-    }
-)
+NEEDS_TABLE = frozenset(e.id for e in EFFECTS if e.needs_table)
 """Effects whose physics is the table's (its motion, its encoders, its base, its ringing after a
 move): never a candidate on a recording without a table, whatever the data look like."""
 
@@ -66,6 +61,7 @@ __all__ = [
     "WITH_LIBRARY",
     "Candidate",
     "Effect",
+    "EffectKind",
     "ParamSpec",
     "first_order_design",
     "leverage",

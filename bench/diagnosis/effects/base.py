@@ -1,21 +1,24 @@
 """The shape every catalogue effect shares: an id, parameters with units, an observability
 condition, a model extension, and one sentence of physics.
 
-Extensions come in three kinds:
+Extensions come in four kinds (:data:`EffectKind`), and each effect says whether its physics
+is the table's (``needs_table``: never a candidate on a recording without one):
 
 - ``columns``: the effect adds A θ to the stacked window means (linear in its parameters θ
   to first order, the columns evaluated at the current scale matrix K);
 - ``variance``: the effect adds a random term per window (``pose_error``), tested as a
   variance component;
+- ``window``: the effect is tested within each window's own samples (``settling``), not on
+  the window means;
 - ``motion``: the effect needs the table to turn while the sensor is recorded; a static
-  diagnosis reports it as not observable.
+  diagnosis reports it as not observable (a moving recording's dynamic model fits it).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -24,6 +27,9 @@ from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
 FloatArray = npt.NDArray[np.float64]
+
+EffectKind = Literal["columns", "variance", "window", "motion"]
+"""How an effect enters the model (module docstring)."""
 
 
 @dataclass(frozen=True)
@@ -64,8 +70,13 @@ class Effect(Protocol):
         ...
 
     @property
-    def kind(self) -> str:
+    def kind(self) -> EffectKind:
         """How the effect enters the model: columns, variance, window or motion."""
+        ...
+
+    @property
+    def needs_table(self) -> bool:
+        """Whether its physics is the table's (its motion, encoders, base or ringing after a move)."""
         ...
 
     @property

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec
+from bench.diagnosis.effects.base import Candidate, EffectKind, FloatArray, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.kinematics import attitude, static_specific_force
@@ -45,7 +45,8 @@ class TableTilt:
     """``table_tilt``: the base is not level."""
 
     id: str = "table_tilt"
-    kind: str = "columns"
+    kind: EffectKind = "columns"
+    needs_table: bool = True
     parameters: tuple[ParamSpec, ...] = (ParamSpec("tilt_rad", "rad", (2,)),)
     explanation: str = (
         "the table's base is not level, so gravity is not along the base z axis; it shows as "
@@ -84,7 +85,8 @@ class EncoderOffset:
     """``encoder_offset``: an axis's encoder zero is not its true zero."""
 
     id: str = "encoder_offset"
-    kind: str = "columns"
+    kind: EffectKind = "columns"
+    needs_table: bool = True
     parameters: tuple[ParamSpec, ...] = (ParamSpec("offset_deg", "deg", (-1,)),)
     explanation: str = (
         "an encoder's zero is not the axis's true zero, so every pose is off by a fixed angle "
@@ -162,7 +164,8 @@ class PoseError:
     """``pose_error``: the unit was not where the recording says in some windows."""
 
     id: str = "pose_error"
-    kind: str = "variance"
+    kind: EffectKind = "variance"
+    needs_table: bool = False
     parameters: tuple[ParamSpec, ...] = (ParamSpec("angles_rad", "rad", (-1, 2)),)
     explanation: str = (
         "the unit was not where the recording says (hand placement, a loose fixture): each "

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec, channel_column
+from bench.diagnosis.effects.base import Candidate, EffectKind, FloatArray, ParamSpec, channel_column
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
@@ -27,7 +27,8 @@ class LastMoveBias:
     """``hysteresis``: a bias step with the direction of an axis's last move (module docstring)."""
 
     id: str = "hysteresis"
-    kind: str = "columns"
+    kind: EffectKind = "columns"
+    needs_table: bool = True
     parameters: tuple[ParamSpec, ...] = (ParamSpec("half_step", "channel units", (-1, 3)),)
     explanation: str = (
         "the output remembers the direction of the table's last move (a flexure's or a cable's "

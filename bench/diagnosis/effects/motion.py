@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.diagnosis.effects.base import Candidate, ParamSpec
+from bench.diagnosis.effects.base import Candidate, EffectKind, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
@@ -26,7 +26,8 @@ class MotionEffect:
     parameters: tuple[ParamSpec, ...]
     explanation: str
     needs: str
-    kind: str = "motion"
+    kind: EffectKind = "motion"
+    needs_table: bool = True
 
     def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
         base = f"needs {self.needs}; in the static windows the table stands still"

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.diagnosis.effects.base import AXES, Candidate, FloatArray, ParamSpec, channel_column
+from bench.diagnosis.effects.base import AXES, Candidate, EffectKind, FloatArray, ParamSpec, channel_column
 from bench.diagnosis.evidence import G0_M_S2, StaticEvidence
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
@@ -55,7 +55,8 @@ class ChannelEffect:
     explanation: str
     regressor: Callable[[StaticEvidence, int], FloatArray]
     regressor_names: tuple[str, ...] = ("",)
-    kind: str = "columns"
+    kind: EffectKind = "columns"
+    needs_table: bool = False
 
     def observable(self, ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[bool, str]:
         if self.id == "temperature_bias":

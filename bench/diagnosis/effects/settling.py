@@ -60,7 +60,7 @@ from scipy.optimize import curve_fit
 from scipy.stats import binom
 from scipy.stats import f as f_dist
 
-from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec
+from bench.diagnosis.effects.base import Candidate, EffectKind, FloatArray, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 
@@ -233,7 +233,8 @@ class Settling:
     """``settling`` (module docstring)."""
 
     id: str = "settling"
-    kind: str = "window"
+    kind: EffectKind = "window"
+    needs_table: bool = True
     parameters: tuple[ParamSpec, ...] = (ParamSpec("duration_s", "s", ()),)
     explanation: str = (
         "the table structure still rings after a move when the window starts, so the first "

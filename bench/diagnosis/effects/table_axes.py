@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.diagnosis.effects.base import Candidate, FloatArray, ParamSpec
+from bench.diagnosis.effects.base import Candidate, EffectKind, FloatArray, ParamSpec
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.kinematics import attitude, static_specific_force
@@ -70,7 +70,8 @@ class TableAxisError:
     """``table_axis_error``: a table axis's direction is off by two small angles (module docstring)."""
 
     id: str = "table_axis_error"
-    kind: str = "columns"
+    kind: EffectKind = "columns"
+    needs_table: bool = True
     parameters: tuple[ParamSpec, ...] = (ParamSpec("angles_rad", "rad", (-1, 2)),)
     explanation: str = (
         "a gimbal axis of the table is not where the table's geometry says (e.g. the middle axis "

@@ -90,7 +90,7 @@ class Settings(BaseSettings):
     :param limits_file: JSON file of unit-model limits (``calbench-unit-limits/1``); ``None``:
         the one shipped with calbench (``bench/data/unit_limits.json``).
     :param limits_model: model whose limits judge a run when the unit's registration names
-        none; empty: no limits, every completed fit PASSes. A unit registered as a model the
+        none; empty: no limits, a completed fit gets no verdict. A unit registered as a model the
         limits file lacks is judged by no limits (its certificate makes no statement of conformity).
     :param upload_workers: worker processes that fit and diagnose uploaded recordings
         (``POST /api/recordings``); 0: a thread of the server (never the event loop).

@@ -190,6 +190,15 @@ class LimitsChoice:
     reason: str = ""
     known_models: tuple[str, ...] = ()
 
+    @property
+    def note(self) -> str:
+        """What a run judged by no limits shows in place of PASS or FAIL:
+        ``"no conformity statement: no limits are configured for model ADXL335"``; empty when
+        limits apply."""
+        if self.limits is not None:
+            return ""
+        return f"no conformity statement: {self.reason or 'no limits apply'}"
+
 
 def choose_limits(
     table: Mapping[str, UnitLimits], model: str | None, channel_unit: str | None, default_model: str = ""
@@ -264,10 +273,11 @@ def evaluate(
 
 def verdict(
     fit: FittedModel, limits: UnitLimits | None, uncertainties: Mapping[str, float] | None = None
-) -> tuple[Outcome, tuple[LimitCheck, ...]]:
-    """PASS when every check passes (or no limits apply), else FAIL; with the checks."""
+) -> tuple[Outcome | None, tuple[LimitCheck, ...]]:
+    """PASS when every check passes, else FAIL; with the checks. ``None`` and no checks when no
+    limits apply: a fit no limits judged has no verdict (no statement of conformity)."""
     if limits is None:
-        return Outcome.PASS, ()
+        return None, ()
     checks = evaluate(fit, limits, uncertainties)
     return (Outcome.PASS if all(c.passed for c in checks) else Outcome.FAIL), checks
 

@@ -357,7 +357,8 @@ class RunRecord:
     :param start: the run's :class:`RunStart` (of the last process that executed it).
     :param state: a final state (:meth:`RunState.finished` of the outcome), or INTERRUPTED when
         the caller could not finish.
-    :param outcome: verdict, set when final.
+    :param outcome: verdict, set when final; ``None`` for a completed fit that no limits judged
+        (``conformity_note`` says why).
     :param windows: every completed window, including those recorded before a resume.
     :param ended_at: wall-clock end (UTC).
     :param error: for ERROR: what broke and where (one line), else ``None``.
@@ -365,6 +366,8 @@ class RunRecord:
         ``calbench calibrate --json`` object), or ``None`` when no fit was made (ERROR,
         ABORTED, too few windows).
     :param limit_checks: the unit's limits evaluated on the fit (empty: no limits given).
+    :param conformity_note: for a completed fit without a verdict: ``"no conformity statement:
+        <why no limits apply>"``; empty otherwise.
     :param n_samples: samples in the recording.
     :param dwell: the dwell choice actually used.
     :param fit_covariance: (p, p) covariance of the fitted parameters, or ``None``.
@@ -383,6 +386,7 @@ class RunRecord:
     error: str | None = None
     calibration: CalibrationResult | None = None
     limit_checks: tuple[LimitCheck, ...] = ()
+    conformity_note: str = ""
     n_samples: int = 0
     dwell: DwellChoice | None = None
     fit_covariance: tuple[tuple[float, ...], ...] | None = None

@@ -107,8 +107,8 @@ class DbRunObserver(NullObserver):
     :param min_progress_interval_s: progress (and heartbeat) written at most this often (s).
     :param retries: attempts per event on ``OperationalError``; :param retry_wait_s: wait between them.
     :param clock: monotonic clock (s), replaceable in tests.
-    :param defer_final_state: a run finished with a verdict (PASS or FAIL) has its results stored
-        but its state stays live
+    :param defer_final_state: a run finished with a fit (PASS, FAIL, or completed without a
+        verdict) has its results stored but its state stays live
         (``running``, progress 1) until the caller stores what follows (the service's
         certificate) and calls :func:`finish_record` in the same transaction, so a run that
         reads ``completed`` always has them.
@@ -302,11 +302,13 @@ class DbRunObserver(NullObserver):
             run.params = {**run.params, rp.SAMPLE_GAPS: [dataclasses.asdict(g) for g in record.gaps]}
             if record.dwell is not None:
                 run.params = {**run.params, rp.DWELL: dataclasses.asdict(record.dwell)}
+            if record.conformity_note:
+                run.params = {**run.params, rp.CONFORMITY_NOTE: record.conformity_note}
             s.flush()
             if not record.state.is_final:
                 recovery.mark_run_interrupted(s, run_id, record.error or "the run stopped before finishing")
                 return
-            if self._defer_final_state and record.outcome in (br.Outcome.PASS, br.Outcome.FAIL):
+            if self._defer_final_state and record.state in (br.RunState.COMPLETED, br.RunState.FAILED):
                 run.progress = 1.0
             else:
                 finish_record(s, record)

@@ -24,7 +24,7 @@ from api.agent.verdict import finish_observers, limits_for, run_record
 from api.settings import Settings
 from bench.bench_config import apply_to_daq
 from bench.dwell_policy import fixed_dwell
-from bench.limits import UnitLimits
+from bench.limits import LimitsChoice, UnitLimits
 from bench.procedures import build_procedure, preview
 from bench.records import DwellChoice, RunRecord, RunStart, RunState, new_run_id
 from bench.run_observer import RunObserver, announce_phase
@@ -77,7 +77,8 @@ def start_run(
     :param procedure_kw: the procedure's own parameters (e.g. ``rates_deg_s``), stored with the
         run so a resume rebuilds the same steps.
     :param limits: the limits that give PASS or FAIL; default ``"settings"``:
-        :func:`limits_for` the unit's registered model; ``None``: every completed fit PASSes.
+        :func:`limits_for` the unit's registered model; ``None``: no limits, a completed fit gets
+        no verdict (no statement of conformity).
 
     :param config: sequencer deadlines and policies; default from the settings.
     :param devices: devices already open (the caller keeps them and closes them); default:
@@ -124,7 +125,11 @@ def start_run(
             bench = get_or_create_bench(s, settings.bench_name, **urls)
             unit = get_or_create_unit(s, unit_serial, channel_unit=sidecar.channel_unit, bench_id=bench.id)
             if limits == "settings":  # before the run exists: a bad limits file refuses the run
-                limits = limits_for(settings, getattr(unit, "model", None), sidecar.channel_unit)
+                choice = limits_for(settings, getattr(unit, "model", None), sidecar.channel_unit)
+            elif isinstance(limits, UnitLimits):
+                choice = LimitsChoice(limits)
+            else:
+                choice = LimitsChoice(None, "no limits were given for this run")
             queued = s.get(Run, run_id, with_for_update=True)
             if queued is None:
                 create_run(
@@ -177,9 +182,7 @@ def start_run(
             (config or _config(settings)),
             dwell,
         )
-        return execute_resumable(
-            seq, csv_path, obs, limits if isinstance(limits, UnitLimits) else None, settings
-        )
+        return execute_resumable(seq, csv_path, obs, choice, settings)
     finally:
         if owned:
             devices.close()
@@ -190,7 +193,7 @@ def execute_resumable(
     seq: Sequencer,
     csv_path: Path,
     observers: Sequence[RunObserver],
-    limits: UnitLimits | None,
+    limits: LimitsChoice,
     settings: Settings,
 ) -> RunRecord:
     """:func:`api.agent.verdict.execute`, except that a run ended by a fault the bench recovers

@@ -3,9 +3,10 @@
 run's observers, retrying one that cannot store it yet.
 
 :func:`execute` runs a prepared sequencer to its end and gives the :class:`~bench.records.RunRecord`
-(outcome PASS or FAIL from the limits, ERROR when the fit or the check fails, or the
-acquisition's own outcome) with its :class:`~bench.calibration.analysis.Analysis`, which the
-service's finish passes on; :func:`finish_observers` hands it to every observer.
+(outcome PASS or FAIL from the limits, none with a note saying why when no limits apply,
+ERROR when the fit or the check fails, or the acquisition's own outcome) with its
+:class:`~bench.calibration.analysis.Analysis`, which the service's finish passes on;
+:func:`finish_observers` hands it to every observer.
 """
 
 from __future__ import annotations
@@ -15,13 +16,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from api.certificates.budget import TypeBSettings, analysis_budget
-from api.certificates.conformity import check_uncertainties
-from api.certificates.issue import limits_model_name
+from api.certificates.conformity import check_uncertainties, limits_choice
 from api.settings import Settings
 from bench.calibration.analysis import Analysis, analyse
 from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
-from bench.limits import UnitLimits, describe, load_limits, verdict
+from bench.limits import LimitsChoice, describe, verdict
 from bench.recording.reader import read_recording
 from bench.records import Outcome, RunRecord, RunState
 from bench.run_observer import RunObserver, announce_phase
@@ -46,9 +46,12 @@ def run_record(
     acq_outcome: Outcome | None,
     error: str | None,
     csv_path: Path,
-    limits: UnitLimits | None,
+    choice: LimitsChoice,
     settings: Settings | None = None,
 ) -> RunRecord:
+    """The run's record from the acquisition's end: the fit and the verdict of ``choice``'s
+    limits when every step was done (``acq_outcome`` ``None``), else the acquisition's own end."""
+    limits = choice.limits
     analysis: Analysis | None = None
     outcome = acq_outcome
     checks: tuple[LimitCheck, ...] = ()
@@ -79,6 +82,7 @@ def run_record(
         error=error,
         calibration=analysis.fit if analysis is not None else None,
         limit_checks=checks,
+        conformity_note=choice.note if outcome is None else "",
         n_samples=seq.recorder.n_rows,
         dwell=seq.dwell,
         fit_covariance=cov,
@@ -127,7 +131,7 @@ def execute(
     seq: Sequencer,
     csv_path: Path,
     observers: Sequence[RunObserver],
-    limits: UnitLimits | None,
+    limits: LimitsChoice,
     settings: Settings | None = None,
 ) -> RunRecord:
     acq = seq.run()
@@ -138,13 +142,10 @@ def execute(
     return record
 
 
-def limits_for(settings: Settings, model: str | None, channel_unit: str) -> UnitLimits | None:
-    """The limits that judge a unit: its registered ``model`` if the limits file has it, else
-    ``settings.limits_model``; ``None`` when neither applies to ``channel_unit`` outputs.
+def limits_for(settings: Settings, model: str | None, channel_unit: str) -> LimitsChoice:
+    """The limits that judge a unit registered as ``model`` with ``channel_unit`` outputs, or
+    why none do (:func:`api.certificates.conformity.limits_choice`).
 
     :raises ValueError: the limits file is unreadable or malformed (named).
     """
-    table = load_limits(settings.limits_file)
-    name = limits_model_name(settings, model)
-    chosen = table.get(name) if name else None
-    return chosen if chosen is not None and chosen.channel_unit == channel_unit else None
+    return limits_choice(settings, model, channel_unit)

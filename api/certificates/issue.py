@@ -172,7 +172,7 @@ def prepare_run(
         prepared = analyse_recording(str(record.start.recording_path), nominal)
     else:
         prepared = _complete(record.analysis, nominal, diagnose=True)
-    if record.outcome is not None and record.outcome.value == "PASS":
+    if record.state is RunState.COMPLETED:  # certified: PASS, or no limits judged it
         form_budget(prepared, settings, params)
     return prepared
 
@@ -352,14 +352,14 @@ def finish_calibration(
     s: Session, settings: Settings, record: RunRecord, analysis: RunAnalysis | None = None
 ) -> Certificate | None:
     """Store fit and diagnosis of a finished calibration run and issue its certificate when
-    it passed (``None``: no certificate). Pass ``analysis`` from :func:`prepare_run`, computed
-    before the transaction (its budget is then formed already); without it the analysis runs
-    here, inside the transaction."""
+    it completed: passed, or no limits judged it (``None``: no certificate). Pass ``analysis``
+    from :func:`prepare_run`, computed before the transaction (its budget is then formed
+    already); without it the analysis runs here, inside the transaction."""
     if analysis is None:
         run = s.get(Run, record.run_id)
         analysis = prepare_run(record, None, settings, dict(run.params) if run is not None else {})
     store_results(s, record, analysis)
-    if record.calibration is None or record.outcome is None or record.outcome.value != "PASS":
+    if record.calibration is None or record.state is not RunState.COMPLETED:
         return None
     try:
         return _issue_after_run(s, settings, record, analysis)

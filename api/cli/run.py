@@ -2,7 +2,8 @@
 
 Shows a progress bar on stderr while the run records, then prints the fit and the |g|
 table (or, with ``--json``, one object: run id, outcome, error, calibration). Ctrl-C
-aborts the run cleanly (table to its safe state, recording kept). Exit code 0 for PASS,
+aborts the run cleanly (table to its safe state, recording kept). Exit code 0 for PASS (or a
+fit no limits judged: no statement of conformity),
 1 for FAIL, ERROR or ABORTED (or a run still interrupted by a device fault after its automatic
 resumes, :mod:`api.agent.fault_retry`), 2 for bad input, 3 when another process drives the bench (an
 agent, another ``calbench run``: one line names it; :mod:`api.agent.bench_lock`).
@@ -26,7 +27,7 @@ from api.cli import decimal_arg
 from api.settings import Settings
 from bench.limits import describe
 from bench.procedures import PROCEDURES
-from bench.records import Outcome, Progress, RunRecord, StateChange
+from bench.records import Progress, RunRecord, RunState, StateChange
 from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl
 
@@ -110,6 +111,7 @@ def record_as_dict(record: RunRecord) -> dict[str, Any]:
     return {
         "run_id": record.run_id,
         "outcome": record.outcome.value if record.outcome else None,
+        "conformity_note": record.conformity_note or None,
         "error": record.error,
         "recording": record.start.recording_path,
         "n_samples": record.n_samples,
@@ -126,8 +128,8 @@ def report(record: RunRecord, as_json: bool) -> int:
     """Print the outcome, the fit and the |g| table; return the exit code."""
     if as_json:
         print(json.dumps(record_as_dict(record), indent=1))
-        return 0 if record.outcome is Outcome.PASS else 1
-    outcome = record.outcome.value if record.outcome else "?"
+        return exit_code(record)
+    outcome = record.outcome.value if record.outcome else record.conformity_note or record.state.value
     print(f"run {record.run_id}: {outcome}" + (f" ({record.error})" if record.error else ""))
     print(
         f"recording: {record.start.recording_path} ({record.n_samples} samples, "
@@ -152,7 +154,12 @@ def report(record: RunRecord, as_json: bool) -> int:
             f"limits: {len(record.limit_checks) - len(bad)}/{len(record.limit_checks)} within"
             + "".join(f"\n  OUT {describe(c)}" for c in bad)
         )
-    return 0 if record.outcome is Outcome.PASS else 1
+    return exit_code(record)
+
+
+def exit_code(record: RunRecord) -> int:
+    """0 for a completed run (PASS, or a fit no limits judged), else 1."""
+    return 0 if record.state is RunState.COMPLETED else 1
 
 
 def install_abort_handler(control: RunControl) -> None:

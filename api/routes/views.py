@@ -77,6 +77,7 @@ def run_out(
         state=run.state,
         progress=min(1.0, max(0.0, progress)),
         outcome=run.outcome,
+        conformity_note=str(run.params[rp.CONFORMITY_NOTE]) if run.params.get(rp.CONFORMITY_NOTE) else None,
         error=run.error,
         bench=run.params.get(rp.BENCH),
         created_at=_readable(run.created_at),

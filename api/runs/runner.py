@@ -343,6 +343,7 @@ class BenchRunner:
             finished = {
                 "state": live.state.value,
                 "outcome": record.outcome.value if record and record.outcome else None,
+                "conformity_note": record.conformity_note if record and record.conformity_note else None,
                 "error": live.error,
                 **{k: v for k, v in live.extra.items() if k not in hidden},
             }
@@ -416,6 +417,8 @@ class BenchRunner:
 
 
 def _final_state(record: RunRecord | None) -> RunState:
-    if record is None or record.outcome is None:
+    """The record's final state (a completed fit no limits judged has no outcome); ERROR when
+    there is no record or it is not final."""
+    if record is None or not record.state.is_final:
         return RunState.ERROR
-    return RunState.finished(record.outcome)
+    return record.state

@@ -194,7 +194,16 @@ class RunOut(BaseModel):
         description="a live run's phase: recording its windows, analysing (fit, verdict, "
         "diagnosis; no pause or abort), storing its certificate; null once final",
     )
-    outcome: str | None = None
+    outcome: str | None = Field(
+        default=None,
+        description="PASS, FAIL, ERROR or ABORTED once final; null for a completed fit no limits judged "
+        "(`conformity_note` says why) and while live",
+    )
+    conformity_note: str | None = Field(
+        default=None,
+        description="for a completed fit without PASS or FAIL: `no conformity statement: <why no limits "
+        "apply>`, e.g. `no conformity statement: no limits are configured for model ADXL335`",
+    )
     error: str | None = None
     bench: str | None = None
     created_at: dt.datetime | None = None

@@ -16,6 +16,14 @@ export function badge(state) {
   return h("span", { class: `badge ${String(state || "").toLowerCase()}` }, state || "?");
 }
 
+// A run's verdict: PASS, FAIL, ERROR or ABORTED, or why a completed fit has none
+// ("no conformity statement: no limits are configured for model ADXL335").
+export function outcomeCell(run) {
+  if (run.outcome) return badge(run.outcome);
+  if (run.conformity_note) return h("span", { class: "no-statement" }, run.conformity_note);
+  return "–";
+}
+
 export function progressBar(fraction, big = false, label = "run progress") {
   const pct = Math.round(Math.max(0, Math.min(1, fraction || 0)) * 100);
   const bar = h("div", { class: `bar${big ? " big" : ""}`, role: "progressbar", "aria-label": label,

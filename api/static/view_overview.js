@@ -1,7 +1,7 @@
 // Overview (start a run, recent runs, units) and the units list.
 
 import { getJson, postJson } from "./api.js";
-import { badge, card, h, message, progressBar, table, when } from "./dom.js";
+import { badge, card, h, message, outcomeCell, progressBar, table, when } from "./dom.js";
 
 const PROCEDURES = ["static-12", "rate-1axis", "oscillation-2axis", "planned-static"];
 const LIVE = new Set(["queued", "running", "paused", "suspended"]);
@@ -26,7 +26,7 @@ function runsTable(runs) {
   return table("Most recent first", ["Run", "Unit", "Procedure", "State", "Outcome", "Progress", "Started"],
     runs.map((r) => [
       runLink(r.id), unitLink(r.unit_serial), r.kind === "drift_check" ? `${r.procedure} (drift check)` : r.procedure, badge(r.state),
-      r.outcome ? badge(r.outcome) : "–",
+      outcomeCell(r),
       h("div", { class: "progress-line" }, progressBar(r.progress, false, `progress of run ${r.id}`), `${Math.round(r.progress * 100)} %`),
       when(r.started_at || r.created_at),
     ]));

@@ -123,7 +123,7 @@ function liveCard(run, session, act) {
     st = r.state;
     controls();
     setProgress(bar, r.progress); pct.textContent = `${Math.round(r.progress * 100)} %`;
-    step.textContent = `ended ${r.state}${r.outcome ? ` (${r.outcome})` : ""}`;
+    step.textContent = `ended ${r.state}${r.outcome ? ` (${r.outcome})` : r.conformity_note ? ` (${r.conformity_note})` : ""}`;
     windows.textContent = r.last_complete_window == null ? "none complete" : `${r.last_complete_window + 1} complete`;
     const wall = (Date.parse(r.finished_at) - Date.parse(r.started_at)) / 1000;
     time.textContent = Number.isFinite(wall) ? `${seconds(wall)} (wall clock)` : "–";
@@ -157,12 +157,18 @@ function auditCard() {
 function verdictBanner() {
   const el = h("div", { id: "verdict", class: "verdict", role: "status", hidden: true });
   const show = (run) => {
-    if (LIVE.has(run.state) || !run.outcome || run.kind === "drift_check") { el.hidden = true; return; }
+    if (LIVE.has(run.state) || run.kind === "drift_check" || !(run.outcome || run.conformity_note)) { el.hidden = true; return; }
+    if (!run.outcome) {  // a completed fit no limits judged: no PASS or FAIL, and why
+      el.className = "verdict none";
+      el.replaceChildren(h("strong", { id: "verdict-outcome" }, run.conformity_note));
+      el.hidden = false;
+      return;
+    }
     const checks = run.limit_checks || [];
     const bad = checks.filter((c) => !c.passed).length;
     const what = checks.length
       ? (bad ? `${bad} of ${checks.length} limit checks outside their acceptance intervals` : `all ${checks.length} limit checks inside their acceptance intervals`)
-      : (run.outcome === "PASS" ? "no limits apply to this unit: no statement of conformity" : run.error || "");
+      : run.error || "";
     el.className = `verdict ${run.outcome.toLowerCase()}`;
     el.replaceChildren(h("strong", { id: "verdict-outcome" }, run.outcome), h("span", {}, what));
     el.hidden = false;
@@ -175,7 +181,7 @@ function bound(v) { return v == null ? "∞" : fmt(v, 6); }
 function conformityCard(run) {
   const checks = run.limit_checks || [];
   const c = h("section", { class: "card span", "aria-label": "Limit checks", id: "limit-checks" }, h("h2", {}, "Limit checks"));
-  if (!checks.length) { c.append(message("No limits apply to this unit's model: the certificate makes no statement of conformity.")); return c; }
+  if (!checks.length) { c.append(message(run.conformity_note ? `${run.conformity_note}: the certificate makes no statement of conformity.` : "No limit checks.")); return c; }
   c.append(table(`decision rule: ${run.decision_rule}`, ["Quantity", "Value", "U", "Unit", "Tolerance", "Acceptance", "Verdict"],
     checks.map((k) => [k.name, ...(k.expanded_uncertainty == null ? [fmt(k.value, 6), "not stated"] : splitU(k.value, k.expanded_uncertainty)),
       k.unit.replace("m/s2", "m/s²"),

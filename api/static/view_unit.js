@@ -1,7 +1,7 @@
 // One unit: coefficient trends with ±U bands, its runs, certificates and drift checks.
 
 import { downloadJson, getJson, linkAnchor, postJson, putJson } from "./api.js";
-import { badge, card, h, message, table, when } from "./dom.js";
+import { badge, card, h, message, outcomeCell, table, when } from "./dom.js";
 import { fmt, sparkAxis, sparkline } from "./svgplot.js";
 import { fmtU } from "./uncertainty.js";
 
@@ -127,9 +127,9 @@ export async function unitView(view, serial, signal, session) {
   const runs = hist.runs.slice().reverse();
   view.append(h("div", { class: "grid wide" },
     h("section", { class: "card span", "aria-label": "Coefficient trends" }, h("h2", {}, "Coefficient trends"), trends(series)),
-    card("Runs", runs.length ? table(null, ["Run", "Procedure", "State", "Finished", "Certificate"], runs.map((r) => [
+    card("Runs", runs.length ? table(null, ["Run", "Procedure", "State", "Outcome", "Finished", "Certificate"], runs.map((r) => [
       h("a", { href: `#/runs/${encodeURIComponent(r.id)}`, class: "mono" }, r.id),
-      r.kind === "drift_check" ? `${r.procedure} (drift check)` : r.procedure, badge(r.state),
+      r.kind === "drift_check" ? `${r.procedure} (drift check)` : r.procedure, badge(r.state), outcomeCell(r),
       when(r.finished_at), r.certificate_number || "–",
     ])) : message("No runs.")),
     registrationCard(serial, u, session),

@@ -38,6 +38,9 @@ CALIBRATION = "calibration"
 DIAGNOSIS = "diagnosis"
 DIAGNOSIS_ERROR = "diagnosis_error"
 CERTIFICATE_ERROR = "certificate_error"
+CONFORMITY_NOTE = "conformity_note"
+"""For a completed fit no limits judged (no PASS or FAIL): ``"no conformity statement: <why>"``
+(``bench.records.RunRecord.conformity_note``)."""
 
 MOVED_TO_COLUMNS = {
     "service_kind": "kind",

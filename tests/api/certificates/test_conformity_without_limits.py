@@ -55,6 +55,14 @@ def test_a_model_without_limits_is_certified_without_a_statement_of_conformity(t
         body = wait_final(client, r.json()["id"])
         assert body["state"] == "completed", body["error"]
         assert body["limit_checks"] == []  # not judged against the default model's limits
+        # no PASS or FAIL anywhere the run is listed: the note says why instead
+        note = "no conformity statement: no limits are configured for model ADXL335"
+        assert body["outcome"] is None and body["conformity_note"] == note, body
+        listed = client.get("/api/runs", headers=VIEW).json()
+        history = client.get("/api/units/SN-335/history", headers=VIEW).json()["runs"]
+        for row in (*listed, *history):
+            assert row["outcome"] is None and row["conformity_note"] == note, row
+        assert len(history) == 1 and any(row["id"] == body["id"] for row in listed)
         cert = client.get(f"/api/runs/{body['id']}/certificate", headers=VIEW)
         assert cert.status_code == 200, cert.text
         pdf_bytes = client.get(f"/api/runs/{body['id']}/certificate.pdf", headers=VIEW).content

@@ -6,6 +6,7 @@ COPY pyproject.toml README.md ./
 COPY api ./api
 COPY bench ./bench
 COPY db ./db
+COPY station ./station
 COPY drivers ./drivers
 RUN pip install --no-cache-dir . && useradd --create-home calbench && mkdir -p /data && chown calbench /data
 USER calbench

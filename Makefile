@@ -28,7 +28,7 @@ browser:
 run: install
 	$(BIN)/calbench serve --sim --host 127.0.0.1 --port 8000
 
-SRC := bench drivers db api tests benchmarks
+SRC := bench drivers db station api tests benchmarks
 
 # The whole suite after the static checks (what CI runs).
 test: install browser lint

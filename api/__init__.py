@@ -1,5 +1,6 @@
-"""The composition root: the ``calbench`` CLI, the FastAPI service and dashboard, the run
-runner, certificates and the drift scheduler.
+"""The interface: the ``calbench`` CLI, the FastAPI service (routes, schemas, request guard,
+authentication, document cache) and the dashboard, and the composition root that builds them
+from the settings. What runs the bench is :mod:`station`.
 
 Layer rule: the top layer; it may import every other package, and none imports it.
 """

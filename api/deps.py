@@ -18,18 +18,18 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
-from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, AuthError, Principal, Role
-from api.drift import DriftScheduler
-from api.runs.hub import ProgressHub
-from api.runs.queue import RunQueue
 from api.runs.wakeup import RunWakeups
-from api.settings import Settings
+from station.analysis_worker import AnalysisPool
+from station.drift import DriftScheduler
+from station.runs.hub import ProgressHub
+from station.runs.queue import RunQueue
+from station.settings import Settings
 
 if TYPE_CHECKING:
-    from api.agent.bench_agent import BenchAgent
     from api.doc_cache import DocumentStore
     from api.runs.events import SnapshotCache
+    from station.agent.bench_agent import BenchAgent
 
 
 @dataclass

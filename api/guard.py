@@ -34,7 +34,6 @@ integer out of range) is a 422 instead of a 500.
 from __future__ import annotations
 
 import collections
-import errno
 import json
 import logging
 import math
@@ -53,6 +52,7 @@ from sqlalchemy.exc import DataError, OperationalError
 
 from api.auth import AuthError, Role
 from bench.inputs import InputError, loads_json
+from station.disk_full import DISK_FULL_LOG_INTERVAL_S, is_disk_full
 
 log = logging.getLogger(__name__)
 
@@ -425,25 +425,7 @@ async def _data_error(request: Request, exc: Exception) -> JSONResponse:
     return JSONResponse(status_code=422, content={"detail": f"a value the database cannot store: {reason}"})
 
 
-DISK_FULL_LOG_INTERVAL_S = 60.0
-"""A full disk is logged at most once per this interval (s), not at every refused write."""
 _disk_full_logged = [-math.inf]
-
-
-def is_disk_full(exc: BaseException) -> bool:
-    """``exc`` says the disk (or the database's file system) is full: ``ENOSPC`` / ``EDQUOT``, or
-    SQLite's ``database or disk is full`` (SQLITE_FULL), PostgreSQL's ``could not extend file``."""
-    for e in (exc, getattr(exc, "orig", None), exc.__cause__, exc.__context__):
-        if isinstance(e, OSError) and e.errno in (errno.ENOSPC, errno.EDQUOT):
-            return True
-        text = str(e).lower() if e is not None else ""
-        if (
-            "database or disk is full" in text
-            or "no space left on device" in text
-            or "could not extend file" in text
-        ):
-            return True
-    return False
 
 
 async def _operational_error(request: Request, exc: Exception) -> JSONResponse:

@@ -1,7 +1,7 @@
 """The service: ``create_app(settings)`` wires database, run queue, drift scheduler, auth, routes.
 
 The API never drives the bench itself: runs and control requests go to the database
-(:class:`api.runs.queue.RunQueue`) and the bench's agent (:mod:`api.agent.bench_agent`) executes them.
+(:class:`station.runs.queue.RunQueue`) and the bench's agent (:mod:`station.agent.bench_agent`) executes them.
 With ``settings.agent == "external"`` the agent is another process (``calbench agent``,
 started by ``calbench serve`` or by docker compose); with ``"embedded"`` (the default of
 ``create_app``: tests, a one-process set-up) the lifespan runs one in a thread of this process,
@@ -10,7 +10,7 @@ recording closed, resumable with ``POST /api/runs/{id}/resume`` after the restar
 
 The lifespan opens (creates and migrates) the database, marks runs left live by a dead
 process ``interrupted`` (and runs a previous shutdown stopped, see
-:mod:`api.runs.resume`), starts the drift scheduler's thread and, on PostgreSQL, the
+:mod:`station.runs.resume`), starts the drift scheduler's thread and, on PostgreSQL, the
 listener that wakes this process's event streams when a run changes (:mod:`db.notify`,
 :mod:`api.runs.wakeup`). The process keeps no state of its own that another API process would
 miss: runs, queue, live progress and events are all in the database, so ``calbench serve
@@ -41,27 +41,27 @@ from types import FrameType
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
-from api.agent.bench_agent import BenchAgent
-from api.analysis_worker import AnalysisPool
 from api.auth import Authenticator, Role, parse_token_names, parse_tokens
 from api.db_revision import DatabaseRevision
 from api.deps import Services
 from api.doc_cache import DocumentCache, DocumentStore
-from api.drift import DriftScheduler
 from api.guard import RequestGuard, install_error_handlers, install_log_redaction
 from api.routes import api_router
 from api.runs.events import SnapshotCache
-from api.runs.hub import ProgressHub
-from api.runs.queue import RunQueue
-from api.runs.resume import recover_shutdown_aborts
 from api.runs.wakeup import RunWakeups
-from api.settings import Settings
 from api.startup_check import check_configuration
 from bench.records import utc_now
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.notify import RunListener, listen_url
 from db.repo.recovery import mark_interrupted_runs
+from station.agent.bench_agent import BenchAgent
+from station.analysis_worker import AnalysisPool
+from station.drift import DriftScheduler
+from station.runs.hub import ProgressHub
+from station.runs.queue import RunQueue
+from station.runs.resume import recover_shutdown_aborts
+from station.settings import Settings
 
 log = logging.getLogger(__name__)
 STATIC_DIR = Path(__file__).resolve().parent / "static"

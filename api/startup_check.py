@@ -14,9 +14,9 @@ from pathlib import Path
 
 from sqlalchemy.engine import make_url
 
-from api.settings import Settings
 from bench.inputs import InputError, check_text
 from drivers.factory import TABLE_OPENERS, parse_sim_url, url_scheme
+from station.settings import Settings
 
 SQLITE_MAGIC = b"SQLite format 3\x00"
 MIN_RUN_DWELL_S = 0.5

@@ -16,11 +16,11 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from api.agent.session import start_run
-from api.settings import Settings
 from bench.procedures import build_procedure, preview
 from bench.records import Progress
 from bench.run_observer import NullObserver
+from station.execution.session import start_run
+from station.settings import Settings
 
 SPEED = 20.0
 RATE_HZ = 250.0

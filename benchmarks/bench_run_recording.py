@@ -29,8 +29,6 @@ from pathlib import Path
 
 import numpy as np
 
-from api.agent.devices import sim_url
-from api.settings import Settings
 from bench.procedures.steps import Dwell, MoveTo, Procedure
 from bench.recording.model import Sidecar, TableAxis, TableGeometry
 from bench.recording.rows import format_block
@@ -46,6 +44,8 @@ from db.observer import DbRunObserver
 from drivers.base import AxisMode, AxisStatus, SampleBlock, TableStatus
 from drivers.errors import DataGap
 from drivers.factory import open_bench
+from station.execution.devices import sim_url
+from station.settings import Settings
 
 RATE_HZ = 1000.0
 SPEED = 100.0

@@ -12,7 +12,7 @@ from collections import defaultdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("api", "db", "bench", "drivers")
+PACKAGES = ("api", "station", "db", "bench", "drivers")
 TYPE_ONLY_ALLOWED = ("db.models",)
 """Packages whose ``if TYPE_CHECKING:`` imports are not counted: SQLAlchemy models with
 relationships in both directions name each other's classes in their annotations."""

@@ -6,7 +6,7 @@ bench, ``CALBENCH_DATABASE_URL`` the shared database, ``CALBENCH_TABLE_URL`` /
 ``CALBENCH_DAQ_URL`` the devices). One agent per bench: a second one on the same host and
 data directory, or sharing its database from another host, exits with code 3 and one line
 naming the process that drives the bench — an agent, or ``calbench run`` — (the OS lock
-``<data_dir>/bench-<bench>.lock`` and the database lease, :mod:`api.agent.bench_lock`). If
+``<data_dir>/bench-<bench>.lock`` and the database lease, :mod:`station.execution.bench_lock`). If
 the lease is taken from it (it stalled past the lease), it stops, leaving its run
 ``interrupted``. SIGTERM or SIGINT stop it with the run it holds
 ``interrupted`` (table safe, recording closed, resumable).
@@ -21,9 +21,9 @@ import signal
 import sys
 import threading
 
-from api.agent.bench_lock import HELD_EXIT, BenchHeld, BenchLock
 from api.cli import BadInput
-from api.settings import Settings
+from station.execution.bench_lock import HELD_EXIT, BenchHeld, BenchLock
+from station.settings import Settings
 
 ALREADY_RUNNING = HELD_EXIT
 """Exit code when another process (an agent, ``calbench run``) holds the bench."""
@@ -56,7 +56,7 @@ def agent_settings(args: argparse.Namespace) -> Settings:
         update["sim_speed"] = args.sim_speed
     final = settings.model_copy(update=update)
     if final.sim:
-        from api.agent.devices import check_sim_link
+        from station.execution.devices import check_sim_link
 
         try:
             check_sim_link(final.sim_speed, final.sim_sample_rate_hz)
@@ -67,7 +67,7 @@ def agent_settings(args: argparse.Namespace) -> Settings:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``calbench agent``."""
-    from api.agent.bench_agent import BenchAgent
+    from station.agent.bench_agent import BenchAgent
 
     settings = agent_settings(args)
     stop = threading.Event()

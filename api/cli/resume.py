@@ -2,7 +2,7 @@
 
 The recording is cut back to the last durable chunk that holds the last complete window,
 and the procedure continues with the next window; the end is as ``calbench run`` (a device
-fault is resumed automatically as there, :mod:`api.agent.fault_retry`).
+fault is resumed automatically as there, :mod:`station.execution.fault_retry`).
 """
 
 from __future__ import annotations
@@ -10,9 +10,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-from api.agent.bench_lock import HELD_EXIT
-from api.agent.fault_retry import run_resuming
-from api.agent.session import resume_run
 from api.cli.run import (
     ProgressBar,
     add_device_arguments,
@@ -23,6 +20,9 @@ from api.cli.run import (
 )
 from bench.records import RunRecord
 from bench.sequencer.control import RunControl
+from station.execution.bench_lock import HELD_EXIT
+from station.execution.fault_retry import run_resuming
+from station.execution.session import resume_run
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -5,8 +5,8 @@ table (or, with ``--json``, one object: run id, outcome, error, calibration). Ct
 aborts the run cleanly (table to its safe state, recording kept). Exit code 0 for PASS (or a
 fit no limits judged: no statement of conformity),
 1 for FAIL, ERROR or ABORTED (or a run still interrupted by a device fault after its automatic
-resumes, :mod:`api.agent.fault_retry`), 2 for bad input, 3 when another process drives the bench (an
-agent, another ``calbench run``: one line names it; :mod:`api.agent.bench_lock`).
+resumes, :mod:`station.execution.fault_retry`), 2 for bad input, 3 when another process drives the bench (an
+agent, another ``calbench run``: one line names it; :mod:`station.execution.bench_lock`).
 """
 
 from __future__ import annotations
@@ -20,16 +20,16 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, TextIO
 
-from api.agent.bench_lock import HELD_EXIT, BenchHeld, BenchLock
-from api.agent.fault_retry import run_resuming
-from api.agent.session import resume_run, start_run
 from api.cli import decimal_arg
-from api.settings import Settings
 from bench.limits import describe
 from bench.procedures import PROCEDURES
 from bench.records import Progress, RunRecord, RunState, StateChange
 from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl
+from station.execution.bench_lock import HELD_EXIT, BenchHeld, BenchLock
+from station.execution.fault_retry import run_resuming
+from station.execution.session import resume_run, start_run
+from station.settings import Settings
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -173,7 +173,7 @@ def install_abort_handler(control: RunControl) -> None:
 
 
 def holding_bench(settings: Settings, command: str) -> BenchLock | None:
-    """This process's hold on the bench (:class:`~api.agent.bench_lock.BenchLock`), or ``None``
+    """This process's hold on the bench (:class:`~station.execution.bench_lock.BenchLock`), or ``None``
     after printing one line naming the process that drives it."""
     try:
         return BenchLock(settings, command).acquire()

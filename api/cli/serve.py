@@ -2,7 +2,7 @@
 the REST service and dashboard.
 
 The service never drives the bench itself: by default it starts the bench's agent
-(``calbench agent``, :mod:`api.agent.supervisor`) as a child process and keeps it running;
+(``calbench agent``, :mod:`station.agent.supervisor`) as a child process and keeps it running;
 ``--agent external`` leaves that to someone else (docker compose, systemd), ``--agent
 embedded`` runs the agent in a thread of the service (one process, as before).
 
@@ -36,10 +36,10 @@ from pydantic import ValidationError
 
 from api.auth import new_secret, parse_tokens
 from api.cli import BadInput
-from api.drift import parse_time_of_day
-from api.settings import Settings
 from api.slow_clients import PROTOCOL
 from api.startup_check import check_configuration
+from station.drift import parse_time_of_day
+from station.settings import Settings
 
 if TYPE_CHECKING:
     from fastapi import FastAPI
@@ -116,7 +116,7 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
         if not args.sim_speed > 0:
             raise BadInput(f"--sim-speed {args.sim_speed}: expected a positive number")
         update["sim_speed"] = args.sim_speed
-    from api.agent.devices import bench_config_for, check_sim_link
+    from station.execution.devices import bench_config_for, check_sim_link
 
     if getattr(args, "bench_file", None) is not None:
         update["bench_file"] = Path(args.bench_file)
@@ -188,12 +188,12 @@ def run(args: argparse.Namespace) -> int:
 
     The port is bound first: a service that cannot listen exits at once (code 2, one line)
     before it starts or touches any agent. With ``--agent embedded`` this process drives the
-    table and holds the bench's lock (:mod:`api.agent.bench_lock`); a bench already driven is
+    table and holds the bench's lock (:mod:`station.execution.bench_lock`); a bench already driven is
     refused (code 3, one line naming the holder)."""
     import uvicorn
 
-    from api.agent.bench_lock import HELD_EXIT, BenchHeld, BenchLock
     from api.main import create_app
+    from station.execution.bench_lock import HELD_EXIT, BenchHeld, BenchLock
 
     settings, generated = serve_settings(args)
     sock = listen_socket(args.host, args.port)
@@ -219,7 +219,7 @@ def run(args: argparse.Namespace) -> int:
     )
     supervisor = None
     if args.agent == "spawn":
-        from api.agent.supervisor import AgentSupervisor
+        from station.agent.supervisor import AgentSupervisor
 
         supervisor = AgentSupervisor(settings, sim=settings.sim, sim_speed=args.sim_speed)
         supervisor.start()

@@ -5,7 +5,7 @@ matrix K (3, 3) with one-sigma uncertainties of the same shapes. The dashboard p
 coefficient, the value of each run and U = k·σ with k = 2 (about 95 % coverage for a normal
 distribution; JCGM 100:2008 §6.2), σ being the fit's Type A standard uncertainty. This is not
 the certificate's U: a certificate states U = k·u_c from its GUM budget (Type A + Type B, k
-from ν_eff; :mod:`api.certificates.budget`). A run whose coefficient is not finite is left out
+from ν_eff; :mod:`station.certificates.budget`). A run whose coefficient is not finite is left out
 of that coefficient's series rather than plotted as zero; a σ that is not finite gives no U.
 """
 

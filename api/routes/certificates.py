@@ -7,14 +7,6 @@ from typing import Any
 import sqlalchemy as sa
 from fastapi import APIRouter, HTTPException, Response, status
 
-from api.certificates.issue import (
-    analyse_recording,
-    form_budget,
-    issue_for_run,
-    store_diagnosis,
-    store_g_before,
-    unit_nominal,
-)
 from api.deps import OperatorDep, SessionDep, SettingsDep, ViewerDep, ViewerLinkDep
 from api.routes.views import certificate_out
 from api.schemas import CertificateOut
@@ -22,6 +14,14 @@ from bench.fitted_model import ContractError, FittedModel
 from db.models import Certificate, Unit
 from db.repo.certificates import get_certificate_by_number
 from db.repo.runs import get_run
+from station.certificates.issue import (
+    analyse_recording,
+    form_budget,
+    issue_for_run,
+    store_diagnosis,
+    store_g_before,
+    unit_nominal,
+)
 
 router = APIRouter(tags=["certificates"])
 _404: dict[int | str, dict[str, Any]] = {404: {"description": "no such run or no certificate"}}

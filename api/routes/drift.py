@@ -8,10 +8,10 @@ import sqlalchemy as sa
 from fastapi import APIRouter, HTTPException, Query, status
 
 from api.deps import OperatorDep, ServicesDep, SessionDep, ViewerDep
-from api.drift import drift_checks_in_queue
 from api.routes.views import drift_out
 from api.schemas import DriftCheckOut, DriftNotChecked, DriftRequest, DriftStatus
 from db.models import Certificate, DriftCheck, Unit
+from station.drift import drift_checks_in_queue
 
 router = APIRouter(prefix="/api/drift", tags=["drift"])
 

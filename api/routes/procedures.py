@@ -6,11 +6,11 @@ from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query, status
 
-from api.certificates.conformity import unit_warnings
 from api.deps import SessionDep, SettingsDep, ViewerDep
 from api.schemas import SERIAL_PATTERN, ProcedurePreviewOut
 from bench.procedures import PROCEDURES, build_procedure, preview
 from bench.sequencer.control import SequencerConfig
+from station.certificates.conformity import unit_warnings
 
 router = APIRouter(prefix="/api/procedures", tags=["procedures"])
 

@@ -1,7 +1,7 @@
 """Upload a recording (CSV + JSON sidecar), get its calibration and diagnosis back.
 
 Nothing is stored: the files go to a temporary directory, are read and validated as
-``calbench-recording/1``, fitted and diagnosed in a worker (:mod:`api.analysis_worker`: a
+``calbench-recording/1``, fitted and diagnosed in a worker (:mod:`station.analysis_worker`: a
 separate process by default, never on the event loop), and deleted.
 """
 

@@ -11,7 +11,6 @@ from fastapi import APIRouter, HTTPException, Query, Request, status
 from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
-from api.certificates.conformity import unit_warnings
 from api.deps import (
     OperatorPrincipalDep,
     RunnerDep,
@@ -23,7 +22,6 @@ from api.deps import (
 )
 from api.routes.views import audit_out, live_out, run_out
 from api.runs.events import RunSnapshot, SnapshotCache
-from api.runs.queue import NotResumable
 from api.runs.stream import run_events
 from api.schemas import AbortOut, AuditEntryOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
 from db.models import Certificate, RunState
@@ -31,6 +29,8 @@ from db.repo.audit import run_audit
 from db.repo.progress import list_windows
 from db.repo.queue import finishing_since
 from db.repo.runs import get_run, list_runs
+from station.certificates.conformity import unit_warnings
+from station.runs.queue import NotResumable
 
 router = APIRouter(prefix="/api/runs", tags=["runs"])
 

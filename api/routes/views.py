@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from api.runs.live import PHASES, window_means
-from api.runs.runner import LiveRun
 from api.schemas import (
     AuditEntryOut,
     CertificateOut,
@@ -21,6 +19,8 @@ from bench.limits import DECISION_RULES
 from db.models import AuditAction, Certificate, DriftCheck, Run, RunAudit, RunWindow
 from db.models import run_params as rp
 from db.types import unreadable_reason
+from station.runs.live import PHASES, window_means
+from station.runs.runner import LiveRun
 
 
 def _kind(run: Run, live: LiveRun | None) -> str:

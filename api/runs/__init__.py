@@ -1,5 +1,3 @@
-"""Runs as the service sees them: queued in the database (``queue``), executed by a runner
-(``runner``) with their live state (``live``), progress events published in the process
-(``hub``), read back from the database by every API process (``events``) and sent as
-server-sent events (``stream``) woken by the database's notifications (``wakeup``), and the
-resume of an interrupted run (``resume``)."""
+"""Runs as the API streams them: read back from the database by every API process
+(``events``), sent as server-sent events (``stream``) and woken by the database's
+notifications (``wakeup``). Queueing and executing them is :mod:`station.runs`."""

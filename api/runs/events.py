@@ -1,7 +1,7 @@
 """A run's live events as the database holds them, for the event streams of any API process.
 
 The bench's agent writes a run's state, its latest progress (``Run.live_progress``,
-:class:`api.runs.live.DbLiveObserver`), each complete window (``run_window``) and, once the
+:class:`station.runs.live.DbLiveObserver`), each complete window (``run_window``) and, once the
 results and certificate are stored, its final event (``Run.final_event``).
 :func:`run_snapshot` reads them in one short read-only transaction; the stream of
 ``GET /api/runs/{id}/events`` turns the differences between two snapshots into events. No
@@ -21,12 +21,12 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
-from api.runs.live import window_means
 from api.runs.wakeup import EVENT_POLL_S
 from db.models import FINAL_STATES, Run, RunState, RunWindow
 from db.models.run_params import SAMPLE_GAPS
 from db.repo.recovery import DEFAULT_STALE_AFTER_S
 from db.types import utc_now
+from station.runs.live import window_means
 
 
 @dataclasses.dataclass(frozen=True)

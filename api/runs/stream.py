@@ -15,9 +15,9 @@ import json
 from collections.abc import AsyncIterator, Awaitable, Callable, Mapping
 
 from api.runs.events import RunSnapshot
-from api.runs.hub import CLOSED_EVENT, TERMINAL_EVENT
 from api.runs.wakeup import Waiter
 from bench.records import RunState
+from station.runs.hub import CLOSED_EVENT, TERMINAL_EVENT
 
 KEEPALIVE_S = 15.0
 """Silence after which a stream sends a keep-alive comment and checks the client is there (s)."""

@@ -1,5 +1,5 @@
 // The one rule for a value with an uncertainty, as the certificate writes it
-// (api/certificates/rounding.py format_with_uncertainty; a test compares the two on a table of
+// (station/certificates/rounding.py format_with_uncertainty; a test compares the two on a table of
 // cases): U to two significant digits, the value rounded to the decimal place of U's last digit
 // (GUM 7.2.6), both in fixed notation, half-up on the shortest decimal representation.
 

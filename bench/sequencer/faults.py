@@ -4,7 +4,7 @@ A calibration bench in a lab meets faults that pass: a controller that stalls fo
 resets, a serial line or TCP link that drops, a burst of noise on the line, a DAQ whose reads
 time out, a disk that fills up and is cleared. A run ended by one of them is *resumable*: its
 recording is whole up to its last durable chunk, and it continues from the window after its
-last complete one once the bench answers again (:mod:`api.agent.fault_retry`). A fault the
+last complete one once the bench answers again (:mod:`station.execution.fault_retry`). A fault the
 device reports itself (an axis following error, a Modbus exception code), a limit, a window
 rejected after losing samples again and again, or a database that refuses the run's writes
 says something about the bench or the run, not the link, and ends it as ERROR.

@@ -14,7 +14,7 @@ acquisition stopped and the recording closed with everything recorded so far. A 
 lab's bench recovers from — a device that stops answering (stall, reset), a lost link, a
 garbled reply, a recording write refused (disk full) — is marked ``resumable``
 (:mod:`bench.sequencer.faults`): the caller leaves the run interrupted and resumes it from
-its last durable window (:mod:`api.agent.fault_retry`); a fault the device reports itself (an axis
+its last durable window (:mod:`station.execution.fault_retry`); a fault the device reports itself (an axis
 fault, a Modbus exception), a limit, a rejected window or a database refusal is not. Pause, an
 open interlock or a temperature outside its band *suspend* the run: the window in progress
 is dropped, the table held, and the window recorded again once the condition clears.

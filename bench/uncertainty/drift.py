@@ -19,7 +19,7 @@ run-to-run bias repeatability (biases only): each fit estimates the bias its own
 which includes the run's mean of the slow bias wander (bias instability); no single run
 can separate it, so neither fit's σ contains it, yet it differs between two runs of an
 unchanged unit. Without it an ADXL-class unit (40 µg wander, 200 s correlation time) was
-flagged in 13 % of unchanged pairs at a stated 3.2 % (tests/api/test_drift_false_alarm.py).
+flagged in 13 % of unchanged pairs at a stated 3.2 % (tests/station/drift/test_drift_false_alarm.py).
 A unit is flagged when any coefficient exceeds its limit.
 """
 

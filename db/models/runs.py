@@ -51,7 +51,7 @@ class Run(Base):
         and continue are refused (``db.repo.queue.enter_finishing``); ``None`` before.
     :param auto_resume: the next automatic resume of a run a device fault interrupted
         (``{"attempt", "not_before", "windows", "fault"}``; ``"gave_up": true`` once the tries are
-        spent; ``api.agent.fault_retry``), ``None``: none.
+        spent; ``station.execution.fault_retry``), ``None``: none.
     :param live_progress: the latest ``progress`` event's data, for the streams of every API
         process.
     :param final_event: the run's last event (state, outcome, error, certificate number), written

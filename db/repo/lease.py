@@ -1,6 +1,6 @@
 """The bench lease: which process drives a bench's table, across hosts, with a fencing token.
 
-The OS lock of a data directory (:mod:`api.agent.bench_lock`) keeps two processes of one host
+The OS lock of a data directory (:mod:`station.execution.bench_lock`) keeps two processes of one host
 off one table; agents of several hosts sharing one PostgreSQL database would each hold their
 own. The lease is the database's word on it: ``Bench.info["lease"] = {"token", "holder",
 "expires_at"}``, written in one transaction with the bench row locked (``SELECT … FOR

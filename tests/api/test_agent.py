@@ -10,18 +10,18 @@ from pathlib import Path
 
 import pytest
 
-from api.agent.bench_agent import BenchAgent
-from api.agent.bench_lock import BenchLock, read_holder
 from api.cli import main
 from api.cli.agent import ALREADY_RUNNING
-from api.runs.queue import RunQueue
-from api.settings import Settings
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Run, RunState
 from db.repo.queue import queue_run
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
+from station.agent.bench_agent import BenchAgent
+from station.execution.bench_lock import BenchLock, read_holder
+from station.runs.queue import RunQueue
+from station.settings import Settings
 from tests.support.service_helpers import service_settings
 
 

@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from api.agent.bench_agent import BenchAgent
 from api.main import create_app
-from api.runs.live import LiveRun
 from bench.records import RunRecord
+from station.agent.bench_agent import BenchAgent
+from station.runs.live import LiveRun
 from tests.support.service_helpers import OP, VIEW, service_settings
 
 pytestmark = pytest.mark.slow

@@ -19,8 +19,8 @@ import api.routes.units
 from api.db_revision import DatabaseRevision
 from api.doc_cache import Captured, Document, DocumentStore, etag_of, matches
 from api.main import create_app
-from api.runs.queue import RunQueue
 from db.models import Bench
+from station.runs.queue import RunQueue
 from tests.support.service_helpers import OP, VIEW, service_settings
 
 pytestmark = pytest.mark.timeout(60)

@@ -8,12 +8,12 @@ from pathlib import Path
 
 from fastapi.testclient import TestClient
 
-from api.certificates.issue import issue_for_run
 from api.main import create_app
 from db.models import RunState
 from db.repo.runs import merge_params
-from tests.api.certificates.test_certificate_conformity import CAL
+from station.certificates.issue import issue_for_run
 from tests.db._factories import make_run
+from tests.station.certificates.test_certificate_conformity import CAL
 from tests.support.service_helpers import VIEW, service_settings
 
 

@@ -109,11 +109,11 @@ def test_other_database_errors_are_not_called_a_full_disk() -> None:
 
     from sqlalchemy.exc import OperationalError
 
-    assert api.guard.is_disk_full(OSError(errno.ENOSPC, "No space left on device"))
-    assert not api.guard.is_disk_full(
-        OperationalError("SELECT", {}, sqlite3.OperationalError("database is locked"))
-    )
-    assert not api.guard.is_disk_full(OSError(errno.EACCES, "Permission denied"))
+    from station.disk_full import is_disk_full
+
+    assert is_disk_full(OSError(errno.ENOSPC, "No space left on device"))
+    assert not is_disk_full(OperationalError("SELECT", {}, sqlite3.OperationalError("database is locked")))
+    assert not is_disk_full(OSError(errno.EACCES, "Permission denied"))
 
 
 def test_a_response_that_outlives_the_body_timeout_is_not_cut(monkeypatch: pytest.MonkeyPatch) -> None:

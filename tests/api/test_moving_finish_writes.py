@@ -22,9 +22,7 @@ import bench.calibration.dynamic
 import bench.calibration.recording
 import bench.recording.reader
 import bench.uncertainty.dynamic
-from api.agent.bench_agent import make_finisher
 from api.main import create_app
-from api.runs.live import LiveRun
 from bench.calibration.analysis import analyse
 from bench.records import Outcome, RunRecord, RunStart, RunState
 from bench.sequencer.control import RunControl
@@ -35,6 +33,8 @@ from db.models import RunState as DbRunState
 from db.observer import DbRunObserver
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
+from station.agent.bench_agent import make_finisher
+from station.runs.live import LiveRun
 from tests.support.counting import count_everywhere
 from tests.support.dynamic_sim import oscillation
 from tests.support.service_helpers import OP, service_settings

@@ -9,7 +9,6 @@ from pathlib import Path
 
 from fastapi.testclient import TestClient
 
-from api.certificates.certificate import sample_integrity
 from api.main import create_app
 from bench.records import GapRecord
 from db.engine import make_session_factory
@@ -17,6 +16,7 @@ from db.migrate import open_database
 from db.models import RunState
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_unit
+from station.certificates.certificate import sample_integrity
 from tests.support.service_helpers import VIEW, service_settings
 
 GAPS = (

@@ -360,7 +360,7 @@ def test_cli_numbers_are_ascii_decimal(arg: str, capsys: pytest.CaptureFixture[s
 
 
 def test_pdf_never_prints_a_bidi_control_stored_before_the_rules() -> None:
-    from api.certificates.pdf_layout import Flow
+    from station.certificates.pdf_layout import Flow
 
     flow = Flow(top=0.95, bottom=0.05, left=0.1, right=0.9)
     flow.paragraph("Customer: ACME, 1 Main St \u202eTown")

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from api.certificates.issue import findings_of
 from api.main import create_app
+from station.certificates.issue import findings_of
 from tests.support.service_helpers import OP, VIEW, service_settings, wait_final
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]  # a whole simulated run to its certificate

@@ -13,9 +13,9 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from api import analysis_worker
-from api.analysis_worker import AnalysisPool
 from api.main import create_app
+from station import analysis_worker
+from station.analysis_worker import AnalysisPool
 from tests.conftest import EXAMPLES, STATIC_EXAMPLE
 from tests.support.service_helpers import OP, service_settings
 
@@ -80,7 +80,7 @@ def test_a_dead_worker_is_reported_and_replaced(tmp_path: Path) -> None:
 
 OWNER = """
 import time
-from api.analysis_worker import AnalysisPool
+from station.analysis_worker import AnalysisPool
 pool = AnalysisPool(1)
 pool.warm()
 ex = pool._executor()

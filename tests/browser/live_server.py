@@ -12,7 +12,7 @@ import httpx
 import uvicorn
 
 from api.main import create_app
-from api.settings import Settings
+from station.settings import Settings
 
 
 def free_port() -> int:

@@ -9,13 +9,13 @@ from typing import Any
 
 import pytest
 
-from api.settings import Settings
 from bench.records import GapRecord
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import RunState
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_unit
+from station.settings import Settings
 from tests.browser.conftest import CHROMIUM
 from tests.browser.live_server import live_service
 from tests.support.service_helpers import VIEWER, service_settings

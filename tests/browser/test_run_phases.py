@@ -17,7 +17,7 @@ import httpx
 import pytest
 from playwright.sync_api import expect
 
-from api.certificates.rounding import format_with_uncertainty
+from station.certificates.rounding import format_with_uncertainty
 from tests.browser.conftest import CHROMIUM
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from api.settings import Settings
 from bench.fitted_model import FittedModel
 from drivers.sim.physics import SensorTruth
+from station.settings import Settings
 
 RATE_HZ = 100.0
 SIM_SPEED = 25.0

@@ -16,7 +16,7 @@ from typing import Any
 
 import httpx
 
-from api.agent.bench_lock import read_holder
+from station.execution.bench_lock import read_holder
 from tests.e2e.helpers import RATE_HZ
 
 CALBENCH = str(Path(sys.executable).with_name("calbench"))

@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.agent.devices import bench_config_for, open_devices
-from api.agent.session import start_run
-from api.certificates.certificate import bench_configuration
 from bench.bench_config import SIM_BENCH_FILE, load_bench_config
 from bench.recording.reader import read_recording
 from drivers.sim.physics import SensorTruth
+from station.certificates.certificate import bench_configuration
+from station.execution.devices import bench_config_for, open_devices
+from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores
 
 MOUNT = "[[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]"  # the sensor turned 90° about z

@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.agent.session import start_run
 from bench.fitted_model import FittedModel
 from bench.recording.reader import read_recording
 from bench.records import Outcome
 from drivers.sim.physics import SensorTruth
+from station.execution.session import start_run
 from tests.e2e.helpers import RATE_HZ, SIM_SPEED, difference_z, settings_for, wall_budget_s, z_scores
 
 pytestmark = pytest.mark.slow

@@ -9,10 +9,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from api.agent.session import start_run
 from bench.recording.reader import read_recording
 from bench.records import Outcome, WindowKind
 from drivers.sim.physics import SensorTruth
+from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores
 
 pytestmark = pytest.mark.slow

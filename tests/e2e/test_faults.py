@@ -17,14 +17,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from api.agent.devices import sim_url
-from api.agent.session import resume_run, start_run
 from bench.recording.reader import read_recording
 from bench.records import Outcome, RunRecord, RunState, StateChange, WindowRecord
 from bench.run_observer import NullObserver
 from bench.sequencer.control import SequencerConfig
 from drivers.base import AxisMode
 from drivers.factory import BenchDevices, open_bench
+from station.execution.devices import sim_url
+from station.execution.session import resume_run, start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for
 
 pytestmark = pytest.mark.slow

@@ -8,14 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.agent.devices import sim_url
-from api.agent.session import start_run
 from bench.recording.reader import read_recording
 from bench.records import Outcome, RunState, StateChange, WindowRecord
 from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl, SequencerConfig
 from drivers.factory import BenchDevices, open_bench
 from drivers.sim.physics import SensorTruth
+from station.execution.devices import sim_url
+from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores
 
 pytestmark = pytest.mark.slow

@@ -8,8 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.agent.session import start_run
-from api.certificates.issue import issue_for_run
 from bench.limits import load_limits
 from bench.records import Outcome
 from db.engine import make_session_factory
@@ -17,6 +15,8 @@ from db.migrate import open_database
 from db.models import Run
 from db.repo.results import list_fits
 from drivers.sim.physics import SensorTruth
+from station.certificates.issue import issue_for_run
+from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for
 
 pytestmark = pytest.mark.slow

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
-from api.agent.session import start_run
 from bench.estimation.static_design import PARAMETER_NAMES as STATIC_NAMES
 from bench.recording.reader import read_recording
 from bench.records import Outcome, Progress, RunRecord, WindowKind
@@ -21,6 +20,7 @@ from db.engine import make_session_factory
 from db.models import Run
 from db.repo.results import list_fits
 from drivers.sim.physics import SensorTruth
+from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores
 
 pytestmark = pytest.mark.slow

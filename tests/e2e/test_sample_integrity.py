@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from api.agent.devices import bench_sidecar
 from bench.bench_config import SIM_BENCH_FILE, load_bench_config
 from bench.procedures import build_procedure
 from bench.recording.reader import read_recording
@@ -28,6 +27,7 @@ from bench.sequencer.loop import Sequencer
 from drivers.factory import BenchDevices, open_table
 from drivers.modbus_daq import ModbusDaq
 from drivers.sim.bench import SimBench
+from station.execution.devices import bench_sidecar
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(300)]
 

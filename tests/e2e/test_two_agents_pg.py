@@ -21,8 +21,8 @@ import httpx
 import numpy as np
 import pytest
 
-from api.runs.runner import simulated_unit
 from bench.fitted_model import FittedModel
+from station.runs.runner import simulated_unit
 from tests.e2e.helpers import RATE_HZ, SIM_SPEED, wall_budget_s, z_scores
 from tests.e2e.service_process import CALBENCH, OP, OPERATOR, VIEW, VIEWER, free_port, wait_for
 from tests.pg import pg_database, pg_unreachable_reason

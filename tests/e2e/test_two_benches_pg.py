@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
-from api.agent.session import start_run
 from bench.records import Outcome, RunRecord
 from drivers.sim.physics import SensorTruth
+from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores
 from tests.pg import pg_database, pg_unreachable_reason
 

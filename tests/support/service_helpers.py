@@ -9,7 +9,7 @@ from typing import Any
 
 from fastapi.testclient import TestClient
 
-from api.settings import Settings
+from station.settings import Settings
 
 OPERATOR = "operator-secret-0001"
 VIEWER = "viewer-secret-0001"

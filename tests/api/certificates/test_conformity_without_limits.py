@@ -93,7 +93,7 @@ def test_the_preview_refuses_a_serial_that_no_unit_can_have(tmp_path: Path) -> N
 
 
 def test_an_unreadable_limits_file_is_named_before_the_run(tmp_path: Path) -> None:
-    from api.certificates.conformity import conformity_warning
+    from station.certificates.conformity import conformity_warning
 
     bad = tmp_path / "limits.json"
     bad.write_text("{")

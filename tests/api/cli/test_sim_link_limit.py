@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from api.agent.devices import check_sim_link, open_devices
 from api.cli import main
-from api.settings import Settings
 from drivers.daq_registers import LINK_MAX_SAMPLES_S
+from station.execution.devices import check_sim_link, open_devices
+from station.settings import Settings
 
 
 @pytest.fixture

@@ -18,10 +18,7 @@ import sqlalchemy as sa
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session, sessionmaker
 
-from api.certificates.statements import NOT_STATED
-from api.drift import DriftScheduler, DriftTarget, DueUnit, NotChecked, plan_checks
 from api.main import create_app
-from api.runs.queue import RunQueue
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Bench, Run, RunState, Unit
@@ -30,6 +27,9 @@ from db.repo.benches import BenchStatus, agent_alive
 from db.repo.certificates import issue_certificate
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
+from station.certificates.statements import NOT_STATED
+from station.drift import DriftScheduler, DriftTarget, DueUnit, NotChecked, plan_checks
+from station.runs.queue import RunQueue
 from tests.support.service_helpers import OP, VIEW, MovableClock, service_settings
 
 HERE = socket.gethostname()

@@ -1,0 +1,424 @@
+"""The bench's runner: one worker thread at a time owns the bench and its sequencer.
+
+:meth:`BenchRunner.start` validates the request, allocates the run id, and starts a worker
+thread that calls :func:`station.execution.session.start_run` with a :class:`HubObserver` (progress
+to the event streams) and then the finisher (fit, diagnosis, certificate or drift
+comparison, in the database). :meth:`BenchRunner.resume` claims an ``interrupted`` run and
+continues it from its next window in the same way (:mod:`station.runs.resume`);
+:meth:`~BenchRunner.pause` and :meth:`~BenchRunner.continue_run` hold and release the live
+run. A second start while a run holds the bench raises :class:`BenchBusy` (HTTP 409).
+:meth:`~BenchRunner.shutdown` leaves the live run ``interrupted`` (table safe, recording
+closed), not aborted, so it is resumed after a restart.
+
+The simulated unit behind a serial is ``SensorTruth.typical(seed=crc32(serial)).aged(age_days)``,
+its age counted from the unit's first registration on the runner's clock, so a sensor ages
+from day to day and tests can move the clock; a resumed run keeps the age it started with.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+import socket
+import threading
+import zlib
+from collections.abc import Callable
+
+from sqlalchemy.orm import Session, sessionmaker
+
+from bench.procedures import build_procedure, preview
+from bench.records import Outcome, RunRecord, RunState, new_run_id, utc_now
+from bench.run_observer import RunObserver
+from bench.sequencer.control import RunControl, SequencerConfig
+from db.models import RunState as DbRunState
+from db.models.run_params import CERTIFICATE_ERROR
+from db.observer import finish_record
+from db.repo.queue import enter_finishing
+from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
+from db.repo.runs import finish_run, merge_params, set_final_event
+from db.repo.units import get_unit_by_serial
+from drivers.sim.physics import SensorTruth
+from station.execution import fault_retry
+from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed, RetryPolicy, interrupted_by_fault
+from station.execution.session import start_run
+from station.runs import resume as service_resume
+from station.runs.hub import TERMINAL_EVENT, ProgressHub
+from station.runs.live import DbLiveObserver, HubObserver, LiveRun, RunKind, ServiceParamsObserver
+from station.runs.resume import SHUTDOWN_REASON, NotResumable
+from station.settings import Settings
+
+__all__ = ["BenchBusy", "BenchRunner", "LiveRun", "NotResumable", "RunKind", "simulated_unit", "unit_seed"]
+
+log = logging.getLogger(__name__)
+
+Finisher = Callable[[LiveRun, RunRecord], None]
+
+
+class BenchBusy(Exception):
+    """The bench is running another run (HTTP 409)."""
+
+    def __init__(self, run_id: str) -> None:
+        super().__init__(f"the bench is busy with run {run_id}; abort it or wait until it finishes")
+        self.run_id = run_id
+
+
+def unit_seed(serial: str) -> int:
+    """Seed of a simulated unit: CRC-32 of its serial (stable across processes)."""
+    return zlib.crc32(serial.encode("utf-8"))
+
+
+def simulated_unit(serial: str, age_days: float) -> SensorTruth:
+    """The simulated sensor with this serial, ``age_days`` after its first registration."""
+    seed = unit_seed(serial)
+    return SensorTruth.typical("V", seed).aged(max(0.0, age_days), seed)
+
+
+class BenchRunner:
+    """Owns the bench: at most one run at a time, each in its own worker thread.
+
+    :param settings: service settings (simulation, dwell, bench name).
+    :param sessions: database session factory.
+    :param hub: where progress events go.
+    :param finisher: called in the worker after the run ended (stores results); its
+        exceptions are logged and reported on the stream, the run's state stays as stored.
+    :param clock: wall clock (UTC), replaceable in tests to age simulated units.
+    :param store_live: also store each run's latest progress in the database
+        (:class:`~station.runs.live.DbLiveObserver`), for API processes that do not hold the bench.
+    """
+
+    def __init__(
+        self,
+        settings: Settings,
+        sessions: sessionmaker[Session],
+        hub: ProgressHub,
+        finisher: Finisher | None = None,
+        clock: Callable[[], dt.datetime] = utc_now,
+        store_live: bool = False,
+    ) -> None:
+        self.settings, self.sessions, self.hub = settings, sessions, hub
+        self.store_live = store_live
+        self.finisher = finisher
+        self.clock = clock
+        self._lock = threading.Lock()
+        self._current: LiveRun | None = None
+        self._thread: threading.Thread | None = None
+        self._recent: dict[str, LiveRun] = {}
+        self.retry = RetryPolicy()
+        """When and how often a run a device fault interrupted is resumed automatically."""
+
+    @property
+    def current(self) -> LiveRun | None:
+        """The run holding the bench, if any."""
+        return self._current
+
+    def live(self, run_id: str) -> LiveRun | None:
+        """The live (or recently finished) run with this id, as the runner knows it."""
+        cur = self._current
+        if cur is not None and cur.id == run_id:
+            return cur
+        return self._recent.get(run_id)
+
+    def age_days(self, serial: str) -> float:
+        """Days since the unit was first registered, on the runner's clock (0 for a new unit)."""
+        with self.sessions.begin() as s:
+            unit = get_unit_by_serial(s, serial)
+            first = unit.created_at if unit is not None else None
+        if first is None:
+            return 0.0
+        return max(0.0, (self.clock() - first).total_seconds() / 86400.0)
+
+    def _claim_bench(self, live: LiveRun, target: Callable[[LiveRun], None]) -> None:
+        """Make ``live`` the run holding the bench and start its worker (caller holds the lock)."""
+        if self._current is not None:
+            raise BenchBusy(self._current.id)
+        self._current = live
+        self._thread = threading.Thread(target=target, args=(live,), name=f"bench-run-{live.id}", daemon=True)
+
+    def start(
+        self,
+        unit_serial: str,
+        procedure: str,
+        *,
+        dwell_s: float | None = None,
+        kind: RunKind = "calibration",
+        run_id: str | None = None,
+        parameters: dict[str, float] | None = None,
+    ) -> LiveRun:
+        """Start a run's worker.
+
+        :param run_id: the id of a run this process has claimed from the queue
+            (:mod:`db.repo.queue`); default: a new id.
+        :param parameters: the procedure's own parameters (``build_procedure`` keywords).
+        :raises ValueError: unknown procedure or one the table limits refuse.
+        :raises BenchBusy: another run holds the bench.
+        """
+        dwell_s = dwell_s if dwell_s is not None else self.settings.run_dwell_s
+        proc = build_procedure(procedure, dwell_s=dwell_s, **(parameters or {}))
+        pv = preview(proc, SequencerConfig(temp_band_c=self.settings.temp_band_c).limits)
+        if not pv.ok:
+            raise ValueError(f"{procedure}: " + "; ".join(pv.problems))
+        age = self.age_days(unit_serial)
+        with self._lock:
+            live = LiveRun(
+                run_id or new_run_id(unit_serial, self.clock()),
+                unit_serial,
+                procedure,
+                kind,
+                RunControl(),
+                age,
+            )
+            live.extra["dwell_s"] = dwell_s
+            live.extra["procedure_kw"] = dict(parameters or {})
+            self._claim_bench(live, self._work)
+        self.hub.publish(live.id, "state", {"state": RunState.QUEUED.value, "reason": "accepted"})
+        assert self._thread is not None
+        self._thread.start()
+        return live
+
+    def resume(self, run_id: str) -> LiveRun:
+        """Continue an ``interrupted`` run from the window after its last complete one.
+
+        The run is claimed in the database before this returns, so a refusal is immediate.
+
+        :raises LookupError: no such run. :raises NotResumable: its state or recording forbids it.
+        :raises BenchBusy: another run holds the bench.
+        """
+        with self.sessions.begin() as s:
+            mark_interrupted_runs(s, socket.gethostname())  # a run whose owner has died since
+            service_resume.check_resumable(s, run_id)
+        with self._lock:
+            if self._current is not None:
+                raise BenchBusy(self._current.id)
+            with self.sessions.begin() as s:
+                claimed = service_resume.claim(s, run_id)
+            live = self._hold_claimed(claimed)
+        return self._launch_resumed(live)
+
+    def resume_claimed(self, claimed: service_resume.Claimed) -> LiveRun:
+        """Continue a run this process has already claimed (from the queue) from its next window.
+
+        :raises BenchBusy: another run holds the bench.
+        """
+        with self._lock:
+            live = self._hold_claimed(claimed)
+        return self._launch_resumed(live)
+
+    def _hold_claimed(self, claimed: service_resume.Claimed) -> LiveRun:
+        """The live run of a claimed resume, holding the bench (call with ``_lock`` held)."""
+        age = claimed.sim_age_days
+        live = LiveRun(
+            claimed.run_id,
+            claimed.unit_serial,
+            claimed.procedure,
+            claimed.kind,
+            RunControl(),
+            age if age is not None else 0.0,
+            resumed=True,
+        )
+        live.extra["claimed"] = claimed
+        live.extra["resumed_from_window"] = claimed.point.next_window_index
+        self._claim_bench(live, self._work)
+        return live
+
+    def _launch_resumed(self, live: LiveRun) -> LiveRun:
+        self.hub.publish(live.id, "state", {"state": RunState.QUEUED.value, "reason": "resume accepted"})
+        assert self._thread is not None
+        self._thread.start()
+        return live
+
+    def _held(self, run_id: str) -> LiveRun | None:
+        live = self._current
+        return live if live is not None and live.id == run_id else None
+
+    def abort(self, run_id: str, reason: str = "operator abort over REST") -> bool:
+        """Ask the run to abort (table to its safe state, recording kept); False if not live."""
+        live = self._held(run_id)
+        if live is None:
+            return False
+        return live.control.abort(reason)
+
+    def pause(self, run_id: str) -> bool:
+        """Hold the live run: the window in progress is dropped and recorded again on continue;
+        False if the run does not hold the bench."""
+        live = self._held(run_id)
+        if live is None:
+            return False
+        return live.control.pause()
+
+    def continue_run(self, run_id: str) -> bool:
+        """Release a pause; for a run suspended by an interlock or the temperature band, the
+        operator's go-ahead (the table is prepared again). False if the run does not hold the bench."""
+        live = self._held(run_id)
+        if live is None:
+            return False
+        live.control.resume()
+        return True
+
+    def _observers(self, live: LiveRun) -> list[RunObserver]:
+        observers: list[RunObserver] = [
+            ServiceParamsObserver(live, self.sessions, self.settings.sim),
+            HubObserver(live, self.hub),
+        ]
+        if self.store_live:
+            observers.append(DbLiveObserver(self.sessions))
+        return observers
+
+    def _acquire(self, live: LiveRun) -> RunRecord:
+        """Execute (or continue) the run on the bench, to its verdict."""
+        if live.resumed:
+            claimed = live.extra["claimed"]
+            truth = None
+            if self.settings.sim and claimed.sim_age_days is not None:
+                truth = simulated_unit(live.unit_serial, claimed.sim_age_days)
+            return service_resume.execute(
+                self.settings,
+                self.sessions,
+                claimed,
+                truth=truth,
+                observers=self._observers(live),
+                control=live.control,
+                defer_final_state=True,
+            )
+        return start_run(
+            self.settings,
+            live.procedure,
+            live.unit_serial,
+            sim=self.settings.sim,
+            seed=self.settings.sim_seed,
+            dwell_s=live.extra.get("dwell_s"),
+            observers=self._observers(live),
+            control=live.control,
+            run_id=live.id,
+            procedure_kw=live.extra.get("procedure_kw") or None,
+            truth=simulated_unit(live.unit_serial, live.age_days) if self.settings.sim else None,
+            defer_final_state=True,
+        )
+
+    def _schedule_resume(self, live: LiveRun, fault: str, windows: int) -> None:
+        """Store the run's next automatic resume (the agent queues it when due)."""
+        live.extra["auto_resume"] = fault_retry.schedule_logged(
+            self.sessions, live.id, fault, windows, self.retry
+        )
+
+    def _finishing_gate(self, run_id: str) -> str | None:
+        """The stored abort of ``run_id``, else the run marked finishing in the database in the
+        same transaction (:func:`db.repo.queue.enter_finishing`): a request either took effect
+        or is refused from here on."""
+        with self.sessions.begin() as s:
+            return enter_finishing(s, run_id)
+
+    def _work(self, live: LiveRun) -> None:
+        record: RunRecord | None = None
+        interrupted = False
+        live.control.finishing_gate = lambda: self._finishing_gate(live.id)
+        try:
+            record = self._acquire(live)
+            live.record = record
+            live.error = record.error
+            if interrupted_by_fault(record):  # table safe, recording closed: resumed automatically
+                interrupted = True
+                self._schedule_resume(live, record.error or FAULT_PREFIX, len(record.windows))
+            elif live.shutdown and record.outcome is Outcome.ABORTED:
+                with self.sessions.begin() as s:
+                    interrupted = service_resume.interrupt_shutdown_abort(s, live.id)
+            elif self.finisher is not None:
+                self.finisher(live, record)
+        except ResumeFailed as exc:  # the devices did not open: put back interrupted, tried again
+            live.error, interrupted = str(exc), True
+            claimed = live.extra.get("claimed")
+            self._schedule_resume(live, str(exc), claimed.point.next_window_index if claimed else 0)
+        except Exception as exc:  # the worker must report, not die silently
+            log.exception("run %s failed in the service", live.id)
+            live.error = f"{type(exc).__name__}: {exc}"
+            if live.resumed and record is None:  # claimed but not continued: resumable again
+                interrupted = self._release_claim(live)
+            elif record is None:  # a claimed run must not stay live without an owner at work
+                self._end_in_error(live)
+        finally:
+            if record is not None and not interrupted:
+                self._finalise(live, record)
+            live.state = RunState.INTERRUPTED if interrupted else _final_state(record)
+            live.progress = 1.0 if live.state is RunState.COMPLETED else live.progress
+            hidden = ("dwell_s", "claimed", "procedure_kw")
+            finished = {
+                "state": live.state.value,
+                "outcome": record.outcome.value if record and record.outcome else None,
+                "conformity_note": record.conformity_note if record and record.conformity_note else None,
+                "error": live.error,
+                **{k: v for k, v in live.extra.items() if k not in hidden},
+            }
+            self.hub.publish(live.id, TERMINAL_EVENT, finished)
+            self._store_finished(live, finished)
+            with self._lock:
+                self._recent[live.id] = live
+                if len(self._recent) > 50:
+                    self._recent.pop(next(iter(self._recent)))
+                self._current = None
+            live.done.set()
+
+    def _finalise(self, live: LiveRun, record: RunRecord) -> None:
+        """Store the final state of a run whose verdict was left live for the finisher (which
+        normally stores it with the certificate); a finisher that failed leaves its error."""
+        if not record.state.is_final:
+            return
+        try:
+            with self.sessions.begin() as s:
+                if finish_record(s, record) and live.error and live.error != record.error:
+                    merge_params(s, live.id, {CERTIFICATE_ERROR: f"results not stored: {live.error}"})
+        except Exception:
+            log.exception("run %s: could not store its final state", live.id)
+
+    def _end_in_error(self, live: LiveRun) -> None:
+        try:
+            with self.sessions.begin() as s:
+                finish_run(s, live.id, DbRunState.ERROR, outcome="ERROR", error=live.error)
+        except Exception:
+            log.exception("run %s: could not store its error", live.id)
+
+    def _store_finished(self, live: LiveRun, finished: dict[str, object]) -> None:
+        """The run's last event (``Run.final_event``: state, outcome, error, certificate number or
+        drift result): API processes end their event streams with it (the results and
+        certificate are stored by then)."""
+        try:
+            with self.sessions.begin() as s:
+                set_final_event(s, live.id, finished)
+        except Exception:
+            log.exception("run %s: could not store its final event", live.id)
+
+    def _release_claim(self, live: LiveRun) -> bool:
+        try:
+            with self.sessions.begin() as s:
+                return mark_run_interrupted(s, live.id, f"resume failed: {live.error}")
+        except Exception:
+            log.exception("run %s: could not mark it interrupted again", live.id)
+            return False
+
+    def wait_idle(self, timeout_s: float) -> bool:
+        """Wait until no run holds the bench; False on timeout."""
+        live = self._current
+        return True if live is None else live.done.wait(timeout_s)
+
+    def shutdown(self, timeout_s: float = 60.0) -> str | None:
+        """Stop the live run for a service shutdown and wait for its worker: the table goes to
+        its safe state, the recording is closed with its durable chunks, and the run is stored
+        ``interrupted`` (resumable after the restart), not aborted. Returns its id, if any."""
+        live = self._current
+        if live is None:
+            return None
+        live.shutdown = True
+        live.control.abort(SHUTDOWN_REASON)
+        if not live.done.wait(timeout_s):
+            log.error(
+                "run %s did not stop within %g s of the shutdown; the next start marks it interrupted",
+                live.id,
+                timeout_s,
+            )
+        return live.id
+
+
+def _final_state(record: RunRecord | None) -> RunState:
+    """The record's final state (a completed fit no limits judged has no outcome); ERROR when
+    there is no record or it is not final."""
+    if record is None or not record.state.is_final:
+        return RunState.ERROR
+    return record.state

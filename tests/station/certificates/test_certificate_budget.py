@@ -1,0 +1,158 @@
+"""The certificate's uncertainty budget on a simulated recording: Type A only gives U = 2σ, the
+default Type B inputs raise U by the budget's rule, and the budget is in the JSON and the PDF."""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import math
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from api.simulated_recording import write_simulated
+from bench.calibration import calibrate_recording
+from bench.calibration.analysis import analyse
+from bench.fitted_model import FittedModel
+from bench.recording import Recording, read_recording
+from db.repo.certificates import canonical_sha256
+from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg
+from drivers.sim.physics import SensorPhysics, SensorTruth
+from station.certificates.budget import CertificateBudget, TypeBSettings, certificate_budget
+from station.certificates.certificate import certificate_content
+from station.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
+from station.certificates.pdf import render_pdf
+from station.certificates.rounding import round_expanded
+from station.settings import Settings
+
+G = 9.81535
+ZERO = TypeBSettings(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Recording, dict[str, Any]]:
+    truth = SensorTruth.typical("V", seed=4)
+    physics = SensorPhysics(truth, DEFAULT_AXES, None, G, seed=5, encoder_resolution_deg=1e-4)
+    path = tmp_path_factory.mktemp("budget") / "sim.csv"
+    write_simulated(path, simulate_static(static12_poses_deg(), 5.0, physics, 100.0), serial="SN-B", seed=5)
+    rec = read_recording(path)
+    return rec, calibrate_recording(rec).to_contract()
+
+
+def _content(cal: dict[str, Any], budget: CertificateBudget | None) -> dict[str, Any]:
+    inputs = CertificateInputs(
+        run=RunFacts(id="r1", procedure="static-12", started_at=dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
+                     finished_at=dt.datetime(2025, 1, 1, 0, 5, tzinfo=dt.UTC)),
+        unit=UnitFacts("SN-B", channel_unit="V"), calibration=FittedModel.from_contract(cal),
+        g_local_m_s2=G, temp_c=(24.4, 24.6, 24.9), budget=budget,
+        budget_note="" if budget else "no recording",
+    )  # fmt: skip
+    lab = Laboratory("Test lab", "1 Lab Road", "room 2", "A. Person")
+    return certificate_content(
+        inputs, lab, number="CB-2025-00011", issued_at=dt.datetime(2025, 1, 2, tzinfo=dt.UTC)
+    )
+
+
+def test_type_b_zero_gives_two_sigma_to_two_digits(recorded: tuple[Recording, dict[str, Any]]) -> None:
+    rec, cal = recorded
+    budget = certificate_budget(analyse(rec), FittedModel.from_contract(cal), ZERO)
+    res = _content(cal, budget)["results"]
+    assert res["bias"]["k"] == 2.0 and res["scale_matrix"]["k"] == 2.0
+    for name, sig in (("bias", "bias_sigma"), ("scale_matrix", "scale_matrix_sigma")):
+        expected = [
+            round_expanded(v, s)[1] for v, s in zip(np.ravel(cal[name]), np.ravel(cal[sig]), strict=True)
+        ]
+        assert np.ravel(res[name]["expanded_uncertainty"]).tolist() == expected
+    assert math.isinf(budget.budget.by_name("K_yy").nu_eff)
+    assert budget.to_content()["quantities"]["K_yy"]["nu_eff"] == "infinite"
+
+
+def test_default_type_b_inputs_raise_u_as_the_budget_says(recorded: tuple[Recording, dict[str, Any]]) -> None:
+    rec, cal = recorded
+    tb = TypeBSettings.of(Settings())
+    assert tb.table_angle_u_deg == 0.001 and tb.g_local_u_m_s2 == 1e-5 and tb.daq_gain_u_rel == 1e-5
+    budget = certificate_budget(analyse(rec), FittedModel.from_contract(cal), tb)
+    names = {i.group for i in budget.budget.inputs}
+    assert {"table angle", "base levelling x", "local gravity", "DAQ gain", "DAQ offset",
+            "temperature: bias", "temperature: scale"} <= names  # fmt: skip
+    stated = budget.to_content()
+    b_x = stated["quantities"]["b_x"]
+    gain_x = next(c for c in b_x["contributions"] if c["name"] == "DAQ gain, channel x")
+    assert gain_x["contribution"] == pytest.approx(abs(cal["bias"][0]) * 1e-5, rel=2e-3)  # ∂b/∂ε = b
+    K_xx = stated["quantities"]["K_xx"]
+    g_line = next(c for c in K_xx["contributions"] if c["name"] == "local gravity g_local")
+    assert g_line["contribution"] == pytest.approx(cal["scale_matrix"][0][0] / G * 1e-5, rel=2e-3)
+    root_sum = math.sqrt(sum(c["contribution"] ** 2 for c in b_x["contributions"]))
+    assert b_x["u_c"] == pytest.approx(root_sum, rel=5e-3)  # lines carry 3 digits
+    res = _content(cal, budget)["results"]
+    u = np.array(res["bias"]["expanded_uncertainty"])
+    np.testing.assert_allclose(
+        u, [2 * stated["quantities"][n]["u_c"] for n in ("b_x", "b_y", "b_z")], rtol=0.03
+    )
+    assert np.all(u >= 2 * np.array(cal["bias_sigma"]) * 0.95)
+
+
+def test_without_a_budget_the_statement_says_type_a_only(recorded: tuple[Recording, dict[str, Any]]) -> None:
+    _, cal = recorded
+    c = _content(cal, None)
+    assert c["results"]["uncertainty_budget"] == "not stated"
+    assert "Type A only" in c["uncertainty_statement"] and "no recording" in c["uncertainty_statement"]
+
+
+def test_digital_output_and_no_table_are_listed_as_not_evaluated(
+    recorded: tuple[Recording, dict[str, Any]],
+) -> None:
+    rec, cal = recorded
+    bare = dataclasses.replace(rec, temp_c=None)
+    budget = certificate_budget(
+        analyse(bare),
+        FittedModel.from_contract({**cal, "channel_unit": "count"}),
+        TypeBSettings.of(Settings()),
+    )
+    notes = " ".join(budget.not_evaluated)
+    assert "digital" in notes and "temperature" in notes
+    assert not any(i.group == "DAQ gain" for i in budget.budget.inputs)
+    assert budget.to_content()["not_evaluated"] == list(budget.not_evaluated)
+
+
+@pytest.mark.skipif(shutil.which("pdftotext") is None, reason="poppler-utils not installed")
+def test_pdf_shows_the_budget_tables(recorded: tuple[Recording, dict[str, Any]], tmp_path: Path) -> None:
+    rec, cal = recorded
+    c = _content(
+        cal, certificate_budget(analyse(rec), FittedModel.from_contract(cal), TypeBSettings.of(Settings()))
+    )
+    path = tmp_path / "c.pdf"
+    path.write_bytes(render_pdf(c, canonical_sha256(c)))
+    text = subprocess.run(["pdftotext", "-layout", str(path), "-"], capture_output=True, text=True,
+                          check=True).stdout  # fmt: skip
+    for needle in ("Uncertainty budget", "Bias b: contributions", "Scale factors K_ii", "DAQ gain",
+                   "local gravity", "combined standard uncertainty u_c", "coverage factor k",
+                   "Welch–Satterthwaite", "K_yy"):  # fmt: skip
+        assert needle in text, needle
+
+
+def test_combined_reads_u_c_and_the_largest_stated_k_of_each_quantity() -> None:
+    from bench.estimation.static_design import PARAMETER_NAMES
+    from bench.uncertainty.budget import Budget, QuantityBudget
+
+    # u_c of parameter i is (i + 1)·1e-6; k of K_yz is 2.12349 (stated 2.123), the largest of K
+    ks = {"b_y": 2.0004, "K_yz": 2.12349, "K_xx": 2.05}
+    quantities = tuple(
+        QuantityBudget(n, 0.0, (), (i + 1) * 1e-6, 50.0, ks.get(n, 2.0), 0.0)
+        for i, n in enumerate(PARAMETER_NAMES)
+    )
+    typed = CertificateBudget(Budget(quantities, (), np.zeros((0, 12)), "analytic"), "V", ("none",))
+    u_b, k_b = typed.combined("bias")
+    np.testing.assert_array_equal(u_b, [1e-6, 2e-6, 3e-6])
+    assert k_b == 2.0
+    u_K, k_K = typed.combined("scale_matrix")
+    np.testing.assert_array_equal(u_K, np.arange(4, 13).reshape(3, 3) * 1e-6)
+    assert k_K == 2.123
+    stated = typed.to_content()["quantities"]
+    assert (stated["K_yz"]["k"], stated["K_yz"]["u_c"], stated["K_yz"]["unit"]) == (2.123, 9e-6, "V/(m/s2)")
+    with pytest.raises(ValueError, match="budget quantity 'K': expected 'bias' or 'scale_matrix'"):
+        typed.combined("K")

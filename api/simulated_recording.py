@@ -23,14 +23,18 @@ DEFAULT_AXIS_NAMES = ("outer", "middle", "inner")
 def nominal_geometry(
     run: SimulatedRun, lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
 ) -> TableGeometry:
-    """The geometry a bench would believe for ``run``: its true axes, the identity mount, ``lever_arm_m``."""
+    """The geometry a bench would believe for ``run``: its true axes, the identity mount, ``lever_arm_m``,
+    the encoders' step when they read in steps."""
     k = run.axis_vectors.shape[0]
     names = DEFAULT_AXIS_NAMES if k == 3 else tuple(f"axis{i + 1}" for i in range(k))
     axes = tuple(
         TableAxis(name, (float(a[0]), float(a[1]), float(a[2])))
         for name, a in zip(names, run.axis_vectors, strict=True)
     )
-    return TableGeometry(axes=axes, lever_arm_m=lever_arm_m)
+    step = run.encoder_resolution_deg
+    return TableGeometry(
+        axes=axes, lever_arm_m=lever_arm_m, encoder_resolution_deg=step if step > 0 else None
+    )
 
 
 def to_recording(

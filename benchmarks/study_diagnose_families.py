@@ -1,8 +1,9 @@
 """Bench physics nobody listed: is each family named, and is nothing else claimed for it?
 
-``python -m benchmarks.study_diagnose_families [N] [M] [FILTER]``: every case of
+``python -m benchmarks.study_diagnose_families [N] [M] [FILTER] [CLEAN_FILTER]``: every case of
 ``tests/support/families_cases.py`` (filtered by a substring of its name) on N seeds (100…),
-then M clean recordings of each kind (static, rate, oscillation; seeds 1000…). One markdown
+then M clean recordings of each kind (static, rate, oscillation, and a navigation-grade static
+tumble on encoders that read in 1e-4° steps, declared in the sidecar; seeds 1000…). One markdown
 row per case: named (the truth within 3 sigma, or ``unexplained`` on its channel), median and
 largest |z| where named, recordings with a catalogue finding or discovered term the truth
 does not hold (and which), seconds per recording. Clean rows: recordings with any finding,
@@ -18,12 +19,22 @@ from collections import Counter
 import numpy as np
 
 from bench.calibration.diagnose import diagnose_recording
+from bench.recording import Recording
 from tests.support.diagnose_cases import static_recording
 from tests.support.diagnose_dynamic_cases import moving_recording
-from tests.support.families_cases import CATALOGUE_IDS, cases
+from tests.support.families_cases import CATALOGUE_IDS, cases, navigation_static_recording
+
+CLEAN_KINDS = ("static", "rate", "oscillation", "static navigation-grade, 1e-4° encoder steps")
 
 
-def main(n: int = 3, m: int = 3, only: str = "") -> None:
+def clean_recording(kind: str, seed: int) -> Recording:
+    """A recording of ``kind`` (``CLEAN_KINDS``) with nothing concealed."""
+    if kind.startswith("static navigation"):
+        return navigation_static_recording(seed)
+    return static_recording({}, seed) if kind == "static" else moving_recording({}, seed, kind)
+
+
+def main(n: int = 3, m: int = 3, only: str = "", clean_only: str = "") -> None:
     print("| case | kind | named | abs z (median / max) | other claim | claims | s per recording |")
     print("|---|---|---|---|---|---|---|")
     tot_named = tot_claim = tot = 0
@@ -59,12 +70,13 @@ def main(n: int = 3, m: int = 3, only: str = "") -> None:
         return
     print("\n| clean | recordings | catalogue finding or discovered | bench-family finding | unexplained |")
     print("|---|---|---|---|---|")
-    for kind in ("static", "rate", "oscillation"):
+    for kind in CLEAN_KINDS:
+        if clean_only and clean_only not in kind:
+            continue
         cat = fam = une = 0
         what = Counter[str]()
         for seed in range(1000, 1000 + m):
-            rec = static_recording({}, seed) if kind == "static" else moving_recording({}, seed, kind)
-            d = diagnose_recording(rec)
+            d = diagnose_recording(clean_recording(kind, seed))
             c = [f.effect for f in d.findings if f.effect in CATALOGUE_IDS] + [x.term for x in d.discovered]
             b = [f.effect for f in d.findings if f.effect not in CATALOGUE_IDS]
             cat += bool(c)
@@ -81,4 +93,5 @@ if __name__ == "__main__":
         int(args[0]) if args else 3,
         int(args[1]) if len(args) > 1 else 3,
         args[2] if len(args) > 2 else "",
+        args[3] if len(args) > 3 else "",
     )

@@ -90,6 +90,7 @@ def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
         window_temp_c=None if rec.temp_c is None else tuple(rec.temp_c[w.slice] for w in wins),
         window_t_s=tuple(t[w.slice] for w in wins),
         last_move_sign=None if qu is None else last_move_sign(qu, t, [w.start for w in wins]),
+        encoder_resolution_deg=None if table is None or q_rad is None else table.encoder_resolution_deg,
     )
 
 

@@ -35,6 +35,7 @@ from bench.diagnosis.library import EFFECT, LibraryTerm, library_terms
 from bench.diagnosis.library import candidate as library_candidate
 from bench.diagnosis.likelihood import NoiseParams
 from bench.diagnosis.model_state import ModelState, scale_matrix
+from bench.diagnosis.pose_quantisation import quantisation_covariance
 from bench.diagnosis.referee import prune_catalogue, referee
 from bench.diagnosis.refit import ModelFit, effect_parameters, model_sequence
 from bench.diagnosis.regressors import correlations
@@ -133,6 +134,9 @@ def diagnose(
         K0 = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
         J = pose_response(ev, K0)
         fixed = th.free_orientation_rad**2 * np.einsum("wik,wjk->wij", J, J)
+    quantised = quantisation_covariance(ev, th=th)  # the encoders' step as pose scatter
+    if quantised is not None:
+        fixed = quantised if fixed is None else fixed + quantised
     lib_terms: dict[str, LibraryTerm] = {}
     if ev.orientation_known and use_library:
         terms, _ = library_terms(ev, th)

@@ -44,6 +44,9 @@ class StaticEvidence:
         or ``None``.
     :param last_move_sign: (m, k) sign of each table axis's last move before each window (0:
         it had not moved), or ``None`` (``hysteresis``).
+    :param encoder_resolution_deg: the step in which the encoders read (deg; the sidecar's
+        ``table.encoder_resolution_deg``), or ``None``: the readings taken as exact
+        (``pose_quantisation``).
     """
 
     y: FloatArray
@@ -63,6 +66,7 @@ class StaticEvidence:
     window_temp_c: tuple[FloatArray, ...] | None = None
     window_t_s: tuple[FloatArray, ...] | None = None
     last_move_sign: FloatArray | None = None
+    encoder_resolution_deg: float | None = None
 
     def __post_init__(self) -> None:
         m = self.y.shape[0] if self.y.ndim == 2 else -1
@@ -86,6 +90,9 @@ class StaticEvidence:
             per = getattr(self, name)
             if per is not None and len(per) != m:
                 raise ValueError(f"evidence: {name} has {len(per)} windows, expected {m}")
+        step = self.encoder_resolution_deg
+        if step is not None and not (np.isfinite(step) and step > 0):
+            raise ValueError(f"evidence: encoder_resolution_deg must be > 0, got {step!r}")
         if np.any(np.diagonal(self.V, axis1=1, axis2=2) <= 0):
             raise ValueError("evidence: every window mean needs a positive variance")
 

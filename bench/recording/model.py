@@ -36,6 +36,8 @@ class TableGeometry:
     :param mount_rotation: (3, 3) rotation from the sensor's nominal frame to the innermost
         table frame.
     :param lever_arm_m: (3,) sensor reference point in the innermost table frame (m).
+    :param encoder_resolution_deg: the step in which the encoders read (deg), or ``None``
+        (not declared): the servo holds each pose anywhere within half a step of the reading.
     """
 
     axes: tuple[TableAxis, ...]
@@ -45,6 +47,7 @@ class TableGeometry:
         (0.0, 0.0, 1.0),
     )
     lever_arm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    encoder_resolution_deg: float | None = None
 
     @property
     def axis_vectors(self) -> FloatArray:

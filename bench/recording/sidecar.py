@@ -35,6 +35,9 @@ MAX_TABLE_AXES = 6
 """Most table axes a sidecar may list (calibration tables have one to three)."""
 UNIT_TOL = 1e-6
 """Tolerance on axis-vector length and on the orthonormality/determinant of ``mount_rotation``."""
+MAX_ENCODER_RESOLUTION_DEG = 1.0
+"""Coarsest encoder step ``table.encoder_resolution_deg`` may declare (deg): a calibration
+table's encoders read to arc-seconds; a step beyond a degree is a unit mistake (counts, arc-minutes)."""
 
 _TOP_KEYS = {
     "format",
@@ -48,7 +51,7 @@ _TOP_KEYS = {
     "segments",
 }
 _UNIT_KEYS = {"serial", "model"}
-_TABLE_KEYS = {"axes", "mount_rotation", "lever_arm_m"}
+_TABLE_KEYS = {"axes", "mount_rotation", "lever_arm_m", "encoder_resolution_deg"}
 _SEGMENT_KEYS = {"start_s", "end_s", "label", "nominal_up"}
 
 
@@ -143,10 +146,21 @@ def _parse_table(obj: Any, path: Path, extra: dict[str, object]) -> TableGeometr
     if "lever_arm_m" in obj:
         v = _vector(obj["lever_arm_m"], path, "table.lever_arm_m")
         lever = (v[0], v[1], v[2])
+    step = None
+    if obj.get("encoder_resolution_deg") is not None:
+        step = _number(obj["encoder_resolution_deg"], path, "table.encoder_resolution_deg")
+        if not 0.0 < step <= MAX_ENCODER_RESOLUTION_DEG:
+            raise RecordingError(
+                path,
+                f"encoder step {step:g}°; expected > 0 and at most {MAX_ENCODER_RESOLUTION_DEG:g}°",
+                key="table.encoder_resolution_deg",
+            )
     unknown = {k: v for k, v in obj.items() if k not in _TABLE_KEYS}
     if unknown:
         extra["table"] = unknown
-    return TableGeometry(axes=tuple(axes), mount_rotation=mount, lever_arm_m=lever)
+    return TableGeometry(
+        axes=tuple(axes), mount_rotation=mount, lever_arm_m=lever, encoder_resolution_deg=step
+    )
 
 
 def _parse_segments(obj: Any, path: Path, extra: dict[str, object]) -> tuple[Segment, ...]:
@@ -301,6 +315,8 @@ def sidecar_to_dict(sc: Sidecar) -> dict[str, object]:
             "mount_rotation": [list(r) for r in sc.table.mount_rotation],
             "lever_arm_m": list(sc.table.lever_arm_m),
         }
+        if sc.table.encoder_resolution_deg is not None:
+            table["encoder_resolution_deg"] = sc.table.encoder_resolution_deg
         if isinstance(table_extra, dict):
             table.update(table_extra)
         d["table"] = table

@@ -54,6 +54,8 @@ class SimulatedRun:
     :param g_local_m_s2: true local gravity (m/s²).
     :param profile: the commanded motion (encoder coordinates).
     :param bias_wander_m_s2: (n, 3) slow noise the sensor saw (m/s², see ``SensorSamples``).
+    :param encoder_resolution_deg: the step the encoders read in (deg; ``encoder_hold``'s, else
+        the physics' ``encoder_resolution_deg``), 0 for exact readings.
     """
 
     t_s: FloatArray
@@ -69,6 +71,7 @@ class SimulatedRun:
     g_local_m_s2: float
     profile: TableProfile
     bias_wander_m_s2: FloatArray
+    encoder_resolution_deg: float = 0.0
 
     def bias_seen(self) -> FloatArray:
         """(3,) the bias this run's windows saw: truth.bias + K·(mean bias wander over the windows).
@@ -179,6 +182,7 @@ def _run(
         g_local_m_s2=physics.g_local_m_s2,
         profile=profile,
         bias_wander_m_s2=samples.bias_wander_m_s2,
+        encoder_resolution_deg=physics.encoder_step_deg,
     )
 
 

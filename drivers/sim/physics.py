@@ -162,6 +162,13 @@ class SensorPhysics:
             encoder_resolution_deg=self.encoder_resolution_deg,
         )
 
+    @property
+    def encoder_step_deg(self) -> float:
+        """The step the encoders read in (deg): ``encoder_hold``'s, else ``encoder_resolution_deg``."""
+        if "encoder_hold" in self._fx:
+            return float(self._fx["encoder_hold"]["step_deg"])
+        return self.encoder_resolution_deg
+
     # -- table ---------------------------------------------------------------------------------
     def true_table_state(self, kin: TableKinematics) -> tuple[FloatArray, FloatArray, FloatArray]:
         """True (angles_rad, rates_rad_s, accels_rad_s2), each (n, k): encoder offset and settling added."""
@@ -345,9 +352,7 @@ class SensorPhysics:
         if lsb > 0:
             raw = np.round(raw / lsb) * lsb
         enc = wrap_deg(np.rad2deg(kin_enc.angles_rad))
-        step = self.encoder_resolution_deg
-        if "encoder_hold" in self._fx:
-            step = float(self._fx["encoder_hold"]["step_deg"])
+        step = self.encoder_step_deg
         if step > 0:
             enc = wrap_deg(np.round(enc / step) * step)
         return SensorSamples(raw=raw, encoder_deg=enc, temp_c=temp_read, bias_wander_m_s2=wander)

@@ -43,6 +43,7 @@ def test_written_recording_reads_back_and_keeps_the_truth_apart(tmp_path):
     assert rec.sidecar.channel_unit == "V"
     assert rec.sidecar.procedure == "static-12"
     assert rec.sidecar.table is not None and rec.sidecar.table.lever_arm_m == (0.01, 0.0, 0.0)
+    assert rec.sidecar.table.encoder_resolution_deg == 1e-4  # the encoders' step travels in the sidecar
     assert [s.label for s in rec.sidecar.segments or ()] == [s[2] for s in run.segments]
     np.testing.assert_allclose(rec.accel_raw, run.raw, rtol=1e-12)
     np.testing.assert_allclose(rec.table_deg, run.encoder_deg, atol=1e-9)
@@ -50,6 +51,26 @@ def test_written_recording_reads_back_and_keeps_the_truth_apart(tmp_path):
     np.testing.assert_allclose(doc["scale_matrix"], run.truth.K)
     np.testing.assert_allclose(doc["bias_run"], run.bias_seen())
     assert "bias" not in json.loads(path.with_suffix(".json").read_text())  # the sidecar holds no truth
+
+
+def test_sidecar_declares_the_step_the_encoders_read_in():
+    """The physics' encoder step, ``encoder_hold``'s where it holds poses, none for exact readings."""
+    truth = SensorTruth.typical("V", seed=1)
+    for physics, step in (
+        (SensorPhysics(truth, DEFAULT_AXES, None, G, seed=2), None),
+        (SensorPhysics(truth, DEFAULT_AXES, None, G, seed=2, encoder_resolution_deg=1e-3), 1e-3),
+        (
+            SensorPhysics(
+                truth.with_effects({"encoder_hold": {"step_deg": 2e-4}}), DEFAULT_AXES, None, G, seed=2
+            ),
+            2e-4,
+        ),
+    ):
+        run = simulate_static(static12_poses_deg(), 1.0, physics, 100.0)
+        table = to_recording(run, serial="x").sidecar.table
+        assert table is not None and table.encoder_resolution_deg == step
+        if step:  # the readings lie on the declared grid
+            np.testing.assert_allclose(run.encoder_deg / step, np.round(run.encoder_deg / step), atol=1e-6)
 
 
 def test_geometry_must_match_the_encoders():

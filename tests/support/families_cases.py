@@ -18,15 +18,17 @@ Typical ADXL-like triad in V, 100 Hz, 250 µg/√Hz, 40 µg wander. Scores:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from api.simulated_recording import to_recording
 from bench.diagnosis import Diagnosis
 from bench.diagnosis.effects import CATALOGUE
 from bench.recording import Recording
-from drivers.sim.physics import SensorTruth
+from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg
+from drivers.sim.physics import SensorPhysics, SensorTruth
 from tests.support.diagnose_cases import static_recording
 from tests.support.diagnose_dynamic_cases import moving_recording
 
@@ -241,3 +243,32 @@ def cases() -> list[FamilyCase]:
         for ug in (100.0, 300.0):
             out.append(_hysteresis(axis, ug))
     return out
+
+
+NAV_WHITE_G_RT_HZ = 2e-6
+"""White noise of the navigation-grade unit whose window means the encoders' step reaches (g/√Hz)."""
+NAV_LSB_V = 3.0 / 2**24
+"""A 24-bit converter over 3 V (V)."""
+ENCODER_STEP_DEG = 1e-4
+"""The simulated bench's encoder step (deg)."""
+
+
+def navigation_static_recording(seed: int, declared: bool = True) -> Recording:
+    """A clean navigation-grade static-12 tumble (2 µg/√Hz white, no wander, 24-bit) on encoders
+    that read in steps of 1e-4° with the servo holding each pose within half a step
+    (``encoder_hold``); ``declared`` False drops ``table.encoder_resolution_deg`` from the sidecar
+    (a recording written before the key)."""
+    typ = SensorTruth.typical("V", seed=seed)
+    noise = replace(
+        typ.noise,
+        white_m_s2_rt_hz=NAV_WHITE_G_RT_HZ * G0,
+        bias_instability_m_s2=0.0,
+        quantization_lsb=NAV_LSB_V,
+    )
+    truth = typ.with_noise(noise).with_effects({"encoder_hold": {"step_deg": ENCODER_STEP_DEG}})
+    run = simulate_static(static12_poses_deg(), 30.0, SensorPhysics(truth, DEFAULT_AXES, seed=seed), 100.0)
+    rec = to_recording(run, serial=f"SIM-NAV-{seed}")
+    if declared or rec.sidecar.table is None:
+        return rec
+    table = replace(rec.sidecar.table, encoder_resolution_deg=None)
+    return replace(rec, sidecar=replace(rec.sidecar, table=table))

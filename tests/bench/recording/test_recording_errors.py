@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 
 from bench.recording import RecordingError, read_recording
+from bench.recording.sidecar import sidecar_to_dict
 
 SIDECAR: dict[str, Any] = {
     "format": "calbench-recording/1",
@@ -198,6 +199,10 @@ def test_no_row_is_ever_dropped(tmp_path: Path) -> None:
         ),
         ({"table__mount_rotation": [[1, 0, 0], [0, 1, 0]]}, "table.mount_rotation", "3x3"),
         ({"table__lever_arm_m": [0, 0, None]}, "table.lever_arm_m[2]", "expected a number"),
+        ({"table__encoder_resolution_deg": 0}, "table.encoder_resolution_deg", "expected > 0"),
+        ({"table__encoder_resolution_deg": -1e-4}, "table.encoder_resolution_deg", "expected > 0"),
+        ({"table__encoder_resolution_deg": 2.0}, "table.encoder_resolution_deg", "at most 1°"),
+        ({"table__encoder_resolution_deg": "1e-4"}, "table.encoder_resolution_deg", "expected a number"),
         (
             {
                 "segments": [
@@ -249,3 +254,16 @@ def test_hand_held_recording_with_nominal_up(tmp_path: Path) -> None:
     rec = read_recording(write(tmp_path, rows, "t,ax,ay,az", table=DELETE, segments=segs))
     assert rec.table_deg is None and rec.table_rad_unwrapped() is None
     assert [s.nominal_up for s in rec.sidecar.segments or ()] == ["+z", "-z"]
+
+
+def test_encoder_resolution_is_optional_and_written_back(tmp_path: Path) -> None:
+    """Without the key the step is not declared (older recordings); with it, it is read and kept."""
+    plain = read_recording(write(tmp_path)).sidecar
+    assert plain.table is not None and plain.table.encoder_resolution_deg is None
+    assert "encoder_resolution_deg" not in json.dumps(sidecar_to_dict(plain))
+    nulled = read_recording(write(tmp_path, table__encoder_resolution_deg=None)).sidecar
+    assert nulled.table is not None and nulled.table.encoder_resolution_deg is None
+    sc = read_recording(write(tmp_path, table__encoder_resolution_deg=1e-4)).sidecar
+    assert sc.table is not None and sc.table.encoder_resolution_deg == 1e-4
+    table = sidecar_to_dict(sc)["table"]
+    assert isinstance(table, dict) and table["encoder_resolution_deg"] == 1e-4

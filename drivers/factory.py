@@ -11,24 +11,36 @@ Table URLs:
 
 Each scheme maps to an opener in ``TABLE_OPENERS``; a new scheme (``sim://``) is one
 more entry.
+
+This is the one place where production code reaches the simulator (``drivers.sim``): only when a
+URL (the bench file's, or the settings') is ``sim://``, and only then is it imported. A process
+that drives a real bench never loads it. Callers name a simulated unit with
+:func:`simulated_unit` and hand it on as a :data:`SimulatedTruth`; they never build one.
 """
 
 from __future__ import annotations
 
 import urllib.parse
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from drivers.base import Daq, RotaryTable
 from drivers.errors import DriverError
 from drivers.modbus_daq import ModbusDaq
-from drivers.sim.bench import DEFAULT_AXES, SimBench
-from drivers.sim.physics import SensorTruth
-from drivers.sim.process import SimBenchProcess
 from drivers.table import SerialRotaryTable
 
+if TYPE_CHECKING:
+    from drivers.sim.bench import SimBench
+    from drivers.sim.physics import SensorTruth
+    from drivers.sim.process import SimBenchProcess
+
 TableOpener = Callable[[str, float, int], RotaryTable]
+
+SimulatedTruth: TypeAlias = "SensorTruth"
+"""The simulated unit a ``sim://`` bench carries (:class:`drivers.sim.physics.SensorTruth`), as
+the station passes it on to :func:`open_bench` without looking inside."""
 
 
 def _open_serial_table(url: str, timeout_s: float, n_axes: int) -> RotaryTable:
@@ -149,7 +161,7 @@ def open_bench(
     *,
     timeout_s: float = 1.0,
     n_axes: int = 3,
-    truth: SensorTruth | None = None,
+    truth: SimulatedTruth | None = None,
     sim_geometry: dict[str, Any] | None = None,
     sim_process: bool = False,
 ) -> BenchDevices:
@@ -158,13 +170,17 @@ def open_bench(
     With ``sim://`` the DAQ URL must be absent or ``sim://`` too (one simulation feeds
     both); ``truth`` chooses the simulated unit, ``sim_geometry`` the simulated bench's
     ``axes``, ``mount``, ``lever_arm_m`` and ``g_local_m_s2`` (:class:`SimBench` keywords;
-    default: its own, with ``n_axes`` of :data:`DEFAULT_AXES`); ``sim_process`` runs the
+    default: its own, with ``n_axes`` of :data:`drivers.sim.bench.DEFAULT_AXES`); ``sim_process`` runs the
     simulation in its own process (:class:`SimBenchProcess`: it keeps time like hardware however
     busy this process is), otherwise in threads of this one (tests that inject faults reach it there).
 
     :raises ValueError: a bad URL or combination.
     """
     if url_scheme(table_url) == "sim":
+        from drivers.sim.bench import DEFAULT_AXES, SimBench
+        from drivers.sim.physics import SensorTruth
+        from drivers.sim.process import SimBenchProcess
+
         if daq_url is not None and url_scheme(daq_url) != "sim":
             raise ValueError(f"table {table_url!r} is simulated, DAQ {daq_url!r} is not: use sim:// for both")
         p = parse_sim_url(table_url)
@@ -197,3 +213,17 @@ def open_bench(
     except BaseException:
         table.close()
         raise
+
+
+def unit_seed(serial: str) -> int:
+    """Seed of a simulated unit: CRC-32 of its serial (stable across processes)."""
+    return zlib.crc32(serial.encode("utf-8"))
+
+
+def simulated_unit(serial: str, age_days: float) -> SimulatedTruth:
+    """The simulated sensor with this serial, ``age_days`` after its first registration: the
+    typical ``V`` unit drawn with :func:`unit_seed`, aged (negative ages count as 0)."""
+    from drivers.sim.physics import SensorTruth
+
+    seed = unit_seed(serial)
+    return SensorTruth.typical("V", seed).aged(max(0.0, age_days), seed)

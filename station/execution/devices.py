@@ -12,8 +12,7 @@ import numpy as np
 from bench.bench_config import SIM_BENCH_FILE, BenchConfig, apply_to_daq, load_bench_config
 from bench.recording.model import Sidecar
 from drivers.daq_registers import LINK_MAX_SAMPLES_S
-from drivers.factory import BenchDevices, open_bench
-from drivers.sim.physics import SensorTruth
+from drivers.factory import BenchDevices, SimulatedTruth, open_bench
 from station.settings import Settings
 
 
@@ -72,7 +71,7 @@ def open_devices(
     sim: bool,
     sim_speed: float | None,
     seed: int,
-    truth: SensorTruth | None = None,
+    truth: SimulatedTruth | None = None,
     config: BenchConfig | None = None,
 ) -> BenchDevices:
     """Table and DAQ of the bench file ``config`` (default :func:`bench_config_for`): a

@@ -37,8 +37,7 @@ from db.repo.audit import command_line_actor
 from db.repo.recovery import ResumePoint, claim_for_resume, mark_interrupted_runs, mark_run_interrupted
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
-from drivers.factory import BenchDevices
-from drivers.sim.physics import SensorTruth
+from drivers.factory import BenchDevices, SimulatedTruth
 from station.execution.devices import bench_config_for, bench_sidecar, open_devices
 from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed
 from station.execution.verdict import finish_observers, limits_for, run_record
@@ -62,7 +61,7 @@ def start_run(
     control: RunControl | None = None,
     g_local_m_s2: float | None = None,
     run_id: str | None = None,
-    truth: SensorTruth | None = None,
+    truth: SimulatedTruth | None = None,
     devices: BenchDevices | None = None,
     config: SequencerConfig | None = None,
     limits: UnitLimits | str | None = "settings",
@@ -288,7 +287,7 @@ def continue_run(
     *,
     sim: bool,
     sim_speed: float | None = None,
-    truth: SensorTruth | None = None,
+    truth: SimulatedTruth | None = None,
     observers: Sequence[RunObserver] = (),
     control: RunControl | None = None,
     defer_final_state: bool = False,

@@ -32,7 +32,7 @@ from db.repo.audit import record_state
 from db.repo.queue import ClaimedRun
 from db.repo.recovery import ResumePoint, claim_for_resume
 from db.types import utc_now
-from drivers.sim.physics import SensorTruth
+from drivers.factory import SimulatedTruth
 from station.execution.session import continue_run
 from station.runs.live import RunKind
 from station.settings import Settings
@@ -152,7 +152,7 @@ def execute(
     sessions: Any,
     claimed: Claimed,
     *,
-    truth: SensorTruth | None,
+    truth: SimulatedTruth | None,
     observers: Sequence[RunObserver] = (),
     control: RunControl | None = None,
     defer_final_state: bool = False,

@@ -10,9 +10,10 @@ run. A second start while a run holds the bench raises :class:`BenchBusy` (HTTP 
 :meth:`~BenchRunner.shutdown` leaves the live run ``interrupted`` (table safe, recording
 closed), not aborted, so it is resumed after a restart.
 
-The simulated unit behind a serial is ``SensorTruth.typical(seed=crc32(serial)).aged(age_days)``,
-its age counted from the unit's first registration on the runner's clock, so a sensor ages
-from day to day and tests can move the clock; a resumed run keeps the age it started with.
+The simulated unit behind a serial is :func:`drivers.factory.simulated_unit` (seed CRC-32 of the
+serial, aged ``age_days``), its age counted from the unit's first registration on the runner's
+clock, so a sensor ages from day to day and tests can move the clock; a resumed run keeps the age
+it started with.
 """
 
 from __future__ import annotations
@@ -21,7 +22,6 @@ import datetime as dt
 import logging
 import socket
 import threading
-import zlib
 from collections.abc import Callable
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -37,7 +37,7 @@ from db.repo.queue import enter_finishing
 from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
 from db.repo.runs import finish_run, merge_params, set_final_event
 from db.repo.units import get_unit_by_serial
-from drivers.sim.physics import SensorTruth
+from drivers.factory import simulated_unit
 from station.execution import fault_retry
 from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed, RetryPolicy, interrupted_by_fault
 from station.execution.session import start_run
@@ -47,7 +47,7 @@ from station.runs.live import DbLiveObserver, HubObserver, LiveRun, RunKind, Ser
 from station.runs.resume import SHUTDOWN_REASON, NotResumable
 from station.settings import Settings
 
-__all__ = ["BenchBusy", "BenchRunner", "LiveRun", "NotResumable", "RunKind", "simulated_unit", "unit_seed"]
+__all__ = ["BenchBusy", "BenchRunner", "LiveRun", "NotResumable", "RunKind"]
 
 log = logging.getLogger(__name__)
 
@@ -60,17 +60,6 @@ class BenchBusy(Exception):
     def __init__(self, run_id: str) -> None:
         super().__init__(f"the bench is busy with run {run_id}; abort it or wait until it finishes")
         self.run_id = run_id
-
-
-def unit_seed(serial: str) -> int:
-    """Seed of a simulated unit: CRC-32 of its serial (stable across processes)."""
-    return zlib.crc32(serial.encode("utf-8"))
-
-
-def simulated_unit(serial: str, age_days: float) -> SensorTruth:
-    """The simulated sensor with this serial, ``age_days`` after its first registration."""
-    seed = unit_seed(serial)
-    return SensorTruth.typical("V", seed).aged(max(0.0, age_days), seed)
 
 
 class BenchRunner:

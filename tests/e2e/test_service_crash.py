@@ -27,7 +27,7 @@ import pytest
 
 from bench.fitted_model import FittedModel
 from bench.recording.reader import read_recording
-from station.runs.runner import simulated_unit
+from drivers.factory import simulated_unit
 from tests.e2e.helpers import SIM_SPEED, wall_budget_s, z_scores
 from tests.e2e.service_process import ServiceProcess, wait_for
 

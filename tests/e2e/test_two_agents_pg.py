@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from bench.fitted_model import FittedModel
-from station.runs.runner import simulated_unit
+from drivers.factory import simulated_unit
 from tests.e2e.helpers import RATE_HZ, SIM_SPEED, wall_budget_s, z_scores
 from tests.e2e.service_process import CALBENCH, OP, OPERATOR, VIEW, VIEWER, free_port, wait_for
 from tests.pg import pg_database, pg_unreachable_reason

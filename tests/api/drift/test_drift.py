@@ -14,8 +14,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from api.main import create_app
+from drivers.factory import simulated_unit
 from station.drift import DriftScheduler, compare, parse_time_of_day
-from station.runs.runner import simulated_unit
 from tests.support.fits import stored_fit
 from tests.support.service_helpers import OP, VIEW, MovableClock, service_settings, wait_final
 

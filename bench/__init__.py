@@ -3,7 +3,7 @@
 Recordings (``bench.recording``), kinematics, procedures as data, the sequencer that runs
 them, and the calibration, uncertainty budget and diagnosis of a recording. Layer rule:
 from ``drivers`` it imports only ``drivers.base`` and ``drivers.errors`` (the device
-protocols), never ``db`` or ``api``; ``bench.estimation`` and ``bench.diagnosis`` are pure.
+protocols), never ``db``, ``station`` or ``api``; ``bench.estimation`` and ``bench.diagnosis`` are pure.
 """
 
 __version__ = "0.1.0"

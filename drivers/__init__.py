@@ -2,5 +2,5 @@
 
 ``drivers.base`` holds the ``RotaryTable`` and ``Daq`` protocols and ``drivers.errors`` the
 ``DriverError`` tree; ``drivers.sim`` simulates both devices and the sensor's physics.
-Layer rule: the bottom layer; it imports nothing of ``bench``, ``db`` or ``api``.
+Layer rule: the bottom layer; it imports nothing of ``bench``, ``db``, ``station`` or ``api``.
 """

@@ -201,7 +201,7 @@ def _corrected_gravity(fit: DynamicFit, m: MotionData, y: FloatArray, lever: Flo
     Q = positions(th, spec, lever)
     f_motion = np.empty((m.n, 3))
     for s in sample_chunks(m.n):  # B_δ per sample: chunks bound the (chunk, 3, 3) temporaries
-        ms = m.take(s)
+        ms = m.take(s, rates=spec.needs_rates)
         Be = ms.B
         if "time_skew" in spec.terms:
             d = th[spec.index("time_skew")][0]
@@ -239,7 +239,7 @@ def _static_windows(
     g = rec.sidecar.g_local_m_s2
     for k, w in enumerate(wins):
         sl = slice(w.start, w.stop)
-        model, _ = predict(fit.theta, m.take(sl), fit.spec, g, lever)
+        model, _ = predict(fit.theta, m.take(sl, rates=fit.spec.needs_rates), fit.spec, g, lever)
         mean = y[sl].mean(axis=0)
         sig = np.sqrt(np.diag(V[k]))
         resid = mean - model.mean(axis=0)

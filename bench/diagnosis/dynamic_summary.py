@@ -58,7 +58,7 @@ def motion_regressors(
     """Name -> (n,) regressor per sample (module docstring)."""
     out = {"omega^2": np.empty(m.n), "|omega_dot|": np.empty(m.n)}
     for s in sample_chunks(m.n):  # B per sample: chunks bound the (chunk, 3, 3) regressors
-        B = m.take(s).B
+        B = m.take(s, rates=False).B
         out["omega^2"][s] = -0.5 * np.trace(B, axis1=1, axis2=2)
         a_zy, a_xz, a_yx = (0.5 * (B[:, i, j] - B[:, j, i]) for i, j in ((2, 1), (0, 2), (1, 0)))
         out["|omega_dot|"][s] = np.sqrt(a_zy**2 + a_xz**2 + a_yx**2)  # the antisymmetric part of B is [ω̇]×

@@ -209,7 +209,7 @@ def scores(
     """
     w = 1.0 / np.maximum(fit.noise_sigma, 1e-300) ** 2
     idx, stride, sub, Xs, XtX, M = des.idx, des.stride, des.sub, des.Xs, des.XtX, des.Xs.shape[1]
-    _, Js = predict(fit.theta, m.take(sub), fit.spec, g, lever, jacobian=True)
+    _, Js = predict(fit.theta, m.take(sub, rates=fit.spec.needs_rates), fit.spec, g, lever, jacobian=True)
     assert Js is not None
     Js = np.concatenate([Js, lib_columns(aug, vals, sub)], axis=2)
     p = Js.shape[2]
@@ -219,7 +219,9 @@ def scores(
     cat_cos2 = [np.zeros(M) for _ in range(3)]
     P = [w[c] * XtX - Bc[c].T @ Beta[c] for c in range(3)]
     if shares and catalogue is not None:
-        _, Jx = predict(catalogue[1], m.take(sub), catalogue[0], g, lever, jacobian=True)
+        _, Jx = predict(
+            catalogue[1], m.take(sub, rates=catalogue[0].needs_rates), catalogue[0], g, lever, jacobian=True
+        )
         assert Jx is not None
         cat_cos2 = _share_within(Js, Jx, Xs, XtX, P, w, stride)
     slow_cos2 = [np.zeros(M) for _ in range(3)]
@@ -239,7 +241,9 @@ def scores(
     chunk = th.motion_chunk_samples
     for a in range(0, idx.size, chunk):
         sel = idx[a : a + chunk]
-        raw, J = predict(fit.theta, m.take(sel), fit.spec, g, lever, jacobian=True)
+        raw, J = predict(
+            fit.theta, m.take(sel, rates=fit.spec.needs_rates), fit.spec, g, lever, jacobian=True
+        )
         assert J is not None
         J = np.concatenate([J, lib_columns(aug, vals, sel)], axis=2)
         e = y_adj[sel] - raw

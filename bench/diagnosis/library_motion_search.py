@@ -122,7 +122,9 @@ def refit_terms(
         N, rhs = np.zeros((p + k, p + k)), np.zeros(p + k)
         for a in range(0, idx.size, chunk):
             sel = idx[a : a + chunk]
-            raw, J = predict(theta, m.take(sel), fit.spec, g, lever, jacobian=True)
+            raw, J = predict(
+                theta, m.take(sel, rates=fit.spec.needs_rates), fit.spec, g, lever, jacobian=True
+            )
             assert J is not None
             JA = np.concatenate([J, cols[sel]], axis=2)
             e = y_adj[sel] - raw

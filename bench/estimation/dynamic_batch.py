@@ -161,7 +161,7 @@ def _pass(
     idx = np.flatnonzero(m.valid)
     for a in range(0, idx.shape[0], CHUNK_SAMPLES):
         sel = idx[a : a + CHUNK_SAMPLES]
-        mc = m.take(sel)
+        mc = m.take(sel, rates=spec.needs_rates)
         raw, J = predict(theta, mc, spec, g, lever, jacobian=True)
         assert J is not None
         e = y[sel] - raw

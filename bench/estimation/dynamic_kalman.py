@@ -31,11 +31,15 @@ from bench.estimation.dynamic_batch import BiasReference
 from bench.estimation.dynamic_model import ModelSpec, predict
 from bench.estimation.kalman import KalmanState, rts_smooth, update_diagonal
 from bench.estimation.kalman import predict as kf_predict
-from bench.estimation.motion_data import MotionData
+from bench.estimation.motion_data import MotionData, MotionSamples
 
 FloatArray = npt.NDArray[np.float64]
 
 BATCH_S = 0.1
+TAKE_SAMPLES = 20_000
+"""Samples whose regressors are taken from the motion at once, for the batches they hold: a
+pass forms (or copies) each sample's regressors once, not a batch and its derivative windows
+at a time."""
 ARCMIN_RAD = np.pi / (180.0 * 60.0)
 
 
@@ -143,10 +147,16 @@ def run_dynamic_kalman(
         filt: list[KalmanState] = []
         pred: list[KalmanState] = []
         times = np.empty(cuts.shape[0])
+        block: MotionSamples | None = None
+        b0 = 0
         for j, a in enumerate(cuts):
             sel = idx[a : a + per]
+            if block is None or a + sel.shape[0] > b0 + block.n:  # the regressors of the next batches at once
+                b0 = int(a)
+                block = m.take(idx[a : a + per * max(1, TAKE_SAMPLES // per)], rates=spec.needs_rates)
             prior_k = state if j == 0 else kf_predict(state, None, Q if bias_walk_var_per_s else None)
-            raw, J = predict(prior_k.x, m.take(sel), spec, g_m_s2, lever, jacobian=True)
+            ms = block.take(slice(a - b0, a - b0 + sel.shape[0]))
+            raw, J = predict(prior_k.x, ms, spec, g_m_s2, lever, jacobian=True)
             assert J is not None
             state = update_diagonal(
                 prior_k, Y[sel].reshape(-1), raw.reshape(-1), J.reshape(-1, p), np.tile(sig**2, sel.shape[0])

@@ -80,6 +80,11 @@ class ModelSpec:
         return out
 
     @property
+    def needs_rates(self) -> bool:
+        """Whether the model reads Ġ, Ḃ, G̈, B̈ (``time_skew``); the others need G and B alone."""
+        return "time_skew" in self.terms
+
+    @property
     def n_params(self) -> int:
         """Length of θ."""
         return len(self.names)
@@ -151,7 +156,7 @@ def specific_force(
     """
     out = np.empty((m.n, 3))
     for s in sample_chunks(m.n):
-        out[s] = _forces(theta, m.take(s), spec, g_m_s2, lever_arm_m)[0]
+        out[s] = _forces(theta, m.take(s, rates=spec.needs_rates), spec, g_m_s2, lever_arm_m)[0]
     return out
 
 
@@ -177,9 +182,11 @@ def predict(
     if not jacobian:
         out = np.empty((m.n, 3))
         for s in sample_chunks(m.n):
-            out[s] = _predict_samples(theta, m.take(s), spec, g_m_s2, lever_arm_m, jacobian=False)[0]
+            out[s] = _predict_samples(
+                theta, m.take(s, rates=spec.needs_rates), spec, g_m_s2, lever_arm_m, jacobian=False
+            )[0]
         return out, None
-    ms = m if isinstance(m, MotionSamples) else m.take(slice(0, m.n))
+    ms = m if isinstance(m, MotionSamples) else m.take(slice(0, m.n), rates=spec.needs_rates)
     return _predict_samples(theta, ms, spec, g_m_s2, lever_arm_m, jacobian=True)
 
 

@@ -2,10 +2,11 @@
 
 From the sampled, unwrapped encoder angles (``docs/recording-format.md``) :func:`prepare_motion`
 keeps the angles, their rates and accelerations, the samples the fit may use and the peak
-rate (:class:`MotionData`, 81 bytes per sample with three axes); :meth:`MotionData.take`
-forms, for the samples a consumer asks for, G = Mᵀ R_inᵀ and B = Mᵀ R_inᵀ A R_in
-(``dynamic_model``) and their first and second time derivatives (:class:`MotionSamples`,
-432 bytes per sample), so that no (n, 3, 3) product of the whole recording is ever held.
+rate (:class:`MotionData`, 81 bytes per sample with three axes) and the regressors up to
+:data:`KEEP_BYTES`; :meth:`MotionData.take` gives, for the samples a consumer asks for,
+G = Mᵀ R_inᵀ and B = Mᵀ R_inᵀ A R_in (``dynamic_model``) and, when asked, their first and
+second time derivatives (:class:`MotionSamples`, 144 or 432 bytes per sample), kept or formed,
+so that no (n, 3, 3) product beyond the budget is ever held.
 
 Angle derivatives (the choice for ω̇): the unwrapped encoder angles are differentiated by
 a cubic Savitzky–Golay filter over ``DERIVATIVE_WINDOW_S`` (at least 7 samples), so the
@@ -43,11 +44,19 @@ KINEMATICS_CHUNK = 1 << 15
 and :meth:`MotionData.take` (with their derivative windows): the rotation products, skew
 matrices and G, B before differentiation are (chunk, 3, 3) temporaries, not (n, 3, 3)."""
 KEEP_BYTES = 1 << 30
-"""The (n, 3, 3) regressors G, Ġ, B, Ḃ, G̈, B̈ are formed once in :func:`prepare_motion` and
-kept for the recording's first samples up to this size (432 bytes per sample: 2.5 M samples,
-41 min at 1 kHz); the samples beyond are formed per chunk where they are used, each Gauss–Newton
-pass again, so a pass costs the kept share's copy plus the rest's forming (about seven times the
-CPU time per sample, docs/benchmarks.md) and memory stays at most this size above the chunks'."""
+"""The regressors are formed once in :func:`prepare_motion` and kept up to this size: G and B of
+the first samples first (:data:`BASIS_BYTES` a sample: 7.4 M samples, 2 h at 1 kHz), then Ġ, Ḃ,
+G̈, B̈ of the first samples in what remains (:data:`RATES_BYTES` a sample: all six for 2.5 M
+samples, 41 min at 1 kHz; at 60 min G and B of every sample and the derivatives of the first
+32 min). A sample beyond is formed where it is used, each pass again: G, B by the kinematic
+chain, the derivatives by the Savitzky–Golay filter on the (kept) G, B around it. Every model
+needs G and B on every pass, the derivatives only models with ``time_skew`` and the sensor
+rates, so the passes of the other models cost a copy per sample up to 2 h; memory stays at
+most this size above the chunks' (docs/benchmarks.md)."""
+BASIS_BYTES = 2 * 9 * 8
+"""Bytes a sample's G and B take."""
+RATES_BYTES = 4 * 9 * 8
+"""Bytes a sample's Ġ, Ḃ, G̈, B̈ take."""
 PREDICT_CHUNK = 1 << 15
 """Samples whose prediction or specific force :func:`predict` and :func:`specific_force` form at
 once: with ``time_skew`` the corrected regressors G_δ, B_δ and their δ-derivatives are
@@ -56,52 +65,102 @@ once: with ``time_skew`` the corrected regressors G_δ, B_δ and their δ-deriva
 
 @dataclass(frozen=True)
 class MotionSamples:
-    """G, B and their time derivatives at chosen samples of a recording (all (m, …)).
+    """G, B and (when formed) their time derivatives at chosen samples of a recording (all (m, …)).
 
     :param t_s: (m,) time (s).
-    :param G: (m, 3, 3) Mᵀ R_inᵀ; :param G_dot: its time derivative (1/s).
-    :param B: (m, 3, 3) Mᵀ R_inᵀ A R_in (1/s²); :param B_dot: its time derivative (1/s³).
-    :param G_ddot: (m, 3, 3) second derivative of G; :param B_ddot: of B.
+    :param G: (m, 3, 3) Mᵀ R_inᵀ; :param B: (m, 3, 3) Mᵀ R_inᵀ A R_in (1/s²).
     :param valid: (m,) samples the fit may use (not at a rate-profile corner).
+    :param rates: (Ġ, Ḃ, G̈, B̈), each (m, 3, 3) (1/s, 1/s³, 1/s², 1/s⁴), or ``None`` when the
+        consumer asked for G and B alone (``MotionData.take(..., rates=False)``); reading
+        :attr:`G_dot` … then raises instead of returning anything.
     """
 
     t_s: FloatArray
     G: FloatArray
-    G_dot: FloatArray
     B: FloatArray
-    B_dot: FloatArray
-    G_ddot: FloatArray
-    B_ddot: FloatArray
     valid: BoolArray
+    rates: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None
 
     @property
     def n(self) -> int:
         """Number of samples."""
         return int(self.t_s.shape[0])
 
-    def take(self, idx: slice | npt.NDArray[np.int64]) -> MotionSamples:
-        """The samples ``idx`` (a slice or index array) of these."""
-        return MotionSamples(
-            self.t_s[idx],
-            self.G[idx],
-            self.G_dot[idx],
-            self.B[idx],
-            self.B_dot[idx],
-            self.G_ddot[idx],
-            self.B_ddot[idx],
-            self.valid[idx],
-        )
+    def _rate(self, k: int) -> FloatArray:
+        if self.rates is None:
+            raise ValueError(
+                f"{_RATES[k]} was not formed for these samples: MotionData.take(idx, rates=True) forms it"
+            )
+        return self.rates[k]
+
+    @property
+    def G_dot(self) -> FloatArray:
+        """(m, 3, 3) dG/dt (1/s)."""
+        return self._rate(0)
+
+    @property
+    def B_dot(self) -> FloatArray:
+        """(m, 3, 3) dB/dt (1/s³)."""
+        return self._rate(1)
+
+    @property
+    def G_ddot(self) -> FloatArray:
+        """(m, 3, 3) d²G/dt² (1/s²)."""
+        return self._rate(2)
+
+    @property
+    def B_ddot(self) -> FloatArray:
+        """(m, 3, 3) d²B/dt² (1/s⁴)."""
+        return self._rate(3)
+
+    def take(self, idx: slice | npt.NDArray[np.int64], *, rates: bool = True) -> MotionSamples:
+        """The samples ``idx`` (a slice or index array) of these (``rates=False``: without derivatives)."""
+        rates_ = None if self.rates is None or not rates else _four(tuple(r[idx] for r in self.rates))
+        return MotionSamples(self.t_s[idx], self.G[idx], self.B[idx], self.valid[idx], rates_)
+
+
+_RATES = ("G_dot", "B_dot", "G_ddot", "B_ddot")
+
+
+def _four(x: tuple[FloatArray, ...]) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    a, b, c, d = x
+    return a, b, c, d
+
+
+@dataclass(frozen=True)
+class KeptRegressors:
+    """Regressors formed once in :func:`prepare_motion` for a recording's first samples.
+
+    :param G: (n_basis, 3, 3) and :param B: G and B of samples [0, n_basis).
+    :param rates: (Ġ, Ḃ, G̈, B̈) of samples [0, n_rates), n_rates <= n_basis (possibly 0).
+    """
+
+    G: FloatArray
+    B: FloatArray
+    rates: tuple[FloatArray, FloatArray, FloatArray, FloatArray]
+
+    @property
+    def n_basis(self) -> int:
+        """Samples whose G and B are kept."""
+        return int(self.G.shape[0])
+
+    @property
+    def n_rates(self) -> int:
+        """Samples whose Ġ, Ḃ, G̈, B̈ are kept."""
+        return int(self.rates[0].shape[0])
 
 
 @dataclass(frozen=True)
 class MotionData:
     """The table motion of a whole recording, reduced to what the model needs (all (n, …)).
 
-    Holds the angles and their derivatives, and the (n, 3, 3) regressors of the first samples
-    that fit in :data:`KEEP_BYTES` (``kept``): :meth:`take` forms them for the other samples, bit
-    for bit as a whole-recording computation would (each Savitzky–Golay output depends on the
-    ``window`` samples around it, or on the first or last ``window`` samples of its stretch
-    near the stretch's ends).
+    Holds the angles and their derivatives, and the regressors that fit in :data:`KEEP_BYTES`
+    (``kept``): G and B of the first samples first (:data:`BASIS_BYTES` a sample, what every
+    model needs), then Ġ, Ḃ, G̈, B̈ (:data:`RATES_BYTES` a sample, needed with ``time_skew`` and by
+    the sensor rates) of the first samples in what remains. :meth:`take` forms the others, bit
+    for bit as a whole-recording computation would (G and B depend on their sample alone; each
+    Savitzky–Golay output on the ``window`` samples around it, or on the first or last
+    ``window`` samples of its stretch near the stretch's ends).
 
     :param t_s: (n,) time (s).
     :param angles_rad: (n, k) unwrapped axis angles; :param rates_rad_s: (n, k) their rates;
@@ -111,7 +170,7 @@ class MotionData:
     :param runs: [a, b) sample ranges between gaps at least ``window`` long.
     :param valid: (n,) samples the fit may use (not at a rate-profile corner).
     :param peak_rate_rad_s: max |ω| (rad/s).
-    :param kept: the regressors of samples [0, kept.n), formed once (``None``: all formed where used).
+    :param kept: the regressors formed once (``None``: all formed where used).
     """
 
     t_s: FloatArray
@@ -125,44 +184,64 @@ class MotionData:
     runs: tuple[tuple[int, int], ...]
     valid: BoolArray
     peak_rate_rad_s: float
-    kept: MotionSamples | None = None
+    kept: KeptRegressors | None = None
 
     @property
     def n(self) -> int:
         """Number of samples."""
         return int(self.t_s.shape[0])
 
-    def take(self, idx: slice | npt.NDArray[np.int64]) -> MotionSamples:
-        """G, B and their derivatives at the samples ``idx`` (a slice or index array), in its order.
+    def take(self, idx: slice | npt.NDArray[np.int64], *, rates: bool = True) -> MotionSamples:
+        """G, B and (``rates``) Ġ, Ḃ, G̈, B̈ at the samples ``idx`` (a slice or index array), in its order.
 
         From ``kept`` for the samples it holds; the others formed :data:`KINEMATICS_CHUNK`
-        samples of derivative windows at a time, so a slice of the whole recording holds
-        (chunk, 3, 3) temporaries beside its (len(idx), 3, 3) result.
+        samples (of derivative windows) at a time, so a slice of the whole recording holds
+        (chunk, 3, 3) temporaries beside its (len(idx), 3, 3) result. ``rates=False`` (a model
+        without ``time_skew``) forms no derivative: the result's :attr:`MotionSamples.rates` is ``None``.
         """
-        if self.kept is not None and self.kept.n == self.n:
-            return self.kept.take(idx)
         sel = np.arange(*idx.indices(self.n)) if isinstance(idx, slice) else np.asarray(idx, dtype=np.int64)
-        if self.kept is not None and np.any(sel < self.kept.n):  # the kept first samples, the rest formed
-            old = sel < self.kept.n
-            mine, rest = self.kept.take(sel[old]), self._formed(sel[~old])
-            parts = [np.empty((sel.size, 3, 3)) for _ in range(6)]
-            for name, o in zip(_REGRESSORS, parts, strict=True):
-                o[old], o[~old] = getattr(mine, name), getattr(rest, name)
-            G, G_dot, B, B_dot, G_ddot, B_ddot = parts
-            return MotionSamples(self.t_s[sel], G, G_dot, B, B_dot, G_ddot, B_ddot, self.valid[sel])
-        return self._formed(sel)
+        k = self.kept
+        if k is not None and (sel.size == 0 or int(sel.max()) < (k.n_rates if rates else k.n_basis)):
+            kr = _four(tuple(r[idx] for r in k.rates)) if rates else None
+            return MotionSamples(self.t_s[idx], k.G[idx], k.B[idx], self.valid[idx], kr)
+        G, B = self._basis(sel)
+        out = None
+        if rates:
+            out = _four(tuple(np.empty((sel.size, 3, 3)) for _ in range(4)))
+            have = sel < (0 if k is None else k.n_rates)
+            if k is not None and have.any():
+                for o, v in zip(out, k.rates, strict=True):
+                    o[have] = v[sel[have]]
+            if not have.all():
+                for o, v in zip(out, self._rates(sel[~have]), strict=True):
+                    o[~have] = v
+        return MotionSamples(self.t_s[sel], G, B, self.valid[sel], out)
 
-    def _formed(self, sel: npt.NDArray[np.int64]) -> MotionSamples:
-        """G, B and their derivatives formed at the samples ``sel`` (index array), in its order."""
+    def _basis(self, sel: npt.NDArray[np.int64]) -> tuple[FloatArray, FloatArray]:
+        """G, B (len(sel), 3, 3) at the samples ``sel``: kept, or formed per sample."""
+        k = self.kept
+        if k is not None and (sel.size == 0 or int(sel.max()) < k.n_basis):
+            return k.G[sel], k.B[sel]
+        G, B = np.empty((sel.size, 3, 3)), np.empty((sel.size, 3, 3))
+        have = sel < (0 if k is None else k.n_basis)
+        if k is not None and have.any():
+            G[have], B[have] = k.G[sel[have]], k.B[sel[have]]
+        todo = np.flatnonzero(~have)
+        for a in range(0, todo.size, KINEMATICS_CHUNK):
+            at = todo[a : a + KINEMATICS_CHUNK]
+            G[at], B[at], _ = self._kinematics(sel[at])
+        return G, B
+
+    def _rates(self, sel: npt.NDArray[np.int64]) -> tuple[FloatArray, ...]:
+        """Ġ, Ḃ, G̈, B̈ formed at the samples ``sel`` (index array), in its order."""
         pts, inv = np.unique(sel, return_inverse=True)
-        out = [np.empty((pts.size, 3, 3)) for _ in range(6)]
+        out = [np.empty((pts.size, 3, 3)) for _ in range(4)]
         for piece in _pieces(self, pts):
-            for o, v in zip(out, self._regressors(pts[piece]), strict=True):
+            for o, v in zip(out, self._derivatives(pts[piece]), strict=True):
                 o[piece] = v
         if not np.array_equal(pts, sel):
             out = [o[inv.reshape(-1)] for o in out]
-        G, G_dot, B, B_dot, G_ddot, B_ddot = out
-        return MotionSamples(self.t_s[sel], G, G_dot, B, B_dot, G_ddot, B_ddot, self.valid[sel])
+        return tuple(out)
 
     def _kinematics(self, pos: npt.NDArray[np.int64]) -> tuple[FloatArray, FloatArray, FloatArray]:
         """G, B (len(pos), 3, 3) and ω (len(pos), 3) at the samples ``pos``, sample by sample."""
@@ -174,8 +253,8 @@ class MotionData:
         A = _skew(angular_acceleration(self.axis_vectors, q, rates, self.accels_rad_s2[pos])) + W @ W
         return G, G @ A @ R_in, omega
 
-    def _regressors(self, pts: npt.NDArray[np.int64]) -> tuple[FloatArray, ...]:
-        """G, Ġ, B, Ḃ, G̈, B̈ at the sorted distinct samples ``pts`` (one piece of :meth:`take`).
+    def _derivatives(self, pts: npt.NDArray[np.int64]) -> tuple[FloatArray, ...]:
+        """Ġ, Ḃ, G̈, B̈ at the sorted distinct samples ``pts`` (one piece of :meth:`_rates`).
 
         Each sample inside a run needs G, B on its derivative window [p − h, p + h] (h = window // 2),
         or on the run's first or last ``window`` samples near the run's ends (the filter's
@@ -185,14 +264,11 @@ class MotionData:
         ends sees only its own stretch). Outside the runs the derivatives are zero.
         """
         w, h, n = self.window, self.window // 2, pts.size
-        out = [np.zeros((n, 3, 3)) for _ in range(6)]
+        out = [np.zeros((n, 3, 3)) for _ in range(4)]
         run_a = np.array([a for a, _ in self.runs], dtype=np.int64)
         run_b = np.array([b for _, b in self.runs], dtype=np.int64)
         r = np.searchsorted(run_a, pts, side="right") - 1
         inside = (r >= 0) & (pts < run_b[np.maximum(r, 0)])
-        if not inside.all():  # outside the runs: G, B only
-            G, B, _ = self._kinematics(pts[~inside])
-            out[0][~inside], out[2][~inside] = G, B
         if not inside.any():
             return tuple(out)
         p, r = pts[inside], r[inside]
@@ -207,26 +283,26 @@ class MotionData:
         s_len = s_hi - s_lo
         s_off = np.concatenate([[0], np.cumsum(s_len)[:-1]])
         pos = np.concatenate([np.arange(a, b) for a, b in zip(s_lo, s_hi, strict=True)])
-        G, B, _ = self._kinematics(pos)
+        G, B = self._basis(pos)
         d = [np.empty_like(G) for _ in range(4)]  # Ġ, Ḃ, G̈, B̈ at pos
         edge = (s_lo == ra[first]) | (s_hi == rb[last])
-        groups = [np.arange(o, o + m) for o, m in zip(s_off[edge], s_len[edge], strict=True)]
-        if not edge.all():
-            groups.append(
-                np.concatenate([np.arange(o, o + m) for o, m in zip(s_off[~edge], s_len[~edge], strict=True)])
-            )
-        from scipy.signal import savgol_filter  # moving recordings only: a static path stays without it
+        from scipy.ndimage import convolve1d  # moving recordings only: a static path stays without it
+        from scipy.signal import savgol_coeffs, savgol_filter
 
-        for g in groups:
+        for o, m in zip(s_off[edge], s_len[edge], strict=True):
+            g = slice(int(o), int(o + m))
             for k, (x, deriv) in enumerate(((G, 1), (B, 1), (G, 2), (B, 2))):
                 d[k][g] = savgol_filter(x[g], w, 3, deriv=deriv, delta=self.step_s, axis=0, mode="interp")
+        if not edge.all():  # the filter's own convolution, without its edge fit (those outputs go unused)
+            inner = zip(s_off[~edge], s_len[~edge], strict=True)
+            g_in = np.concatenate([np.arange(o, o + m) for o, m in inner])
+            for k, (x, deriv) in enumerate(((G, 1), (B, 1), (G, 2), (B, 2))):
+                c = savgol_coeffs(w, 3, deriv=deriv, delta=self.step_s)
+                d[k][g_in] = convolve1d(x[g_in], c, axis=0, mode="constant")
         at = s_off[np.cumsum(new) - 1] + (p - s_lo[np.cumsum(new) - 1])
-        for o, v in zip(out, (G, d[0], B, d[1], d[2], d[3]), strict=True):
+        for o, v in zip(out, d, strict=True):
             o[inside] = v[at]
         return tuple(out)
-
-
-_REGRESSORS = ("G", "G_dot", "B", "B_dot", "G_ddot", "B_ddot")
 
 
 def _pieces(m: MotionData, pts: npt.NDArray[np.int64]) -> list[slice]:
@@ -345,8 +421,17 @@ def prepare_motion(
         valid=~corner,
         peak_rate_rad_s=peak_rate,
     )
-    limit = KEEP_BYTES if keep_bytes is None else keep_bytes
-    n_kept = min(t.shape[0], max(limit, 0) // (6 * 9 * 8))
-    if n_kept > 0:
-        motion = replace(motion, kept=motion.take(slice(0, n_kept)))
+    limit = max(KEEP_BYTES if keep_bytes is None else keep_bytes, 0)
+    n_basis = min(t.shape[0], limit // BASIS_BYTES)
+    if n_basis == 0:
+        return motion
+    G, B = np.empty((n_basis, 3, 3)), np.empty((n_basis, 3, 3))
+    for a in range(0, n_basis, KINEMATICS_CHUNK):
+        s = slice(a, min(a + KINEMATICS_CHUNK, n_basis))
+        G[s], B[s], _ = motion._kinematics(np.arange(s.start, s.stop))
+    none = np.empty((0, 3, 3))
+    motion = replace(motion, kept=KeptRegressors(G, B, (none, none, none, none)))
+    n_rates = min(n_basis, (limit - n_basis * BASIS_BYTES) // RATES_BYTES)
+    if n_rates > 0:
+        motion = replace(motion, kept=KeptRegressors(G, B, _four(motion._rates(np.arange(n_rates)))))
     return motion

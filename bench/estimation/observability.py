@@ -129,7 +129,9 @@ def fisher_information(
     F = np.zeros((p, p))
     idx = np.flatnonzero(m.valid)
     for a in range(0, idx.shape[0], chunk):
-        _, J = predict(theta, m.take(idx[a : a + chunk]), spec, g_m_s2, lever, jacobian=True)
+        _, J = predict(
+            theta, m.take(idx[a : a + chunk], rates=spec.needs_rates), spec, g_m_s2, lever, jacobian=True
+        )
         assert J is not None
         Jw = (J * np.sqrt(w)[None, :, None]).reshape(-1, p)
         F += Jw.T @ Jw

@@ -7,7 +7,7 @@ import pytest
 from scipy.signal import savgol_filter
 
 from bench.estimation.dynamic_model import TERM_ORDER, ModelSpec, initial_theta, predict
-from bench.estimation.motion_data import MotionData, prepare_motion, window_samples
+from bench.estimation.motion_data import BASIS_BYTES, RATES_BYTES, MotionData, prepare_motion, window_samples
 from bench.kinematics import angular_acceleration, angular_velocity, inner_attitude
 from tests.support.dynamic_sim import DELAY_TRUE_S, R_TRUE_M, TILT_TRUE_RAD, oscillation, rate, truth
 
@@ -177,21 +177,26 @@ def test_regressors_taken_at_any_samples_are_the_whole_recording_ones(
         ms = kept.take(idx)
         for name, whole in ref.items():
             np.testing.assert_array_equal(getattr(ms, name), whole[idx], err_msg=f"kept {case} {name}")
-    part = m.runs[1][0] + 2  # a budget that keeps the first samples, up to just inside the second run
-    partly = prepare_motion(
-        rec.t_s[keep],
-        rec.table_rad_unwrapped()[keep],
-        run.axis_vectors,
-        run.mount,
-        keep_bytes=432 * part + 431,
-    )
-    assert partly.kept is not None and partly.kept.n == part
-    for case, idx in cases.items():
-        ms = partly.take(idx)
-        for name, whole in ref.items():
-            np.testing.assert_array_equal(getattr(ms, name), whole[idx], err_msg=f"partly kept {case} {name}")
-        np.testing.assert_array_equal(ms.t_s, m.t_s[idx])
-        np.testing.assert_array_equal(ms.valid, m.valid[idx])
+    part = m.runs[1][0] + 2  # budgets that end just inside the second run
+    for budget, n_basis, n_rates in (
+        (BASIS_BYTES * part + BASIS_BYTES - 1, part, 0),  # G, B of the first samples only
+        (BASIS_BYTES * m.n + RATES_BYTES * part + RATES_BYTES - 1, m.n, part),  # all G, B; some rates
+    ):
+        partly = prepare_motion(
+            rec.t_s[keep], rec.table_rad_unwrapped()[keep], run.axis_vectors, run.mount, keep_bytes=budget
+        )
+        assert partly.kept is not None and (partly.kept.n_basis, partly.kept.n_rates) == (n_basis, n_rates)
+        for case, idx in cases.items():
+            for rates in (True, False):
+                ms = partly.take(idx, rates=rates)
+                for name, whole in ref.items():
+                    if rates or name in ("G", "B"):
+                        got = getattr(ms, name)
+                        np.testing.assert_array_equal(got, whole[idx], err_msg=f"{budget} {case} {name}")
+                np.testing.assert_array_equal(ms.t_s, m.t_s[idx])
+                np.testing.assert_array_equal(ms.valid, m.valid[idx])
+    with pytest.raises(ValueError, match="G_dot was not formed"):
+        _ = partly.take(cases["sparse"], rates=False).G_dot
     whole_peak = m.peak_rate_rad_s
     monkeypatch.setattr(motion_data, "KINEMATICS_CHUNK", 7)
     chunked = prepare_motion(

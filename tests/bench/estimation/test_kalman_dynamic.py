@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from bench.estimation.dynamic_batch import linear_start, white_sigma
 from bench.estimation.dynamic_kalman import Prior, run_dynamic_kalman
@@ -45,3 +46,28 @@ def test_prior_follows_the_unit_spread() -> None:
     np.testing.assert_allclose(s[3], 0.01 * K[0, 0])  # 1 % scale
     np.testing.assert_allclose(s[4], 15.0 / 60.0 * np.pi / 180.0 * K[0, 0])  # 15′ misalignment
     assert s[spec.index("time_skew")][0] == Prior().delay_s
+
+
+def test_filter_takes_its_batches_regressors_in_blocks_without_changing_a_bit(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The filter takes the regressors of many batches at once (``TAKE_SAMPLES``); the batches see
+    the same numbers as one ``take`` per batch (a block of one batch), with the regressors kept or
+    formed per pass (``keep_bytes=0``), with and without the skew's derivatives."""
+    from bench.estimation import dynamic_kalman
+
+    run, rec = oscillation()
+    y, g = rec.accel_raw, run.g_local_m_s2
+    q = rec.table_rad_unwrapped()
+    for keep_bytes in (None, 0):
+        m = prepare_motion(rec.t_s, q, run.axis_vectors, run.mount, keep_bytes=keep_bytes)
+        for spec in (ModelSpec(("lever_arm",)), ModelSpec(("lever_arm", "time_skew"))):
+            b0, K0 = linear_start(m, y, g, np.zeros(3))
+            x0 = initial_theta(spec, b0, K0, np.zeros(3))
+            runs = []
+            for take in (1, 7 * 10 + 3, dynamic_kalman.TAKE_SAMPLES):
+                monkeypatch.setattr(dynamic_kalman, "TAKE_SAMPLES", take)
+                runs.append(run_dynamic_kalman(m, y, g, np.zeros(3), spec, x0, white_sigma(y), smooth=False))
+            for other in runs[1:]:
+                np.testing.assert_array_equal(other.filtered, runs[0].filtered)
+                np.testing.assert_array_equal(other.final.P, runs[0].final.P)

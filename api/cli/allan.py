@@ -25,12 +25,12 @@ from typing import Any
 import numpy as np
 
 from api.cli import BadInput, decimal_arg
+from bench.calibration.noise_stretch import noise_channels, select_noise_stretch
 from bench.estimation.allan import AllanResult, overlapping_allan
 from bench.estimation.dwell import DwellRecommendation, recommend_dwell_s
 from bench.estimation.noise_terms import NoiseTerms, fit_noise_model, slope_method
 from bench.estimation.spectral_lines import SpectralLine, find_lines, remove_lines
-from bench.estimation.windows import detect_static_windows
-from bench.recording import G0_M_S2, Recording, read_recording
+from bench.recording import Recording, read_recording
 
 CHANNELS = ("ax", "ay", "az")
 NOISE_MODEL = "sigma^2(tau) = 3 Q^2/tau^2 + N^2/tau + (0.664 B)^2 + K^2 tau/3 + R^2 tau^2/2 (IEEE 952 C)"
@@ -53,46 +53,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--whole", action="store_true", help="analyse the whole file")
     parser.add_argument("--taus", choices=("octave", "decade", "all"), default="octave", help="τ grid")
-
-
-def _unit_and_data(rec: Recording) -> tuple[str, np.ndarray]:
-    unit = rec.sidecar.channel_unit
-    if unit == "g":
-        return "m/s2", rec.accel_raw * G0_M_S2
-    return unit, rec.accel_raw
-
-
-def select_stretch(rec: Recording, window_s: list[float] | None, whole: bool) -> tuple[slice, str]:
-    """Sample slice to analyse and a description of where it came from."""
-    t = rec.t_s
-    if window_s is not None:
-        start, end = window_s
-        if not (math.isfinite(start) and math.isfinite(end) and start < end):
-            raise BadInput(f"--window-s: need finite START < END, got {start} {end}")
-        idx = np.flatnonzero((t >= start) & (t <= end))
-        if idx.size < 3:
-            raise BadInput(
-                f"{rec.source}: --window-s {start:g} {end:g} holds {idx.size} samples "
-                f"(recording spans {t[0]:g} to {t[-1]:g} s); need at least 3"
-            )
-        return slice(int(idx[0]), int(idx[-1]) + 1), f"--window-s {start:g} {end:g}"
-    if whole:
-        return slice(0, t.size), "whole file"
-    if rec.sidecar.segments:
-        seg = max(rec.sidecar.segments, key=lambda s: s.end_s - s.start_s)
-        idx = np.flatnonzero((t >= seg.start_s) & (t <= seg.end_s))
-        if idx.size >= 3:
-            return slice(int(idx[0]), int(idx[-1]) + 1), f"longest segment {seg.label or '(unlabelled)'}"
-    table = rec.table_rad_unwrapped()
-    try:
-        windows = detect_static_windows(t, rec.accel_raw, table)
-    except ValueError:
-        windows = []
-    if windows:
-        w = max(windows, key=lambda w: w.stop - w.start)
-        if w.stop - w.start >= 3:
-            return w.slice, "longest static window found in the data"
-    return slice(0, t.size), "whole file (no static window found)"
 
 
 def _check_even_spacing(rec: Recording, sl: slice) -> None:
@@ -280,9 +240,11 @@ def run(args: argparse.Namespace) -> int:
     if not path.is_file():
         raise BadInput(f"{path}: no such recording file")
     rec = read_recording(path)
-    sl, source = select_stretch(rec, args.window_s, args.whole)
+    stretch_at = select_noise_stretch(rec, args.window_s, whole=args.whole)
+    sl, source = stretch_at.samples, stretch_at.source
     _check_even_spacing(rec, sl)
-    unit, data = _unit_and_data(rec)
+    channels = noise_channels(rec)
+    unit, data = channels.unit, channels.data
     n = sl.stop - sl.start
     if n < 16:
         raise BadInput(

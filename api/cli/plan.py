@@ -102,7 +102,7 @@ def noise_from_recording(path: Path, window_s: list[float] | None) -> UnitNoise:
 
     :raises BadInput: no such file, a channel unit other than m/s² or g, too short a stretch.
     """
-    from api.cli.allan import _unit_and_data, select_stretch
+    from bench.calibration.noise_stretch import noise_channels, select_noise_stretch
     from bench.estimation.allan import overlapping_allan
     from bench.estimation.noise_terms import fit_noise_model
     from bench.recording import read_recording
@@ -110,11 +110,11 @@ def noise_from_recording(path: Path, window_s: list[float] | None) -> UnitNoise:
     if not path.is_file():
         raise BadInput(f"{path}: no such recording file")
     rec = read_recording(path)
-    unit, data = _unit_and_data(rec)
-    if unit != "m/s2":
-        raise BadInput(f"{path}: channel unit {unit!r}; --noise-from needs a recording in m/s2 or g")
-    sl, _ = select_stretch(rec, window_s, False)
-    r = overlapping_allan(data[sl], rec.sidecar.sample_rate_hz)
+    channels = noise_channels(rec)
+    if channels.unit != "m/s2":
+        raise BadInput(f"{path}: channel unit {channels.unit!r}; --noise-from needs a recording in m/s2 or g")
+    stretch = select_noise_stretch(rec, window_s)
+    r = overlapping_allan(channels.data[stretch.samples], rec.sidecar.sample_rate_hz)
     if r.taus_s.size < 6:
         raise BadInput(f"{path}: the stretch gives {r.taus_s.size} tau values; the noise fit needs 6")
     fits = fit_noise_model(r)

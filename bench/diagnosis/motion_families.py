@@ -32,7 +32,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import solve_toeplitz
-from scipy.signal import lfilter
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import f as f_dist
 
@@ -79,6 +78,8 @@ def ar_filter(r: FloatArray, order: int) -> FloatArray:
 
 
 def _whiten(a: FloatArray, coef: FloatArray) -> FloatArray:
+    from scipy.signal import lfilter  # moving recordings only: a static path stays without it
+
     p = coef.size - 1
     return np.asarray(lfilter(coef, [1.0], a, axis=0)[p:], dtype=float)
 

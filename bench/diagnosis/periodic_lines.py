@@ -26,7 +26,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.spectral_lines import find_lines, welch_segment_length
@@ -156,6 +155,8 @@ def find_periodic_lines(
     if not found:
         return ()
     nper = welch_segment_length(y.shape[0])
+    from scipy import signal  # lines were found: scipy.signal is loaded already
+
     _, p = signal.welch(y, fs=fs, nperseg=nper, axis=0, detrend="linear")
     bin_hz = fs / nper
     groups: list[list[int]] = []

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy import signal, stats
+from scipy import stats
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -117,6 +117,8 @@ def find_lines(y: npt.ArrayLike, sample_rate_hz: float) -> tuple[SpectralLine, .
         raise ValueError(f"sample_rate_hz must be finite and > 0, got {sample_rate_hz}")
     n, c = data.shape
     nper = welch_segment_length(n)
+    from scipy import signal  # where a line search runs: the static paths stay without it
+
     f, p = signal.welch(data, fs=sample_rate_hz, nperseg=nper, axis=0, detrend="linear")
     df = float(f[1] - f[0])
     n_seg = max(1, 2 * (n // nper) - 1)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.allan import AllanResult, overlapping_allan
+from bench.estimation.allan import AllanResult, averaging_factors, overlapping_allan
 from bench.estimation.dwell import recommend_dwell_s
 from bench.records import DwellChoice
 
@@ -89,6 +89,28 @@ def dwell_from_noise_window(
         )
     allan = overlapping_allan(a, sample_rate_hz, "octave")
     return choose_dwell(allan, "noise_window", min_dwell_s, max_dwell_s)
+
+
+def longest_noise_window_dwell_s(
+    window_s: float,
+    sample_rate_hz: float,
+    min_dwell_s: float = DEFAULT_MIN_DWELL_S,
+    max_dwell_s: float = DEFAULT_MAX_DWELL_S,
+) -> float:
+    """The longest dwell (s) :func:`dwell_from_noise_window` can choose from a noise window of
+    ``window_s`` s at ``sample_rate_hz``: the recommendation lies in the τ range of the window's
+    octave Allan curve, so it is at most its largest τ,
+
+        τ_max = 2^⌊log2(⌊(n − 1)/2⌋)⌋ / f_s,   n = round(window_s · f_s),
+
+    clipped to ``[min_dwell_s, max_dwell_s]`` as the choice is (60 s at 250 Hz or 1 kHz:
+    16.384 s). It is also the choice whenever the curve is still falling at that τ (white
+    noise dominating the window), the usual case for a MEMS unit.
+
+    :raises ValueError: a window too short for an Allan curve (fewer than 3 samples).
+    """
+    m = averaging_factors(round(window_s * sample_rate_hz), sample_rate_hz, "octave")
+    return float(min(max(float(m[-1]) / sample_rate_hz, min_dwell_s), max_dwell_s))
 
 
 def fixed_dwell(dwell_s: float, why: str = "given by the operator") -> DwellChoice:

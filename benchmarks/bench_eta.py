@@ -8,11 +8,14 @@ later); at the first event past 25 % and 50 % of it, the predicted remaining tim
 the measured ratio of actual to nominal time) is compared with the true remaining time, and so
 is the preview's estimate alone (preview duration minus time so far). Target: within 15 %.
 Printed per procedure and seed: the recording's length, the preview's duration, both errors
-at 25 % and 50 %.
+at 25 % and 50 %. ``python -m benchmarks.bench_eta --speed 5 --seeds 1 2 3`` runs at another
+simulation speed (the table's wall-clock round trips, which the machine's load stretches, count
+``speed`` times on the bench clock) or with other seeds.
 """
 
 from __future__ import annotations
 
+import argparse
 import tempfile
 from pathlib import Path
 
@@ -39,17 +42,19 @@ class Events(NullObserver):
         self.events.append((progress.elapsed_s, progress.expected_total_s - progress.elapsed_s))
 
 
-def one_run(tmp: Path, name: str, seed: int) -> tuple[float, float, list[tuple[float, float, float]]]:
+def one_run(
+    tmp: Path, name: str, seed: int, speed: float = SPEED
+) -> tuple[float, float, list[tuple[float, float, float]]]:
     """(recording length s, preview s, [(fraction, predicted error, preview error)] at 25/50 %)."""
     settings = Settings(data_dir=tmp / f"{name}-{seed}", sim_sample_rate_hz=RATE_HZ)
     obs = Events()
     record = start_run(
-        settings, name, f"SN-ETA-{seed}", sim=True, sim_speed=SPEED, seed=seed, observers=[obs], limits=None
+        settings, name, f"SN-ETA-{seed}", sim=True, sim_speed=speed, seed=seed, observers=[obs], limits=None
     )
     if record.error:
         raise RuntimeError(f"{name} seed {seed}: {record.error}")
     end_s = max(record.windows[-1].end_s, obs.events[-1][0])
-    preview_s = preview(build_procedure(name)).duration_s
+    preview_s = preview(build_procedure(name), sample_rate_hz=RATE_HZ).duration_s
     out = []
     for frac in (0.25, 0.5):
         t, predicted = next((t, p) for t, p in obs.events if t >= frac * end_s)
@@ -58,17 +63,22 @@ def one_run(tmp: Path, name: str, seed: int) -> tuple[float, float, list[tuple[f
     return end_s, preview_s, out
 
 
-def main() -> None:
-    print(f"simulated bench at ×{SPEED:g}, {RATE_HZ:g} Hz; error = (predicted − true) / true remaining")
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_eta")
+    parser.add_argument("--speed", type=float, default=SPEED, help="simulation speed (x real time)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS))
+    parser.add_argument("--procedures", nargs="+", default=list(PROCEDURES))
+    args = parser.parse_args(argv or [])
+    print(f"simulated bench at ×{args.speed:g}, {RATE_HZ:g} Hz; error = (predicted − true) / true remaining")
     print(
         f"{'procedure':<18} {'seed':>4} {'recording':>10} {'preview':>8}   "
         f"{'at 25 %':>8} {'preview':>8}   {'at 50 %':>8} {'preview':>8}"
     )
     worst = 0.0
     with tempfile.TemporaryDirectory() as tmp:
-        for name in PROCEDURES:
-            for seed in SEEDS:
-                end_s, preview_s, rows = one_run(Path(tmp), name, seed)
+        for name in args.procedures:
+            for seed in args.seeds:
+                end_s, preview_s, rows = one_run(Path(tmp), name, seed, args.speed)
                 cells = "   ".join(f"{100 * e:+7.1f} % {100 * p:+7.1f} %" for _, e, p in rows)
                 print(f"{name:<18} {seed:>4} {end_s:>8.0f} s {preview_s:>6.0f} s   {cells}", flush=True)
                 worst = max(worst, *(abs(e) for _, e, _ in rows))
@@ -77,4 +87,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+
+    main(sys.argv[1:])

@@ -10,6 +10,12 @@ Move time of one axis over a distance ``d`` with rate limit ``v`` and accelerati
     t = d/v + v/a            otherwise
 
 All axes move together, so a move takes the slowest axis's time plus the settling allowance.
+A rotation or an oscillation ends with the table stopping from its rate (an oscillation's
+peak rate, which a whole number of periods ends at) at the acceleration limit, ``|ω|/a``.
+
+A dwell not chosen yet (a procedure that records a noise window first) is assumed to be the
+longest the noise window can choose (:func:`bench.dwell_policy.longest_noise_window_dwell_s`),
+which is also the usual choice: the estimate does not overshoot because of it.
 """
 
 from __future__ import annotations
@@ -17,8 +23,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from bench.dwell_policy import longest_noise_window_dwell_s
 from bench.procedures.steps import Dwell, MoveTo, NoiseWindow, Oscillate, Procedure, Rotate
 from bench.records import WindowKind
+
+FALLBACK_DWELL_S = 60.0
+"""Dwell assumed for a static window whose dwell is not chosen yet when the procedure records
+no noise window to choose it from (s)."""
+DEFAULT_SAMPLE_RATE_HZ = 1000.0
+"""DAQ rate (Hz) assumed for the noise window's longest dwell when the caller names none (the
+simulated DAQ's default; the bound is 16.384 s for a 60 s window at 250 Hz to 1 kHz alike)."""
 
 
 @dataclass(frozen=True)
@@ -107,16 +121,23 @@ def _axis_distance(frm: float, to: float, continuous: bool) -> float:
 def preview(
     proc: Procedure,
     limits: TableLimits = DEFAULT_TABLE_LIMITS,
-    provisional_dwell_s: float = 60.0,
+    provisional_dwell_s: float | None = None,
     start_deg: tuple[float, ...] | None = None,
+    sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
 ) -> Preview:
     """Walk ``proc`` against ``limits``: duration, poses, windows and limit problems.
 
     :param proc: the procedure.
     :param limits: the table's limits.
-    :param provisional_dwell_s: dwell assumed for ``Dwell(duration_s=None)`` (s).
+    :param provisional_dwell_s: dwell assumed for ``Dwell(duration_s=None)`` (s); ``None``: the
+        longest the procedure's noise window can choose at ``sample_rate_hz``
+        (:data:`FALLBACK_DWELL_S` without a noise window).
     :param start_deg: table angles before the run (deg); zeros when ``None``.
+    :param sample_rate_hz: the DAQ's rate (Hz), for the noise window's longest dwell.
     """
+    why = "assumed"
+    if provisional_dwell_s is None:
+        provisional_dwell_s, why = provisional_dwell(proc, sample_rate_hz)
     n = limits.n_axes
     problems: list[str] = []
     assumptions: list[str] = []
@@ -159,7 +180,7 @@ def preview(
             dur = step.duration_s
             if dur is None:
                 dur = provisional_dwell_s
-                msg = f"dwell not yet chosen: {provisional_dwell_s:g} s assumed per static window"
+                msg = f"dwell not yet chosen: {provisional_dwell_s:g} s {why} per static window"
                 if msg not in assumptions:
                     assumptions.append(msg)
             windows.append(PreviewWindow(len(windows), step.label, step.kind, t, dur, tuple(pos)))
@@ -208,9 +229,22 @@ def preview(
                         f"[{limits.pos_lo_deg[ax]:g}, {limits.pos_hi_deg[ax]:g}] deg"
                     )
             windows.append(PreviewWindow(len(windows), step.label, step.kind, t, step.duration_s, tuple(pos)))
-            t += step.duration_s
+            stops = (
+                p / limits.max_acc_deg_s2[a - 1]
+                for a, p in zip(step.axes, step.peak_rate_deg_s(), strict=True)
+            )
+            t += step.duration_s + max(stops, default=0.0)
     if not problems and n == 3 and any(isinstance(s, Rotate | Oscillate) for s in proc.steps):
         from bench.procedures.observability import plan_blockers  # moving-table fit needs (docs/dynamic.md)
 
         problems += plan_blockers(proc, provisional_dwell_s)
     return Preview(t, tuple(poses), tuple(windows), tuple(problems), tuple(assumptions))
+
+
+def provisional_dwell(proc: Procedure, sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ) -> tuple[float, str]:
+    """The dwell (s) assumed for ``proc`` before the run chooses one, and the words that say why."""
+    noise = next((s for s in proc.steps if isinstance(s, NoiseWindow)), None)
+    if noise is None:
+        return FALLBACK_DWELL_S, "assumed"
+    dwell_s = longest_noise_window_dwell_s(noise.duration_s, sample_rate_hz)
+    return dwell_s, f"assumed (the longest the {noise.duration_s:g} s noise window can choose)"

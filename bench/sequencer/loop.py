@@ -120,7 +120,12 @@ class Sequencer:
         self.held_s = 0.0
         self.hold_began_s: float | None = None
         self.eta = RemainingTime(
-            procedure, self.config.limits, start_window, self.now_s, dwell.dwell_s if dwell else None
+            procedure,
+            self.config.limits,
+            start_window,
+            self.now_s,
+            dwell.dwell_s if dwell else None,
+            daq.sample_rate_hz,
         )
         self._eta_dwell_s = dwell.dwell_s if dwell else None
         self.step_index = 0

@@ -2,7 +2,8 @@
 time from measured rates.
 
 The nominal schedule is the procedure's preview (:func:`bench.procedures.preview.preview`)
-with the dwell the run actually uses once it is chosen: window ``j`` lasts ``D_j`` (s), ends
+with the dwell the run actually uses once it is chosen (before: the longest its noise window
+can choose at the DAQ's rate, the usual choice): window ``j`` lasts ``D_j`` (s), ends
 at ``E_j``, and is preceded by the gap ``G_j = E_j − D_j − E_{j−1}`` (moves, settling,
 spin-up, stopping: what the preview cannot know; ``E_{−1} = 0``); ``T`` is the nominal end.
 A window lasts what its sample count says, so only the gaps are scaled, each by the measured
@@ -26,12 +27,9 @@ estimate from reaching zero early). The benchmark ``benchmarks/bench_eta.py`` me
 
 from __future__ import annotations
 
-from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits, preview
+from bench.procedures.preview import DEFAULT_SAMPLE_RATE_HZ, DEFAULT_TABLE_LIMITS, TableLimits, preview
 from bench.procedures.steps import Procedure
 from bench.records import Progress, RunState
-
-PROVISIONAL_DWELL_S = 60.0
-"""Dwell assumed by the schedule until the run has chosen one (the preview's own default)."""
 
 
 class RemainingTime:
@@ -42,6 +40,7 @@ class RemainingTime:
     :param first_window: the first window this process records (0 for a fresh run).
     :param start_work_s: working time (recording clock minus time held, s) at that point.
     :param dwell_s: the dwell chosen, ``None`` until known.
+    :param sample_rate_hz: the DAQ's rate (Hz): the dwell a noise window can choose.
     """
 
     PRIOR_FRACTION = 0.1
@@ -54,8 +53,9 @@ class RemainingTime:
         first_window: int = 0,
         start_work_s: float = 0.0,
         dwell_s: float | None = None,
+        sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
     ) -> None:
-        self._procedure, self._limits = procedure, limits
+        self._procedure, self._limits, self._sample_rate_hz = procedure, limits, sample_rate_hz
         self.first_window, self.start_work_s = first_window, start_work_s
         self.done_window: int | None = None
         self.done_work_s = start_work_s
@@ -64,8 +64,8 @@ class RemainingTime:
         self.set_dwell(dwell_s)
 
     def set_dwell(self, dwell_s: float | None) -> None:
-        """Re-plan the nominal schedule with the dwell the run uses (s)."""
-        pv = preview(self._procedure, self._limits, provisional_dwell_s=dwell_s or PROVISIONAL_DWELL_S)
+        """Re-plan the nominal schedule with the dwell the run uses (s); ``None``: not chosen yet."""
+        pv = preview(self._procedure, self._limits, dwell_s, sample_rate_hz=self._sample_rate_hz)
         self.ends_s = tuple(w.start_s + w.duration_s for w in pv.windows)
         self.lengths_s = tuple(w.duration_s for w in pv.windows)
         self.gaps_s = tuple(

@@ -247,3 +247,22 @@ def test_static12_antipodes_follow_each_other_and_a_trend_stays_out_of_k() -> No
     assert np.linalg.norm(k_leak) < 0.06
     ring = np.hstack([np.ones((12, 1)), f[np.argsort(-f[:, 2], kind="stable")]])
     assert np.linalg.norm(np.linalg.lstsq(ring, ramp, rcond=None)[0][1:]) > 0.5
+
+
+def test_an_oscillation_ends_with_the_stop_from_its_peak_rate() -> None:
+    limits = TableLimits((-180.0,) * 2, (180.0,) * 2, (100.0, 100.0), (5.0, 10.0), (True, True))
+    osc = Oscillate((1, 2), (30.0, 10.0), (6.0, 2.0), 12.0, "o")
+    pv = preview(Procedure("t", (osc,), {}, n_axes=2), limits)
+    # peaks 2π·30/6 = 10π and 2π·10/2 = 10π deg/s; stops 10π/5 and 10π/10 s: the slower is 2π s
+    assert pv.duration_s == pytest.approx(12.0 + 2 * math.pi)
+
+
+def test_a_dwell_not_chosen_yet_is_the_longest_the_noise_window_can_choose() -> None:
+    proc = build_procedure("oscillation-2axis", noise_window_s=60.0)
+    pv = preview(proc, sample_rate_hz=250.0)
+    assert preview(proc, provisional_dwell_s=4096 / 250).duration_s == pytest.approx(pv.duration_s)
+    assert "16.384 s assumed (the longest the 60 s noise window can choose)" in pv.assumptions[0]
+    # at 100 Hz the octave τ stops at 2048 samples, 20.48 s
+    assert preview(proc, sample_rate_hz=100.0).duration_s == pytest.approx(
+        pv.duration_s + 2 * (20.48 - 16.384)
+    )

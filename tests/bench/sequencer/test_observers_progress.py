@@ -162,3 +162,11 @@ def test_the_progress_event_counts_working_time_only() -> None:
     # a step index past the end (the run finishing) labels the last step
     p = run_progress(proc, len(proc.steps) + 2, None, n, 200.0, 0.0, (1.0, 2.0, 3.0), RunState.RUNNING)
     assert p.step_label == getattr(proc.steps[-1], "label", "") and p.fraction == 1.0
+
+
+def test_before_the_noise_window_ends_the_dwell_is_the_longest_it_can_choose() -> None:
+    # 60 s at 250 Hz: the octave Allan curve ends at 4096 samples, so no dwell above 16.384 s
+    proc = build_procedure("oscillation-2axis", noise_window_s=60.0)
+    eta = RemainingTime(proc, sample_rate_hz=250.0)
+    fixed = preview(build_procedure("oscillation-2axis", dwell_s=4096 / 250, noise_window_s=60.0))
+    assert eta.total_s == pytest.approx(fixed.duration_s + 60.0)  # + the noise window itself

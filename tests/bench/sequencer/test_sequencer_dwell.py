@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.dwell_policy import dwell_from_noise_window, fixed_dwell
+from bench.dwell_policy import dwell_from_noise_window, fixed_dwell, longest_noise_window_dwell_s
 
 FS = 100.0
 
@@ -49,3 +49,17 @@ def test_too_short_a_window_and_bad_fixed_dwell_are_refused() -> None:
     with pytest.raises(ValueError, match="finite and > 0"):
         fixed_dwell(float("nan"))
     assert fixed_dwell(12.0).source == "fixed"
+
+
+@pytest.mark.parametrize(
+    ("window_s", "fs", "tau_max_s"), [(60.0, 250.0, 4096 / 250), (60.0, 100.0, 2048 / 100)]
+)
+def test_the_longest_dwell_of_a_noise_window_is_its_largest_octave_tau(
+    window_s: float, fs: float, tau_max_s: float
+) -> None:
+    # n = 15000 at 250 Hz: m ≤ 7499, largest power of two 4096; n = 6000 at 100 Hz: 2048
+    assert longest_noise_window_dwell_s(window_s, fs) == pytest.approx(tau_max_s)
+    white = np.random.default_rng(3).normal(0, 1e-3, (round(window_s * fs), 3))
+    assert dwell_from_noise_window(white, fs).dwell_s == pytest.approx(tau_max_s)  # still falling there
+    floor = white_plus_random_walk(round(window_s * fs), 1e-3, 1e-4, 4)  # floor near 1 s: a shorter dwell
+    assert dwell_from_noise_window(floor, fs).dwell_s < tau_max_s

@@ -1,14 +1,19 @@
-"""What a procedure will do before it is started: duration, poses, windows, dwell."""
+"""What a procedure will do before it is started: duration, poses, windows, dwell, and which
+model terms its motion determines."""
 
 from __future__ import annotations
 
+import functools
 from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query, status
 
 from api.deps import SessionDep, SettingsDep, ViewerDep
 from api.schemas import SERIAL_PATTERN, ProcedurePreviewOut
+from bench.estimation.dynamic_model import TERM_ORDER
 from bench.procedures import PROCEDURES, build_procedure, preview
+from bench.procedures.observability import plan_observability
+from bench.procedures.preview import provisional_dwell
 from bench.sequencer.control import SequencerConfig
 from station.certificates.conformity import unit_warnings
 
@@ -46,12 +51,16 @@ def procedure_preview(
         with session.begin():
             warnings = unit_warnings(session, settings, unit_serial)
     speed = settings.sim_speed if settings.sim and settings.sim_speed > 0 else 1.0
+    observable, not_observable = observability(name, dwell)
     return ProcedurePreviewOut(
         procedure=name,
         duration_s=pv.duration_s,
         wall_duration_s=pv.duration_s / speed,
         n_poses=len(pv.poses_deg),
+        poses_deg=[list(p) for p in pv.poses_deg],
         n_windows=len(pv.windows),
+        observable=observable,
+        not_observable=not_observable,
         dwell_s=dwell,
         dwell_source="given"
         if dwell_s is not None
@@ -62,3 +71,19 @@ def procedure_preview(
         problems=list(pv.problems),
         warnings=warnings,
     )
+
+
+OBSERVABILITY_RATE_HZ = 10.0
+"""Time step of the observability check (Hz): the bound follows the noise density, not the rate."""
+
+
+@functools.lru_cache(maxsize=64)
+def observability(name: str, dwell_s: float | None) -> tuple[list[str], dict[str, str]]:
+    """The model terms procedure ``name`` with ``dwell_s`` determines, and why the others are not
+    worth fitting (:func:`bench.procedures.observability.plan_observability`, computed once per
+    procedure and dwell: seconds for a long moving-table procedure)."""
+    proc = build_procedure(name, dwell_s=dwell_s)
+    dwell = dwell_s if dwell_s is not None else provisional_dwell(proc)[0]
+    _, why = plan_observability(proc, sample_rate_hz=OBSERVABILITY_RATE_HZ, dwell_s=dwell)
+    terms = ("bias", "scale_matrix", *TERM_ORDER)
+    return [t for t in terms if t not in why], {t: why[t] for t in terms if t in why}

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated
 
 import sqlalchemy as sa
-from fastapi import APIRouter, HTTPException, Path, status
+from fastapi import APIRouter, HTTPException, Path, Query, status
 
 from api.deps import OperatorDep, RunnerDep, SessionDep, ViewerDep
 from api.routes.views import certificate_out, drift_out, run_out
@@ -52,10 +52,20 @@ REGISTRATION_FIELDS = (
 
 
 @router.get("", response_model=list[UnitOut])
-def units(session: SessionDep, _: ViewerDep) -> list[UnitOut]:
-    """Every unit, by serial, with its last certificate and whether its last drift check flagged it."""
+def units(
+    session: SessionDep,
+    _: ViewerDep,
+    q: Annotated[
+        str | None, Query(max_length=64, description="text in the serial, model or customer")
+    ] = None,
+    limit: Annotated[int | None, Query(ge=1, le=1000, description="at most this many (paging)")] = None,
+    offset: Annotated[int, Query(ge=0, description="units skipped from the first by serial (paging)")] = 0,
+) -> list[UnitOut]:
+    """Units by serial, with their last certificate and whether their last drift check flagged
+    them; filtered by a text in the serial, model or customer (``q``), paged by ``limit`` and
+    ``offset`` (every unit without them)."""
     with session.begin():
-        return [_unit_out(session, u) for u in list_units(session)]
+        return [_unit_out(session, u) for u in list_units(session, search=q, limit=limit, offset=offset)]
 
 
 @router.put(

@@ -123,7 +123,19 @@ class ProcedurePreviewOut(BaseModel):
     duration_s: float = Field(description="expected duration on the bench clock (s)")
     wall_duration_s: float = Field(description="expected wall-clock duration (s); bench clock / sim speed")
     n_poses: int
+    poses_deg: list[list[float]] = Field(
+        default_factory=list,
+        description="every commanded pose in order: table angles (deg, outermost axis first)",
+    )
     n_windows: int
+    observable: list[str] = Field(
+        default_factory=list,
+        description="model terms the planned motion determines (Fisher information of the dynamic model "
+        "for a nominal unit, bench.procedures.observability)",
+    )
+    not_observable: dict[str, str] = Field(
+        default_factory=dict, description="model terms it does not determine well enough to fit, and why"
+    )
     dwell_s: float | None = Field(description="static dwell per pose (s); null: decided by a noise window")
     dwell_source: Literal["given", "service setting", "provisional"]
     assumptions: list[str]

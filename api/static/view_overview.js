@@ -36,26 +36,47 @@ function startForm(session) {
   const serial = h("input", { id: "start-serial", name: "unit_serial", required: true, placeholder: "SN-0001",
     pattern: "[A-Za-z0-9][A-Za-z0-9._\\-]{0,63}", title: "letters, digits, '.', '_', '-'" });
   const proc = h("select", { id: "start-procedure", name: "procedure" }, PROCEDURES.map((p) => h("option", { value: p }, p)));
+  const dwell = h("input", { id: "start-dwell", name: "dwell_s", type: "number", min: "0.1", max: "86400", step: "any",
+    placeholder: "from a noise window", title: "static dwell per pose (s); empty: the service setting, else a noise window decides" });
+  const bench = h("select", { id: "start-bench", name: "bench" }, h("option", { value: "" }, "any free bench"));
   const status = h("p", { class: "note", "aria-live": "polite" });
   const pv = h("p", { class: "preview", id: "start-preview", "aria-live": "polite" }, "");
+  const poses = h("p", { class: "note", id: "start-poses" }, "");
+  const observable = h("p", { class: "note", id: "start-observability" }, "");
   const warn = h("p", { class: "note warning", id: "start-warning", role: "alert" }, "");
   const button = h("button", { type: "submit", id: "start-run" }, "Start run");
   const showPreview = async () => {
     try {
-      const who = serial.value.trim() && serial.checkValidity() ? `?unit_serial=${encodeURIComponent(serial.value.trim())}` : "";
-      const p = await getJson(`/api/procedures/${encodeURIComponent(proc.value)}/preview${who}`);
+      const q = new URLSearchParams();
+      if (serial.value.trim() && serial.checkValidity()) q.set("unit_serial", serial.value.trim());
+      if (dwell.value && dwell.checkValidity()) q.set("dwell_s", dwell.value);
+      const p = await getJson(`/api/procedures/${encodeURIComponent(proc.value)}/preview?${q}`);
       warn.textContent = (p.warnings || []).map((w) => `Unit ${serial.value.trim()}: ${w}.`).join(" ");
-      const dwell = p.dwell_s == null ? "dwell decided by a noise window at the start (estimate assumes a provisional one)" : `dwell ${p.dwell_s} s per pose (${p.dwell_source})`;
+      const dwellText = p.dwell_s == null ? "dwell decided by a noise window at the start (estimate assumes a provisional one)" : `dwell ${p.dwell_s} s per pose (${p.dwell_source})`;
       const mins = (s) => (s >= 90 ? `${Math.round(s / 60)} min` : `${Math.round(s)} s`);
-      pv.textContent = `${p.n_poses} poses, ${p.n_windows} windows, ${dwell}; about ${mins(p.wall_duration_s)}`
+      pv.textContent = `${p.n_poses} poses, ${p.n_windows} windows, ${dwellText}; about ${mins(p.wall_duration_s)}`
         + (Math.abs(p.wall_duration_s - p.duration_s) > 1 ? ` (${mins(p.duration_s)} on the bench clock)` : "")
         + (p.problems.length ? ` · cannot run: ${p.problems.join("; ")}` : "");
-    } catch (err) { pv.textContent = `No preview: ${err.message}`; }
+      const deg = (a) => `(${a.map((x) => `${+x.toFixed(1)}°`).join(", ")})`;
+      poses.textContent = `Poses (table angles, outer axis first): ${p.poses_deg.map(deg).join(" · ")}`;
+      const not = Object.entries(p.not_observable || {});
+      observable.textContent = `Determined by this motion: ${p.observable.join(", ") || "nothing"}`
+        + (not.length ? `; not: ${not.map(([t, why]) => `${t} (${why})`).join("; ")}` : "");
+    } catch (err) { pv.textContent = `No preview: ${err.message}`; poses.textContent = ""; observable.textContent = ""; }
+  };
+  const loadBenches = async () => {
+    try {
+      const benches = await getJson("/api/benches");
+      bench.replaceChildren(h("option", { value: "" }, "any free bench"),
+        ...benches.map((b) => h("option", { value: b.name }, `${b.name} (${b.state})`)));
+    } catch (err) { /* the bench stays "any free bench" */ }
   };
   if (session.role !== "none") {
     proc.addEventListener("change", showPreview);
     serial.addEventListener("change", showPreview);
+    dwell.addEventListener("change", showPreview);
     showPreview();
+    loadBenches();
   }
   // the planner (GET /api/plan): noise and targets in, the planned-static design and its start request out
   let planned = null;
@@ -87,6 +108,8 @@ function startForm(session) {
   const form = h("form", { class: "start", "aria-label": "start a run" },
     h("label", { for: "start-serial" }, "Unit serial", serial, details),
     h("label", { for: "start-procedure" }, "Procedure", proc),
+    h("label", { for: "start-dwell" }, "Dwell (s)", dwell),
+    h("label", { for: "start-bench" }, "Bench", bench),
     planBox,
     button);
   form.addEventListener("submit", async (ev) => {
@@ -94,6 +117,8 @@ function startForm(session) {
     button.disabled = true; status.textContent = "Starting…";
     try {
       const body = { unit_serial: serial.value.trim(), procedure: proc.value };
+      if (dwell.value) body.dwell_s = Number(dwell.value);
+      if (bench.value) body.bench = bench.value;
       if (planned && proc.value === planned.procedure) Object.assign(body, { dwell_s: planned.dwell_s, parameters: planned.parameters });
       const created = await postJson("/api/runs", body);
       location.hash = `#/runs/${encodeURIComponent(created.id)}`;
@@ -104,10 +129,10 @@ function startForm(session) {
   });
   const canStart = session.role === "operator" || session.role === "admin";
   if (!canStart) {
-    for (const c of [serial, proc, button, planButton]) c.disabled = true;
+    for (const c of [serial, proc, dwell, bench, button, planButton]) c.disabled = true;
     status.textContent = "Starting runs needs an operator token; this view is read-only.";
   }
-  return card("Start a run", form, pv, warn, status);
+  return card("Start a run", form, pv, poses, observable, warn, status);
 }
 
 export async function overviewView(view, session, signal) {
@@ -177,8 +202,34 @@ export async function overviewView(view, session, signal) {
   setTimeout(tick, live ? REFRESH_MS : REFRESH_MS * 3);
 }
 
+// The units list: search (serial, model or customer) and pages of UNITS_PAGE units.
+const UNITS_PAGE = 20;
+
 export async function unitsView(view, signal) {
   view.append(h("div", { class: "page-head" }, h("h1", {}, "Units")));
-  const units = await getJson("/api/units", { signal });
-  view.append(h("section", { class: "card", "aria-label": "Units" }, unitsTable(units)));
+  let offset = 0;
+  const search = h("input", { id: "units-search", type: "search", placeholder: "serial, model or customer", "aria-label": "search units", maxlength: "64" });
+  const prev = h("button", { type: "button", class: "ghost", id: "units-prev", disabled: true }, "Previous");
+  const next = h("button", { type: "button", class: "ghost", id: "units-next", disabled: true }, "Next");
+  const pageNote = h("span", { class: "note", id: "units-page" });
+  const box = h("div", { id: "units-list" }, message("Loading units…"));
+  const load = async () => {
+    const q = new URLSearchParams({ limit: String(UNITS_PAGE + 1), offset: String(offset) });
+    if (search.value.trim()) q.set("q", search.value.trim());
+    try {
+      const units = await getJson(`/api/units?${q}`, { signal });
+      prev.disabled = offset === 0;
+      next.disabled = units.length <= UNITS_PAGE;
+      const shown = units.slice(0, UNITS_PAGE);
+      pageNote.textContent = shown.length ? `units ${offset + 1}–${offset + shown.length}` : "";
+      box.replaceChildren(shown.length || !(offset || search.value.trim()) ? unitsTable(shown) : message("No unit matches."));
+    } catch (err) { if (err.name !== "AbortError") box.replaceChildren(message(`Not available: ${err.message}`)); }
+  };
+  let typing = 0;
+  search.addEventListener("input", () => { clearTimeout(typing); typing = setTimeout(() => { offset = 0; load(); }, 250); });
+  prev.addEventListener("click", () => { offset = Math.max(0, offset - UNITS_PAGE); load(); });
+  next.addEventListener("click", () => { offset += UNITS_PAGE; load(); });
+  view.append(h("section", { class: "card", "aria-label": "Units" },
+    h("p", { class: "actions units-filter" }, search, " ", prev, " ", next, " ", pageNote), box));
+  await load();
 }

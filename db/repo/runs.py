@@ -15,6 +15,7 @@ from sqlalchemy.orm import Session, selectinload
 
 from db.models import AGENT, FINAL_STATES, AuditAction, Run, RunState, Unit
 from db.notify import notify_run
+from db.repo._search import contains_any
 from db.repo.audit import command_line_actor, record_action, record_state
 from db.types import utc_now
 
@@ -101,13 +102,7 @@ def list_runs(
     if unit_serial is not None:
         stmt = stmt.where(Unit.serial == unit_serial)
     if search:
-        pattern = "%" + search.lower().replace("\\", "\\\\").replace("%", "\\%").replace("_", "\\_") + "%"
-        stmt = stmt.where(
-            sa.or_(
-                sa.func.lower(Run.id).like(pattern, escape="\\"),
-                sa.func.lower(Unit.serial).like(pattern, escape="\\"),
-            )
-        )
+        stmt = stmt.where(contains_any(search, Run.id, Unit.serial))
     if procedure is not None:
         stmt = stmt.where(Run.procedure == procedure)
     if states is not None:

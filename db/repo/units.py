@@ -6,6 +6,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from db.models import Bench, Unit
+from db.repo._search import contains_any
 from db.repo._upsert import insert_or_ignore
 from db.types import utc_now
 
@@ -79,6 +80,16 @@ def get_bench_by_name(session: Session, name: str) -> Bench | None:
     return session.scalars(sa.select(Bench).where(Bench.name == name)).one_or_none()
 
 
-def list_units(session: Session) -> list[Unit]:
-    """All units, by serial."""
-    return list(session.scalars(sa.select(Unit).order_by(Unit.serial)))
+def list_units(
+    session: Session, *, search: str | None = None, limit: int | None = None, offset: int = 0
+) -> list[Unit]:
+    """Units by serial; ``search``: only those whose serial, model or customer contains it
+    (case-insensitive); ``offset`` and ``limit`` page the list."""
+    stmt = sa.select(Unit).order_by(Unit.serial)
+    if search:
+        stmt = stmt.where(contains_any(search, Unit.serial, Unit.model, Unit.customer_name))
+    if offset:
+        stmt = stmt.offset(offset)
+    if limit is not None:
+        stmt = stmt.limit(limit)
+    return list(session.scalars(stmt))

@@ -34,7 +34,7 @@ from db.repo.runs import create_run, finish_run
 from db.repo.units import get_or_create_unit
 from tests.conftest import EXAMPLES, STATIC_EXAMPLE
 from tests.support.fits import stored_fit
-from tests.support.service_helpers import VIEW, service_settings
+from tests.support.service_helpers import OP, VIEW, service_settings
 
 SERIAL = "SN-DASH-1"
 
@@ -358,3 +358,29 @@ def test_runs_are_searched_filtered_and_paged(client: TestClient) -> None:
     assert [r["id"] for r in live] == ["run-live"]
     assert client.get("/api/runs", headers=VIEW, params={"procedure": "rate-1axis"}).json() == []
     assert client.get("/api/runs", headers=VIEW, params={"offset": -1}).status_code == 422
+
+
+def test_units_are_searched_and_paged(client: TestClient) -> None:
+    for serial, model, customer in (
+        ("UP-A1", "ADXL325", "Acme Lab"),
+        ("UP-B2", "ADXL335", "Beta_Co"),
+        ("up-c3", None, None),
+    ):
+        body = {"model": model, "customer_name": customer}
+        r = client.put(f"/api/units/{serial}", json=body, headers=OP)
+        assert r.status_code == 200, r.text
+    everything = [u["serial"] for u in client.get("/api/units", headers=VIEW).json()]
+    assert everything == sorted(everything) and {"UP-A1", "UP-B2", "up-c3"} <= set(everything)
+    pages = [
+        [u["serial"] for u in client.get("/api/units", headers=VIEW, params={"limit": 2, "offset": o}).json()]
+        for o in range(0, len(everything), 2)
+    ]
+    assert [s for p in pages for s in p] == everything and all(len(p) <= 2 for p in pages)
+
+    def found(q: str) -> list[str]:
+        return [u["serial"] for u in client.get("/api/units", headers=VIEW, params={"q": q}).json()]
+
+    assert found("up-") == ["UP-A1", "UP-B2", "up-c3"]  # case-insensitive, in serial order
+    assert found("adxl335") == ["UP-B2"] and found("acme") == ["UP-A1"]  # model, customer
+    assert found("beta_co") == ["UP-B2"] and found("a_m") == []  # '_' is plain text
+    assert client.get("/api/units", headers=VIEW, params={"limit": 0}).status_code == 422

@@ -65,6 +65,13 @@ export async function postJson(path, body) {
   return resp.json();
 }
 
+/** POST a multipart form (files): the browser sets its boundary; JSON comes back. */
+export async function postForm(path, form) {
+  const resp = await fetch(path, { method: "POST", headers: headers(), body: form });
+  if (!resp.ok) throw await failure(resp);
+  return resp.json();
+}
+
 /**
  * A short-lived link the browser opens itself (a certificate PDF), signed by the service
  * (POST /api/links): the pasted token never goes into a URL, a log or the history.

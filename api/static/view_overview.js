@@ -2,6 +2,7 @@
 
 import { getJson, postJson } from "./api.js";
 import { badge, card, h, message, outcomeCell, progressBar, table, when } from "./dom.js";
+import { uploadCard } from "./view_upload.js";
 
 const PROCEDURES = ["static-12", "rate-1axis", "oscillation-2axis", "planned-static"];
 const LIVE = new Set(["queued", "running", "paused", "suspended"]);
@@ -168,7 +169,7 @@ export async function overviewView(view, session, signal) {
   stateSel.addEventListener("change", () => { offset = 0; reloadRuns(); });
   prev.addEventListener("click", () => { offset = Math.max(0, offset - PAGE); reloadRuns(); });
   next.addEventListener("click", () => { offset += PAGE; reloadRuns(); });
-  view.append(h("div", { class: "grid wide" }, startForm(session), card("Units", unitsBox), h("section", { class: "card span", "aria-label": "Runs" }, h("h2", {}, "Runs"),
+  view.append(h("div", { class: "grid wide" }, startForm(session), card("Units", unitsBox), uploadCard(session), h("section", { class: "card span", "aria-label": "Runs" }, h("h2", {}, "Runs"),
     h("p", { class: "actions runs-filter" }, search, " ", stateSel, " ", prev, " ", next, " ", pageNote), runsBox)));
   const load = async () => {
     const [runs, units, drift] = await Promise.all([getJson(runsQuery(), { signal }), getJson("/api/units", { signal }),

@@ -40,6 +40,7 @@ from scipy.stats import chi2 as chi2_dist
 from bench.diagnosis.bench_families import moving_stage as bench_stage
 from bench.diagnosis.dynamic_summary import block_summary, motion_regressors, unexplained_blocks
 from bench.diagnosis.effects import CATALOGUE
+from bench.diagnosis.greedy import Trial, best, forward, step_alpha
 from bench.diagnosis.library_motion_search import (
     MotionLibraryResult,
     discovery,
@@ -194,13 +195,14 @@ def select_terms(
     chosen: list[str] = []
     steps: list[tuple[str, float, float]] = []
     rejected: dict[str, str] = {}
-    while True:
+
+    def catalogue(n_steps: int) -> int | None:
         tried = [t for t in pool if t not in chosen and (t != "proof_mass_offsets" or "lever_arm" in chosen)]
         if not tried:
-            break
-        alpha = th.false_alarm / len(tried)
-        best: tuple[float, str, float, DynamicFit] | None = None
-        rejected = {}
+            return None
+        alpha = step_alpha(th.false_alarm, len(tried))
+        trials: list[Trial[tuple[str, DynamicFit]]] = []
+        rejected.clear()
         for t in tried:
             spec1 = ModelSpec((*chosen, t))
             try:
@@ -212,18 +214,22 @@ def select_terms(
             w = _wald(d, C, q)
             crit = float(chi2_dist.ppf(1.0 - alpha, q))
             dbic = _loglik_term(f1) - _loglik_term(fits[-1]) + q * math.log(n_obs)
-            if w > crit and dbic < 0 and (best is None or dbic < best[0]):
-                best = (dbic, t, w, f1)
+            trials.append(Trial((t, f1), w, crit, dbic))
             rejected[t] = (
                 f"no evidence on this recording: Wald W = {w:.3g} against {crit:.3g} (chi2_{q} at "
                 f"{alpha:.2g}), delta BIC {dbic:+.3g}"
             )
-        if best is None:
-            break
-        chosen.append(best[1])
-        steps.append((best[1], best[0], best[2]))
-        fits.append(best[3])
-        rejected.pop(best[1], None)
+        win = best(trials)
+        if win is None:
+            return None
+        t, f1 = win.item
+        chosen.append(t)
+        steps.append((t, win.delta_bic, win.statistic))
+        fits.append(f1)
+        rejected.pop(t, None)
+        return n_steps + 1
+
+    forward(0, [catalogue], len(pool))
     for t in pool:
         if t not in chosen and t not in rejected:
             rejected[t] = "tried only with lever_arm in the model (its offsets are relative to it)"

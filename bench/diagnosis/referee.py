@@ -10,6 +10,7 @@ from scipy.stats import f as f_dist
 from bench.diagnosis.effects import Candidate, pose_response
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.greedy import backward, step_alpha
 from bench.diagnosis.library import EFFECT
 from bench.diagnosis.likelihood import gls, window_covariance
 from bench.diagnosis.model_state import ModelState, design, fit_model, scale_matrix
@@ -33,11 +34,12 @@ def prune_catalogue(
     catalogue never enters in the first place: it is tried after the catalogue).
     """
     assert state.noise is not None and state.fit is not None
-    dropped: list[str] = []
     if not any(c.effect.startswith(EFFECT + ":") for c in state.candidates):
-        return dropped
+        return []
     n_cat = len(pool)
-    while True:
+
+    def weakest_out(state: ModelState) -> tuple[str, ModelState] | None:
+        assert state.noise is not None and state.fit is not None
         K = scale_matrix(state.fit)
         X = design(ev, K, state.candidates)
         C = window_covariance(ev.V, ev.mid_s, state.noise, pose_response(ev, K), fixed)
@@ -50,13 +52,12 @@ def prune_catalogue(
             keep = [c for c in state.candidates if c.effect != effect]
             q = sum(len(c.names) for c in state.candidates if c.effect == effect)
             lr = gls(design(ev, K, keep), z, C).chi2 - full
-            gate = q * float(f_dist.ppf(1.0 - th.false_alarm / max(n_cat, 1), q, ev.n_obs - X.shape[1]))
+            gate = q * float(f_dist.ppf(1.0 - step_alpha(th.false_alarm, n_cat), q, ev.n_obs - X.shape[1]))
             if lr < gate and (weakest is None or lr / gate < weakest[0]):
                 weakest = (lr / gate, effect, lr)
         if weakest is None:
-            return dropped
+            return None
         _, effect, lr = weakest
-        dropped.append(effect)
         state.candidates = [c for c in state.candidates if c.effect != effect]
         state.steps = [s for s in state.steps if s.effect != effect]
         terms = ", ".join(c.label for c in state.candidates if c.effect.startswith(EFFECT + ":"))
@@ -65,6 +66,9 @@ def prune_catalogue(
             f"(its statistic falls to {lr:.1f}, below its gate): dropped"
         )
         state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise, th=th)
+        return effect, state
+
+    return backward(state, weakest_out)[1]
 
 
 def loo_scores(ev: StaticEvidence, X: FloatArray, C: WindowCovariance) -> FloatArray:
@@ -120,13 +124,13 @@ def referee(
     worst offender is dropped and the model refitted, until every effect earns its place.
     Returns the effects dropped.
     """
-    dropped: list[str] = []
-    while True:
+
+    def worst_out(state: ModelState) -> tuple[str, ModelState] | None:
         assert state.noise is not None and state.fit is not None
         K = scale_matrix(state.fit)
         effects = list(dict.fromkeys(c.effect for c in state.candidates))
         if not effects:
-            return dropped
+            return None
         C = window_covariance(ev.V, ev.mid_s, state.noise, pose_response(ev, K), fixed)
         full = loo_scores(ev, design(ev, K, state.candidates), C)
         worst: tuple[float, str, float, float] | None = None
@@ -139,9 +143,8 @@ def referee(
             if gain <= 0 and (worst is None or gain < worst[0]):
                 worst = (gain, effect, float(np.sum(without[chans])), float(np.sum(full[chans])))
         if worst is None:
-            return dropped
+            return None
         gain, effect, before, after = worst
-        dropped.append(effect)
         state.candidates = [c for c in state.candidates if c.effect != effect]
         state.steps = [s for s in state.steps if s.effect != effect]
         notes[effect.removeprefix(EFFECT + ":")] = (
@@ -150,3 +153,6 @@ def referee(
             "windows happen to follow, not claimed"
         )
         state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise, th=th)
+        return effect, state
+
+    return backward(state, worst_out)[1]

@@ -41,6 +41,7 @@ from bench.diagnosis.confounding import mimics
 from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.greedy import Trial, admits, forward, step_alpha
 from bench.diagnosis.likelihood import GlsFit, NoiseParams, window_covariance
 from bench.diagnosis.model_state import (
     ModelState,
@@ -179,7 +180,7 @@ def _structured(
                 wander_notes[cand.label] = wander_note(cand.effect, lr, lr_wander, gate, null_own[0])
             lr = min(lr, lr_wander)
         dbic = -lr + q * math.log(n)
-        if lr > gate and dbic < 0:
+        if admits(Trial(cand, lr, gate, dbic)):
             admissible.append((dbic, cand, lr, model1))
     if not admissible:
         return None
@@ -345,73 +346,99 @@ def select(
     cap = SlowNoiseCap(ev, th.cap_alpha)
     state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2, cap=cap)
     notes: dict[str, str] = {}
-    library = library or []
-    for _ in range(th.max_steps):
-        assert state.noise is not None and state.fit is not None
-        n_cat = sum(1 for c in pool if c not in state.candidates) + (
-            1 if pose_allowed and not state.pose else 0
+    lib = library or []
+
+    def n_catalogue(st: ModelState) -> int:
+        # the catalogue's candidates still to try, plus the pose error while it is not in
+        return sum(1 for c in pool if c.effect not in st.swapped and c not in st.candidates) + (
+            1 if pose_allowed and not st.pose else 0
         )
-        alpha = th.false_alarm / max(n_cat, 1)
-        step = _structured(ev, pool, state, K, fixed, alpha, notes, cap=cap, th=th)
-        if step is None and library:
-            n_lib = sum(1 for c in library if c not in state.candidates)
-            alpha_lib = th.library_share * th.false_alarm / max(n_lib, 1)
-            step = _structured(
-                ev,
-                library,
-                state,
-                K,
-                fixed,
-                alpha_lib,
-                {},
-                prescreen=th.prescreen,
-                simplicity=simplicity,
-                cap=cap,
-                wander_notes=notes,
-                th=th,
-            )
-        if step is not None:
-            dbic, chosen, lr, model1 = step
-            state.candidates.append(chosen)
-            state.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
-            state.noise, state.fit, K = model1
-            continue
-        if library and _swap(ev, state, K, fixed, library, notes, simplicity, cap, th):
-            assert state.fit is not None
-            K = scale_matrix(state.fit)
-            pool = [c for c in pool if c.effect not in state.swapped]
-            continue
-        if not (pose_allowed and not state.pose):
-            break
-        noise1, fit1, K1 = fit_model(ev, state.candidates, True, K, fixed, state.noise, cap=cap)
-        if noise1.pose_var_rad2 <= 0:
-            break
-        lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
-        if lr <= float(chi2_dist.ppf(1.0 - 2.0 * alpha, 1)):
-            break
-        chk = pose_check(
-            ev.V,
-            ev.mid_s,
-            noise1,
-            pose_response(ev, K1),
-            design(ev, K1, state.candidates),
-            ev.y.reshape(-1),
-            fixed,
-            th,
-        )
-        gain = 2.0 * (chk.loglik_conditional - state.fit.loglik_ml)
-        dbic = -gain + max(chk.edf, 1.0) * math.log(n)
-        if dbic >= 0:
-            notes["pose_error"] = (
-                f"a random pose error would raise the likelihood given its angles by {gain:.1f} (2 dl) "
-                f"but spends {chk.edf:.1f} effective degrees of freedom: BIC change {dbic:+.1f}; not claimed"
-            )
-            break
-        if not chk.consistent:
-            notes["pose_error"] = chk.text()
-            break
-        state.pose = True
-        state.pose_edf = chk.edf
-        state.steps.append(Step("pose_error", "pose_error", lr, dbic, 1))
-        state.noise, state.fit, K = noise1, fit1, K1
+
+    def admit(
+        st: ModelState, step: tuple[float, Candidate, float, tuple[NoiseParams, GlsFit, FloatArray]]
+    ) -> ModelState:
+        dbic, chosen, lr, (noise1, fit1, _K1) = step
+        st.candidates.append(chosen)
+        st.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
+        st.noise, st.fit = noise1, fit1
+        return st
+
+    def catalogue(st: ModelState) -> ModelState | None:
+        alpha = step_alpha(th.false_alarm, n_catalogue(st))
+        cands = [c for c in pool if c.effect not in st.swapped]
+        step = _structured(ev, cands, st, scale_matrix_of(st), fixed, alpha, notes, cap=cap, th=th)
+        return None if step is None else admit(st, step)
+
+    def beyond(st: ModelState) -> ModelState | None:
+        n_lib = sum(1 for c in lib if c not in st.candidates)
+        step = _structured(
+            ev, lib, st, scale_matrix_of(st), fixed, th.library_share * step_alpha(th.false_alarm, n_lib), {},
+            prescreen=th.prescreen, simplicity=simplicity, cap=cap, wander_notes=notes, th=th,
+        )  # fmt: skip
+        return None if step is None else admit(st, step)
+
+    def swap(st: ModelState) -> ModelState | None:
+        return st if _swap(ev, st, scale_matrix_of(st), fixed, lib, notes, simplicity, cap, th) else None
+
+    def pose(st: ModelState) -> ModelState | None:
+        return _pose_step(ev, st, fixed, step_alpha(th.false_alarm, n_catalogue(st)), notes, cap, n, th)
+
+    groups = [catalogue, *((beyond, swap) if lib else ()), *((pose,) if pose_allowed else ())]
+    state, _ = forward(state, groups, th.max_steps)
     return state, notes
+
+
+def scale_matrix_of(state: ModelState) -> FloatArray:
+    """K (3, 3) of the state's fit."""
+    assert state.fit is not None
+    return scale_matrix(state.fit)
+
+
+def _pose_step(
+    ev: StaticEvidence,
+    state: ModelState,
+    fixed: FloatArray | None,
+    alpha: float,
+    notes: dict[str, str],
+    cap: SlowNoiseCap,
+    n: int,
+    th: Thresholds,
+) -> ModelState | None:
+    """The pose error, a catch-all variance component, as the selection's last group (``select``)."""
+    assert state.noise is not None and state.fit is not None
+    if state.pose:
+        return None
+    noise1, fit1, K1 = fit_model(
+        ev, state.candidates, True, scale_matrix_of(state), fixed, state.noise, cap=cap
+    )
+    if noise1.pose_var_rad2 <= 0:
+        return None
+    lr = 2.0 * (fit1.loglik_reml - state.fit.loglik_reml)
+    if lr <= float(chi2_dist.ppf(1.0 - 2.0 * alpha, 1)):
+        return None
+    chk = pose_check(
+        ev.V,
+        ev.mid_s,
+        noise1,
+        pose_response(ev, K1),
+        design(ev, K1, state.candidates),
+        ev.y.reshape(-1),
+        fixed,
+        th,
+    )
+    gain = 2.0 * (chk.loglik_conditional - state.fit.loglik_ml)
+    dbic = -gain + max(chk.edf, 1.0) * math.log(n)
+    if dbic >= 0:
+        notes["pose_error"] = (
+            f"a random pose error would raise the likelihood given its angles by {gain:.1f} (2 dl) "
+            f"but spends {chk.edf:.1f} effective degrees of freedom: BIC change {dbic:+.1f}; not claimed"
+        )
+        return None
+    if not chk.consistent:
+        notes["pose_error"] = chk.text()
+        return None
+    state.pose = True
+    state.pose_edf = chk.edf
+    state.steps.append(Step("pose_error", "pose_error", lr, dbic, 1))
+    state.noise, state.fit = noise1, fit1
+    return state

@@ -1,0 +1,323 @@
+"""The stages of a window-means diagnosis (static, hand-held, orientation-free), one rule each.
+
+Each stage is ``stage(evidence, state, thresholds) -> (state, notes)`` (``pipeline``); the
+pipelines at the end of this module put them in order for each kind of recording. The model
+selection stages all call the one selection core (``greedy``, through ``selection.select``
+and ``referee``); the report (``bench.diagnosis.diagnose``) is built from the final state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from bench.diagnosis.bench_families import static_lines
+from bench.diagnosis.effects import EFFECTS, WITH_LIBRARY, Candidate, pose_response
+from bench.diagnosis.effects.base import FloatArray, first_order_design
+from bench.diagnosis.effects.settling import settling_duration, settling_test
+from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.hysteresis import with_last_move
+from bench.diagnosis.library import EFFECT, LibraryTerm, library_terms
+from bench.diagnosis.library import candidate as library_candidate
+from bench.diagnosis.model_state import ModelState, scale_matrix
+from bench.diagnosis.periodic_lines import Line
+from bench.diagnosis.pipeline import Notes, Pipeline
+from bench.diagnosis.pose_quantisation import quantisation_covariance
+from bench.diagnosis.referee import prune_catalogue, referee
+from bench.diagnosis.refit import ModelFit, model_sequence
+from bench.diagnosis.result import Finding, Unexplained
+from bench.diagnosis.selection import select
+from bench.diagnosis.summaries import summary
+from bench.diagnosis.thresholds import Thresholds
+from bench.diagnosis.unexplained import unexplained
+from bench.diagnosis.within_window import refit_within_window
+
+NO_TABLE_REASON = (
+    "needs a table (its motion, encoders, base or ringing after a move); this recording has no table"
+)
+NO_LIBRARY_REASON = (
+    "the library's terms need the specific force the recording says each window saw; an "
+    "orientation-free diagnosis has only the magnitude of each reading"
+)
+
+
+@dataclass(frozen=True)
+class WindowState:
+    """What the stages of a window-means diagnosis have decided so far.
+
+    :param unobservable: effect -> why this recording cannot show it.
+    :param pool: the catalogue's fixed-column candidates; :param beside_library: candidates
+        searched with the library (``effects.WITH_LIBRARY``); :param lib_terms: the library's
+        terms beyond the catalogue, by effect label.
+    :param pose_ok: the pose error (a variance component) may be tried; :param settle_ok: the
+        settling test (a window test) may run.
+    :param fixed: (m, 3, 3) fixed extra covariance per window (orientation-free), or ``None``.
+    :param model: the selected model; :param excluded: catalogue effects no longer candidates
+        (dropped as redundant or refused out of sample).
+    :param ev_final: the evidence the final model is reported from (``within_window``).
+    :param order: effects in the order they entered; :param seq: the first-order model, then each
+        effect added in turn, under the final noise.
+    :param lines: periodic lines in the windows' samples; :param line_free: the samples without them.
+    :param extra: findings of the window tests (settling).
+    :param left: what the final model leaves unexplained, or ``None``.
+    :param notes: label -> why it was set aside.
+    """
+
+    unobservable: dict[str, str] = field(default_factory=dict)
+    pool: tuple[Candidate, ...] = ()
+    beside_library: tuple[Candidate, ...] = ()
+    lib_terms: dict[str, LibraryTerm] = field(default_factory=dict)
+    pose_ok: bool = False
+    settle_ok: bool = False
+    fixed: FloatArray | None = None
+    model: ModelState | None = None
+    excluded: frozenset[str] = frozenset()
+    ev_final: StaticEvidence | None = None
+    order: tuple[str, ...] = ()
+    seq: tuple[ModelFit, ...] = ()
+    lines: tuple[Line, ...] = ()
+    line_free: tuple[FloatArray, ...] | None = None
+    extra: tuple[Finding, ...] = ()
+    left: Unexplained | None = None
+    notes: dict[str, str] = field(default_factory=dict)
+
+    def noted(self, notes: Notes) -> WindowState:
+        """The state with ``notes`` added (a label's later note replaces an earlier one)."""
+        return replace(self, notes={**self.notes, **notes}) if notes else self
+
+    @property
+    def scale(self) -> FloatArray:
+        """(3, 3) the model's scale matrix."""
+        assert self.model is not None and self.model.fit is not None
+        return scale_matrix(self.model.fit)
+
+
+def _reselect(
+    ev: StaticEvidence, st: WindowState, excluded: frozenset[str], th: Thresholds
+) -> tuple[ModelState, dict[str, str]]:
+    """The selection core on the catalogue without ``excluded``, the library unchanged."""
+    library = [*st.beside_library, *(library_candidate(t) for t in st.lib_terms.values())]
+    return select(
+        ev,
+        [c for c in st.pool if c.effect not in excluded],
+        pose_allowed=st.pose_ok,
+        fixed=st.fixed,
+        library=library,
+        simplicity={t.label: t.degree for t in st.lib_terms.values()},
+        th=th,
+    )
+
+
+def screen_catalogue(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Catalogue screen. Rule: an effect is a candidate only where the recording can show it
+    (its observability condition under ``th``) and, when its physics is the table's
+    (``needs_table``), only where the recording has a table; each candidate goes where its kind
+    is tested (design columns to the selection, the variance component and the window test to
+    their stages)."""
+    unobservable: dict[str, str] = {}
+    pool: list[Candidate] = []
+    beside: list[Candidate] = []
+    pose_ok = settle_ok = False
+    for eff in EFFECTS:
+        ok, reason = eff.observable(ev, th)
+        if eff.needs_table and not ev.has_table:
+            ok, reason = False, NO_TABLE_REASON
+        if not ok:
+            unobservable[eff.id] = reason
+        elif eff.kind == "columns":
+            (beside if eff.id in WITH_LIBRARY else pool).extend(eff.candidates(ev, th))
+        elif eff.kind == "variance":
+            pose_ok = True
+        elif eff.kind == "window":
+            settle_ok = True
+    out = replace(
+        st,
+        unobservable={**st.unobservable, **unobservable},
+        pool=tuple(pool),
+        beside_library=tuple(beside),
+        pose_ok=pose_ok,
+        settle_ok=settle_ok,
+    )
+    return out, {}
+
+
+def orientation_prior(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Orientation prior. Rule: where only the magnitude of each reading is evidence, each
+    window's orientation about the two axes perpendicular to gravity gets a standard deviation
+    of ``th.free_orientation_rad``, a fixed covariance J Jᵀ σ² per window (J the pose response
+    at the first-order fit's K)."""
+    if ev.orientation_known:
+        return st, {}
+    X0 = first_order_design(ev.f_m_s2)
+    K0 = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
+    J = pose_response(ev, K0)
+    return replace(st, fixed=th.free_orientation_rad**2 * np.einsum("wik,wjk->wij", J, J)), {}
+
+
+def encoder_quantisation(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Encoder step (``pose_quantisation``). Rule: encoders that read in steps of q (the
+    sidecar's ``encoder_resolution_deg``) leave a pose scatter of q²/12 per encoder angle, carried
+    through K·∂f/∂θ into each window's covariance as a fixed term; nothing without a declared step."""
+    quantised = quantisation_covariance(ev, th=th)
+    if quantised is None:
+        return st, {}
+    return replace(st, fixed=quantised if st.fixed is None else st.fixed + quantised), {}
+
+
+def library_search(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Library screen. Rule: the term library's candidates are the monomials of the recording's
+    bases that its pose set determines (``library.library_terms``); they need the specific
+    force each window saw, so an orientation-free recording has none."""
+    if not ev.orientation_known:
+        return replace(st, unobservable={**st.unobservable, EFFECT: NO_LIBRARY_REASON}), {}
+    terms, _ = library_terms(ev, th)
+    return replace(st, lib_terms={f"{EFFECT}:{t.label}": t for t in terms}), {}
+
+
+def forward_selection(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Greedy forward selection (``greedy.forward`` through ``selection.select``). Rule: at each
+    step the catalogue, then the library, then a swap, then the pose error are asked; the first
+    with a candidate whose statistic passes its gate (F at ``th.false_alarm`` / N; the library
+    at ``th.library_share`` of it) and whose BIC change is negative makes the step."""
+    model, notes = _reselect(ev, st, st.excluded, th)
+    return replace(st, model=model), notes
+
+
+def prune_redundant(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Backward removal of the catalogue (``referee.prune_catalogue``). Rule: a catalogue effect
+    whose Wald statistic, once the library's terms are in, falls below the gate it passed to
+    enter is dropped, and the selection runs again without it (the library's terms were chosen
+    beside it)."""
+    assert st.model is not None
+    notes: dict[str, str] = {}
+    dropped = prune_catalogue(ev, st.model, list(st.pool), st.fixed, notes, th)
+    if not dropped:
+        return st, notes
+    excluded = st.excluded | set(dropped)
+    model, again = _reselect(ev, st, excluded, th)
+    known = {**st.notes, **notes}
+    return replace(st, model=model, excluded=excluded), {
+        **{k: v for k, v in again.items() if k not in known},
+        **notes,
+    }
+
+
+def out_of_sample_referee(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Out-of-sample referee (``referee.referee``). Rule: every structured effect must lower the
+    leave-one-window-out prediction error of its channels; the worst offender is removed until
+    all do. A catalogue effect refused is no longer a candidate: the selection runs again
+    without it (it may have bent the library's search) and the referee judges that model."""
+    assert st.model is not None
+    notes: dict[str, str] = {}
+    refused = [e for e in referee(ev, st.model, st.fixed, notes, th) if not e.startswith(EFFECT + ":")]
+    if not refused:
+        return st, notes
+    excluded = st.excluded | set(refused)
+    known = {**st.notes, **notes}
+    model, again = _reselect(ev, st, excluded, th)
+    fresh = {**again, **{k: v for k, v in known.items() if k in excluded}}
+    referee(ev, model, st.fixed, fresh, th)
+    return replace(st, model=model, excluded=excluded, notes={}), fresh
+
+
+def within_window(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Within-window refit (``within_window``). Rule: a library term that changes within a window
+    (in temperature or time) is not window noise: the window noise is estimated without it and
+    the model refitted under that noise."""
+    assert st.model is not None
+    ev_final, model = refit_within_window(ev, st.model, st.lib_terms, st.fixed, th)
+    return replace(st, ev_final=ev_final, model=model), {}
+
+
+def refit_sequence(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Model sequence (``refit.model_sequence``). Rule: the first-order model, then each chosen
+    effect added in the order it entered, all under the final model's noise, so each effect's
+    BIC change and residual are read against the same covariance."""
+    assert st.model is not None and st.model.noise is not None and st.ev_final is not None
+    m, noise = st.model, st.model.noise
+    order = tuple(dict.fromkeys(s.effect for s in m.steps))
+    seq = model_sequence(st.ev_final, list(order), m.candidates, m.pose, noise, st.scale, st.fixed)
+    return replace(st, order=order, seq=tuple(seq)), {}
+
+
+def bench_lines(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Periodic lines (``bench_families.static_lines``). Rule: a line in the windows' samples is
+    claimed where its periodogram peak passes the line test at ``th``; the samples are kept
+    without it for the window tests (a line is not a ring after a move)."""
+    lines, line_free = static_lines(ev, th)
+    return replace(st, lines=lines, line_free=line_free), {}
+
+
+def settling(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Settling (``effects.settling``). Rule: claimed where the early-excess test's p value
+    (Bonferroni over its frequencies) is below ``th.settling_share`` · ``th.false_alarm``; its
+    duration from the decay of the narrow-band power, where that can be measured."""
+    if not st.settle_ok:
+        return st, {}
+    assert st.line_free is not None and ev.sample_rate_hz is not None and st.seq
+    test = settling_test(st.line_free, ev.sample_rate_hz, th)
+    if test.p_value >= th.settling_share * th.false_alarm:
+        return st, {}
+    params: dict[str, object] = {
+        "frequency_hz": test.frequency_hz,
+        "early_power_ratio": test.early_power_ratio,
+    }
+    sigma: dict[str, object] = {}
+    notes: dict[str, str] = {}
+    try:
+        dur, dur_sigma = settling_duration(st.line_free, ev.sample_rate_hz, test.frequency_hz, th)
+        params["duration_s"], sigma["duration_s"] = dur, dur_sigma
+    except ValueError as exc:
+        notes["settling"] = str(exc)
+    lr = float(test.statistic - test.dof)
+    finding = Finding(
+        effect="settling",
+        summary=summary("settling", params, sigma, ev.labels, float(np.ptp(ev.mid_s))),
+        parameters=params,
+        sigma=sigma,
+        delta_bic=float(-lr + 2.0 * np.log(test.n_obs)),
+        lr=lr,
+        residual_rms_after=float(np.sqrt(np.mean(st.seq[-1].resid ** 2))),
+        explanation=next(e.explanation for e in EFFECTS if e.id == "settling"),
+    )
+    return replace(st, extra=(*st.extra, finding)), notes
+
+
+def unexplained_stage(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Unexplained (``unexplained``, ``hysteresis.with_last_move``). Rule: the final model's χ²
+    whole, per channel and channel against channel is tested against the recording's noise at
+    ``th.unexplained_alpha``; where it fails, where the misfit is and what it follows (the
+    direction of the last move among them)."""
+    assert st.model is not None and st.ev_final is not None and st.seq
+    final, K = st.seq[-1], st.scale
+    left = unexplained(st.ev_final, final, st.model, K, st.fixed, th)
+    return replace(st, left=with_last_move(st.ev_final, final, st.model, K, st.fixed, left, th)), {}
+
+
+_SELECT = (forward_selection, prune_redundant, out_of_sample_referee)
+_REPORT = (within_window, refit_sequence, bench_lines, settling, unexplained_stage)
+
+STATIC: Pipeline[StaticEvidence, WindowState] = Pipeline(
+    "static", (screen_catalogue, encoder_quantisation, library_search, *_SELECT, *_REPORT)
+)
+"""Windows whose specific force the recording knows (a table's encoders, or hand-held poses
+labelled ``nominal_up``: the screen sets the table's effects aside when there is no table)."""
+
+STATIC_NO_LIBRARY: Pipeline[StaticEvidence, WindowState] = Pipeline(
+    "static, catalogue only", (screen_catalogue, encoder_quantisation, *_SELECT, *_REPORT)
+)
+"""As :data:`STATIC` without the term library (``diagnose(use_library=False)``)."""
+
+ORIENTATION_FREE: Pipeline[StaticEvidence, WindowState] = Pipeline(
+    "orientation-free",
+    (screen_catalogue, orientation_prior, encoder_quantisation, library_search, *_SELECT, *_REPORT),
+)
+"""Windows whose orientation the recording does not know: only each reading's magnitude."""
+
+
+def pipeline_for(ev: StaticEvidence, use_library: bool = True) -> Pipeline[StaticEvidence, WindowState]:
+    """The pipeline of the evidence's kind."""
+    if not ev.orientation_known:
+        return ORIENTATION_FREE
+    return STATIC if use_library else STATIC_NO_LIBRARY

@@ -1,0 +1,271 @@
+"""Each stage of the window-means pipeline against its one rule, on constructed evidence whose
+answer is known: 18 window means in known directions, white noise of known sigma, no table."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from bench.diagnosis.effects import NEEDS_TABLE, Candidate, first_order_design
+from bench.diagnosis.effects.base import FloatArray, channel_column
+from bench.diagnosis.effects.sensor import NONLINEARITY
+from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.library import EFFECT
+from bench.diagnosis.model_state import ModelState, Step, fit_model
+from bench.diagnosis.stages import (
+    NO_LIBRARY_REASON,
+    NO_TABLE_REASON,
+    ORIENTATION_FREE,
+    STATIC,
+    STATIC_NO_LIBRARY,
+    WindowState,
+    bench_lines,
+    encoder_quantisation,
+    forward_selection,
+    library_search,
+    orientation_prior,
+    out_of_sample_referee,
+    pipeline_for,
+    prune_redundant,
+    refit_sequence,
+    screen_catalogue,
+    settling,
+    unexplained_stage,
+    within_window,
+)
+from bench.diagnosis.thresholds import THRESHOLDS
+from tests.bench.diagnosis.test_pose_quantisation import _evidence as table_evidence
+
+G = 9.81
+SIGMA = 1e-5
+RATE_HZ = 100.0
+K_TRUE = np.array([[0.0177, 1e-5, -2e-5], [0.0, 0.0175, 3e-5], [0.0, 0.0, 0.0178]])
+B_TRUE = np.array([1.5, 1.49, 1.51])
+_DIRS = np.array(
+    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1],
+     [1, 1, 0], [1, 0, 1], [0, 1, 1], [-1, 1, 0], [-1, 0, -1], [0, -1, 1],
+     [1, 1, 1], [-1, -1, 1], [1, -1, -1], [-1, 1, -1], [1, 0, -1], [0, 1, -1]],
+    dtype=float,
+)  # fmt: skip
+F = G * _DIRS / np.linalg.norm(_DIRS, axis=1, keepdims=True)
+M = F.shape[0]
+
+
+def _evidence(seed: int, extra: FloatArray | None = None, **kw: object) -> StaticEvidence:
+    """The 18 windows, white noise SIGMA; ``extra`` (3m,) added to the stacked means."""
+    y = B_TRUE + F @ K_TRUE.T + np.random.default_rng(seed).normal(0.0, SIGMA, (M, 3))
+    if extra is not None:
+        y = y + extra.reshape(M, 3)
+    V = np.broadcast_to(np.eye(3) * SIGMA**2, (M, 3, 3)).copy()
+    return StaticEvidence(
+        y=y, V=V, f_m_s2=F, mid_s=np.arange(M) * 40.0, labels=tuple(f"w{i}" for i in range(M)),
+        g_local_m_s2=G, **kw,  # type: ignore[arg-type]
+    )  # fmt: skip
+
+
+def _quadratic_z(k2_per_g: float) -> FloatArray:
+    ev = _evidence(0)
+    return k2_per_g * NONLINEARITY.candidates(ev)[2].columns(ev, K_TRUE)[:, 0]
+
+
+def _column(name: str, ch: int, values: FloatArray) -> Candidate:
+    def cols(e: StaticEvidence, K: FloatArray) -> FloatArray:
+        return channel_column(e, ch, values)
+
+    return Candidate(name, f"{name}[{ch}]", (ch,), cols, (name,), lambda t, c, K: ({}, {}))
+
+
+def _model(ev: StaticEvidence, cands: list[Candidate]) -> ModelState:
+    theta = np.linalg.lstsq(first_order_design(F), ev.y.reshape(-1), rcond=None)[0]
+    K0 = np.asarray(theta[3:12], dtype=np.float64).reshape(3, 3)
+    noise, fit, _ = fit_model(ev, cands, False, K0, None, iterations=2)
+    steps = [Step(c.label, c.effect, 0.0, 0.0, len(c.names)) for c in cands]
+    return ModelState(candidates=list(cands), noise=noise, fit=fit, steps=steps)
+
+
+def test_screen_sets_the_tables_physics_aside_without_a_table() -> None:
+    st, notes = screen_catalogue(_evidence(1), WindowState(), THRESHOLDS)
+    assert notes == {}
+    assert set(st.unobservable) >= NEEDS_TABLE
+    assert all(st.unobservable[e] == NO_TABLE_REASON for e in NEEDS_TABLE)
+    assert not {c.effect for c in st.pool} & NEEDS_TABLE
+    # three channels each: the quadratic, the asymmetry, the three products, the drift
+    assert {c.effect for c in st.pool} >= {"nonlinearity_quadratic", "scale_asymmetry", "cross_coupling"}
+    assert st.pose_ok and not st.settle_ok  # the pose error is a variance, settling needs a table
+
+
+def test_orientation_prior_is_rank_two_and_scales_with_its_sigma() -> None:
+    ev = _evidence(1)
+    st, _ = orientation_prior(ev, WindowState(), THRESHOLDS)
+    assert st.fixed is None  # orientation known: no prior
+    free = replace(ev, orientation_known=False)
+    a, _ = orientation_prior(free, WindowState(), THRESHOLDS)
+    b, _ = orientation_prior(
+        free, WindowState(), replace(THRESHOLDS, free_orientation_rad=2 * THRESHOLDS.free_orientation_rad)
+    )
+    assert a.fixed is not None and b.fixed is not None and a.fixed.shape == (M, 3, 3)
+    np.testing.assert_allclose(b.fixed, 4.0 * a.fixed, rtol=1e-12)
+    # two free angles per window (about the axes perpendicular to gravity): rank 2
+    s = np.linalg.svd(a.fixed, compute_uv=False)
+    assert np.all(s[:, 2] < 1e-9 * s[:, 0]) and np.all(s[:, 1] > 1e-3 * s[:, 0])
+
+
+def test_encoder_step_adds_its_scatter_to_the_fixed_covariance() -> None:
+    st, _ = encoder_quantisation(_evidence(1), WindowState(), THRESHOLDS)
+    assert st.fixed is None  # no table, no declared step
+    one, _ = encoder_quantisation(table_evidence(1e-3, K_TRUE), WindowState(), THRESHOLDS)
+    two, _ = encoder_quantisation(table_evidence(2e-3, K_TRUE), WindowState(), THRESHOLDS)
+    assert one.fixed is not None and two.fixed is not None
+    np.testing.assert_allclose(two.fixed, 4.0 * one.fixed, rtol=1e-9)  # step² / 12
+    prior = np.broadcast_to(np.eye(3), one.fixed.shape).copy()
+    both, _ = encoder_quantisation(table_evidence(1e-3, K_TRUE), WindowState(fixed=prior), THRESHOLDS)
+    assert both.fixed is not None
+    np.testing.assert_allclose(both.fixed, prior + one.fixed, rtol=1e-12)
+
+
+def test_library_needs_known_orientation() -> None:
+    ev = _evidence(1)
+    st, _ = library_search(ev, WindowState(), THRESHOLDS)
+    assert st.lib_terms and all(k.startswith(EFFECT + ":") for k in st.lib_terms)
+    free, _ = library_search(replace(ev, orientation_known=False), WindowState(), THRESHOLDS)
+    assert free.lib_terms == {} and free.unobservable[EFFECT] == NO_LIBRARY_REASON
+
+
+def test_forward_selection_admits_a_strong_effect_and_nothing_on_noise() -> None:
+    # 1e-3/g on z: K_zz g 1e-3 = 1.7e-4 at ±z, 17 sigma
+    ev = _evidence(2, _quadratic_z(1e-3))
+    st, _ = screen_catalogue(ev, WindowState(), THRESHOLDS)
+    st, _ = forward_selection(ev, st, THRESHOLDS)
+    assert st.model is not None and [c.label for c in st.model.candidates] == ["nonlinearity_quadratic[z]"]
+    clean = _evidence(3)
+    st, _ = screen_catalogue(clean, WindowState(), THRESHOLDS)
+    st, _ = forward_selection(clean, st, THRESHOLDS)
+    assert st.model is not None and st.model.candidates == [] and not st.model.pose
+
+
+def test_prune_drops_a_catalogue_effect_a_library_term_made_redundant() -> None:
+    # truth: a cube on ax (odd), 30 sigma; the model also holds the x quadratic (even, truth 0)
+    cube = F[:, 0] ** 3 / G**3
+    extra = np.zeros(3 * M)
+    extra[0::3] = 30 * SIGMA * cube
+    ev = _evidence(4, extra)
+    st, _ = screen_catalogue(ev, WindowState(), THRESHOLDS)
+    quad_x = NONLINEARITY.candidates(ev)[0]
+    model = _model(ev, [quad_x, _column(f"{EFFECT}:cube", 0, cube)])
+    out, notes = prune_redundant(ev, replace(st, model=model), THRESHOLDS)
+    assert out.excluded == {"nonlinearity_quadratic"}
+    assert "dropped" in notes["nonlinearity_quadratic"]
+    assert out.model is not None and "nonlinearity_quadratic" not in {c.effect for c in out.model.candidates}
+    # without a library term in the model there is nothing to prune
+    same, none = prune_redundant(ev, replace(st, model=_model(ev, [quad_x])), THRESHOLDS)
+    assert none == {} and same.excluded == frozenset()
+
+
+def test_referee_refuses_a_column_that_does_not_predict_a_left_out_window() -> None:
+    ev = _evidence(5, _quadratic_z(1e-3))
+    st, _ = screen_catalogue(ev, WindowState(), THRESHOLDS)
+    noise_col = np.random.default_rng(6).normal(size=M)  # truth 0: it only follows the noise
+    model = _model(ev, [NONLINEARITY.candidates(ev)[2], _column("noise_column", 0, noise_col)])
+    out, notes = out_of_sample_referee(ev, replace(st, model=model), THRESHOLDS)
+    assert out.excluded == {"noise_column"}
+    assert "left-out window" in notes["noise_column"]
+    # the selection ran again without it: the true effect alone
+    assert out.model is not None and [c.effect for c in out.model.candidates] == ["nonlinearity_quadratic"]
+
+
+def test_within_window_leaves_a_model_without_library_terms_alone() -> None:
+    ev = _evidence(1)
+    model = _model(ev, [])
+    st, _ = within_window(ev, WindowState(model=model), THRESHOLDS)
+    assert st.ev_final is ev and st.model is model
+
+
+def test_refit_sequence_adds_the_effects_in_the_order_they_entered() -> None:
+    ev = _evidence(2, _quadratic_z(1e-3))
+    quad_z = NONLINEARITY.candidates(ev)[2]
+    st, _ = refit_sequence(ev, WindowState(model=_model(ev, [quad_z]), ev_final=ev), THRESHOLDS)
+    assert st.order == ("nonlinearity_quadratic",)
+    assert [s.effects for s in st.seq] == [(), ("nonlinearity_quadratic",)]
+    # 17 sigma left out of the first model, in the second: chi2/dof near 1
+    assert st.seq[0].chi2_dof > 10 and st.seq[1].chi2_dof < 2
+
+
+def _samples(
+    rng: np.random.Generator, line_amp: float, ring_amp: float
+) -> tuple[tuple[FloatArray, ...], tuple[FloatArray, ...]]:
+    """Per window 30 s at 100 Hz, unit white noise, a 2.5 Hz line on ax (phase kept across
+    windows) and a 7 Hz ring decaying over 2 s after each window's start."""
+    n = round(30.0 * RATE_HZ)
+    tt, ys = [], []
+    for w in range(M):
+        t = 40.0 * w + np.arange(n) / RATE_HZ
+        y = rng.standard_normal((n, 3))
+        y[:, 0] += line_amp * np.sin(2 * np.pi * 2.5 * t + 0.3)
+        ring = ring_amp * np.exp(-(t - t[0]) / 2.0) * np.sin(2 * np.pi * 7.0 * (t - t[0]))
+        y += ring[:, None] * np.array([1.0, 0.5, 0.2])
+        tt.append(t)
+        ys.append(y)
+    return tuple(tt), tuple(ys)
+
+
+def test_bench_lines_finds_a_line_at_its_frequency() -> None:
+    t, y = _samples(np.random.default_rng(7), 0.3, 0.0)
+    ev = _evidence(1, window_samples=y, window_t_s=t, sample_rate_hz=RATE_HZ)
+    st, _ = bench_lines(ev, WindowState(), THRESHOLDS)
+    assert len(st.lines) == 1 and st.lines[0].channels == (0,)
+    assert abs(st.lines[0].frequency_hz - 2.5) < 3 * st.lines[0].frequency_sigma_hz
+    # the samples kept for the window tests are without it
+    assert st.line_free is not None
+    before = np.abs(np.fft.rfft(y[0][:, 0]))[75]  # 2.5 Hz bin of 3000 samples at 100 Hz
+    after = np.abs(np.fft.rfft(st.line_free[0][:, 0]))[75]
+    # the line's bin: A n / 2 = 450 with it; unit white noise alone: Rayleigh of scale sqrt(n / 2)
+    assert before > 6 * np.sqrt(3000) and after < 3 * np.sqrt(3000)
+
+
+def test_settling_claims_a_ring_and_not_plain_noise() -> None:
+    ev0 = _evidence(1)
+    base, _ = refit_sequence(ev0, WindowState(model=_model(ev0, []), ev_final=ev0), THRESHOLDS)
+    for ring, claimed in ((3.0, True), (0.0, False)):
+        _, y = _samples(np.random.default_rng(8), 0.0, ring)
+        ev = _evidence(1, window_samples=y, sample_rate_hz=RATE_HZ)
+        st, _ = settling(ev, replace(base, settle_ok=True, line_free=y), THRESHOLDS)
+        assert bool(st.extra) == claimed
+        if claimed:
+            assert st.extra[0].effect == "settling"
+            assert abs(float(st.extra[0].parameters["frequency_hz"]) - 7.0) < 0.5
+    # no window test where the screen did not allow it
+    st, _ = settling(ev0, base, THRESHOLDS)
+    assert st.extra == ()
+
+
+def test_unexplained_fires_on_a_misfit_left_out_and_not_on_noise() -> None:
+    for extra, fires in ((_quadratic_z(1e-3), True), (None, False)):
+        ev = _evidence(9, extra)
+        st, _ = refit_sequence(ev, WindowState(model=_model(ev, []), ev_final=ev), THRESHOLDS)
+        st, _ = unexplained_stage(ev, st, THRESHOLDS)
+        assert (st.left is not None) == fires
+
+
+def test_pipelines_share_their_stage_functions() -> None:
+    ev = _evidence(1)
+    assert pipeline_for(ev) is STATIC
+    assert pipeline_for(ev, use_library=False) is STATIC_NO_LIBRARY
+    assert pipeline_for(replace(ev, orientation_known=False)) is ORIENTATION_FREE
+    assert set(STATIC_NO_LIBRARY.stages) <= set(STATIC.stages)
+    assert set(ORIENTATION_FREE.stages) == set(STATIC.stages) | {orientation_prior}
+    assert STATIC.stage_names[:4] == (
+        "screen_catalogue",
+        "encoder_quantisation",
+        "library_search",
+        "forward_selection",
+    )
+
+
+def test_a_run_keeps_each_stages_notes_in_order() -> None:
+    ev = _evidence(2, _quadratic_z(1e-3))
+    st, trace = STATIC.run(ev, WindowState(), THRESHOLDS)
+    assert trace.names == STATIC.stage_names
+    assert st.order == ("nonlinearity_quadratic",)
+    for _, notes in trace.stages:
+        assert all(st.notes.get(k) is not None for k in notes)

@@ -124,6 +124,8 @@ class Unexplained:
     :param p_value: the test's p value; :param where: where the remaining mismatch is.
     :param correlates_with: regressors the remaining residual correlates with.
     :param channels: per channel, observed χ² over what the noise model expects.
+    :param channel: the channel that carries the misfit alone, where a one-channel test names
+        one (``channel_excess``), else ``None``.
     """
 
     chi2_dof: float
@@ -132,10 +134,11 @@ class Unexplained:
     where: str
     correlates_with: tuple[str, ...]
     channels: dict[str, float]
+    channel: str | None = None
 
     def to_contract(self) -> dict[str, Any]:
-        """The ``unexplained`` object."""
-        return {
+        """The ``unexplained`` object (``channel`` only when one is named)."""
+        out: dict[str, Any] = {
             "chi2_dof": self.chi2_dof,
             "test": self.test,
             "p_value": self.p_value,
@@ -143,6 +146,9 @@ class Unexplained:
             "correlates_with": list(self.correlates_with),
             "channels": dict(self.channels),
         }
+        if self.channel is not None:
+            out["channel"] = self.channel
+        return out
 
 
 @dataclass(frozen=True)

@@ -53,6 +53,7 @@ from bench.diagnosis.model_state import (
     scale_matrix,
     whitened_lr,
 )
+from bench.diagnosis.refit import residual_dof
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.diagnosis.wander_cap import SlowNoiseCap
 from bench.diagnosis.wander_modes import (
@@ -148,14 +149,14 @@ def _structured(
     null_own: tuple[NoiseParams, GlsFit, FloatArray] | None = None
     for lr_now, cand in ranked[: th.shortlist]:
         q = len(cand.names)
-        gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X.shape[1] - q))
+        gate = q * float(f_dist.ppf(1.0 - alpha, q, residual_dof(ev, X.shape[1] + q)))
         if lr_now < prescreen * gate:
             continue
         model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise, cap=cap)
         noise1, _fit1, K1 = model1
         X1 = design(ev, K1, [*state.candidates, cand])
         lr = lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
-        gate = q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1]))
+        gate = q * float(f_dist.ppf(1.0 - alpha, q, residual_dof(ev, X1.shape[1])))
         term = cand.names[0] if cand.effect.startswith(LIB) else ""
         wander_like = cand.effect in WANDER_LIKE or (follows_time(term) and not pose_modulated(term))
         if term and follows_time(term) and pose_modulated(term) and lr > gate:
@@ -163,7 +164,7 @@ def _structured(
             lr_mod, b = modulated_lr(
                 ev, X1[:, : X.shape[1]], X1[:, X.shape[1] :], cand.channels[0], C1, th.relative_leverage_min
             )
-            gate_mod = q * float(f_dist.ppf(1.0 - alpha, q, n - X1.shape[1] - b))
+            gate_mod = q * float(f_dist.ppf(1.0 - alpha, q, residual_dof(ev, X1.shape[1] + b)))
             if lr_mod <= gate_mod:
                 wander_notes[cand.label] = modulated_note(cand.label, lr, lr_mod, gate_mod)
                 continue

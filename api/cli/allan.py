@@ -1,9 +1,10 @@
 """``calbench allan REC.csv [--json] [--plot out.png] [--window-s START END]``.
 
 Allan deviation of a static stretch of a recording, the noise terms fitted to it and the
-dwell it recommends. The stretch is ``--window-s``, else the longest sidecar segment, else
-the longest static window found in the data, else the whole file (``--whole`` forces it).
-Channels in ``g`` are converted to m/s²; ``V`` and ``count`` stay in their own unit.
+dwell it recommends. The stretch is ``--window-s``, else the longest sidecar segment the
+calibration holds still (a pose, not a turn between poses), else the longest static window
+found in the data, else the whole file (``--whole`` forces it). Channels in ``g`` are
+converted to m/s²; ``V`` and ``count`` stay in their own unit.
 Periodic lines (``bench.estimation.spectral_lines``) are found first and reported with
 channel, frequency and amplitude; they are subtracted before the Allan deviation, so a 0.5 Hz
 vibration is not read as white noise nor a 23.4 Hz one as quantisation noise. A warning

@@ -2,10 +2,12 @@
 
 Used by ``calbench allan`` and by ``calbench plan --noise-from``, so both read a unit's noise
 from the same samples. The stretch is, in this order: the asked time window
-(``window_s``, START ≤ t ≤ END), the whole file (``whole``), the longest sidecar segment, the
-longest static window found in the data (``bench.estimation.windows.detect_static_windows``),
-else the whole file. Channels recorded in ``g`` are converted to m/s² (× ``G0_M_S2``); ``V``
-and ``count`` stay in their own unit.
+(``window_s``, START ≤ t ≤ END), the whole file (``whole``), else the longest of the windows
+the calibration holds still (``bench.calibration.windows.choose_windows``: the sidecar's
+segments in which the table did not move, and without a table those with a ``nominal_up``
+when any has one, so a hand-made turn between poses is never read as noise; or, without
+segments, the static windows found in the data), else the whole file. Channels recorded in
+``g`` are converted to m/s² (× ``G0_M_S2``); ``V`` and ``count`` stay in their own unit.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.windows import detect_static_windows
+from bench.calibration.windows import choose_windows
 from bench.recording import G0_M_S2, Recording
 
 FloatArray = npt.NDArray[np.float64]
@@ -87,19 +89,14 @@ def select_noise_stretch(
         return NoiseStretch(slice(int(idx[0]), int(idx[-1]) + 1), f"--window-s {start:g} {end:g}")
     if whole:
         return NoiseStretch(slice(0, t.size), "whole file")
-    if rec.sidecar.segments:
-        seg = max(rec.sidecar.segments, key=lambda s: s.end_s - s.start_s)
-        idx = np.flatnonzero((t >= seg.start_s) & (t <= seg.end_s))
-        if idx.size >= MIN_STRETCH_SAMPLES:
-            return NoiseStretch(
-                slice(int(idx[0]), int(idx[-1]) + 1), f"longest segment {seg.label or '(unlabelled)'}"
-            )
     try:
-        windows = detect_static_windows(t, rec.accel_raw, rec.table_rad_unwrapped())
+        windows = choose_windows(rec).used
     except ValueError:
-        windows = []
+        windows = ()
     if windows:
         w = max(windows, key=lambda w: w.stop - w.start)
         if w.stop - w.start >= MIN_STRETCH_SAMPLES:
+            if rec.sidecar.segments:
+                return NoiseStretch(w.slice, f"longest segment {w.label or '(unlabelled)'}")
             return NoiseStretch(w.slice, "longest static window found in the data")
     return NoiseStretch(slice(0, t.size), "whole file (no static window found)")

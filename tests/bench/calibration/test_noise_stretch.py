@@ -46,3 +46,21 @@ def test_channels_in_g_are_told_in_metres_per_second_squared() -> None:
     np.testing.assert_array_equal(ch.data[:, 2], np.full(5, G0_M_S2))
     volts = noise_channels(_recording(a, unit="V"))
     assert volts.unit == "V" and np.array_equal(volts.data, a)
+
+
+def test_a_turn_between_poses_is_not_the_noise_stretch() -> None:
+    """A hand-held session names its still poses (nominal_up); its longer turns are motions."""
+    rng = np.random.default_rng(5)
+    a = 1e-3 * rng.standard_normal((900, 3)) + [0.0, 0.0, 9.81]
+    turn = np.arange(300) / FS_HZ  # 30 s turn by hand about x: gravity sweeps y and z
+    a[500:800, 1] = 9.81 * np.sin(2 * np.pi * turn / 30.0)
+    a[500:800, 2] = 9.81 * np.cos(2 * np.pi * turn / 30.0)
+    segs = (
+        Segment(label="z_p", start_s=0.0, end_s=20.0, nominal_up="+z"),
+        Segment(label="z_p2", start_s=25.0, end_s=45.0, nominal_up="+z"),
+        Segment(label="x_rot", start_s=50.0, end_s=79.9),
+    )
+    chosen = select_noise_stretch(_recording(a, segments=segs))
+    assert chosen.source == "longest segment z_p" and chosen.samples == slice(0, 201)
+    # the stretch is still: its spread is the 1e-3 noise, not the turn's 9.81 m/s² sweep
+    assert float(np.max(np.std(a[chosen.samples], axis=0))) < 2e-3

@@ -82,6 +82,7 @@ class DaqServer:
         self._type_codes = [0x0143 if engine.unit is reg.ChannelUnit.V else reg.TYPE_CODE_ENGINEERING] * 8
         self._requests = 0
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._server: ModbusTcpServer | None = None
         self._stop: asyncio.Event | None = None
         self._ready = threading.Event()
         self._error: BaseException | None = None
@@ -129,6 +130,27 @@ class DaqServer:
             self._exc_code = self._exc_left = None
             self._silent = False
             self._drop_skip = self._drop_left = 0
+
+    def drop_connections(self) -> int:
+        """Close every client's TCP connection from the server's side, as a DAQ that resets its
+        network stack or a switch that drops the line does; the server keeps listening, so a
+        client may connect again. Returns how many connections were closed."""
+        loop, server = self._loop, self._server
+        if loop is None or server is None:
+            return 0
+        done = threading.Event()
+        closed = [0]
+
+        def close_all() -> None:
+            conns = list(server.active_connections.values())
+            for conn in conns:
+                conn.close()
+            closed[0] = len(conns)
+            done.set()
+
+        loop.call_soon_threadsafe(close_all)
+        done.wait(5.0)
+        return closed[0]
 
     def drop_samples(self, n: int) -> None:
         """The next ``n`` samples are lost inside the DAQ (see :meth:`DaqEngine.drop_next`)."""
@@ -189,6 +211,7 @@ class DaqServer:
             trace_packet=self._trace_packet,
             ignore_missing_devices=False,
         )
+        self._server = server
         try:
             await server.serve_forever(background=True)
         except BaseException as exc:

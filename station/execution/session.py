@@ -110,7 +110,16 @@ def start_run(
     }
     owned = devices is None
     if devices is None:
-        devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
+        try:
+            devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
+        except Exception as exc:
+            try:
+                why = _interrupt_if_not_answering(sessions, run_id, exc)
+            finally:
+                engine.dispose()
+            if why is None:
+                raise
+            raise ResumeFailed(why) from exc
     try:
         sidecar = bench_sidecar(devices, unit_serial, procedure_name, bench_config, g_local_m_s2)
         # devices opened here are already checked and mapped (open_devices); the caller's are not
@@ -297,8 +306,32 @@ def continue_run(
     The recording is cut to the last durable chunk holding the last complete window; the
     procedure is rebuilt from the parameters stored in the recording's run metadata (falling
     back to the run row's ``params``); the simulated unit is ``truth`` or the stored seed's.
-    Shared by ``calbench resume`` and the service's resume.
+    Shared by ``calbench resume`` and the service's resume. A run that never recorded (its
+    devices did not open when it started: no recording, no window) starts now from its first
+    step, as it was requested.
     """
+    if point.next_window_index == 0 and (
+        point.recording_path is None or not Path(str(point.recording_path)).exists()
+    ):
+        with sessions.begin() as s:
+            run = s.get(Run, run_id)
+            requested_dwell_s = run.requested_dwell_s if run is not None else None
+        stored = params.get("parameters")
+        return start_run(
+            settings,
+            procedure_name,
+            serial,
+            sim=sim,
+            sim_speed=sim_speed,
+            seed=settings.sim_seed,
+            dwell_s=requested_dwell_s,
+            observers=observers,
+            control=control,
+            run_id=run_id,
+            truth=truth,
+            procedure_kw=parameters_for(procedure_name, stored) if isinstance(stored, dict) else None,
+            defer_final_state=defer_final_state,
+        )
     csv_path = Path(str(point.recording_path))
     recorder = RunRecorder.resume(csv_path, point.keep_end_byte, point.next_window_index, point.keep_chunks)
     stored = recorder.run_meta
@@ -325,11 +358,9 @@ def continue_run(
     try:
         devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
     except Exception as exc:
-        if not (resumable_fault(exc) or isinstance(exc, RuntimeError)):
+        why = _interrupt_if_not_answering(sessions, run_id, exc)
+        if why is None:
             raise
-        why = f"{FAULT_PREFIX}the devices did not open: {type(exc).__name__}: {exc}"
-        with sessions.begin() as s:
-            mark_run_interrupted(s, run_id, why)
         raise ResumeFailed(why) from exc
     try:
         start = RunStart(
@@ -363,6 +394,18 @@ def continue_run(
         return execute_resumable(seq, csv_path, obs, limits, settings)
     finally:
         devices.close()
+
+
+def _interrupt_if_not_answering(sessions: Any, run_id: str, exc: Exception) -> str | None:
+    """When the devices did not open because the bench does not answer (a fault it recovers
+    from, or a simulator that did not start), leave the run ``interrupted`` with an error
+    beginning :data:`FAULT_PREFIX`, for the automatic resume, and return why; ``None`` for any
+    other error, or a run not stored live (``calbench run`` before its first write)."""
+    if not (resumable_fault(exc) or isinstance(exc, RuntimeError)):
+        return None
+    why = f"{FAULT_PREFIX}the devices did not open: {type(exc).__name__}: {exc}"
+    with sessions.begin() as s:
+        return why if mark_run_interrupted(s, run_id, why) else None
 
 
 def parameters_for(procedure_name: str, stored: dict[str, Any]) -> dict[str, Any]:

@@ -165,3 +165,53 @@ def test_lost_daq_samples_are_recorded_again_not_hidden(tmp_path: Path) -> None:
         assert not any(w.start_s <= t < w.end_s for w in record.windows for t in jumps)
     finally:
         devices.close()
+
+
+def test_a_daq_whose_server_closes_the_connection_leaves_the_run_resumable(tmp_path: Path) -> None:
+    """The pymodbus server closes the Modbus TCP connection mid-run (a DAQ that resets its
+    network, a dropped line): the run is interrupted as for a stalled table, and resumes."""
+    closed: list[int] = []
+    record, devices, _ = run_with_fault(
+        tmp_path,
+        lambda d: closed.append(d.sim.daq_server.drop_connections()),  # type: ignore[union-attr]
+    )
+    try:
+        assert closed == [1]
+        assert_table_safe(devices)
+    finally:
+        devices.close()
+    assert_interrupted_then_resumed(tmp_path, record, "LinkLost")
+
+
+class InjectAtStart(NullObserver):
+    def __init__(self, inject: Callable[[], None]) -> None:
+        self.inject = inject
+        self.done = False
+
+    def on_state(self, run_id: str, change: StateChange) -> None:
+        if change.state is RunState.RUNNING and not self.done:
+            self.done = True
+            self.inject()
+
+
+@pytest.mark.parametrize("fault", ["table", "daq line"])
+def test_a_fault_before_the_first_window_leaves_the_run_resumable(tmp_path: Path, fault: str) -> None:
+    settings = settings_for(tmp_path)
+    devices = open_bench(sim_url(settings, SIM_SPEED, 7))
+    sim = devices.sim
+    assert sim is not None and sim.daq_server is not None
+    inject = (
+        (lambda: sim.controller.inject("no_reply")) if fault == "table" else sim.daq_server.drop_connections
+    )
+    try:
+        record = start_run(
+            settings, "static-12", "SN-EARLY", sim=True, seed=7, dwell_s=5.0,
+            observers=[InjectAtStart(inject)], devices=devices, config=FAST_FAIL,
+        )  # fmt: skip
+    finally:
+        devices.close()
+    assert record.state is RunState.INTERRUPTED and record.windows == (), record
+    assert record.error is not None and record.error.startswith("device fault: "), record.error
+    resumed = resume_run(settings, record.run_id, sim=True, sim_speed=SIM_SPEED)
+    assert resumed.outcome is Outcome.PASS, resumed.error
+    assert len(resumed.windows) == 12 and resumed.start.resumed_from_window == 0

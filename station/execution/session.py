@@ -333,7 +333,17 @@ def continue_run(
             defer_final_state=defer_final_state,
         )
     csv_path = Path(str(point.recording_path))
-    recorder = RunRecorder.resume(csv_path, point.keep_end_byte, point.next_window_index, point.keep_chunks)
+    try:
+        recorder = RunRecorder.resume(
+            csv_path, point.keep_end_byte, point.next_window_index, point.keep_chunks
+        )
+    except OSError as exc:  # a full disk, an I/O error: a try of the retry policy, as a bench not answering
+        if isinstance(exc, FileNotFoundError | PermissionError):  # not a fault that passes
+            raise
+        why = _interrupt_if_not_answering(sessions, run_id, exc, "the recording could not be reopened")
+        if why is None:
+            raise
+        raise ResumeFailed(why) from exc
     stored = recorder.run_meta
     stored_parameters = stored.get("parameters", params.get("parameters", {}))
     if not isinstance(stored_parameters, dict):
@@ -396,14 +406,17 @@ def continue_run(
         devices.close()
 
 
-def _interrupt_if_not_answering(sessions: Any, run_id: str, exc: Exception) -> str | None:
-    """When the devices did not open because the bench does not answer (a fault it recovers
-    from, or a simulator that did not start), leave the run ``interrupted`` with an error
-    beginning :data:`FAULT_PREFIX`, for the automatic resume, and return why; ``None`` for any
-    other error, or a run not stored live (``calbench run`` before its first write)."""
+def _interrupt_if_not_answering(
+    sessions: Any, run_id: str, exc: Exception, what: str = "the devices did not open"
+) -> str | None:
+    """When ``what`` failed with a fault the bench recovers from (the bench not answering, a
+    simulator that did not start, a full disk), leave the run ``interrupted`` with an error
+    beginning :data:`FAULT_PREFIX`, for the next try of the retry policy, and return why;
+    ``None`` for any other error, or a run not stored live (``calbench run`` before its first
+    write)."""
     if not (resumable_fault(exc) or isinstance(exc, RuntimeError)):
         return None
-    why = f"{FAULT_PREFIX}the devices did not open: {type(exc).__name__}: {exc}"
+    why = f"{FAULT_PREFIX}{what}: {type(exc).__name__}: {exc}"
     with sessions.begin() as s:
         return why if mark_run_interrupted(s, run_id, why) else None
 

@@ -10,6 +10,7 @@ complete, through an observer; the real drivers see them over their real protoco
 
 from __future__ import annotations
 
+import errno
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -20,10 +21,12 @@ import pytest
 from bench.recording.reader import read_recording
 from bench.records import Outcome, RunRecord, RunState, StateChange, WindowRecord
 from bench.run_observer import NullObserver
-from bench.sequencer.control import SequencerConfig
+from bench.run_recorder import RunRecorder
+from bench.sequencer.control import RunControl, SequencerConfig
 from drivers.base import AxisMode
 from drivers.factory import BenchDevices, open_bench
 from station.execution.devices import sim_url
+from station.execution.fault_retry import RetryPolicy, run_resuming
 from station.execution.session import resume_run, start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for
 
@@ -215,3 +218,39 @@ def test_a_fault_before_the_first_window_leaves_the_run_resumable(tmp_path: Path
     resumed = resume_run(settings, record.run_id, sim=True, sim_speed=SIM_SPEED)
     assert resumed.outcome is Outcome.PASS, resumed.error
     assert len(resumed.windows) == 12 and resumed.start.resumed_from_window == 0
+
+
+def test_a_disk_still_full_at_a_resume_counts_as_a_try_and_the_next_try_completes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The retry policy's tries are all made, each after its wait: a resume whose recording
+    cannot be reopened because the disk is still full is a failed try (the run stays
+    interrupted), not the end of the retries."""
+    record, devices, _ = run_with_fault(tmp_path, lambda d: d.sim.controller.inject("no_reply"))  # type: ignore[union-attr]
+    devices.close()
+    assert record.state is RunState.INTERRUPTED, record
+    real = RunRecorder.resume.__func__  # type: ignore[attr-defined]
+    refused: list[str] = []
+
+    def disk_full_twice(cls: type[RunRecorder], *args: Any, **kwargs: Any) -> RunRecorder:
+        if len(refused) < 2:
+            refused.append("ENOSPC")
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(cls, *args, **kwargs)  # type: ignore[no-any-return]
+
+    monkeypatch.setattr(RunRecorder, "resume", classmethod(disk_full_twice))
+    said: list[str] = []
+    settings = settings_for(tmp_path)
+    out = run_resuming(
+        lambda: record,
+        lambda run_id: resume_run(settings, run_id, sim=True, sim_speed=SIM_SPEED),
+        RunControl(),
+        said.append,
+        RetryPolicy(attempts=4, first_wait_s=0.01, max_wait_s=0.05),
+    )
+    assert out.outcome is Outcome.PASS and len(out.windows) == 12, out.error
+    assert refused == ["ENOSPC", "ENOSPC"]
+    tries = [s for s in said if "resuming in" in s]
+    assert [t.rsplit("(", 1)[1] for t in tries] == ["1/4)", "2/4)", "3/4)"], said
+    failed = [s for s in said if "the resume failed" in s]
+    assert len(failed) == 2 and all("No space left on device" in s for s in failed), said

@@ -52,7 +52,8 @@ def simulate_k_errors(
     proc: Procedure, noise: UnitNoise, seed: int, effects: bool, every_sample: bool = False
 ) -> np.ndarray:
     """(3, 3) K error of the window fit (``every_sample``: the dynamic batch fit of every sample,
-    moves included, bias and K only) on one simulated run of ``proc`` (dimensionless)."""
+    moves included, bias and K only, and with ``effects`` the lever arm and the table tilt
+    declared beside them) on one simulated run of ``proc`` (dimensionless)."""
     typ = SensorTruth.typical("m/s2", seed=seed)
     spec = NoiseSpec(
         white_m_s2_rt_hz=noise.white_m_s2_rt_hz,
@@ -76,7 +77,7 @@ def simulate_k_errors(
     )
     rec = to_recording(run, serial="SN-PLAN")
     if every_sample:
-        dyn = calibrate_dynamic(rec, terms=(), cross_check=False)
+        dyn = calibrate_dynamic(rec, terms=("lever_arm", "table_tilt") if effects else (), cross_check=False)
         return np.asarray(dyn.K - truth.K, dtype=float)
     res = calibrate_recording(rec)
     return np.asarray(res.K - truth.K, dtype=float)

@@ -19,7 +19,13 @@ motion and the z spread (error / predicted σ per element). Then the time target
 a 192 s dwell (40 min) under the window fit sets the U; ``plan(..., fits=("window",
 "every-sample"))`` designs the shortest procedure for it, which is run on calbench's simulator.
 
-Run: ``nice .venv/bin/python -m benchmarks.study_planning_dynamic [n_seeds] [--quick]``
+``--effects``: every simulated unit has a base tilt of 3′ rms and a 3 cm lever arm
+(``study_planning.simulate_k_errors``); the recordings are fitted with the lever arm and the
+table tilt declared (``calibrate_dynamic(terms=("lever_arm", "table_tilt"))``) and the
+prediction carries them as nuisance parameters (``bench.planning.trajectory.nuisance_response``);
+each row also prints the prediction without them. calbench's simulator only.
+
+Run: ``nice .venv/bin/python -m benchmarks.study_planning_dynamic [n_seeds] [--quick] [--effects]``
 (``--quick``: 1.5, 6 and 24 min only, no static-12 reference); docs/planning.md quotes it.
 """
 
@@ -155,8 +161,31 @@ def time_target(name: str, noise: UnitNoise, n_seeds: int) -> None:
     )
 
 
-def main(n_seeds: int, quick: bool) -> None:
+def nuisance_rows(name: str, noise: UnitNoise, n_seeds: int, lengths: tuple[float, ...]) -> None:
+    """Rows with a tilted base and a lever arm (module docstring, ``--effects``)."""
+    print(f"== {name}: {noise.describe()}; 3 arcmin tilt + 3 cm lever arm, fitted as terms; {n_seeds} seeds")
+    print("length  design           pred  pred w/o nuisance  achieved  ach/pred  ach/bound  z")
+    for i, minutes in enumerate(lengths):
+        e = best_within(noise, minutes * 60, limits=SIM_LIMITS, fit="every-sample")
+        bare = evaluate(e.procedure, noise, limits=SIM_LIMITS, fit="every-sample", with_tilt=False)
+        err, z = achieved(e, noise, n_seeds, True, 700 + 50 * i, every_sample=True)
+        par = e.procedure.parameters
+        p = e.predicted.k_rms
+        print(
+            f"{minutes:5.1f}  {par['dwell_s']:4.1f} s x{par['repeats']:>3}  {1e6 * p:7.2f}  "
+            f"{1e6 * bare.predicted.k_rms:14.2f}"
+            f"  {1e6 * err:8.2f}  {err / p:8.2f}  {err / e.bound_k:9.2f}  {z:4.2f}"
+            + ("" if not e.notes else f"  ({e.notes[0]})"),
+            flush=True,
+        )
+
+
+def main(n_seeds: int, quick: bool, effects: bool = False) -> None:
     lengths = (1.5, 6.0, 24.0) if quick else LENGTHS_MIN
+    if effects:
+        for name in ("ADXL325-like", "navigation-grade"):
+            nuisance_rows(name, UNITS[name], n_seeds, lengths)
+        return
     for name, noise in UNITS.items():
         rows(name, noise, n_seeds, lengths)
     if not quick:
@@ -166,4 +195,4 @@ def main(n_seeds: int, quick: bool) -> None:
 
 if __name__ == "__main__":
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
-    main(int(args[0]) if args else 3, "--quick" in sys.argv)
+    main(int(args[0]) if args else 3, "--quick" in sys.argv, "--effects" in sys.argv)

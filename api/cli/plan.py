@@ -168,8 +168,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"noise: {noise.describe()}")
         if result.best is not None:
             print("plan: " + _line(result.best))
+            for note in result.best.notes:
+                print(f"note: {note}")
         for p in result.problems:
             print(f"no plan: {p}")
         if compare is not None:
             print("compare: " + _line(compare))
+            for note in compare.notes:
+                print(f"note: {note}")
     return 0 if result.best is not None else 1

@@ -21,6 +21,13 @@ with the kernels of ``bench.planning.noise`` (B²·e^{−|t−s|/T_c}, K²·min(
 by recursions (:func:`slow_information`), so a two-hour design costs milliseconds. Unlike the
 window fit's prediction this is the estimator's own error, not the GLS bound: the every-sample
 fit weights the samples equally.
+
+Nuisance parameters ν (a lever arm r, a base tilt δ: ``bench.planning.trajectory.nuisance_response``)
+shared by the three channels join the regressors: channel i's row at t is
+x_ti = [e_i, e_i ⊗ f(t), ∂f_i/∂ν(t)] over θ = [b (3), K (9), ν (q)], and with the same noise on
+each channel A = Σ_i Σ_t x_ti x_tiᵀ, B = N²f_s·A + Σ_i Σ_{b,c} S_b^i S_c^iᵀ k(t_b, t_c) (S_b^i the
+sums of channel i's rows over block b); Cov(θ) = A⁻¹BA⁻¹ as before, and without ν it is the
+three channels' 4 × 4 blocks above.
 """
 
 from __future__ import annotations
@@ -38,21 +45,31 @@ BLOCK_S = 1.0
 
 
 def every_sample_uncertainty(
-    t_s: FloatArray, f_m_s2: FloatArray, noise: UnitNoise, block_s: float = BLOCK_S
+    t_s: FloatArray,
+    f_m_s2: FloatArray,
+    noise: UnitNoise,
+    block_s: float = BLOCK_S,
+    *,
+    nuisance: FloatArray | None = None,
 ) -> PredictedUncertainty:
-    """Predicted σ of [b, K] of the every-sample fit (module docstring).
+    """Predicted σ of [b, K] (and the nuisance parameters) of the every-sample fit (module docstring).
 
     :param t_s: (n,) sample times (s, from the run's start), uniformly spaced.
     :param f_m_s2: (n, 3) specific force at each sample (m/s²).
     :param noise: the unit's noise.
     :param block_s: block of the slow noise (s).
+    :param nuisance: (n, 3, q) ∂f/∂ν of nuisance parameters the fit estimates too, or ``None``;
+        their σ are the result's ``nuisance``.
     :raises ValueError: shapes disagree, fewer than 2 samples, or the trajectory does not
-        identify bias and K (its force does not span three directions).
+        identify bias and K (its force does not span three directions) or the nuisance
+        parameters beside them.
     """
     t = np.asarray(t_s, dtype=float)
     f = np.asarray(f_m_s2, dtype=float)
     if t.ndim != 1 or f.shape != (len(t), 3) or len(t) < 2:
         raise ValueError(f"trajectory: expected t (n,) and f (n, 3) with n >= 2, got {t.shape} and {f.shape}")
+    if nuisance is not None:
+        return _with_nuisance(t, f, np.asarray(nuisance, dtype=float), noise, block_s)
     dt = float(t[1] - t[0])
     x = np.column_stack([np.ones(len(t)), f])
     A = x.T @ x
@@ -77,17 +94,58 @@ def every_sample_uncertainty(
     return PredictedUncertainty(cov, sd[:3].copy(), sd[3:12].reshape(3, 3).copy(), np.zeros(0))
 
 
+def _with_nuisance(
+    t: FloatArray, f: FloatArray, dfdv: FloatArray, noise: UnitNoise, block_s: float
+) -> PredictedUncertainty:
+    """:func:`every_sample_uncertainty` with nuisance columns ``dfdv`` (n, 3, q) shared by the channels."""
+    n, q = len(t), dfdv.shape[2]
+    if dfdv.shape != (n, 3, q):
+        raise ValueError(f"nuisance: expected (n, 3, q) with n = {n}, got {dfdv.shape}")
+    p = N_CORE + q
+    dt = float(t[1] - t[0])
+    rows = []  # channel i's rows x_ti (n, p)
+    for i in range(3):
+        x = np.zeros((n, p))
+        x[:, i] = 1.0
+        x[:, 3 + 3 * i : 6 + 3 * i] = f
+        x[:, N_CORE:] = dfdv[:, i, :]
+        rows.append(x)
+    A = sum(x.T @ x for x in rows)
+    d = np.sqrt(np.diag(A))
+    cond = np.linalg.cond(A / np.outer(d, d)) if np.all(d > 0) else np.inf
+    if not np.isfinite(cond) or cond > 1e12:
+        raise ValueError(
+            f"the trajectory does not identify bias, K and the nuisance parameters (condition {cond:.2g})"
+        )
+    B = noise.white_m_s2_rt_hz**2 / dt * A
+    if noise.wander_m_s2 > 0 or noise.random_walk_m_s2_rt_s > 0:
+        idx = np.floor((t - t[0]) / block_s).astype(int)
+        nb = int(idx[-1]) + 1
+        t_b = t[0] + (np.arange(nb) + 0.5) * block_s
+        for x in rows:
+            S = np.zeros((nb, p))
+            np.add.at(S, idx, x)
+            B += slow_information(S, t_b, block_s, noise)
+    Ai = np.linalg.inv(A)
+    cov = Ai @ B @ Ai
+    cov = 0.5 * (cov + cov.T)
+    sd = np.sqrt(np.diag(cov))
+    return PredictedUncertainty(
+        cov, sd[:3].copy(), sd[3:12].reshape(3, 3).copy(), np.zeros(0), sd[N_CORE:].copy()
+    )
+
+
 def slow_information(S: FloatArray, t_b: FloatArray, block_s: float, noise: UnitNoise) -> FloatArray:
-    """(4, 4) Σ_{b,c} S_b S_cᵀ·k(t_b, t_c) for the wander and random-walk kernels.
+    """(p, p) Σ_{b,c} S_b S_cᵀ·k(t_b, t_c) for the wander and random-walk kernels.
 
     Gauss-Markov, a = e^{−Δ/T_c}: Σ_{b,c} a^{|b−c|} S_b S_cᵀ = Σ_b (S_b S_bᵀ + S_b G_bᵀ + G_b S_bᵀ)
     with G_b = Σ_{c<b} a^{b−c} S_c = a·(G_{b−1} + S_{b−1}). Random walk: min(t_b, t_c) =
     ∫₀^∞ 1[t_b > u]·1[t_c > u] du, so the sum is Σ_b (t_b − t_{b−1})·R_b R_bᵀ with R_b = Σ_{c≥b} S_c
     (t_{−1} = 0).
 
-    :param S: (n_b, 4) regressor sums per block; :param t_b: (n_b,) block centres (s).
+    :param S: (n_b, p) regressor sums per block; :param t_b: (n_b,) block centres (s).
     """
-    out = np.zeros((4, 4))
+    out = np.zeros((S.shape[1], S.shape[1]))
     if noise.wander_m_s2 > 0:
         a = float(np.exp(-block_s / noise.wander_tau_s))
         G = np.zeros_like(S)

@@ -31,7 +31,7 @@ uniform information any motion can give, since |f| = g fixes the trace of E[f f�
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -51,12 +51,15 @@ class PredictedUncertainty:
     :param bias_m_s2: (3,) σ of each bias.
     :param k_elements: (3, 3) σ of each K element (dimensionless).
     :param tilt_rad: (2,) σ of the tilt, or empty when it is not a parameter.
+    :param nuisance: σ of the every-sample fit's nuisance parameters in the order of
+        ``bench.planning.trajectory.NUISANCE_NAMES`` (lever arm m, tilt rad), or empty.
     """
 
     cov: FloatArray
     bias_m_s2: FloatArray
     k_elements: FloatArray
     tilt_rad: FloatArray
+    nuisance: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def scale(self) -> float:

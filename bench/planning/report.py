@@ -10,6 +10,7 @@ import numpy.typing as npt
 
 from bench.planning.noise import G0_M_S2
 from bench.planning.search import Evaluation, Plan
+from bench.planning.trajectory import NUISANCE_NAMES
 
 
 def evaluation_dict(e: Evaluation) -> dict[str, Any]:
@@ -30,6 +31,8 @@ def evaluation_dict(e: Evaluation) -> dict[str, Any]:
         "bound_k_sigma_ppm": 1e6 * e.bound_k,
         "bound_bias_sigma_ug": e.bound_bias_m_s2 * ug,
         "k_fraction_of_bound": e.k_fraction_of_bound,
+        "nuisance_sigma": dict(zip(NUISANCE_NAMES, u.nuisance.tolist(), strict=False)),
+        "notes": list(e.notes),
     }
 
 

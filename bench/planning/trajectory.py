@@ -8,9 +8,12 @@ sensor sits at the table's centre, so its specific force is gravity seen in the 
 
     f(t) = R(t)ᵀ·[0, 0, g],   R = Rz(outer)·Rx(middle)·Rz(inner)  (base from sensor),
 
-(m/s², the default geometry of ``bench.planning.search.rotation_deg``); the centripetal and
-tangential terms of an off-centre sensor are not part of the design (a lever arm is a nuisance
-parameter of the fit, not of the plan).
+(m/s², the default geometry of ``bench.planning.search.rotation_deg``). The centripetal and
+tangential terms of an off-centre sensor and a tilted base are nuisance parameters of the fit
+(:func:`nuisance_response`): a lever arm r (table frame, m) adds B(t)·r with B = Rᵀ([ω̇]× + [ω]×²)R
+(ω, ω̇ of the innermost frame in base coordinates, ``bench.kinematics``; the axis rates and
+accelerations by central differences of the sampled angles), and a base tilt δ = (δ_x, δ_y)
+(rad) turns gravity to g·(δ_y, −δ_x, 1), adding Rᵀ·g·[[0, 1], [−1, 0], [0, 0]]·δ.
 """
 
 from __future__ import annotations
@@ -20,10 +23,16 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from bench.kinematics import angular_acceleration, angular_velocity
 from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits, move_time_s
 from bench.procedures.steps import Dwell, MoveTo, Procedure
 
 FloatArray = npt.NDArray[np.float64]
+
+AXES = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+"""Axis vectors of R = Rz(outer)·Rx(middle)·Rz(inner), outermost first."""
+NUISANCE_NAMES = ("r_x_m", "r_y_m", "r_z_m", "tilt_x_rad", "tilt_y_rad")
+"""The columns of :func:`nuisance_response`."""
 
 
 def trapezoid_deg(t_s: FloatArray, distance_deg: float, rate_deg_s: float, acc_deg_s2: float) -> FloatArray:
@@ -118,3 +127,31 @@ def angle_trajectory(
 def specific_force(angles_deg: FloatArray, g_m_s2: float = 9.80665) -> FloatArray:
     """(n, 3) f = Rᵀ·[0, 0, g] (m/s²) in the sensor frame."""
     return rotations(angles_deg)[:, 2, :] * g_m_s2
+
+
+def nuisance_response(angles_deg: FloatArray, fs_hz: float, g_m_s2: float = 9.80665) -> FloatArray:
+    """(n, 3, 5) ∂f/∂(r, δ) along a sampled trajectory (module docstring): the lever arm's
+    three columns B(t) (1/s²) and the tilt's two (m/s² per rad).
+
+    :param angles_deg: (n, 3) angles sampled at ``fs_hz`` (:func:`angle_trajectory`).
+    """
+    q = np.radians(np.asarray(angles_deg, dtype=float))
+    dt = 1.0 / fs_hz
+    rate = np.gradient(q, dt, axis=0)
+    acc = np.gradient(rate, dt, axis=0)
+    R = rotations(np.asarray(angles_deg, dtype=float))
+    w = angular_velocity(AXES, q, rate)
+    wd = angular_acceleration(AXES, q, rate, acc)
+    A = _skew(wd) + _skew(w) @ _skew(w)
+    out = np.empty((len(q), 3, 5))
+    out[:, :, :3] = np.transpose(R, (0, 2, 1)) @ A @ R
+    D = g_m_s2 * np.array([[0.0, 1.0], [-1.0, 0.0], [0.0, 0.0]])
+    out[:, :, 3:] = np.einsum("nji,jk->nik", R, D)
+    return out
+
+
+def _skew(v: FloatArray) -> FloatArray:
+    S = np.zeros((len(v), 3, 3))
+    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    return S

@@ -8,7 +8,7 @@ from bench.planning.every_sample import every_sample_uncertainty
 from bench.planning.information import predicted_uncertainty
 from bench.planning.noise import UnitNoise
 from bench.planning.search import best_within, rotation_deg
-from bench.planning.trajectory import angle_trajectory, specific_force
+from bench.planning.trajectory import angle_trajectory, nuisance_response, rotations, specific_force
 from bench.procedures.planned import planned_static
 from bench.procedures.preview import preview
 
@@ -90,3 +90,52 @@ def test_planned_tumble_is_the_planned_tumble_fitted_by_every_sample() -> None:
     b = planned_static(dwell_s=3.0, repeats=2)
     assert a.name == "planned-tumble" and a.steps == b.steps and a.parameters == b.parameters
     assert a.name in MOVING_PROCEDURES and b.name not in MOVING_PROCEDURES
+
+
+def test_lever_arm_columns_are_the_acceleration_of_an_off_centre_point() -> None:
+    """Different formulation: B(t)·r is the second time difference of the point's base-frame
+    position R(t)·r, seen in the sensor frame (Rᵀ), on a planned tumble's trapezoidal moves; the
+    tilt columns are the change of f = Rᵀ·g·(δ_y, −δ_x, 1) per radian."""
+    fs = 400.0
+    _, ang = angle_trajectory(planned_static(dwell_s=1.0, repeats=1), fs)
+    ang = ang[: int(40 * fs)]
+    resp = nuisance_response(ang, fs)
+    R = rotations(ang)
+    r = np.array([0.03, -0.02, 0.01])
+    p = R @ r
+    acc = (p[2:] - 2 * p[1:-1] + p[:-2]) * fs**2
+    want = np.einsum("nji,nj->ni", R[1:-1], acc)
+    got = resp[1:-1, :, :3] @ r
+    moving = np.linalg.norm(want, axis=1) > 1e-3
+    assert moving.sum() > 1000  # the moves' centripetal and tangential accelerations, ~0.1 m/s²
+    a = np.diff(ang, 2, axis=0) * fs**2  # (n - 2, 3) axis accelerations (deg/s²) at samples 1 … n − 2
+    jump = np.abs(np.diff(a, axis=0)).max(axis=1) > 1.0  # a corner of a trapezoid between two samples
+    near = np.convolve(np.concatenate([jump, [False]]).astype(float), np.ones(9), mode="same") > 0
+    smooth = moving & ~near  # the differences agree away from the corners (within 4 samples)
+    assert smooth.sum() > 1000
+    np.testing.assert_allclose(got[smooth], want[smooth], atol=2e-3 * np.abs(want).max())
+    d = np.array([2e-4, -1e-4])
+    f0 = specific_force(ang)
+    f1 = np.einsum("nji,j->ni", R, G * np.array([d[1], -d[0], 1.0]))
+    np.testing.assert_allclose(resp[:, :, 3:] @ d, f1 - f0, atol=1e-12)
+
+
+def test_nuisance_columns_give_the_least_squares_covariance_of_the_stacked_channels() -> None:
+    """Different formulation: with white noise, the prediction with the lever arm and tilt is
+    σ²·(XᵀX)⁻¹ of the three channels' rows stacked into one (3n, 17) design."""
+    fs = 10.0
+    t, ang = angle_trajectory(planned_static(dwell_s=2.0, repeats=1), fs)
+    f = specific_force(ang)
+    resp = nuisance_response(ang, fs)
+    noise = UnitNoise.from_ug(250.0)
+    got = every_sample_uncertainty(t, f, noise, nuisance=resp)
+    X = np.zeros((3, len(t), 17))
+    for i in range(3):
+        X[i, :, i] = 1.0
+        X[i, :, 3 + 3 * i : 6 + 3 * i] = f
+        X[i, :, 12:] = resp[:, i, :]
+    stacked = X.reshape(-1, 17)
+    want = noise.white_m_s2_rt_hz**2 * fs * np.linalg.inv(stacked.T @ stacked)
+    np.testing.assert_allclose(got.cov, want, rtol=1e-8, atol=1e-30)
+    np.testing.assert_allclose(got.nuisance, np.sqrt(np.diag(want))[12:], rtol=1e-8)
+    assert got.k_rms > every_sample_uncertainty(t, f, noise).k_rms  # nuisance costs a little

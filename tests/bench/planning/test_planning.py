@@ -10,10 +10,11 @@ import pytest
 import api.cli
 from bench.planning.information import predicted_uncertainty, time_for_k, white_bound_k
 from bench.planning.noise import G0_M_S2, UnitNoise, window_mean_covariance
-from bench.planning.search import Targets, evaluate, plan
+from bench.planning.search import WINDOW_TILT_NOTE, Targets, evaluate, plan
 from bench.procedures import build_procedure, preview
-from bench.procedures.planned import EXECUTION_ORDER, planned_static, visit_order
+from bench.procedures.planned import EXECUTION_ORDER, planned_static, planned_tumble, visit_order
 from bench.procedures.static import icosahedron_up_directions
+from bench.procedures.steps import Dwell, MoveTo, Procedure
 
 
 def _brute_covariance(noise: UnitNoise, starts: np.ndarray, durs: np.ndarray, dt: float) -> np.ndarray:
@@ -185,3 +186,31 @@ def test_cli_plan_takes_the_noise_from_a_recording(
     assert white_ug == pytest.approx(n_true / G0_M_S2 * 1e6, rel=0.1), noise
     assert api.cli.main(["plan", "--scale", "200"]) == 2
     assert "--noise-from" in capsys.readouterr().err
+
+
+def test_the_plan_says_what_its_poses_and_its_fit_cannot_tell_apart() -> None:
+    """Six poses with the outer axis never turning determine bias and K, but not a base tilt
+    beside them: the evaluation says so and predicts for a level base (the same numbers as
+    without the tilt) instead of failing or pretending. A pose set that separates it carries the
+    tilt and says the window fit does not estimate it; the every-sample tumble carries the lever
+    arm and the tilt as nuisance parameters."""
+    noise = UnitNoise.from_ug(250.0, 40.0, 200.0)
+    poses = (
+        (0.0, 0.0, 0.0),
+        (0.0, 180.0, 0.0),
+        (0.0, 90.0, 0.0),
+        (0.0, -90.0, 0.0),
+        (0.0, 90.0, 90.0),
+        (0.0, 45.0, 0.0),
+    )
+    steps: list[MoveTo | Dwell] = []
+    for i, p in enumerate(poses):
+        steps += [MoveTo(p, f"p{i}"), Dwell(f"p{i}", 10.0)]
+    six = Procedure("six", tuple(steps), {"dwell_s": 10.0, "settle_s": 2.0})
+    e = evaluate(six, noise)
+    assert e.predicted.tilt_rad.size == 0 and "cannot separate a base tilt" in e.notes[0]
+    np.testing.assert_array_equal(e.predicted.cov, evaluate(six, noise, with_tilt=False).predicted.cov)
+    s = evaluate(planned_static(dwell_s=10.0, repeats=1), noise)
+    assert s.predicted.tilt_rad.size == 2 and s.notes == (WINDOW_TILT_NOTE,)
+    t = evaluate(planned_tumble(dwell_s=3.0, repeats=1), noise, fit="every-sample")
+    assert t.predicted.nuisance.size == 5 and t.notes == ()

@@ -15,7 +15,10 @@ channels. Adjacent bins above are one peak; a peak no wider than :data:`MAX_LINE
 is a line (the Hann main lobe is 4 bins wide), a wider one is broadband (a resonance) and is
 left in the noise. Frequency: the power-weighted centroid of the peak's bins. Amplitude: the
 peak's power above the median, ∫(P − M) df = A²/2 (Parseval; density scaling), over the
-peak's bins and two on each side. Bins below 8 Δf are not searched (too few neighbours).
+peak's bins and two on each side. Bins below 8 Δf have too few neighbours; the frequencies
+below that floor are searched by a second pass with the longest segments that still give
+three (:func:`low_segment_length`; its own ν, the same rule), so a 0.5 Hz line in a 50 s
+record is found. The false-alarm probability is divided over the bins of both passes.
 
 Removing (:func:`remove_lines`): per line, sin and cos at f₀ fitted by least squares in
 blocks of :func:`line_block_s` and subtracted. A block holds ≥ 200 periods so a slow drift of
@@ -117,21 +120,42 @@ def find_lines(y: npt.ArrayLike, sample_rate_hz: float) -> tuple[SpectralLine, .
         raise ValueError(f"sample_rate_hz must be finite and > 0, got {sample_rate_hz}")
     n, c = data.shape
     nper = welch_segment_length(n)
+    passes: list[tuple[int, int, int | None]] = [(nper, 8, None)]
+    nper_low = low_segment_length(n)
+    if nper_low > nper:  # the frequencies below the first pass's floor, 8·fs/nper
+        passes.append((nper_low, 8, 8 * nper_low // nper))
     from scipy import signal  # where a line search runs: the static paths stay without it
 
-    f, p = signal.welch(data, fs=sample_rate_hz, nperseg=nper, axis=0, detrend="linear")
+    spectra = []
+    for seg, lo, hi in passes:
+        f, p = signal.welch(data, fs=sample_rate_hz, nperseg=seg, axis=0, detrend="linear")
+        spectra.append((f, p, seg, lo, f.size if hi is None else min(hi, f.size)))
+    n_tests = max(1, c * sum(max(hi - lo, 0) for _, _, _, lo, hi in spectra))
+    lines: list[SpectralLine] = []
+    for f, p, seg, lo, hi in spectra:
+        lines.extend(_search(f, p, max(1, 2 * (n // seg) - 1), lo, hi, n_tests))
+    return tuple(sorted(lines, key=lambda ln: (ln.channel, ln.frequency_hz)))
+
+
+def low_segment_length(n_samples: int) -> int:
+    """Segment length of the low-frequency pass: the longest power of two giving ≥ 3 Welch
+    segments (50 % overlap), so that lines below the first pass's floor are searched too."""
+    return int(2 ** math.floor(math.log2(max(n_samples // 2, 2))))
+
+
+def _search(f: FloatArray, p: FloatArray, n_seg: int, lo: int, hi: int, n_tests: int) -> list[SpectralLine]:
+    """Lines among bins [lo, hi) of one Welch pass (frequencies f (k,), densities p (k, c))."""
     df = float(f[1] - f[0])
-    n_seg = max(1, 2 * (n // nper) - 1)
     nu = 2.0 * n_seg * 0.9  # Hann, 50 % overlap: segments are correlated, ~10 % fewer dof
-    n_tests = max(1, (f.size - 8) * c)
     threshold = max(MIN_LINE_RATIO, float(stats.chi2.isf(FALSE_ALARM / n_tests, nu)) / nu)
     lines: list[SpectralLine] = []
-    for ch in range(c):
+    for ch in range(p.shape[1]):
         pc = p[:, ch]
         med = np.maximum(local_median(pc), np.finfo(float).tiny)
         ratio = pc / med
         above = ratio > threshold
-        above[:8] = False
+        above[:lo] = False
+        above[hi:] = False
         for start, stop in _peaks(above):
             if stop - start > MAX_LINE_BINS:
                 continue
@@ -148,7 +172,7 @@ def find_lines(y: npt.ArrayLike, sample_rate_hz: float) -> tuple[SpectralLine, .
                     width_hz=(stop - start) * df,
                 )
             )
-    return tuple(lines)
+    return lines
 
 
 def refine_frequency(y: FloatArray, sample_rate_hz: float, f0_hz: float, half_width_hz: float) -> float:

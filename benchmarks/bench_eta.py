@@ -30,6 +30,7 @@ RATE_HZ = 250.0
 PROCEDURES = ("static-12", "rate-1axis", "oscillation-2axis")
 SEEDS = (1, 2)
 TARGET = 0.15
+POINTS = (0.25, 0.5)
 
 
 class Events(NullObserver):
@@ -43,9 +44,10 @@ class Events(NullObserver):
 
 
 def one_run(
-    tmp: Path, name: str, seed: int, speed: float = SPEED
+    tmp: Path, name: str, seed: int, speed: float = SPEED, points: tuple[float, ...] = POINTS
 ) -> tuple[float, float, list[tuple[float, float, float]]]:
-    """(recording length s, preview s, [(fraction, predicted error, preview error)] at 25/50 %)."""
+    """(recording length s, preview s, [(fraction, predicted error, preview error)] at each of
+    ``points``, fractions of the recording)."""
     settings = Settings(data_dir=tmp / f"{name}-{seed}", sim_sample_rate_hz=RATE_HZ)
     obs = Events()
     record = start_run(
@@ -56,7 +58,7 @@ def one_run(
     end_s = max(record.windows[-1].end_s, obs.events[-1][0])
     preview_s = preview(build_procedure(name), sample_rate_hz=RATE_HZ).duration_s
     out = []
-    for frac in (0.25, 0.5):
+    for frac in points:
         t, predicted = next((t, p) for t, p in obs.events if t >= frac * end_s)
         truth = end_s - t
         out.append((frac, (predicted - truth) / truth, (preview_s - t - truth) / truth))
@@ -68,17 +70,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--speed", type=float, default=SPEED, help="simulation speed (x real time)")
     parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS))
     parser.add_argument("--procedures", nargs="+", default=list(PROCEDURES))
+    parser.add_argument("--points", type=float, nargs="+", default=list(POINTS), help="fractions of the run")
     args = parser.parse_args(argv or [])
+    points = tuple(args.points)
     print(f"simulated bench at ×{args.speed:g}, {RATE_HZ:g} Hz; error = (predicted − true) / true remaining")
-    print(
-        f"{'procedure':<18} {'seed':>4} {'recording':>10} {'preview':>8}   "
-        f"{'at 25 %':>8} {'preview':>8}   {'at 50 %':>8} {'preview':>8}"
-    )
+    heads = "   ".join(f"{f'at {100 * f:g} %':>8} {'preview':>8}" for f in points)
+    print(f"{'procedure':<18} {'seed':>4} {'recording':>10} {'preview':>8}   {heads}")
     worst = 0.0
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.procedures:
             for seed in args.seeds:
-                end_s, preview_s, rows = one_run(Path(tmp), name, seed, args.speed)
+                end_s, preview_s, rows = one_run(Path(tmp), name, seed, args.speed, points)
                 cells = "   ".join(f"{100 * e:+7.1f} % {100 * p:+7.1f} %" for _, e, p in rows)
                 print(f"{name:<18} {seed:>4} {end_s:>8.0f} s {preview_s:>6.0f} s   {cells}", flush=True)
                 worst = max(worst, *(abs(e) for _, e, _ in rows))

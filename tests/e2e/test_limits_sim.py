@@ -50,7 +50,9 @@ def test_a_unit_with_its_x_bias_outside_the_limits_fails(tmp_path: Path) -> None
     engine.dispose()
 
 
-def test_the_typical_unit_passes_its_limits_and_the_same_unit_without_limits_has_no_verdict(tmp_path: Path) -> None:
+def test_the_typical_unit_passes_its_limits_and_the_same_unit_without_limits_has_no_verdict(
+    tmp_path: Path,
+) -> None:
     settings = settings_for(tmp_path)
     record = start_run(settings, "static-12", "SN-IN", sim=True, sim_speed=SIM_SPEED, seed=5, dwell_s=6.0)
     assert record.outcome is Outcome.PASS, record.error

@@ -83,6 +83,12 @@ def loo_scores(ev: StaticEvidence, X: FloatArray, C: WindowCovariance) -> FloatA
         b₋w = XᵀQz − U_wᵀz_w − X_wᵀu_w − X_wᵀQ_wwz_w − U_wᵀQ_ww⁻¹u_w,
 
     θ̂₋w = A₋w⁻¹ b₋w (Harville, "Matrix Algebra From a Statistician's Perspective", 1997, §8.5).
+
+    Orientation-free evidence: each window's covariance carries its free orientation, so a
+    channel's r_wi² / C_ww,ii is near 0 whatever the fit (the orientation's variance swamps
+    the channel) and an effect's gain was noise. There each window scores its whole
+    prediction error r_wᵀ C_ww⁻¹ r_w (C_ww = B_w + diag τ², the window's own 3 × 3 block of C;
+    only the reading's magnitude is evidence), given to every channel.
     """
     z = ev.y.reshape(-1)
     fac = C.factor()
@@ -104,7 +110,10 @@ def loo_scores(ev: StaticEvidence, X: FloatArray, C: WindowCovariance) -> FloatA
         except np.linalg.LinAlgError:
             return np.full(3, np.inf)
         r = zw - Xw @ th
-        out += r * r / diag[rows]
+        if ev.orientation_known:
+            out += r * r / diag[rows]
+        else:
+            out += float(r @ np.linalg.solve(C.blocks[w] + np.diag(C.tau2), r))
     return out
 
 

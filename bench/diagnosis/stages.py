@@ -36,10 +36,6 @@ from bench.diagnosis.within_window import refit_within_window
 NO_TABLE_REASON = (
     "needs a table (its motion, encoders, base or ringing after a move); this recording has no table"
 )
-NO_LIBRARY_REASON = (
-    "the library's terms need the specific force the recording says each window saw; an "
-    "orientation-free diagnosis has only the magnitude of each reading"
-)
 
 
 @dataclass(frozen=True)
@@ -167,10 +163,11 @@ def encoder_quantisation(ev: StaticEvidence, st: WindowState, th: Thresholds) ->
 
 def library_search(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
     """Library screen. Rule: the term library's candidates are the monomials of the recording's
-    bases that its pose set determines (``library.library_terms``); they need the specific
-    force each window saw, so an orientation-free recording has none."""
-    if not ev.orientation_known:
-        return replace(st, unobservable={**st.unobservable, EFFECT: NO_LIBRARY_REASON}), {}
+    bases that its pose set determines (``library.library_terms``). On an orientation-free
+    recording the specific force is each reading's direction from the scalar fit (its error,
+    ~1e-4 rad at the simulated noise, moves a cubic term by far less than the noise) and only
+    the magnitude of a term's signature is evidence (the free orientation takes the rest):
+    a cubic on one axis of a hand-held unit is named there like on a table."""
     terms, _ = library_terms(ev, th)
     return replace(st, lib_terms={f"{EFFECT}:{t.label}": t for t in terms}), {}
 

@@ -19,14 +19,8 @@ from dataclasses import replace as dc_replace
 import numpy as np
 
 from bench.diagnosis.evidence import StaticEvidence
-from bench.diagnosis.harmonic_referee import head_to_head
-from bench.diagnosis.motion_families import (
-    Harmonic,
-    clock_drift,
-    drift_passes,
-    harmonic_signal,
-    search_harmonics,
-)
+from bench.diagnosis.family_referee import head_to_head, kfdot
+from bench.diagnosis.motion_families import ClockDrift, Families, Harmonic, find_families
 from bench.diagnosis.periodic_lines import Line, find_periodic_lines, residual_stretches, without_lines
 from bench.diagnosis.result import Diagnosis, Finding
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
@@ -129,6 +123,55 @@ def harmonic_findings(hs: tuple[Harmonic, ...], left: FloatArray, channel_unit: 
     return out
 
 
+def drift_finding(cd: ClockDrift, span_s: float, left: FloatArray) -> Finding:
+    """The ``clock_drift`` finding of a growth ``cd`` over a run of ``span_s``; ``left`` (n, 3) the
+    residual without the families."""
+    n = left.shape[0]
+    return Finding(
+        effect="clock_drift",
+        summary=(
+            "the delay between the DAQ's samples and the encoders grows by "
+            f"{cd.rate_s_per_s:.3g} ± {cd.sigma:.2g} s per s ({cd.rate_s_per_s * 1e6:.3g} ppm; "
+            f"{cd.rate_s_per_s * span_s * 1e3:.3g} ms over the {span_s:.0f} s): two clocks drifting; "
+            "a time_skew found beside it is the mean delay"
+        ),
+        parameters={"delay_s_per_s": cd.rate_s_per_s},
+        sigma={"delay_s_per_s": cd.sigma},
+        delta_bic=float(-cd.wald + math.log(max(n, 2))),
+        lr=cd.wald,
+        residual_rms_after=float(np.sqrt(np.mean(left**2))),
+        explanation=DRIFT_EXPLANATION,
+    )
+
+
+def family_findings(fam: Families, left: FloatArray, span_s: float, channel_unit: str) -> list[Finding]:
+    """The harmonics and the growth of ``fam`` as findings; ``left`` (n, 3) the residual without them."""
+    out = harmonic_findings(fam.harmonics, left, channel_unit)
+    return out + ([drift_finding(fam.drift, span_s, left)] if fam.drift is not None else [])
+
+
+def moving_families(
+    t_s: FloatArray,
+    r: FloatArray,
+    f_m_s2: FloatArray,
+    K: FloatArray,
+    angles_rad: FloatArray,
+    valid: FloatArray,
+    th: Thresholds = THRESHOLDS,
+) -> tuple[Families, FloatArray, FloatArray]:
+    """Angle harmonics and clock drift in a moving recording's residual, the used samples' mask
+    (n,) and their residual without the families (n_used, 3).
+
+    :param t_s: (n,) time (s); :param r: (n, 3) the model's residual (channel units).
+    :param f_m_s2: (n, 3) the model's specific force (m/s²); :param K: (3, 3) its scale matrix.
+    :param angles_rad: (n, k) unwrapped encoder angles; :param valid: (n,) samples the fit used.
+    """
+    ok = np.asarray(valid, dtype=bool) & np.all(np.isfinite(r), axis=1)
+    kf = kfdot(f_m_s2[ok], K, t_s[ok])
+    fam = find_families(r[ok], f_m_s2[ok], kf, angles_rad[ok], t_s[ok], th)
+    return fam, ok, r[ok] - fam.signal(angles_rad[ok], kf, t_s[ok])
+
+
 def moving_findings(
     t_s: FloatArray,
     r: FloatArray,
@@ -139,46 +182,18 @@ def moving_findings(
     sample_rate_hz: float,
     channel_unit: str,
     th: Thresholds = THRESHOLDS,
-) -> list[Finding]:
-    """Angle harmonics, clock drift and periodic lines in a moving recording's final residual.
-
-    :param t_s: (n,) time (s); :param r: (n, 3) the final model's residual (channel units).
-    :param f_m_s2: (n, 3) the final model's specific force (m/s²); :param K: (3, 3) its scale matrix.
-    :param angles_rad: (n, k) unwrapped encoder angles; :param valid: (n,) samples the fit used.
-    """
-    ok = np.asarray(valid, dtype=bool) & np.all(np.isfinite(r), axis=1)
-    t, rv, fv, qv = t_s[ok], r[ok], f_m_s2[ok], angles_rad[ok]
-    n = int(t.size)
-    out: list[Finding] = []
-    hs = search_harmonics(rv, fv, qv, th)
-    left = rv - harmonic_signal(hs, qv)
-    out += harmonic_findings(hs, left, channel_unit)
-    fdot = np.gradient(fv, t, axis=0)
-    cd = clock_drift(left, fv, fdot @ K.T, t, th)
-    if drift_passes(cd, th):
-        span = float(t[-1] - t[0])
-        out.append(
-            Finding(
-                effect="clock_drift",
-                summary=(
-                    "the delay between the DAQ's samples and the encoders grows by "
-                    f"{cd.rate_s_per_s:.3g} ± {cd.sigma:.2g} s per s ({cd.rate_s_per_s * 1e6:.3g} ppm; "
-                    f"{cd.rate_s_per_s * span * 1e3:.3g} ms over the {span:.0f} s): two clocks drifting; "
-                    "a time_skew found beside it is the mean delay"
-                ),
-                parameters={"delay_s_per_s": cd.rate_s_per_s},
-                sigma={"delay_s_per_s": cd.sigma},
-                delta_bic=float(-cd.wald + math.log(max(n, 2))),
-                lr=cd.wald,
-                residual_rms_after=float(np.sqrt(np.mean(left**2))),
-                explanation=DRIFT_EXPLANATION,
-            )
-        )
-    stretches = residual_stretches(t, left, np.ones(n, dtype=bool), th.line_block_s)
+) -> tuple[list[Finding], Families, FloatArray]:
+    """Angle harmonics, clock drift and periodic lines in a moving recording's final residual,
+    the families found and the residual without them (n_used, 3). Arguments as
+    :func:`moving_families`, ``sample_rate_hz`` (Hz) for the lines."""
+    fam, ok, left = moving_families(t_s, r, f_m_s2, K, angles_rad, valid, th)
+    t = t_s[ok]
+    out = family_findings(fam, left, float(t[-1] - t[0]), channel_unit)
+    stretches = residual_stretches(t, left, np.ones(t.size, dtype=bool), th.line_block_s)
     lines = find_periodic_lines(stretches, sample_rate_hz, th)
     rms = float(np.sqrt(np.mean(left**2)))
-    out += [_line_finding(ln, channel_unit, n, rms) for ln in lines]
-    return out
+    out += [_line_finding(ln, channel_unit, t.size, rms) for ln in lines]
+    return out, fam, left
 
 
 def moving_stage(
@@ -196,9 +211,10 @@ def moving_stage(
     n_library: int = 0,
     rerun: Callable[[FloatArray], Diagnosis] | None = None,
 ) -> tuple[list[Finding], Diagnosis | None]:
-    """:func:`moving_findings` on the final dynamic model's residual; where an angle harmonic is
-    found beside ``n_claims`` catalogue steps or discovered terms and ``rerun`` is given, the head
-    to head of ``harmonic_referee``: the alternative diagnosis when it wins, else ``None``.
+    """:func:`moving_findings` on the final dynamic model's residual; where the model claims
+    ``n_claims`` catalogue steps or discovered terms and ``rerun`` is given, the head to head of
+    ``family_referee`` (an angle harmonic or a clock drift in the first-order residual against
+    the claims, which may have taken it whole): the alternative diagnosis when it wins, else ``None``.
 
     :param library: (n, 3) the discovered terms' contribution (channel units) or ``None``.
     :param baseline: the first-order fit; :param n_claims: catalogue steps and discovered terms;
@@ -209,20 +225,20 @@ def moving_stage(
     r = y - model - (0.0 if library is None else library)
     f = specific_force(final.theta, m, final.spec, g_m_s2, lever)
     K = final.theta[3:12].reshape(3, 3)
-    found = moving_findings(m.t_s, r, f, K, m.angles_rad, m.valid, 1.0 / m.step_s, channel_unit, th)
-    harm = [x for x in found if x.effect == "angle_harmonic"]
-    if not harm or not n_claims or rerun is None or baseline is None:
+    found, fam, full_left = moving_findings(
+        m.t_s, r, f, K, m.angles_rad, m.valid, 1.0 / m.step_s, channel_unit, th
+    )
+    if not n_claims or rerun is None or baseline is None:
         return found, None
-    ok = np.asarray(m.valid, dtype=bool) & np.all(np.isfinite(r), axis=1)
-    hs = search_harmonics(r[ok], f[ok], m.angles_rad[ok], th)
-    full_left = r[ok] - harmonic_signal(hs, m.angles_rad[ok])
-    k_full = len(final.theta) - 12 + n_library + 2 * sum(len(h.channels) for h in hs)
+    k_full = len(final.theta) - 12 + n_library + fam.n_params
     won = head_to_head(m, y, g_m_s2, lever, baseline, full_left, k_full, rerun, th)
     if won is None:
         return found, None
-    alt, hs_alt, left_alt, note = won
-    alt_findings = (*harmonic_findings(hs_alt, left_alt, channel_unit), *alt.findings)
+    alt, fam_alt, left_alt, note = won
+    ok = np.asarray(m.valid, dtype=bool)
+    span = float(np.ptp(m.t_s[ok])) if ok.any() else 0.0
+    alt_findings = (*family_findings(fam_alt, left_alt, span, channel_unit), *alt.findings)
     return found, dc_replace(alt, findings=alt_findings, notes=(note, *alt.notes))
 
 
-__all__ = ["moving_findings", "moving_stage", "static_line_findings", "static_lines"]
+__all__ = ["moving_families", "moving_findings", "moving_stage", "static_line_findings", "static_lines"]

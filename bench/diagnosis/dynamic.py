@@ -323,8 +323,8 @@ def diagnose_dynamic(
     :param lever_arm_m: (3,) the lever arm the recording believes (m).
     :param temp_c: (n,) temperature (°C) or ``None``.
     :param library: search the moving library after the catalogue (``library_motion``).
-    :param head_to_head: an angle harmonic found beside catalogue claims is weighed against them
-        by running the diagnosis again without it (``harmonic_referee``).
+    :param head_to_head: a bench family found beside catalogue claims is weighed against them
+        by running the diagnosis again without it (``family_referee``).
     :param thresholds: the diagnosis's knobs (``thresholds``).
     :raises ValueError: a motion that cannot determine bias and K.
     """

@@ -24,6 +24,9 @@ the filtered residual variance, and the F statistic of the columns against F(q, 
   normal equations; ρ is claimed when ρ²/σ_ρ² passes χ²₁ at ``th.bench_false_alarm``.
 - **Periodic lines** (``periodic_line``, ``periodic_lines.find_periodic_lines``) in r less
   the families above.
+
+``find_families`` runs the harmonics, then the drift on what they leave; ``Families.signal``
+is what they put on the samples (the drift's growth only: the mean delay is ``time_skew``'s).
 """
 
 from __future__ import annotations
@@ -202,3 +205,54 @@ def clock_drift(
 def drift_passes(cd: ClockDrift, th: Thresholds = THRESHOLDS) -> bool:
     """The growth of the delay passes χ²₁ at ``th.bench_false_alarm``."""
     return bool(chi2_dist.sf(cd.wald, 1) < th.bench_false_alarm)
+
+
+@dataclass(frozen=True)
+class Families:
+    """The angle harmonics and the delay's growth found on one residual.
+
+    :param harmonics: as :func:`search_harmonics`; :param drift: the growth when it passes, else ``None``.
+    :param t_mean_s: t̄ of the drift's column (s): the mean time of the samples it was fitted on.
+    """
+
+    harmonics: tuple[Harmonic, ...]
+    drift: ClockDrift | None
+    t_mean_s: float
+
+    @property
+    def empty(self) -> bool:
+        """Nothing found."""
+        return not self.harmonics and self.drift is None
+
+    @property
+    def n_params(self) -> int:
+        """Parameters the families carry: 2 per harmonic and channel, 1 for the growth."""
+        return 2 * sum(len(h.channels) for h in self.harmonics) + (self.drift is not None)
+
+    def signal(self, angles_rad: FloatArray, Kfdot: FloatArray, t_s: FloatArray) -> FloatArray:
+        """(n, 3) what the families put on the samples: Σ A_i sin(hθ_j + φ_i) − ρ·(t − t̄)·K ḟ.
+
+        :param angles_rad: (n, k); :param Kfdot: (n, 3) K·ḟ (channel units / s); :param t_s: (n,) (s).
+        """
+        out = harmonic_signal(self.harmonics, angles_rad)
+        if self.drift is not None:
+            out = out - self.drift.rate_s_per_s * (t_s - self.t_mean_s)[:, None] * Kfdot
+        return out
+
+
+def find_families(
+    r: FloatArray,
+    f: FloatArray,
+    Kfdot: FloatArray,
+    angles_rad: FloatArray,
+    t: FloatArray,
+    th: Thresholds = THRESHOLDS,
+) -> Families:
+    """Harmonics on r, then the delay's growth on what they leave (module docstring).
+
+    :param r: (n, 3) residual; :param f: (n, 3) specific force (m/s²); :param Kfdot: (n, 3) K·ḟ;
+    :param angles_rad: (n, k); :param t: (n,) time (s), all on the samples the fit used.
+    """
+    hs = search_harmonics(r, f, angles_rad, th)
+    cd = clock_drift(r - harmonic_signal(hs, angles_rad), f, Kfdot, t, th)
+    return Families(hs, cd if drift_passes(cd, th) else None, float(t.mean()))

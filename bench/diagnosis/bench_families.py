@@ -212,9 +212,10 @@ def moving_stage(
     rerun: Callable[[FloatArray], Diagnosis] | None = None,
 ) -> tuple[list[Finding], Diagnosis | None]:
     """:func:`moving_findings` on the final dynamic model's residual; where the model claims
-    ``n_claims`` catalogue steps or discovered terms and ``rerun`` is given, the head to head of
-    ``family_referee`` (an angle harmonic or a clock drift in the first-order residual against
-    the claims, which may have taken it whole): the alternative diagnosis when it wins, else ``None``.
+    ``n_claims`` catalogue steps or discovered terms, ``rerun`` is given and a family is left in
+    the final residual or in the catalogue's (the discovered terms added back: library terms
+    can take a family whole), the head to head of ``family_referee``: the alternative diagnosis
+    when it wins, else ``None``.
 
     :param library: (n, 3) the discovered terms' contribution (channel units) or ``None``.
     :param baseline: the first-order fit; :param n_claims: catalogue steps and discovered terms;
@@ -229,6 +230,10 @@ def moving_stage(
         m.t_s, r, f, K, m.angles_rad, m.valid, 1.0 / m.step_s, channel_unit, th
     )
     if not n_claims or rerun is None or baseline is None:
+        return found, None
+    if fam.empty and (
+        library is None or moving_families(m.t_s, r + library, f, K, m.angles_rad, m.valid, th)[0].empty
+    ):
         return found, None
     k_full = len(final.theta) - 12 + n_library + fam.n_params
     won = head_to_head(m, y, g_m_s2, lever, baseline, full_left, k_full, rerun, th)

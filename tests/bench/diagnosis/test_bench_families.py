@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from bench.diagnosis.hysteresis import last_move_sign
-from bench.diagnosis.motion_families import clock_drift, drift_passes, search_harmonics
+from bench.diagnosis.motion_families import clock_drift, drift_passes, find_families, search_harmonics
 from bench.diagnosis.periodic_lines import find_periodic_lines
 
 FS = 100.0
@@ -101,6 +101,28 @@ def test_clock_drift_rate_and_its_sigma() -> None:
         z.append(cd0.rate_s_per_s / cd0.sigma)
         claims += drift_passes(cd0)
     assert claims == 0 and 0.6 < float(np.sqrt(np.mean(np.square(z)))) < 1.4
+
+
+def test_families_found_together_and_taken_out_of_the_samples() -> None:
+    """A 3e-4 harmonic (axis 1, twice per turn, channel y) and a 5e-5 s/s growth of the delay beside
+    AR(1) noise, a mean delay and bias/K: both found, ρ within 3σ, and what ``signal`` takes out
+    leaves neither (the growth re-estimated within 3σ of 0, no harmonic)."""
+    n = 9000
+    t, th, f = _motion(n)
+    K = np.diag([0.0177, 0.0175, 0.0179])
+    kfdot = np.gradient(f, t, axis=0) @ K.T
+    rho, d0 = 5e-5, 2e-3
+    r = _ar1(np.random.default_rng(5), n, 0.5, 1e-4) + 1e-3 * f - kfdot * (d0 + rho * t)[:, None]
+    r[:, 1] += 3e-4 * np.sin(2 * th[:, 0] + 0.4)
+    fam = find_families(r, f, kfdot, th, t)
+    assert [(h.axis, h.harmonic, h.channels) for h in fam.harmonics] == [(0, 2, (1,))]
+    assert fam.drift is not None and abs(fam.drift.rate_s_per_s - rho) < 3 * fam.drift.sigma
+    assert fam.n_params == 3
+    left = r - fam.signal(th, kfdot, t)
+    again = find_families(left, f, kfdot, th, t)
+    assert not again.harmonics and again.drift is None
+    cd = clock_drift(left, f, kfdot, t)
+    assert abs(cd.rate_s_per_s) < 3 * cd.sigma
 
 
 def test_last_move_sign_by_hand() -> None:

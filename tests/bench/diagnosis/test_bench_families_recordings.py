@@ -23,6 +23,7 @@ SAMPLED = (
     "periodic_line: 0.5 Hz on ax, static, 1.0 mg",
     "periodic_line: 23.4 Hz on az, oscillation, 1.0 mg",
     "clock_drift: 100 ppm, oscillation",
+    "clock_drift: 100 ppm, rate",
     "hysteresis: axis 3, ay, static, 300 µg",
 )
 CATALOGUE_IDS = {e.id for e in CATALOGUE}

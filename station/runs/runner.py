@@ -30,6 +30,7 @@ from bench.procedures import build_procedure, preview
 from bench.records import Outcome, RunRecord, RunState, new_run_id, utc_now
 from bench.run_observer import RunObserver
 from bench.sequencer.control import RunControl, SequencerConfig
+from bench.sequencer.faults import resumable_fault
 from db.models import RunState as DbRunState
 from db.models.run_params import CERTIFICATE_ERROR
 from db.observer import finish_record
@@ -321,6 +322,8 @@ class BenchRunner:
             live.error = f"{type(exc).__name__}: {exc}"
             if live.resumed and record is None:  # claimed but not continued: resumable again
                 interrupted = self._release_claim(live)
+                if interrupted:
+                    self._after_failed_resume(live, exc)
             elif record is None:  # a claimed run must not stay live without an owner at work
                 self._end_in_error(live)
         finally:
@@ -373,6 +376,22 @@ class BenchRunner:
                 set_final_event(s, live.id, finished)
         except Exception:
             log.exception("run %s: could not store its final event", live.id)
+
+    def _after_failed_resume(self, live: LiveRun, exc: Exception) -> None:
+        """A resume that failed before it recorded is a try of the retry policy: after a fault
+        the bench recovers from (a full disk, a link) the next try is scheduled after its wait,
+        counted; after any other error the automatic tries end, the run's error saying why (an
+        operator resumes it on request). Never the same due try again at the next poll."""
+        claimed = live.extra.get("claimed")
+        windows = claimed.point.next_window_index if claimed else 0
+        if resumable_fault(exc):
+            self._schedule_resume(live, f"{FAULT_PREFIX}resume failed: {live.error}", windows)
+            return
+        try:
+            with self.sessions.begin() as s:
+                fault_retry.give_up(s, live.id, f"the resume failed: {live.error}")
+        except Exception:
+            log.exception("run %s: could not end its automatic resumes", live.id)
 
     def _release_claim(self, live: LiveRun) -> bool:
         try:

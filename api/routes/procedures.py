@@ -11,7 +11,7 @@ from fastapi import APIRouter, HTTPException, Query, status
 from api.deps import SessionDep, SettingsDep, ViewerDep
 from api.schemas import SERIAL_PATTERN, ProcedurePreviewOut
 from bench.estimation.dynamic_model import TERM_ORDER
-from bench.procedures import PROCEDURES, build_procedure, preview
+from bench.procedures import Admitted, Preview, Refusal, RefusalKind, build_procedure, check_procedure
 from bench.procedures.observability import plan_observability
 from bench.procedures.preview import provisional_dwell
 from bench.sequencer.control import SequencerConfig
@@ -36,16 +36,9 @@ def procedure_preview(
     noise window replaces): the duration on the bench clock and, on a simulated bench, on the
     wall clock (bench seconds / ``sim_speed``). With ``unit_serial``, ``warnings`` says what the
     operator should know about that unit before starting (e.g. its model has no limits)."""
-    if name not in PROCEDURES:
-        raise HTTPException(
-            status.HTTP_404_NOT_FOUND, f"unknown procedure {name!r}; known: {', '.join(PROCEDURES)}"
-        )
     dwell = dwell_s if dwell_s is not None else settings.run_dwell_s
-    try:
-        proc = build_procedure(name, dwell_s=dwell)
-    except ValueError as exc:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
-    pv = preview(proc, SequencerConfig(temp_band_c=settings.temp_band_c).limits)
+    checked = check_procedure(name, SequencerConfig(temp_band_c=settings.temp_band_c).limits, dwell_s=dwell)
+    pv = preview_or_refuse(checked)
     warnings: list[str] = []
     if unit_serial is not None:
         with session.begin():
@@ -71,6 +64,19 @@ def procedure_preview(
         problems=list(pv.problems),
         warnings=warnings,
     )
+
+
+def preview_or_refuse(checked: Admitted | Refusal) -> Preview:
+    """The preview of a checked procedure, also one the table limits refuse (the answer lists
+    its problems). :raises HTTPException: 404 an unknown procedure, 422 a parameter or value
+    it refuses."""
+    if isinstance(checked, Admitted):
+        return checked.preview
+    if checked.kind is RefusalKind.UNKNOWN_PROCEDURE:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, checked.message)
+    if checked.preview is None:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, checked.message)
+    return checked.preview
 
 
 OBSERVABILITY_RATE_HZ = 10.0

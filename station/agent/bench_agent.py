@@ -40,7 +40,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
 from bench.bench_config import BenchConfig
-from bench.procedures import PROCEDURES, build_procedure, preview
+from bench.procedures import PROCEDURES, ProcedureRefused, Refusal, RefusalKind, check_procedure
 from bench.records import RunRecord, utc_now
 from bench.sequencer.control import SequencerConfig
 from db.engine import make_session_factory
@@ -75,12 +75,18 @@ PRESENCE_S = 5.0
 
 def runnable_procedures(settings: Settings, config: BenchConfig) -> list[str]:
     """The registered procedures the bench of ``config`` can run: as many table axes as the
-    procedure needs and a preview the sequencer's table limits accept."""
+    procedure needs and a preview the sequencer's table limits accept.
+
+    :raises ProcedureRefused: a procedure refuses the settings' ``run_dwell_s``."""
     limits = SequencerConfig(temp_band_c=settings.temp_band_c).limits
     out = []
     for name in sorted(PROCEDURES):
-        proc = build_procedure(name, dwell_s=settings.run_dwell_s)
-        if proc.n_axes == len(config.axes) and preview(proc, limits).ok:
+        checked = check_procedure(name, limits, dwell_s=settings.run_dwell_s)
+        if isinstance(checked, Refusal):
+            if checked.kind is not RefusalKind.TABLE_LIMITS:  # the settings' dwell: a bad setting
+                raise ProcedureRefused(checked)
+            continue
+        if checked.procedure.n_axes == len(config.axes):
             out.append(name)
     return out
 

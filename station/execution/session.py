@@ -21,7 +21,7 @@ from typing import Any
 from bench.bench_config import apply_to_daq
 from bench.dwell_policy import fixed_dwell
 from bench.limits import LimitsChoice, UnitLimits
-from bench.procedures import build_procedure, preview
+from bench.procedures import admit_procedure, build_procedure, preview
 from bench.records import DwellChoice, RunRecord, RunStart, RunState, new_run_id
 from bench.run_observer import RunObserver, announce_phase
 from bench.run_recorder import RunRecorder
@@ -90,10 +90,10 @@ def start_run(
     :raises ValueError: unknown procedure, a limit violation in the preview, bad dwell, a
         bench file that is missing (real bench), invalid or not the opened devices' bench.
     """
-    proc = build_procedure(procedure_name, dwell_s=dwell_s, **(procedure_kw or {}))
-    pv = preview(proc, (config or _config(settings)).limits)
-    if not pv.ok:
-        raise ValueError(f"{procedure_name}: " + "; ".join(pv.problems))
+    admitted = admit_procedure(
+        procedure_name, (config or _config(settings)).limits, dwell_s=dwell_s, parameters=procedure_kw
+    )
+    proc, pv = admitted.procedure, admitted.preview
     dwell: DwellChoice | None = fixed_dwell(dwell_s) if dwell_s is not None else None
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)

@@ -21,7 +21,7 @@ from collections.abc import Callable
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
-from bench.procedures import build_procedure, preview
+from bench.procedures import admit_procedure
 from bench.records import new_run_id, utc_now
 from bench.sequencer.control import RunControl, SequencerConfig
 from db.models import ACTIVE_STATES, FINAL_STATES, SYSTEM, Run, Unit
@@ -144,13 +144,12 @@ class RunQueue:
         :param parameters: the procedure's own parameters (``build_procedure`` keywords), stored in
             the run's ``params`` (``parameters``) for the agent.
         :raises UnknownBench: no such bench, or it cannot run the procedure (named).
-        :raises ValueError: unknown procedure or one the table limits refuse.
+        :raises ProcedureRefused: what refuses the procedure (a ``ValueError``:
+            :func:`~bench.procedures.check_procedure`).
         """
         dwell_s = dwell_s if dwell_s is not None else self.settings.run_dwell_s
-        proc = build_procedure(procedure, dwell_s=dwell_s, **(parameters or {}))
-        pv = preview(proc, SequencerConfig(temp_band_c=self.settings.temp_band_c).limits)
-        if not pv.ok:
-            raise ValueError(f"{procedure}: " + "; ".join(pv.problems))
+        limits = SequencerConfig(temp_band_c=self.settings.temp_band_c).limits
+        admit_procedure(procedure, limits, dwell_s=dwell_s, parameters=parameters)
         now = self.clock()
         run_id = new_run_id(unit_serial, now)
         with self.sessions.begin() as s:

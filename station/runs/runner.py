@@ -26,7 +26,7 @@ from collections.abc import Callable
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from bench.procedures import build_procedure, preview
+from bench.procedures import admit_procedure
 from bench.records import Outcome, RunRecord, RunState, new_run_id, utc_now
 from bench.run_observer import RunObserver
 from bench.sequencer.control import RunControl, SequencerConfig
@@ -139,14 +139,13 @@ class BenchRunner:
         :param run_id: the id of a run this process has claimed from the queue
             (:mod:`db.repo.queue`); default: a new id.
         :param parameters: the procedure's own parameters (``build_procedure`` keywords).
-        :raises ValueError: unknown procedure or one the table limits refuse.
+        :raises ProcedureRefused: what refuses the procedure (a ``ValueError``:
+            :func:`~bench.procedures.check_procedure`).
         :raises BenchBusy: another run holds the bench.
         """
         dwell_s = dwell_s if dwell_s is not None else self.settings.run_dwell_s
-        proc = build_procedure(procedure, dwell_s=dwell_s, **(parameters or {}))
-        pv = preview(proc, SequencerConfig(temp_band_c=self.settings.temp_band_c).limits)
-        if not pv.ok:
-            raise ValueError(f"{procedure}: " + "; ".join(pv.problems))
+        limits = SequencerConfig(temp_band_c=self.settings.temp_band_c).limits
+        admit_procedure(procedure, limits, dwell_s=dwell_s, parameters=parameters)
         age = self.age_days(unit_serial)
         with self._lock:
             live = LiveRun(

@@ -32,3 +32,14 @@ def test_the_preview_lists_the_poses_and_the_observable_terms(tmp_path: Path) ->
             assert all(why for why in body["not_observable"].values())
         # the oscillation turns the sensor fast enough to show the lever arm
         assert "lever_arm" in body["observable"]
+
+
+def test_an_unknown_procedure_is_404_listing_the_known_ones(tmp_path: Path) -> None:
+    app = create_app(service_settings(tmp_path, agent="external"), start_scheduler=False)
+    with TestClient(app) as client:
+        r = client.get("/api/procedures/static-99/preview", headers=VIEW)
+    assert r.status_code == 404
+    assert r.json()["detail"] == (
+        "unknown procedure 'static-99'; known: "
+        "oscillation-2axis, planned-static, planned-tumble, rate-1axis, static-12"
+    )

@@ -80,6 +80,10 @@ def test_public_read_opens_reads_but_not_writes(tmp_path: Path) -> None:
     ("body", "needle"),
     [
         ({"unit_serial": "SN-1", "procedure": "static-99"}, "unknown procedure 'static-99'"),
+        (
+            {"unit_serial": "SN-1", "procedure": "static-12", "parameters": {"window_s": 5}},
+            "procedure 'static-12' takes no parameter window_s",
+        ),
         ({"procedure": "static-12"}, "unit_serial"),
         ({"unit_serial": "bad serial!", "procedure": "static-12"}, "unit_serial"),
         ({"unit_serial": "SN-1", "procedure": "static-12", "dwell_s": -1}, "dwell_s"),

@@ -6,7 +6,13 @@ slope (a line faster than a window averages out of the window means, so only the
 carry it), the windows laid end to end; on a moving recording, the final model's residual
 per sample. Lines are found by ``bench.estimation.spectral_lines.find_lines`` (Welch spectrum
 against its local median, false alarm 10⁻³ over all bins and channels, a line narrower than
-8 bins).
+8 bins), its segments no longer than the power of two at or above twice the median run of
+pieces that follow each other without a gap: laid end to end, windows join with a jump in the
+line's phase, and a segment across many junctions widens a line beyond 8 bins (a 23.4 Hz line
+in 3-11 s hand-placed windows was set aside as broadband under 4096-sample segments), while
+a segment as short as one window halves a weak line's height over the median. The noise
+density S near the line is read with segments no longer than one run, where the junctions'
+skirt stays within the bins left out.
 
 Each line found is then measured on the samples at their own time stamps (a line of a
 pump keeps its phase across the gaps between windows): its frequency refined by the
@@ -22,13 +28,14 @@ for one stretch of length T). The phase is that of sin(2π f₀ t + φ), t on th
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
-from bench.estimation.spectral_lines import find_lines, welch_segment_length
+from bench.estimation.spectral_lines import capped_segment_length, find_lines, welch_segment_length
 
 FloatArray = np.ndarray
 CHANNELS = ("ax", "ay", "az")
@@ -79,6 +86,19 @@ def _segments(pieces: list[tuple[FloatArray, FloatArray]]) -> tuple[FloatArray, 
     return np.vstack(ys), np.concatenate(ts), np.concatenate(idx)
 
 
+def _median_run(pieces: list[tuple[FloatArray, FloatArray]], fs: float) -> int:
+    """Median length (samples) of the runs of pieces that follow each other without a gap
+    (next first time within 1.5 sample periods of the last): the Welch segment of the line
+    search stays within one run, where the line's phase is continuous."""
+    runs = [pieces[0][0].size]
+    for (t_prev, _), (t, _) in itertools.pairwise(pieces):
+        if t[0] - t_prev[-1] <= 1.5 / fs:
+            runs[-1] += t.size
+        else:
+            runs.append(t.size)
+    return int(np.median(runs))
+
+
 def _measure(
     y: FloatArray, t: FloatArray, piece: FloatArray, f0: float, fs: float, S: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -115,9 +135,21 @@ def refine_on_clock(
     A grid of step 1/(10·(t_last − t_first)) (a tenth of the resolution of the whole span, gaps
     included, so that a line that keeps its phase across gaps is found at its own frequency;
     at most ``th.line_grid_max`` points), then a parabola through the best grid point and its neighbours.
+    Where the grid limit made the step coarser than that, the search is repeated around the
+    result with half-width two steps, until the step is the tenth of the resolution.
     """
     span = max(float(t[-1] - t[0]), 1e-9)
     step = max(0.1 / span, 2.0 * half_width_hz / th.line_grid_max)
+    f_hz = _refine_grid(y, t, f0_hz, half_width_hz, step)
+    while step > 0.1 / span * (1 + 1e-9):
+        half_width_hz = 2.0 * step
+        step = max(0.1 / span, 2.0 * half_width_hz / th.line_grid_max)
+        f_hz = _refine_grid(y, t, f_hz, half_width_hz, step)
+    return f_hz
+
+
+def _refine_grid(y: FloatArray, t: FloatArray, f0_hz: float, half_width_hz: float, step: float) -> float:
+    """One grid search of :func:`refine_on_clock` (grid f0 ± half_width, given step, parabola)."""
     grid = np.arange(f0_hz - half_width_hz, f0_hz + half_width_hz + step / 2, step)
     grid = grid[grid > 0]
     if grid.size < 3:
@@ -151,10 +183,11 @@ def find_periodic_lines(
     if y.shape[0] < 64:
         return ()
     fs = float(sample_rate_hz)
-    found = find_lines(y, fs)
+    run = _median_run(pieces, fs)
+    found = find_lines(y, fs, 1 << math.ceil(math.log2(2 * run)))
     if not found:
         return ()
-    nper = welch_segment_length(y.shape[0])
+    nper = capped_segment_length(welch_segment_length(y.shape[0]), run)  # S: the skirt kept out
     from scipy import signal  # lines were found: scipy.signal is loaded already
 
     _, p = signal.welch(y, fs=fs, nperseg=nper, axis=0, detrend="linear")

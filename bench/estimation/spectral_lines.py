@@ -104,11 +104,16 @@ def _peaks(above: npt.NDArray[np.bool_]) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
-def find_lines(y: npt.ArrayLike, sample_rate_hz: float) -> tuple[SpectralLine, ...]:
+def find_lines(
+    y: npt.ArrayLike, sample_rate_hz: float, max_segment: int | None = None
+) -> tuple[SpectralLine, ...]:
     """Narrow lines far above the local median spectrum, per channel (see module doc).
 
     :param y: (n,) or (n, c) evenly spaced samples, finite.
     :param sample_rate_hz: sampling rate (Hz), > 0.
+    :param max_segment: longest Welch segment (samples), for samples laid end to end from
+        stretches of about that length: a segment across a junction sees the line's phase
+        jump, which widens its peak beyond :data:`MAX_LINE_BINS`. ``None``: no limit.
     :returns: lines sorted by channel, then frequency.
     """
     data = np.asarray(y, dtype=float)
@@ -119,9 +124,9 @@ def find_lines(y: npt.ArrayLike, sample_rate_hz: float) -> tuple[SpectralLine, .
     if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
         raise ValueError(f"sample_rate_hz must be finite and > 0, got {sample_rate_hz}")
     n, c = data.shape
-    nper = welch_segment_length(n)
+    nper = capped_segment_length(welch_segment_length(n), max_segment)
     passes: list[tuple[int, int, int | None]] = [(nper, 8, None)]
-    nper_low = low_segment_length(n)
+    nper_low = capped_segment_length(low_segment_length(n), max_segment)
     if nper_low > nper:  # the frequencies below the first pass's floor, 8·fs/nper
         passes.append((nper_low, 8, 8 * nper_low // nper))
     from scipy import signal  # where a line search runs: the static paths stay without it
@@ -135,6 +140,13 @@ def find_lines(y: npt.ArrayLike, sample_rate_hz: float) -> tuple[SpectralLine, .
     for f, p, seg, lo, hi in spectra:
         lines.extend(_search(f, p, max(1, 2 * (n // seg) - 1), lo, hi, n_tests))
     return tuple(sorted(lines, key=lambda ln: (ln.channel, ln.frequency_hz)))
+
+
+def capped_segment_length(nper: int, max_segment: int | None) -> int:
+    """nper, or the largest power of two ≤ ``max_segment`` (at least 64) when that is shorter."""
+    if max_segment is None:
+        return nper
+    return min(nper, int(2 ** math.floor(math.log2(max(max_segment, 64)))))
 
 
 def low_segment_length(n_samples: int) -> int:

@@ -40,13 +40,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from bench.calibration import calibrate_recording
 from bench.calibration.result import CalibrationResult
 from bench.estimation.allan import edf_simple
 from bench.estimation.noise_terms import fit_noise_model_curve, slope_method_curve
-from bench.recording import Recording, Segment, read_recording
+from bench.recording import Recording, Segment, read_recording, write_recording
+from benchmarks.other_tools import ferraris_closed_form, imu_tk_fit, imu_tk_intervals
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = ROOT.parent / "shared" / "data" / "real"
@@ -107,59 +107,6 @@ def split_z(a: CalibrationResult, b: CalibrationResult) -> tuple[float, str, np.
     z = (va - vb) / np.sqrt(sa**2 + sb**2)
     i = int(np.argmax(np.abs(z)))
     return float(abs(z[i])), names[i], z
-
-
-def imu_tk_fit(y: np.ndarray, g: float) -> tuple[np.ndarray, np.ndarray]:
-    """IMU-TK's accelerometer model on window means y (m, 3): bias (3,) and L (3, 3).
-
-    a = T diag(k) (y − b), T = [[1, −α_yz, α_zy], [0, 1, −α_zx], [0, 0, 1]]; least squares of
-    g − |a| over the windows (IMU-TK, src/calibration.cpp). Returns b and the lower-triangular
-    L with L Lᵀ = (MᵀM)⁻¹, M = T diag(k): the model calbench fits, written its way.
-    """
-
-    def tk(p: np.ndarray) -> np.ndarray:
-        T = np.array([[1.0, -p[0], p[1]], [0.0, 1.0, -p[2]], [0.0, 0.0, 1.0]])
-        return T @ np.diag(p[3:6])
-
-    def resid(p: np.ndarray) -> np.ndarray:
-        return g - np.linalg.norm((y - p[6:9]) @ tk(p).T, axis=1)
-
-    x0 = np.r_[0.0, 0.0, 0.0, np.full(3, g / 4000.0), np.full(3, 32768.0)]
-    p = least_squares(resid, x0, x_scale=np.r_[1e-2, 1e-2, 1e-2, 1e-5, 1e-5, 1e-5, 10, 10, 10]).x
-    M = tk(p)
-    return p[6:9], np.linalg.cholesky(np.linalg.inv(M.T @ M))
-
-
-def imu_tk_intervals(t_s: np.ndarray, y: np.ndarray, k: float = 6.0, init_s: float = 50.0) -> list[Segment]:
-    """IMU-TK's static-interval detector (src/filters.cpp ``staticIntervalsDetector``): the
-    norm of the per-axis variance over a centred 101-sample window, below k times that of the
-    first ``init_s`` seconds; intervals longer than 1 s (data README, k = 6)."""
-    half = 50
-    c1 = np.vstack([np.zeros((1, 3)), np.cumsum(y - y.mean(axis=0), axis=0)])
-    c2 = np.vstack([np.zeros((1, 3)), np.cumsum((y - y.mean(axis=0)) ** 2, axis=0)])
-    n = y.shape[0]
-    lo = np.clip(np.arange(n) - half, 0, n)
-    hi = np.clip(np.arange(n) + half + 1, 0, n)
-    cnt = (hi - lo)[:, None]
-    mean = (c1[hi] - c1[lo]) / cnt
-    var = (c2[hi] - c2[lo]) / cnt - mean**2
-    init = np.linalg.norm(np.var(y[t_s - t_s[0] <= init_s], axis=0))
-    still = np.linalg.norm(var, axis=1) < k * init
-    edges = np.flatnonzero(np.diff(np.r_[0, still.astype(int), 0]))
-    segs = []
-    for a, b in zip(edges[0::2], edges[1::2], strict=True):
-        if t_s[b - 1] - t_s[a] > 1.0:
-            segs.append(
-                Segment(start_s=float(t_s[a]), end_s=float(t_s[b - 1]), label=f"i{len(segs) + 1:02d}")
-            )
-    return segs
-
-
-def ferraris_closed_form(y: np.ndarray, g: float) -> tuple[np.ndarray, np.ndarray]:
-    """Ferraris et al. (1995) / imucal eqs. 19-23 on the six pose means x_p, x_a, … z_a (6, 3):
-    bias = diag(u⁺ + u⁻) / 2, K = (u⁺ − u⁻) / (2 g) with columns the +x, +y, +z poses."""
-    up, un = y[0::2].T, y[1::2].T
-    return np.diag(up + un) / 2, (up - un) / (2 * g)
 
 
 def compare_rows(
@@ -279,6 +226,30 @@ def xsens(data: Path, tmp: Path) -> None:
     print_splits("imu_tk-xsens", splits)
     report(out)
     allan_halves(out, res.windows[0].start_s, res.windows[0].end_s, float(np.mean(np.diag(res.K))))
+    lines_on_real_noise(rec, tmp / "xsens_lines.csv", float(res.K[1, 1]))
+
+
+def lines_on_real_noise(rec: Recording, path: Path, counts_per_m_s2: float) -> None:
+    """The real recording with two lines added (a 0.5 Hz line of 3 counts on ax, a 23.4 Hz
+    line of 12 mm/s² on ay): what ``calbench allan`` and ``calbench diagnose`` say of them."""
+    t = rec.t_s
+    a = rec.accel_raw.copy()
+    injected = {"ax": (0.5, 3.0), "ay": (23.4, 12e-3 * counts_per_m_s2)}
+    a[:, 0] += injected["ax"][1] * np.sin(2 * np.pi * 0.5 * t + 0.3)
+    a[:, 1] += injected["ay"][1] * np.sin(2 * np.pi * 23.4 * t)
+    write_recording(dataclasses.replace(rec, accel_raw=a), path, overwrite=True)
+    al = allan_check(path)
+    clean = allan_check(path.with_name("xsens.csv"))
+    print("\nLines added to the real recording (counts): injected -> found by calbench allan")
+    for ln in al["lines"]:
+        f0, amp = injected.get(ln["channel"], (float("nan"), float("nan")))
+        print(f"  {ln['channel']}: {f0} Hz, {amp:.3g} -> {ln['frequency_hz']:.4f} Hz, {ln['amplitude']:.3g}")
+    for c in ("ax", "ay"):
+        (v, sv), (v0, s0) = al["N"][c], clean["N"][c]
+        z = (v - v0) / s0
+        print(f"  N {c}: {v:.4g} ± {sv:.2g} with the lines, {v0:.4g} ± {s0:.2g} without ({z:+.2f} σ)")
+    dg = diagnose_check(path)
+    print(f"  diagnose: findings {dg['findings'] or 'none'}; where: {dg['where']}")
 
 
 def allan_halves(path: Path, start_s: float, end_s: float, counts_per_m_s2: float) -> None:

@@ -1,11 +1,11 @@
-"""The other tools' models reproduced in ``benchmarks/real_recordings.py``, on synthetic window
+"""The other tools' models reproduced in ``benchmarks/other_tools.py``, on synthetic window
 means made with calbench's model y = b + K f (known b, K): each recovers them exactly."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from benchmarks.real_recordings import ferraris_closed_form, imu_tk_fit
+from benchmarks.other_tools import ferraris_closed_form, imu_tk_fit
 
 G = 9.81744
 

@@ -12,6 +12,7 @@ from api.routes.views import certificate_out
 from api.schemas import CertificateOut
 from bench.fitted_model import ContractError, FittedModel
 from db.models import Certificate, Unit
+from db.models import run_params as rp
 from db.repo.certificates import get_certificate_by_number
 from db.repo.runs import get_run
 from station.certificates.issue import (
@@ -86,8 +87,8 @@ def issue(run_id: str, session: SessionDep, settings: SettingsDep, _: OperatorDe
         _issuable(session, run_id)
         run = get_run(session, run_id)
         assert run is not None
-        path, diagnosed = run.recording_path, isinstance(run.params.get("diagnosis"), dict)
-        cal = run.params.get("calibration")
+        path, diagnosed = run.recording_path, isinstance(run.params.get(rp.DIAGNOSIS), dict)
+        cal = run.params.get(rp.CALIBRATION)
         g_check = cal.get("g_check", {}) if isinstance(cal, dict) else {}
         nominal = None if "before" in g_check else unit_nominal(session.get(Unit, run.unit_id))
         params = dict(run.params)

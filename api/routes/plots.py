@@ -25,6 +25,7 @@ from bench.export import FORMATS, MEDIA_TYPES, SUFFIX
 from bench.fitted_model import ContractError, FittedModel
 from bench.recording.reader import sidecar_path_for
 from db.models import ACTIVE_STATES, Run
+from db.models import run_params as rp
 from db.repo.certificates import certificate_of_run
 from db.repo.progress import list_windows
 from db.repo.runs import get_run, list_runs
@@ -48,7 +49,7 @@ def _final_run(session: Session, run_id: str) -> Run:
         raise HTTPException(
             status.HTTP_409_CONFLICT, f"run {run_id} is {run.state.value}: no plots until it ends"
         )
-    if not isinstance(run.params.get("calibration"), dict):
+    if not isinstance(run.params.get(rp.CALIBRATION), dict):
         raise HTTPException(
             status.HTTP_409_CONFLICT, f"run {run_id} is {run.state.value} without a fit: nothing to plot"
         )
@@ -89,7 +90,7 @@ def stored_fit(run: Run) -> FittedModel:
 
     :raises ContractError: the stored object lacks a key or holds an ill-typed one (named).
     """
-    return FittedModel.from_contract(run.params.get("calibration"), f"run {run.id}: stored fit")
+    return FittedModel.from_contract(run.params.get(rp.CALIBRATION), f"run {run.id}: stored fit")
 
 
 def _previous_calibration(session: Session, run_id: str) -> PreviousCalibration | None:
@@ -101,7 +102,7 @@ def _previous_calibration(session: Session, run_id: str) -> PreviousCalibration 
         for other in list_runs(session, unit_serial=run.unit.serial):  # newest first
             if other.id == run_id or other.created_at >= run.created_at:
                 continue
-            if not isinstance(other.params.get("calibration"), dict):
+            if not isinstance(other.params.get(rp.CALIBRATION), dict):
                 continue
             try:
                 return PreviousCalibration(other.id, stored_fit(other))
@@ -158,8 +159,8 @@ def diagnosis(run_id: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
         run = get_run(session, run_id)
         if run is None:
             raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
-        diag = run.params.get("diagnosis")
-        note = str(run.params.get("diagnosis_error") or "")
+        diag = run.params.get(rp.DIAGNOSIS)
+        note = str(run.params.get(rp.DIAGNOSIS_ERROR) or "")
         if not isinstance(diag, dict):
             diag = None
             if not note:
@@ -182,7 +183,7 @@ def history(serial: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
         points = []
         unreadable = []
         for run in list_runs(session, unit_serial=serial):
-            if not isinstance(run.params.get("calibration"), dict):
+            if not isinstance(run.params.get(rp.CALIBRATION), dict):
                 continue
             try:
                 fit = stored_fit(run)

@@ -61,7 +61,7 @@ def run_out(
         replace the stored ones, so the page and the certificate state one U.
     """
     certificate_u = certificate_check_u(certificate_content)
-    cal = run.params.get("calibration")
+    cal = run.params.get(rp.CALIBRATION)
     diag, stored, note = _diagnosis(run)
     raw_gaps = run.params.get(rp.SAMPLE_GAPS)
     gaps = [SampleGapOut(**g) for g in raw_gaps if isinstance(g, dict)] if isinstance(raw_gaps, list) else []
@@ -146,9 +146,9 @@ def started_by(audit: list[RunAudit]) -> str | None:
 def _diagnosis(run: Run) -> tuple[dict[str, Any] | None, StoredDiagnosis | None, object]:
     """The run's stored diagnosis as stored and parsed, and why there is none: a stored
     diagnosis that cannot be parsed is shown as none, with the parser's message naming the key."""
-    diag = run.params.get("diagnosis")
+    diag = run.params.get(rp.DIAGNOSIS)
     if diag is None:
-        return None, None, run.params.get("diagnosis_error")
+        return None, None, run.params.get(rp.DIAGNOSIS_ERROR)
     try:
         stored = StoredDiagnosis.from_contract(diag, f"run {run.id}: stored diagnosis")
     except ContractError as exc:

@@ -37,6 +37,7 @@ from bench.limit_check import LimitCheck
 from bench.recording import Recording, read_recording
 from bench.records import RunRecord
 from db.models import Certificate, Run, RunState, Unit
+from db.models import run_params as rp
 from db.observer import store_fit, update_stored_fit
 from db.repo.certificates import canonical_sha256, issue_certificate
 from db.repo.results import add_findings, list_findings
@@ -129,7 +130,7 @@ class RunAnalysis:
 def certificate_settings(settings: Settings, params: dict[str, Any]) -> Settings:
     """The settings a run's certificate is issued with: the bench file's u(g) for the g it gave
     the recording (``params["bench_config"]["g_local_u_m_s2"]``), when it states one."""
-    bench_file = params.get("bench_config")
+    bench_file = params.get(rp.BENCH_CONFIG)
     u_g = bench_file.get("g_local_u_m_s2") if isinstance(bench_file, dict) else None
     return settings.model_copy(update={"g_local_u_m_s2": u_g}) if isinstance(u_g, float) else settings
 
@@ -199,10 +200,10 @@ def store_diagnosis(s: Session, run_id: str, prepared: RunAnalysis) -> None:
     """Store the findings (``finding`` rows) and the whole diagnosis object (run params), or
     why there is none."""
     if prepared.diagnosis is None:
-        merge_params(s, run_id, {"diagnosis_error": prepared.note})
+        merge_params(s, run_id, {rp.DIAGNOSIS_ERROR: prepared.note})
         return
     add_findings(s, run_id, StoredDiagnosis.of(prepared.diagnosis).findings)
-    merge_params(s, run_id, {"diagnosis": dict(prepared.diagnosis.to_contract()), "diagnosis_error": None})
+    merge_params(s, run_id, {rp.DIAGNOSIS: dict(prepared.diagnosis.to_contract()), rp.DIAGNOSIS_ERROR: None})
 
 
 def store_g_before(s: Session, run_id: str, prepared: RunAnalysis) -> None:
@@ -287,7 +288,7 @@ def issue_for_run(
     run = s.get(Run, run_id)
     if run is None:
         raise LookupError(f"run {run_id} not found")
-    stored = run.params.get("calibration")
+    stored = run.params.get(rp.CALIBRATION)
     if run.state is not RunState.COMPLETED or not isinstance(stored, dict):
         raise ValueError(f"run {run_id} is {run.state.value} without a fit: no certificate can be issued")
     calibration = FittedModel.from_contract(stored, f"run {run_id}: stored fit")
@@ -296,9 +297,9 @@ def issue_for_run(
     if prepared is None:
         prepared = analyse_recording(run.recording_path, diagnose=False)
     rec = prepared.analysis.recording if prepared.analysis is not None else None
-    if diagnosis is None and run.params.get("diagnosis") is not None:
-        diagnosis = StoredDiagnosis.from_contract(run.params["diagnosis"], f"run {run_id}: stored diagnosis")
-    simulated = bool(run.params.get("sim"))
+    if diagnosis is None and run.params.get(rp.DIAGNOSIS) is not None:
+        diagnosis = StoredDiagnosis.from_contract(run.params[rp.DIAGNOSIS], f"run {run_id}: stored diagnosis")
+    simulated = bool(run.params.get(rp.SIM))
     blocking, _warnings = settings.certificate_gaps()
     if blocking and not simulated:
         raise CertificateRefused(
@@ -313,10 +314,10 @@ def issue_for_run(
             procedure=run.procedure,
             started_at=run.started_at,
             finished_at=run.finished_at,
-            parameters=run.params.get("parameters", {}),
-            bench=run.params.get("bench"),
-            sample_gaps=run.params.get("sample_gaps", []),
-            bench_config=run.params.get("bench_config"),
+            parameters=run.params.get(rp.PARAMETERS, {}),
+            bench=run.params.get(rp.BENCH),
+            sample_gaps=run.params.get(rp.SAMPLE_GAPS, []),
+            bench_config=run.params.get(rp.BENCH_CONFIG),
             actions=stored_actions(s, run_id),
         ),
         unit=unit_inputs(unit),
@@ -325,7 +326,7 @@ def issue_for_run(
         temp_c=temp_c,
         table=_table(rec) if rec is not None else None,
         diagnosis=diagnosis,
-        diagnosis_note=diagnosis_note or str(run.params.get("diagnosis_error", "")),
+        diagnosis_note=diagnosis_note or str(run.params.get(rp.DIAGNOSIS_ERROR, "")),
         simulated=simulated,
         budget=budget,
         budget_note=budget_note,
@@ -364,7 +365,7 @@ def finish_calibration(
     try:
         return _issue_after_run(s, settings, record, analysis)
     except CertificateRefused as exc:
-        merge_params(s, record.run_id, {"certificate_error": str(exc)})
+        merge_params(s, record.run_id, {rp.CERTIFICATE_ERROR: str(exc)})
         return None
 
 

@@ -32,6 +32,7 @@ from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Run, Unit
 from db.models import RunState as DbRunState
+from db.models import run_params as rp
 from db.observer import DbRunObserver
 from db.repo.audit import command_line_actor
 from db.repo.recovery import ResumePoint, claim_for_resume, mark_interrupted_runs, mark_run_interrupted
@@ -316,7 +317,7 @@ def continue_run(
         with sessions.begin() as s:
             run = s.get(Run, run_id)
             requested_dwell_s = run.requested_dwell_s if run is not None else None
-        stored = params.get("parameters")
+        stored = params.get(rp.PARAMETERS)
         return start_run(
             settings,
             procedure_name,
@@ -345,7 +346,7 @@ def continue_run(
             raise
         raise ResumeFailed(why) from exc
     stored = recorder.run_meta
-    stored_parameters = stored.get("parameters", params.get("parameters", {}))
+    stored_parameters = stored.get("parameters", params.get(rp.PARAMETERS, {}))
     if not isinstance(stored_parameters, dict):
         raise ValueError(f"{csv_path}: the stored procedure parameters are not a JSON object")
     parameters = dict(stored_parameters)
@@ -353,7 +354,7 @@ def continue_run(
     proc = build_procedure(procedure_name, dwell_s=dwell_s, **parameters_for(procedure_name, parameters))
     dwell_dict = stored.get("dwell")
     dwell = DwellChoice(**dwell_dict) if isinstance(dwell_dict, dict) else None
-    sim_meta = stored.get("sim") or params.get("sim")
+    sim_meta = stored.get("sim") or params.get(rp.SIM)
     seed = int(sim_meta.get("seed", 0)) if isinstance(sim_meta, dict) else 0
     config = _config(settings)
     bench_config = bench_config_for(settings, sim)

@@ -48,6 +48,16 @@ from bench.estimation.window_noise import (
 FloatArray = npt.NDArray[np.float64]
 
 
+UNGATED_MIN_DOF = 5
+"""Residual degrees of freedom per channel (m − 4) from which each channel's own excess is
+the plain Paule-Mandel estimate, without the 95 % χ² gate. With 8 (static-12) the gate dropped
+an excess as large as the windows' own noise more often than not (with 3 arc-minute placement
+errors at 41 min: K z RMS 1.22 and |z| to 5.5 gated, 0.94 and 3.5 without, docs/noise-model.md).
+Below 5 the variance of Student's t_ν that scales the estimate is not finite or barely so
+(``t_factor``: 3 for ν ≤ 4), and on a 6-window tumble (ν = 2) an ungated excess moved the
+weights so far that the |g| check after calibration scattered 66 times more."""
+
+
 @dataclass(frozen=True)
 class StaticFit:
     """Result of :func:`fit_static`.
@@ -137,7 +147,7 @@ def _gls(H: FloatArray, y: FloatArray, S: FloatArray) -> tuple[FloatArray, Float
 
 def _variance_components(
     X: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray
-) -> tuple[FloatArray, FloatArray, float]:
+) -> tuple[FloatArray, FloatArray, float, FloatArray]:
     """Between-window covariance per window: the pose part t M_w (m, 3, 3) and diag(τ²) (3,), inflated.
 
     The pose variance t (m/s²)² solves the Paule-Mandel equation pooled over the channels,
@@ -152,6 +162,12 @@ def _variance_components(
     freedom makes standardised errors Student-t_ν rather than normal, so each is multiplied
     by ν / (ν − 2), the variance of t_ν (``t_factor``): a plain χ²/dof rescaling with the
     8 dof of one channel would give z ~ t_8 (3σ coverage 98.3 %).
+
+    The own excess is the plain Paule-Mandel estimate (no significance gate) when each
+    channel has at least :data:`UNGATED_MIN_DOF` residual degrees of freedom; below that the
+    95 % gate of ``own_channel_variance`` holds. Returns the pose part (m, 3, 3), the own
+    excess (3,), the pose variance t and the gated own excess (3,), which the slow wander's
+    REML keeps as its independent nugget (``static_wander``).
     """
     m = X.shape[0]
     dof = m - 4
@@ -165,8 +181,9 @@ def _variance_components(
             return sum(pm_statistic(X, y[:, i], vd[:, i] + t * md[:, i]) for i in range(3))
 
         t = solve_decreasing(pooled_q, 3 * dof, float(np.median(vd / np.maximum(md, 1e-300))))
-    own = own_channel_variance(X, y, vd + t * md)
-    return t * t_factor(3 * dof) * M, own * t_factor(dof), t
+    gated = own_channel_variance(X, y, vd + t * md)
+    own = gated if dof < UNGATED_MIN_DOF else own_channel_variance(X, y, vd + t * md, gated=False)
+    return t * t_factor(3 * dof) * M, own * t_factor(dof), t, gated * t_factor(dof)
 
 
 def fit_static(
@@ -202,10 +219,10 @@ def fit_static(
     V = 0.5 * (V + np.transpose(V, (0, 2, 1)))
     theta, C, _ = _gls(H, y, V)
     excess = np.zeros((m, 3, 3))
-    pose_part, own_part, pose_t = np.zeros((m, 3, 3)), np.zeros(3), 0.0
+    pose_part, own_part, pose_t, own_gated = np.zeros((m, 3, 3)), np.zeros(3), 0.0, np.zeros(3)
     if between_window and m > 4:
         for _ in range(3):  # the pose-scatter shape depends on K: two refinements suffice
-            pose_part, own_part, pose_t = _variance_components(X, y, V, theta[3:].reshape(3, 3))
+            pose_part, own_part, pose_t, own_gated = _variance_components(X, y, V, theta[3:].reshape(3, 3))
             excess = pose_part + own_part[None, :, None] * np.eye(3)[None]
             theta, C, _ = _gls(H, y, V + excess)
     S = V + excess
@@ -214,7 +231,7 @@ def fit_static(
         mid = np.asarray(mid_s, dtype=float).reshape(-1)
         if mid.shape != (m,) or not np.all(np.isfinite(mid)):
             raise ValueError(f"window times must be finite (m,) = ({m},), got shape {mid.shape}")
-        slow = fit_slow_wander(f, y, V, theta[3:].reshape(3, 3), mid, own_part, pose_t)
+        slow = fit_slow_wander(f, y, V, theta[3:].reshape(3, 3), mid, own_gated, pose_t)
     if slow is not None:
         wc = window_covariance(V, mid, slow.noise, slow.J, slow.nugget)
         g_fit = gls(H.reshape(3 * m, 12), y.reshape(-1), wc)

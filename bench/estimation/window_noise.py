@@ -188,7 +188,7 @@ def pose_scatter(K: FloatArray, f_m_s2: FloatArray) -> FloatArray:
     return np.asarray(np.einsum("ia,wab,jb->wij", K, P, K), dtype=float)
 
 
-def own_channel_variance(X: FloatArray, y: FloatArray, base: FloatArray) -> FloatArray:
+def own_channel_variance(X: FloatArray, y: FloatArray, base: FloatArray, *, gated: bool = True) -> FloatArray:
     """Each channel's own between-window variance τ_i² (Paule-Mandel, χ²-gated).
 
     After the common pose scatter, a channel may still scatter more than its windows'
@@ -200,6 +200,8 @@ def own_channel_variance(X: FloatArray, y: FloatArray, base: FloatArray) -> Floa
         Σ_w r_w,i² / (base_w,i + τ_i²) = m − p;
 
     otherwise τ_i² = 0 (under a common cause alone the channel's share is noise).
+    With ``gated=False`` τ_i² is that solution whenever Q_i > m − p (the plain Paule-Mandel
+    estimate, 0 otherwise).
 
     :param X: (m, p) design shared by the channels.
     :param y: (m, c) window means.
@@ -212,7 +214,7 @@ def own_channel_variance(X: FloatArray, y: FloatArray, base: FloatArray) -> Floa
     own = np.zeros(c)
     if dof <= 0:
         return own
-    gate = float(chi2.ppf(OWN_SCATTER_GATE, dof))
+    gate = float(chi2.ppf(OWN_SCATTER_GATE, dof)) if gated else float(dof)
     for i in range(c):
         yi, bi = y[:, i], base[:, i]
         if pm_statistic(X, yi, bi) > gate:

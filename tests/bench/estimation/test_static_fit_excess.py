@@ -5,8 +5,8 @@ Window means of the twelve static-12 poses are drawn directly (no samples): y_w 
 (what motion inside windows or a wander between them adds), and the fit is told σ² only.
 The truth is known, so honest z-scores of K and the bias have RMS 1: over 120 sessions
 (1080 K and 360 bias z, correlated within a session) such an RMS lies within 0.8–1.25 with
-a wide margin (1.10 for K and 1.16 for the bias when written); a fit that counted σ² alone
-would give about √2 (1.41).
+a wide margin (1.01 and 1.02 when written; 1.10 and 1.16 with the excess gated at the 95 %
+point of χ²); a fit that counted σ² alone would give about √2 (1.41).
 """
 
 from __future__ import annotations

@@ -20,7 +20,9 @@ from benchmarks.study_long_recording import LongSession, simulate, study
 def test_wander_correlated_over_many_windows_widens_the_bias_sigma() -> None:
     """A wander with a correlation time of a tenth of the session leaves about
     span / (2 T_c) = 5 independent values of it: sigma(b) ~ tau / sqrt(5) ~ 0.45 tau, whatever
-    the number of windows. Independent window errors would claim about tau / sqrt(m) = 0.07 tau."""
+    the number of windows. Independent window errors would claim about tau / sqrt(m) = 0.07 tau
+    (a little more where a channel's Paule-Mandel excess also takes the placement scatter):
+    below the correlated model's lower bound either way."""
     cfg = LongSession(m=200, hours=2.0, wander_m_s2=2e-3, wander_tau_s=720.0, tc_m_s2_per_c=0.0)
     worst = []
     for seed in (3, 4):
@@ -31,7 +33,7 @@ def test_wander_correlated_over_many_windows_widens_the_bias_sigma() -> None:
         assert "slow wander" in fit.noise_model
         assert fit.bias_reference == "long_run"
         assert np.all(fit.bias_sigma > 0.25 * tau_ch) and np.all(fit.bias_sigma < 0.9 * tau_ch)
-        assert np.all(ind.bias_sigma < 0.15 * tau_ch)  # what independent errors claim
+        assert np.all(ind.bias_sigma < 0.2 * tau_ch)  # what independent errors claim
         worst.append(np.max(np.abs(fit.bias - r["b"]) / fit.bias_sigma))
     assert max(worst) < 4.0
 

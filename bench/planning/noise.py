@@ -136,13 +136,16 @@ def window_mean_covariance(noise: UnitNoise, start_s: FloatArray, duration_s: Fl
     same = np.eye(a.size, dtype=bool)
     if noise.wander_m_s2 > 0:
         tc = noise.wander_tau_s
-        cross = tc**2 * (
-            np.exp(-np.clip(a2 - b1, 0, None) / tc)
-            - np.exp(-(a2 - a1) / tc)
-            - np.exp(-(b2 - b1) / tc)
-            + np.exp(-(b2 - a1) / tc)
-        )
-        own = 2 * tc * (T - tc * (-np.expm1(-T / tc)))
+        # a correlation time far below the gaps overflows x / T_c to +inf, and exp(-inf) = 0 is
+        # the exact limit (no correlation across the gap): the overflow is not an error here
+        with np.errstate(over="ignore"):
+            cross = tc**2 * (
+                np.exp(-np.clip(a2 - b1, 0, None) / tc)
+                - np.exp(-(a2 - a1) / tc)
+                - np.exp(-(b2 - b1) / tc)
+                + np.exp(-(b2 - a1) / tc)
+            )
+            own = 2 * tc * (T - tc * (-np.expm1(-T / tc)))
         C += noise.wander_m_s2**2 * np.where(same, np.diag(own), cross) / TT
     if noise.random_walk_m_s2_rt_s > 0:
         cross = (a1 + b1) / 2

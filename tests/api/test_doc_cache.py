@@ -96,9 +96,11 @@ def test_a_kept_document_is_answered_without_the_route(
     calls = []
     real = api.routes.units.list_units
 
-    def counted(session: sa.orm.Session) -> object:
+    def counted(
+        session: sa.orm.Session, *, search: str | None = None, limit: int | None = None, offset: int = 0
+    ) -> object:
         calls.append(1)
-        return real(session)
+        return real(session, search=search, limit=limit, offset=offset)
 
     monkeypatch.setattr(api.routes.units, "list_units", counted)
     bodies = [client.get("/api/units", headers=VIEW).content for _ in range(5)]

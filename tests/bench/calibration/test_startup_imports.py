@@ -72,7 +72,10 @@ def test_the_probe_sees_the_moving_stack_when_it_is_loaded(static_recording: Pat
     """The same probe, after asking for the moving fit and diagnosis, names every module: the
     tests above can fail."""
     # scipy.signal is imported where a derivative or a spectrum is computed, not with the modules
-    moving = "import bench.calibration as c\nimport bench.diagnosis.dynamic\nc.calibrate_dynamic\nimport scipy.signal"
+    moving = (
+        "import bench.calibration as c\nimport bench.diagnosis.dynamic\nc.calibrate_dynamic\n"
+        "import scipy.signal"
+    )
     probe = PROBE.replace("from api.cli import main", "from api.cli import main\n" + moving)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run(

@@ -242,7 +242,7 @@ def test_monte_carlo_spread_matches_the_combined_uncertainty() -> None:
     (``static_fit.UNGATED_MIN_DOF``), and the part of a systematic Type B input that bias and K
     cannot absorb (an axis angle offset, the base tilt, a temperature slope) scatters the windows
     too, so the Type A line already carries some of it and the budget counts it twice. At these
-    inputs u_c is 10-24 % above the spread on the off-diagonal K elements (docs/noise-model.md,
+    inputs u_c is 11-24 % above the spread on the off-diagonal K elements (docs/noise-model.md,
     "Type A and Type B counted twice")."""
     spread, u_c, u_a = _mc(U_MC, 20250101)
     ratio = spread / u_c

@@ -18,6 +18,14 @@ CHROMIUM_ARGS = [
     "--no-first-run",
     "--disable-sync",
 ]
+BROWSER = [
+    pytest.mark.browser,
+    pytest.mark.skipif(
+        not CHROMIUM.exists(),
+        reason="Debian's chromium is not installed at /usr/bin/chromium (`make browser` installs it)",
+    ),
+]
+"""The marks of every browser test module: the marker, and a skip where chromium is missing."""
 
 
 @pytest.fixture(scope="module")

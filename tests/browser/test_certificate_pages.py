@@ -16,7 +16,7 @@ import httpx
 import pytest
 from playwright.sync_api import expect
 
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch
 from tests.support.service_helpers import OPERATOR, VIEW, service_settings
@@ -27,11 +27,8 @@ OPERATOR_NAME = "Ada Lovelace"
 LIVE = ("queued", "running", "paused", "suspended")
 
 pytestmark = [
-    pytest.mark.browser,
+    *BROWSER,
     pytest.mark.timeout(600),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(), reason="Debian's chromium is not installed at /usr/bin/chromium"
-    ),
     pytest.mark.skipif(
         shutil.which("pdftoppm") is None or shutil.which("pdftotext") is None, reason="poppler-utils"
     ),

@@ -19,7 +19,7 @@ import httpx
 import pytest
 
 from api.plots.colours import CHANNEL_COLOURS
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.support.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
 
@@ -30,14 +30,7 @@ DESK = {"width": 1440, "height": 900}
 PHONE = {"width": 390, "height": 844}
 RUN_TIMEOUT_S = 240.0
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(600),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(),
-        reason="Debian's chromium is not installed at /usr/bin/chromium (`make browser` installs it)",
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(600)]
 
 
 def _rgb(hex_colour: str) -> tuple[int, int, int]:

@@ -16,19 +16,12 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch, shot
 from tests.support.service_helpers import OP, OPERATOR, VIEW, VIEWER, service_settings
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(600),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(),
-        reason="Debian's chromium is not installed at /usr/bin/chromium (`make browser` installs it)",
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(600)]
 DEADLINE_S = 240.0
 
 

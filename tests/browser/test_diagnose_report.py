@@ -11,17 +11,11 @@ import pytest
 
 from api.reports.diagnose_html import render
 from bench.calibration.diagnose import diagnose_recording
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.support.diagnose_cases import static_recording
 from tests.support.dynamic_sim import oscillation
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(300),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(), reason="Debian's chromium is not installed at /usr/bin/chromium"
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(300)]
 
 # For each plot: the elements whose layout box leaves the plot's box horizontally (0.5 px
 # tolerance), and whether its x tick labels overlap one another.

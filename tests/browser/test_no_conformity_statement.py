@@ -11,7 +11,7 @@ import httpx
 import pytest
 from playwright.sync_api import expect
 
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch
 from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings
@@ -19,13 +19,7 @@ from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings
 RUN_TIMEOUT_S = 240.0
 NOTE = "no conformity statement: no limits are configured for model ADXL335"
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(600),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(), reason="Debian's chromium is not installed at /usr/bin/chromium"
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(600)]
 
 
 @pytest.fixture(scope="module")

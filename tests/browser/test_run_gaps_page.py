@@ -16,17 +16,11 @@ from db.models import RunState
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_unit
 from station.settings import Settings
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.support.service_helpers import VIEWER, service_settings
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(300),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(), reason="Debian's chromium is not installed at /usr/bin/chromium"
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(300)]
 
 GAPS = (
     GapRecord(1200, 37, "dropped", 1200, 6.0, 6.19, 2, "pos02", "window re-measured"),

@@ -19,7 +19,7 @@ import pytest
 from playwright.sync_api import expect
 
 from bench.procedures import build_procedure, preview
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch, shot
 from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings
@@ -27,13 +27,7 @@ from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings
 RUN_TIMEOUT_S = 240.0
 N_POSES = len(preview(build_procedure("static-12", dwell_s=3.0)).poses_deg)
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(600),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(), reason="Debian's chromium is not installed at /usr/bin/chromium"
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(600)]
 
 
 @pytest.fixture(scope="module")

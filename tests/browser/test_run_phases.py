@@ -18,20 +18,14 @@ import pytest
 from playwright.sync_api import expect
 
 from station.certificates.rounding import format_with_uncertainty
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch
 from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings
 
 RUN_TIMEOUT_S = 300.0
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(600),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(), reason="Debian's chromium is not installed at /usr/bin/chromium"
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(600)]
 
 
 @pytest.fixture(scope="module")

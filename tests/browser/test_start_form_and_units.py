@@ -15,20 +15,14 @@ from bench.procedures.steps import MoveTo
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.repo.units import get_or_create_bench
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch
 from tests.support.service_helpers import OP, OPERATOR, service_settings
 
 N_UNITS = 23
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(300),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(), reason="Debian's chromium is not installed at /usr/bin/chromium"
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(300)]
 
 
 @pytest.fixture(scope="module")

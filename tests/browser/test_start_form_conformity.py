@@ -9,20 +9,13 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.support.service_helpers import OP, OPERATOR, service_settings
 
 expect = pytest.importorskip("playwright.sync_api").expect
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(300),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(),
-        reason="Debian's chromium is not installed at /usr/bin/chromium (`make browser` installs it)",
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(300)]
 
 
 @pytest.fixture(scope="module")

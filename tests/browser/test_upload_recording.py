@@ -11,19 +11,13 @@ from playwright.sync_api import expect
 
 from bench.calibration import calibrate_recording
 from bench.recording import read_recording
-from tests.browser.conftest import CHROMIUM
+from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
 from tests.browser.test_dashboard import DESK, ConsoleWatch
 from tests.conftest import EXAMPLES, STATIC_EXAMPLE
 from tests.support.service_helpers import OPERATOR, VIEWER, service_settings
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.timeout(300),
-    pytest.mark.skipif(
-        not CHROMIUM.exists(), reason="Debian's chromium is not installed at /usr/bin/chromium"
-    ),
-]
+pytestmark = [*BROWSER, pytest.mark.timeout(300)]
 
 
 @pytest.fixture(scope="module")

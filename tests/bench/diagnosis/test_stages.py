@@ -34,20 +34,11 @@ from bench.diagnosis.stages import (
     within_window,
 )
 from bench.diagnosis.thresholds import THRESHOLDS
+from tests.bench.diagnosis.test_diagnosis_tableless import B_TRUE, K_TRUE, RATE_HZ, G
+from tests.bench.diagnosis.test_diagnosis_tableless import F_TRUE as F
 from tests.bench.diagnosis.test_pose_quantisation import _evidence as table_evidence
 
-G = 9.81
 SIGMA = 1e-5
-RATE_HZ = 100.0
-K_TRUE = np.array([[0.0177, 1e-5, -2e-5], [0.0, 0.0175, 3e-5], [0.0, 0.0, 0.0178]])
-B_TRUE = np.array([1.5, 1.49, 1.51])
-_DIRS = np.array(
-    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1],
-     [1, 1, 0], [1, 0, 1], [0, 1, 1], [-1, 1, 0], [-1, 0, -1], [0, -1, 1],
-     [1, 1, 1], [-1, -1, 1], [1, -1, -1], [-1, 1, -1], [1, 0, -1], [0, 1, -1]],
-    dtype=float,
-)  # fmt: skip
-F = G * _DIRS / np.linalg.norm(_DIRS, axis=1, keepdims=True)
 M = F.shape[0]
 
 

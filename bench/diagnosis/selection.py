@@ -113,9 +113,10 @@ def _structured(
     lr0, lev = whitened_lr(ev, X, np.hstack(cols), rank_noise, K, fixed)
     ranked: list[tuple[float, Candidate]] = []
     col = 0
+    Qx = np.linalg.qr(X)[0]  # one factor of the design for every candidate's leverage
     for cand, a in zip(tried, cols, strict=True):
         q = a.shape[1]
-        lv = leverage(X, a)
+        lv = leverage(X, a, Qx)
         lev_min = th.relative_leverage_min
         if np.any(lv < lev_min) or np.any(lev[col : col + q] < lev_min):
             notes[cand.label] = (
@@ -130,7 +131,6 @@ def _structured(
     ranked.sort(key=lambda r: -r[0])
     if simplicity and len(ranked) > th.shortlist:
         # the simplest of the terms alike the best (within tie_chi2) is re-fitted too
-        Qx, _ = np.linalg.qr(X)
         pos = {id(c): k for k, c in enumerate(tried)}
         Ap = np.hstack(cols)
         Ap = Ap - Qx @ (Qx.T @ Ap)
@@ -189,7 +189,6 @@ def _structured(
     if simplicity:
         # one column each: compare the extended models' own likelihoods (ML, each under its noise)
         top = max(admissible, key=lambda a: a[3][1].loglik_ml)
-        Qx, _ = np.linalg.qr(X)
 
         def sig(c: Candidate) -> FloatArray:
             a = c.columns(ev, K)[:, 0]

@@ -41,7 +41,12 @@ import numpy.typing as npt
 from scipy.linalg import cho_factor, cho_solve
 from scipy.optimize import minimize, minimize_scalar
 
-from bench.estimation.window_covariance import WindowCovariance, invert_blocks
+from bench.estimation.window_covariance import (
+    FixedQuadratic,
+    WindowCovariance,
+    fixed_quadratic,
+    invert_blocks,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -138,14 +143,19 @@ def covariance(
 
 
 def gls(
-    X: FloatArray, z: FloatArray, C: FloatArray | WindowCovariance, binv_xz: FloatArray | None = None
+    X: FloatArray,
+    z: FloatArray,
+    C: FloatArray | WindowCovariance,
+    binv_xz: FloatArray | None = None,
+    fixed_xz: FixedQuadratic | None = None,
 ) -> GlsFit:
     """Generalised least squares of z on X with covariance C (module docstring).
 
     ``C`` is a dense (n, n) matrix or a :class:`WindowCovariance`; then everything comes
     from the (p+1, p+1) matrix Q = [X z]ᵀ C⁻¹ [X z] in O(m) (θ̂ = Q_XX⁻¹ Q_Xz,
     χ² = Q_zz − Q_zXᵀ θ̂), and ``binv_xz`` (B⁻¹ [X z], which does not depend on the
-    wander) may be passed to save its product.
+    wander) may be passed to save its product, or ``fixed_xz`` (B⁻¹ [X z] and
+    [X z]ᵀ B⁻¹ [X z], ``window_covariance.fixed_quadratic``) to save both.
 
     :raises ValueError: C not positive definite or X rank-deficient under C.
     """
@@ -153,7 +163,10 @@ def gls(
     if isinstance(C, WindowCovariance):
         fac = C.factor()
         logdet_c = fac.logdet
-        Q = fac.quadratic(np.column_stack([X, z]), binv_xz)
+        if fixed_xz is not None:
+            Q = fac.quadratic_fixed(fixed_xz)
+        else:
+            Q = fac.quadratic(np.column_stack([X, z]), binv_xz)
         A, b, zz = Q[:p, :p], Q[:p, p], float(Q[p, p])
     else:
         try:
@@ -253,21 +266,23 @@ def fit_noise(
 
     inv: FloatArray | None = None
     logdet_b: float | None = None
-    binv_xz: FloatArray | None = None
+    fixed_xz: FixedQuadratic | None = None
     if not estimate_pose:  # the windows' own blocks do not change: invert them once
         try:
             wc0 = window_covariance(V, mid_s, NoiseParams(tau2=np.zeros(3)), J_pose, fixed)
             inv, logdet_b = invert_blocks(wc0.blocks)
-            binv_xz = np.matmul(inv, np.column_stack([X, z]).reshape(inv.shape[0], 3, -1)).reshape(z.size, -1)
+            xz = np.column_stack([X, z])
+            binv_xz = np.matmul(inv, xz.reshape(inv.shape[0], 3, -1)).reshape(z.size, -1)
+            fixed_xz = fixed_quadratic(xz, binv_xz, mid_s)
         except ValueError:
-            inv, logdet_b, binv_xz = None, None, None
+            inv, logdet_b, fixed_xz = None, None, None
 
     def objective(u: FloatArray, tc: float) -> float:
         try:
             wc = window_covariance(V, mid_s, unpack(u, tc), J_pose, fixed)
             if inv is not None:
                 wc = replace(wc, blocks_inverse=inv, blocks_logdet=logdet_b)
-            return -gls(X, z, wc, binv_xz).loglik_reml
+            return -gls(X, z, wc, fixed_xz=fixed_xz).loglik_reml
         except ValueError:
             return 1e300
 

@@ -101,6 +101,39 @@ class WindowCovariance:
         return CovarianceFactor(self)
 
 
+@dataclass(frozen=True)
+class FixedQuadratic:
+    """What :meth:`CovarianceFactor.quadratic` needs of a fixed Y (3m, q) and fixed blocks
+    B_w: both terms that do not depend on the wander, in the windows' time order. Covariances
+    that differ only in the wander (a noise search) share it (:func:`fixed_quadratic`).
+
+    :param order: (m,) the time order of the windows, ``np.argsort(mid_s, kind="stable")``.
+    :param binv_y: (m, 3, q) B⁻¹ Y, its windows in that order.
+    :param yby: (q, q) Yᵀ B⁻¹ Y, summed in that order.
+    """
+
+    order: npt.NDArray[np.intp]
+    binv_y: FloatArray
+    yby: FloatArray
+
+
+def fixed_quadratic(Y: FloatArray, binv_y: FloatArray, mid_s: FloatArray) -> FixedQuadratic:
+    """:class:`FixedQuadratic` of Y (3m, q) or (3m,), B⁻¹ Y of the same shape and the window
+    times ``mid_s`` (m,) (s)."""
+    m = np.asarray(mid_s).shape[0]
+    order = np.argsort(mid_s, kind="stable")
+    Ys = np.asarray(Y, dtype=float).reshape(m, 3, -1)[order]
+    return _sorted_quadratic(order, Ys, np.asarray(binv_y, dtype=float).reshape(m, 3, -1)[order])
+
+
+def _sorted_quadratic(order: npt.NDArray[np.intp], Ys: FloatArray, W: FloatArray) -> FixedQuadratic:
+    """:class:`FixedQuadratic` from Y and B⁻¹ Y (m, 3, q), both already in time ``order``."""
+    m, q = W.shape[0], W.shape[2]
+    # skinny Gram products by einsum: no BLAS threads to wake for a (q, q) result
+    Q = np.einsum("nq,nr->qr", Ys.reshape(3 * m, q), W.reshape(3 * m, q), optimize=False)
+    return FixedQuadratic(order=order, binv_y=W, yby=Q)
+
+
 def invert_blocks(blocks: FloatArray) -> tuple[FloatArray, float]:
     """B_w⁻¹ (m, 3, 3) and Σ_w ln|B_w| of symmetric positive-definite blocks (m, 3, 3).
 
@@ -198,11 +231,20 @@ class CovarianceFactor:
             W = np.matmul(self._Binv, Ys)
         else:
             W = self._to_sorted(np.asarray(binv_y, dtype=float).reshape(Yv.shape))
-        m, q = self.cov.m, Ys.shape[2]
-        # skinny Gram products by einsum: no BLAS threads to wake for a (q, q) result
-        Q = np.einsum("nq,nr->qr", Ys.reshape(3 * m, q), W.reshape(3 * m, q), optimize=False)
+        return self.quadratic_fixed(_sorted_quadratic(self._order, Ys, W))
+
+    def quadratic_fixed(self, fixed: FixedQuadratic) -> FloatArray:
+        """Yᵀ C⁻¹ Y (q, q) from the wander-free parts of Y (:class:`FixedQuadratic`, made with
+        this covariance's window times and blocks): only Gᵀ M⁻¹ G is computed here.
+
+        :raises ValueError: ``fixed`` was made with another time order of the windows.
+        """
+        if not np.array_equal(fixed.order, self._order):
+            raise ValueError("the fixed quadratic was made for other window times")
+        W, Q = fixed.binv_y, fixed.yby
         if self._k:
             assert self._cb is not None
+            m, q = self.cov.m, W.shape[2]
             G = W[:, self._act, :].reshape(m * self._k, q)
             H = cho_solve_banded((self._cb, False), G, check_finite=False)
             Q = Q - np.einsum("nq,nr->qr", G, H, optimize=False)

@@ -101,9 +101,14 @@ class Effect(Protocol):
 AXES = "xyz"
 
 
-def leverage(X: FloatArray, cols: FloatArray) -> FloatArray:
-    """(q,) fraction of each column's norm outside the span of X (0: indistinguishable)."""
-    Q, _ = np.linalg.qr(X)
+def leverage(X: FloatArray, cols: FloatArray, basis: FloatArray | None = None) -> FloatArray:
+    """(q,) fraction of each column's norm outside the span of X (0: indistinguishable).
+
+    :param X: (n, p) design; :param cols: (n, q) columns.
+    :param basis: (n, p) ``np.linalg.qr(X)[0]`` when already known (a caller that tries many
+        columns against one design factors it once).
+    """
+    Q = np.linalg.qr(X)[0] if basis is None else basis
     out = []
     for c in cols.T:
         nrm = float(np.linalg.norm(c))

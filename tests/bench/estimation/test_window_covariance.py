@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bench.diagnosis.likelihood import NoiseParams, covariance, gls, window_covariance
-from bench.estimation.window_covariance import WindowCovariance
+from bench.estimation.window_covariance import WindowCovariance, fixed_quadratic, invert_blocks
 
 
 def _blocks(rng: np.random.Generator, m: int) -> np.ndarray:
@@ -51,6 +51,30 @@ def test_gls_structured_equals_dense_and_exponential_kernel() -> None:
     np.testing.assert_allclose(b.cov, a.cov, rtol=1e-9)
     assert b.chi2 == pytest.approx(a.chi2, rel=1e-9)
     assert b.loglik_reml == pytest.approx(a.loglik_reml, rel=1e-10)
+
+
+def test_gls_from_the_fixed_quadratic_equals_dense_and_refuses_other_times() -> None:
+    """The wander-free parts computed once (B⁻¹ [X z], [X z]ᵀ B⁻¹ [X z]) give the GLS of the
+    dense covariance, for windows out of time order and under several wanders."""
+    rng = np.random.default_rng(3)
+    m = 15
+    V = _blocks(rng, m) * 1e-2
+    mid = rng.permutation(np.cumsum(rng.uniform(5, 50, m)))
+    X = rng.normal(size=(3 * m, 4))
+    z = rng.normal(size=3 * m)
+    inv, logdet = invert_blocks(V)
+    xz = np.column_stack([X, z])
+    fixed = fixed_quadratic(xz, np.matmul(inv, xz.reshape(m, 3, -1)).reshape(3 * m, -1), mid)
+    for tau2, tc in (([0.3, 0.0, 0.1], 40.0), ([0.0, 0.0, 0.0], 0.0), ([0.2, 0.2, 0.2], 0.0)):
+        noise = NoiseParams(tau2=np.array(tau2), corr_time_s=tc)
+        wc = window_covariance(V, mid, noise)
+        wc = WindowCovariance(wc.blocks, wc.tau2, wc.corr_time_s, wc.mid_s, inv, logdet)
+        a, b = gls(X, z, covariance(V, mid, noise)), gls(X, z, wc, fixed_xz=fixed)
+        np.testing.assert_allclose(b.theta, a.theta, rtol=1e-9)
+        assert b.loglik_reml == pytest.approx(a.loglik_reml, rel=1e-10)
+    other = WindowCovariance(V, np.ones(3), 40.0, mid[::-1].copy())
+    with pytest.raises(ValueError, match="other window times"):
+        other.factor().quadratic_fixed(fixed)
 
 
 def test_windows_at_one_time_with_a_correlated_wander_are_refused() -> None:

@@ -13,6 +13,8 @@ from bench.calibration import calibrate_recording
 from bench.recording import Recording
 from bench.recording.plausibility import (
     MAX_ANGLE_SCATTER_DEG,
+    NOISE_BLOCK_SAMPLES,
+    _local_sigma,
     check_channel_scale,
     fit_findings,
     recording_findings,
@@ -129,3 +131,22 @@ def test_an_encoder_lag_of_twenty_samples_is_a_warning_of_the_calibration(moving
     warnings = calibrate_recording(replace(moving, table_deg=lagged)).warnings
     assert any("the encoders and the DAQ are" in w for w in warnings), warnings
     assert not any("encoders and the DAQ" in w for w in calibrate_recording(moving).warnings)
+
+
+@pytest.mark.parametrize("n", [1, 31, 32, 33, 1000, 4097])
+@pytest.mark.parametrize("zero_share", [0.0, 0.4, 1.0])
+def test_local_sigma_is_the_median_of_each_blocks_nonzero_departures(n: int, zero_share: float) -> None:
+    """The vectorised block medians against np.median block by block: equal to the bit, with
+    blocks of zeros only (a flat stretch), a short last block and even and odd counts."""
+    rng = np.random.default_rng(n)
+    dep = np.round(rng.normal(size=n), 2)
+    dep[rng.random(n) < zero_share] = 0.0
+    size = NOISE_BLOCK_SAMPLES
+    sig = []
+    for i in range(0, n, size):
+        moving = np.abs(dep[i : i + size][dep[i : i + size] != 0])
+        sig.append(1.4826 * float(np.median(moving)) if moving.size else 0.0)
+    padded = np.array([sig[0], *sig, sig[-1]])
+    local = np.maximum(np.maximum(padded[:-2], padded[1:-1]), padded[2:])
+    expected = np.repeat(np.maximum(local, 0.005), size)[:n]
+    assert np.array_equal(_local_sigma(dep, 0.005), expected)

@@ -2,7 +2,8 @@
 
 The recording is cut back to the last durable chunk that holds the last complete window,
 and the procedure continues with the next window; the end is as ``calbench run`` (a device
-fault is resumed automatically as there, :mod:`station.execution.fault_retry`).
+fault is resumed automatically as there, :mod:`station.execution.fault_retry`; exit code 4 and
+the command that continues it for a run still interrupted after the last try).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from api.cli.run import (
     holding_bench,
     install_abort_handler,
     report,
+    resume_command,
     settings_for,
 )
 from bench.records import RunRecord
@@ -53,6 +55,6 @@ def run(args: argparse.Namespace) -> int:
             control,
             say=lambda msg: print(f"calbench resume: {msg}", file=sys.stderr),
         )
-        return report(record, args.json)
+        return report(record, args.json, resume_command(args, record.run_id))
     finally:
         lock.release()

@@ -1,12 +1,16 @@
 """``calbench run PROCEDURE --unit SERIAL [--sim] [--sim-speed N]``: run a procedure on the bench.
 
 Shows a progress bar on stderr while the run records, then prints the fit and the |g|
-table (or, with ``--json``, one object: run id, outcome, error, calibration). Ctrl-C
-aborts the run cleanly (table to its safe state, recording kept). Exit code 0 for PASS (or a
-fit no limits judged: no statement of conformity),
-1 for FAIL, ERROR or ABORTED (or a run still interrupted by a device fault after its automatic
-resumes, :mod:`station.execution.fault_retry`), 2 for bad input, 3 when another process drives the bench (an
-agent, another ``calbench run``: one line names it; :mod:`station.execution.bench_lock`).
+table (or, with ``--json``, one object: run id, state, outcome, error, calibration). Ctrl-C
+aborts the run cleanly (table to its safe state, recording kept). A device fault the bench
+recovers from — mid-run or before the first window, the devices not answering when the run
+starts — leaves the run stored ``interrupted`` and resumes it automatically
+(:mod:`station.execution.fault_retry`); a run still interrupted after the last try (or a
+Ctrl-C during a wait) is kept so, and the command names the device, the fault, what is kept
+and the ``calbench resume`` command that continues it. Exit code 0 for PASS (or a fit no
+limits judged: no statement of conformity), 1 for FAIL, ERROR or ABORTED, 2 for bad input, 3
+when another process drives the bench (an agent, another ``calbench run``: one line names it;
+:mod:`station.execution.bench_lock`), 4 for a run kept ``interrupted`` (:data:`INTERRUPTED_EXIT`).
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import shlex
 import signal
 import sys
 from pathlib import Path
@@ -27,9 +32,12 @@ from bench.records import Progress, RunRecord, RunState, StateChange
 from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl
 from station.execution.bench_lock import HELD_EXIT, BenchHeld, BenchLock
-from station.execution.fault_retry import run_resuming
+from station.execution.fault_retry import NeverStarted, run_resuming
 from station.execution.session import resume_run, start_run
 from station.settings import Settings
+
+INTERRUPTED_EXIT = 4
+"""Exit code of a run kept ``interrupted`` by a device fault: resumable, nothing recorded lost."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -105,11 +113,37 @@ class ProgressBar(NullObserver):
         self._write("\n")
 
 
-def record_as_dict(record: RunRecord) -> dict[str, Any]:
-    """The JSON object printed by ``--json``."""
+def resume_command(args: argparse.Namespace, run_id: str) -> str:
+    """The ``calbench resume`` command that continues ``run_id`` on the bench ``args`` name."""
+    words = ["calbench", "resume", run_id]
+    if getattr(args, "sim", False):
+        words.append("--sim")
+    if getattr(args, "bench_file", None) is not None:
+        words += ["--bench-file", shlex.quote(str(args.bench_file))]
+    return " ".join(words)
+
+
+def never_started_as_dict(result: NeverStarted, resume: str) -> dict[str, Any]:
+    """The ``--json`` object of a run whose devices never opened (nothing recorded)."""
+    return {
+        "run_id": result.run_id,
+        "state": RunState.INTERRUPTED.value,
+        "outcome": None,
+        "error": result.error,
+        "recording": None,
+        "n_samples": 0,
+        "n_windows": 0,
+        "resume_command": resume,
+    }
+
+
+def record_as_dict(record: RunRecord, resume: str | None = None) -> dict[str, Any]:
+    """The JSON object printed by ``--json`` (``resume``: the command that continues an
+    interrupted run)."""
     dwell = record.dwell
     return {
         "run_id": record.run_id,
+        "state": record.state.value,
         "outcome": record.outcome.value if record.outcome else None,
         "conformity_note": record.conformity_note or None,
         "error": record.error,
@@ -121,11 +155,37 @@ def record_as_dict(record: RunRecord) -> dict[str, Any]:
         else {"dwell_s": dwell.dwell_s, "source": dwell.source, "reason": dwell.reason},
         "calibration": None if record.calibration is None else record.calibration.to_contract(),
         "limit_checks": [dataclasses.asdict(c) for c in record.limit_checks],
+        **({"resume_command": resume} if record.state is RunState.INTERRUPTED and resume else {}),
     }
 
 
-def report(record: RunRecord, as_json: bool) -> int:
-    """Print the outcome, the fit and the |g| table; return the exit code."""
+def report_interrupted(result: RunRecord | NeverStarted, as_json: bool, resume: str) -> int:
+    """Print a run kept ``interrupted``: the device and the fault, what is kept, how to resume."""
+    if as_json:
+        obj = (
+            never_started_as_dict(result, resume)
+            if isinstance(result, NeverStarted)
+            else record_as_dict(result, resume)
+        )
+        print(json.dumps(obj, indent=1))
+        return INTERRUPTED_EXIT
+    print(f"run {result.run_id}: interrupted ({result.error})")
+    if isinstance(result, NeverStarted):
+        print("nothing was recorded: the devices never answered; the run is stored as it was requested")
+    else:
+        print(
+            f"recording: {result.start.recording_path} ({result.n_samples} samples, "
+            f"{len(result.windows)} complete windows kept)"
+        )
+    print(f"the run is kept interrupted; once the bench answers, resume it with: {resume}")
+    return INTERRUPTED_EXIT
+
+
+def report(record: RunRecord | NeverStarted, as_json: bool, resume: str = "calbench resume RUN_ID") -> int:
+    """Print the outcome, the fit and the |g| table; return the exit code. A run kept
+    ``interrupted`` is reported by :func:`report_interrupted` (``resume``: its command)."""
+    if isinstance(record, NeverStarted) or record.state is RunState.INTERRUPTED:
+        return report_interrupted(record, as_json, resume)
     if as_json:
         print(json.dumps(record_as_dict(record), indent=1))
         return exit_code(record)
@@ -158,7 +218,9 @@ def report(record: RunRecord, as_json: bool) -> int:
 
 
 def exit_code(record: RunRecord) -> int:
-    """0 for a completed run (PASS, or a fit no limits judged), else 1."""
+    """0 for a completed run (PASS, or a fit no limits judged), 4 for one kept interrupted, else 1."""
+    if record.state is RunState.INTERRUPTED:
+        return INTERRUPTED_EXIT
     return 0 if record.state is RunState.COMPLETED else 1
 
 
@@ -216,4 +278,4 @@ def _run(args: argparse.Namespace, settings: Settings) -> int:
         control,
         say=lambda msg: print(f"calbench run: {msg}", file=sys.stderr),
     )
-    return report(record, args.json)
+    return report(record, args.json, resume_command(args, record.run_id))

@@ -5,15 +5,45 @@ and the recording's sidecar from both.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 
 from bench.bench_config import SIM_BENCH_FILE, BenchConfig, apply_to_daq, load_bench_config
 from bench.recording.model import Sidecar
+from bench.sequencer.faults import resumable_fault
 from drivers.daq_registers import LINK_MAX_SAMPLES_S
-from drivers.factory import BenchDevices, SimulatedTruth, open_bench
+from drivers.factory import BenchDevices, SimulatedTruth, open_bench, open_daq, open_table
 from station.settings import Settings
+
+T = TypeVar("T")
+
+
+class DeviceNotAnswering(ConnectionError):
+    """A device of the bench file did not open with a fault that passes
+    (:func:`bench.sequencer.faults.resumable_fault`: no reply, a link refused or dropped, a
+    garbled reply); the message names the device, its URL and the driver's error.
+
+    :ivar device: ``"table"`` or ``"DAQ"``. :ivar url: the device's URL (the bench file's).
+    :ivar cause: the driver's error.
+    """
+
+    def __init__(self, device: str, url: str, cause: BaseException) -> None:
+        super().__init__(f"the {device} at {url} did not answer: {type(cause).__name__}: {cause}")
+        self.device = device
+        self.url = url
+        self.cause = cause
+
+
+def _opened(device: str, url: str, opener: Callable[[], T]) -> T:
+    """``opener()``; a fault that passes raised as :class:`DeviceNotAnswering` naming ``device``."""
+    try:
+        return opener()
+    except Exception as exc:
+        if resumable_fault(exc):
+            raise DeviceNotAnswering(device, url, exc) from exc
+        raise
 
 
 def sim_url(settings: Settings, speed: float | None, seed: int, unit: str = "V") -> str:
@@ -94,13 +124,31 @@ def open_devices(
             sim_process=settings.sim_process,
         )
     else:
-        devices = open_bench(config.table_url, config.daq_url, n_axes=n_axes)
+        devices = _open_real(config, n_axes)
     try:
         devices.daq = apply_to_daq(config, devices.daq)
     except BaseException:
         devices.close()
         raise
     return devices
+
+
+def _open_real(config: BenchConfig, n_axes: int) -> BenchDevices:
+    """The table and DAQ at the bench file's URLs.
+
+    :raises DeviceNotAnswering: one of them does not answer (the other is closed).
+    """
+    table_url, daq_url = config.table_url, config.daq_url
+    if daq_url is None:
+        raise ValueError(
+            f"{config.path}: the table {table_url!r} is real: a DAQ URL (modbus-tcp://host:port) is needed"
+        )
+    table = _opened("table", table_url, lambda: open_table(table_url, n_axes=n_axes))
+    try:
+        return BenchDevices(table, _opened("DAQ", daq_url, lambda: open_daq(daq_url)))
+    except BaseException:
+        table.close()
+        raise
 
 
 def check_devices(devices: BenchDevices, config: BenchConfig) -> None:

@@ -59,12 +59,30 @@ class RetryPolicy:
 
 
 class ResumeFailed(ConnectionError):
-    """A resume could not start: the devices did not open (the bench does not answer yet).
-    The run was put back ``interrupted`` with the reason; it counts as a try."""
+    """A run or its resume could not start: the devices did not open (the bench does not answer
+    yet). The run was stored or put back ``interrupted`` with the reason; it counts as a try.
+
+    :ivar run_id: the run left ``interrupted`` (``None``: not known to the raiser).
+    """
+
+    def __init__(self, message: str, run_id: str | None = None) -> None:
+        super().__init__(message)
+        self.run_id = run_id
 
 
-def interrupted_by_fault(record: RunRecord) -> bool:
+@dataclasses.dataclass(frozen=True)
+class NeverStarted:
+    """A run whose devices never opened: stored ``interrupted`` with ``error`` (the device and
+    the fault), nothing recorded; resuming it starts it as it was requested."""
+
+    run_id: str
+    error: str
+
+
+def interrupted_by_fault(record: RunRecord | NeverStarted) -> bool:
     """The run stopped on a fault the bench recovers from and may be resumed."""
+    if isinstance(record, NeverStarted):
+        return True
     return record.state is RunState.INTERRUPTED and (record.error or "").startswith(FAULT_PREFIX)
 
 
@@ -85,31 +103,47 @@ def run_resuming(
     control: RunControl,
     say: Callable[[str], None],
     policy: RetryPolicy | None = None,
-) -> RunRecord:
+) -> RunRecord | NeverStarted:
     """``first()``, then ``again(run_id)`` (a resume) after each device fault, as the policy says.
 
-    A resume that fails before it records (the devices do not open yet) counts as a try;
-    an abort (Ctrl-C) during a wait ends the tries, the run left ``interrupted``.
+    A start or resume that fails before it records (the devices do not open yet) counts as a
+    try; a start that fails so, its run stored ``interrupted`` (:class:`ResumeFailed` with its
+    id), is tried again as a resume and, while no try has opened the devices, is answered as
+    :class:`NeverStarted`. An abort (Ctrl-C) during a wait ends the tries, the run left
+    ``interrupted``.
     """
     policy = policy or RetryPolicy()
-    record = first()
-    attempt, windows = 0, len(record.windows)
-    while interrupted_by_fault(record):
-        if len(record.windows) > windows:
-            attempt, windows = 0, len(record.windows)
+    result: RunRecord | NeverStarted
+    try:
+        result = first()
+    except ResumeFailed as exc:
+        if exc.run_id is None:
+            raise
+        result = NeverStarted(exc.run_id, str(exc))
+    attempt, windows = 0, _windows(result)
+    while interrupted_by_fault(result):
+        if _windows(result) > windows:
+            attempt, windows = 0, _windows(result)
         attempt += 1
+        run_id = result.run_id
         if attempt > policy.attempts:
-            say(f"run {record.run_id}: {policy.attempts} automatic resumes failed; resume it on request")
-            return record
+            say(f"run {run_id}: {policy.attempts} automatic resumes failed; resume it on request")
+            return result
         wait = policy.wait_s(attempt)
-        say(f"run {record.run_id}: {record.error}; resuming in {wait:g} s ({attempt}/{policy.attempts})")
+        say(f"run {run_id}: {result.error}; resuming in {wait:g} s ({attempt}/{policy.attempts})")
         if control.wait_abort(wait):
-            return record
+            return result
         try:
-            record = again(record.run_id)
+            result = again(run_id)
         except ResumeFailed as exc:
-            say(f"run {record.run_id}: the resume failed: {exc}")
-    return record
+            say(f"run {run_id}: the resume failed: {exc}")
+            if isinstance(result, NeverStarted):
+                result = NeverStarted(run_id, str(exc))
+    return result
+
+
+def _windows(result: RunRecord | NeverStarted) -> int:
+    return 0 if isinstance(result, NeverStarted) else len(result.windows)
 
 
 def schedule(

@@ -26,7 +26,6 @@ from bench.records import DwellChoice, RunRecord, RunStart, RunState, new_run_id
 from bench.run_observer import RunObserver, announce_phase
 from bench.run_recorder import RunRecorder
 from bench.sequencer.control import RunControl, SequencerConfig
-from bench.sequencer.faults import resumable_fault
 from bench.sequencer.loop import Sequencer
 from db.engine import make_session_factory
 from db.migrate import open_database
@@ -35,12 +34,13 @@ from db.models import RunState as DbRunState
 from db.models import run_params as rp
 from db.observer import DbRunObserver
 from db.repo.audit import command_line_actor
-from db.repo.recovery import ResumePoint, claim_for_resume, mark_interrupted_runs, mark_run_interrupted
+from db.repo.recovery import ResumePoint, claim_for_resume, mark_interrupted_runs
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
 from drivers.factory import BenchDevices, SimulatedTruth
 from station.execution.devices import bench_config_for, bench_sidecar, open_devices
 from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed
+from station.execution.not_answering import StartRequest, bench_urls, interrupt_if_not_answering
 from station.execution.verdict import finish_observers, limits_for, run_record
 from station.settings import Settings
 
@@ -115,23 +115,25 @@ def start_run(
             devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
         except Exception as exc:
             try:
-                why = _interrupt_if_not_answering(sessions, run_id, exc)
+                why = interrupt_if_not_answering(
+                    sessions,
+                    run_id,
+                    exc,
+                    request=StartRequest(
+                        settings, bench_config, unit_serial, procedure_name, meta, csv_path, dwell_s
+                    ),
+                )
             finally:
                 engine.dispose()
             if why is None:
                 raise
-            raise ResumeFailed(why) from exc
+            raise ResumeFailed(why, run_id) from exc
     try:
         sidecar = bench_sidecar(devices, unit_serial, procedure_name, bench_config, g_local_m_s2)
         # devices opened here are already checked and mapped (open_devices); the caller's are not
         daq = devices.daq if owned else apply_to_daq(bench_config, devices.daq)
         with sessions.begin() as s:
-            urls = (
-                {}
-                if bench_config.simulated
-                else {"table_url": bench_config.table_url, "daq_url": bench_config.daq_url}
-            )
-            bench = get_or_create_bench(s, settings.bench_name, **urls)
+            bench = get_or_create_bench(s, settings.bench_name, **bench_urls(bench_config))
             unit = get_or_create_unit(s, unit_serial, channel_unit=sidecar.channel_unit, bench_id=bench.id)
             if limits == "settings":  # before the run exists: a bad limits file refuses the run
                 choice = limits_for(settings, getattr(unit, "model", None), sidecar.channel_unit)
@@ -318,13 +320,17 @@ def continue_run(
             run = s.get(Run, run_id)
             requested_dwell_s = run.requested_dwell_s if run is not None else None
         stored = params.get(rp.PARAMETERS)
+        sim_meta = params.get(rp.SIM)  # the seed it was requested with (calbench run --seed)
+        seed = settings.sim_seed
+        if isinstance(sim_meta, dict) and isinstance(sim_meta.get("seed"), int):
+            seed = int(sim_meta["seed"])
         return start_run(
             settings,
             procedure_name,
             serial,
             sim=sim,
             sim_speed=sim_speed,
-            seed=settings.sim_seed,
+            seed=seed,
             dwell_s=requested_dwell_s,
             observers=observers,
             control=control,
@@ -341,7 +347,7 @@ def continue_run(
     except OSError as exc:  # a full disk, an I/O error: a try of the retry policy, as a bench not answering
         if isinstance(exc, FileNotFoundError | PermissionError):  # not a fault that passes
             raise
-        why = _interrupt_if_not_answering(sessions, run_id, exc, "the recording could not be reopened")
+        why = interrupt_if_not_answering(sessions, run_id, exc, "the recording could not be reopened")
         if why is None:
             raise
         raise ResumeFailed(why) from exc
@@ -369,7 +375,7 @@ def continue_run(
     try:
         devices = open_devices(settings, sim, sim_speed, seed, truth, bench_config)
     except Exception as exc:
-        why = _interrupt_if_not_answering(sessions, run_id, exc)
+        why = interrupt_if_not_answering(sessions, run_id, exc)
         if why is None:
             raise
         raise ResumeFailed(why) from exc
@@ -405,21 +411,6 @@ def continue_run(
         return execute_resumable(seq, csv_path, obs, limits, settings)
     finally:
         devices.close()
-
-
-def _interrupt_if_not_answering(
-    sessions: Any, run_id: str, exc: Exception, what: str = "the devices did not open"
-) -> str | None:
-    """When ``what`` failed with a fault the bench recovers from (the bench not answering, a
-    simulator that did not start, a full disk), leave the run ``interrupted`` with an error
-    beginning :data:`FAULT_PREFIX`, for the next try of the retry policy, and return why;
-    ``None`` for any other error, or a run not stored live (``calbench run`` before its first
-    write)."""
-    if not (resumable_fault(exc) or isinstance(exc, RuntimeError)):
-        return None
-    why = f"{FAULT_PREFIX}{what}: {type(exc).__name__}: {exc}"
-    with sessions.begin() as s:
-        return why if mark_run_interrupted(s, run_id, why) else None
 
 
 def parameters_for(procedure_name: str, stored: dict[str, Any]) -> dict[str, Any]:

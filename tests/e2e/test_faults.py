@@ -248,7 +248,7 @@ def test_a_disk_still_full_at_a_resume_counts_as_a_try_and_the_next_try_complete
         said.append,
         RetryPolicy(attempts=4, first_wait_s=0.01, max_wait_s=0.05),
     )
-    assert out.outcome is Outcome.PASS and len(out.windows) == 12, out.error
+    assert isinstance(out, RunRecord) and out.outcome is Outcome.PASS and len(out.windows) == 12, out.error
     assert refused == ["ENOSPC", "ENOSPC"]
     tries = [s for s in said if "resuming in" in s]
     assert [t.rsplit("(", 1)[1] for t in tries] == ["1/4)", "2/4)", "3/4)"], said

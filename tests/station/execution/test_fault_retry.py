@@ -21,6 +21,7 @@ from db.repo.units import get_or_create_bench, get_or_create_unit
 from drivers.errors import DeviceError, DeviceTimeout, LimitError, LinkLost, ProtocolError
 from station.execution.fault_retry import (
     FAULT_PREFIX,
+    NeverStarted,
     ResumeFailed,
     RetryPolicy,
     due_resume,
@@ -83,7 +84,7 @@ def test_run_resuming_tries_until_the_run_ends_and_gives_up_after_the_attempts()
     done = run_resuming(
         lambda: record(RunState.INTERRUPTED, 1, fault), again, RunControl(), said.append, fast
     )
-    assert done.state is RunState.COMPLETED and calls == ["run-1"] * 3
+    assert isinstance(done, RunRecord) and done.state is RunState.COMPLETED and calls == ["run-1"] * 3
     tries = [m[m.rindex("(") :] for m in said if "resuming in" in m]
     assert tries == ["(1/3)", "(2/3)", "(1/3)"]  # the window gained on the second try reset the count
     spent = run_resuming(
@@ -93,7 +94,8 @@ def test_run_resuming_tries_until_the_run_ends_and_gives_up_after_the_attempts()
         said.append,
         fast,
     )
-    assert spent.state is RunState.INTERRUPTED and "3 automatic resumes failed" in said[-1]
+    assert isinstance(spent, RunRecord) and spent.state is RunState.INTERRUPTED
+    assert "3 automatic resumes failed" in said[-1]
 
 
 def test_an_abort_during_the_wait_ends_the_tries() -> None:
@@ -101,7 +103,45 @@ def test_an_abort_during_the_wait_ends_the_tries() -> None:
     control.abort("Ctrl-C")
     fault = FAULT_PREFIX + "LinkLost"
     out = run_resuming(lambda: record(RunState.INTERRUPTED, 1, fault), pytest.fail, control, lambda s: None)
-    assert out.state is RunState.INTERRUPTED
+    assert isinstance(out, RunRecord) and out.state is RunState.INTERRUPTED
+
+
+def test_a_start_whose_devices_do_not_open_is_resumed_and_answered_never_started_until_one_opens() -> None:
+    """The start raises ResumeFailed with the stored run's id: every try is a resume of that run;
+    while none opens the devices the answer is NeverStarted with the last try's error."""
+    fast = RetryPolicy(attempts=3, first_wait_s=0.001, max_wait_s=0.002)
+    said: list[str] = []
+
+    def start() -> RunRecord:
+        raise ResumeFailed(FAULT_PREFIX + "the table at serial:///dev/ttyS0 did not answer", "run-1")
+
+    tries: list[str] = []
+
+    def still_down(run_id: str) -> RunRecord:
+        tries.append(run_id)
+        raise ResumeFailed(f"{FAULT_PREFIX}try {len(tries)}: the table did not answer", run_id)
+
+    out = run_resuming(start, still_down, RunControl(), said.append, fast)
+    assert out == NeverStarted("run-1", f"{FAULT_PREFIX}try 3: the table did not answer")
+    assert tries == ["run-1"] * 3 and "3 automatic resumes failed" in said[-1]
+    assert "serial:///dev/ttyS0" in said[0]
+    down = [ResumeFailed(FAULT_PREFIX + "still down", "run-1")]
+
+    def back(run_id: str) -> RunRecord:
+        if down:
+            raise down.pop()
+        return record(RunState.COMPLETED, 12)
+
+    done = run_resuming(start, back, RunControl(), said.append, fast)
+    assert isinstance(done, RunRecord) and done.state is RunState.COMPLETED
+
+
+def test_a_start_failure_without_a_stored_run_is_raised() -> None:
+    def start() -> RunRecord:
+        raise ResumeFailed("the devices did not open")
+
+    with pytest.raises(ResumeFailed):
+        run_resuming(start, pytest.fail, RunControl(), lambda s: None)
 
 
 def test_the_schedule_is_due_after_its_wait_and_holds_the_bench_meanwhile(tmp_path: Path) -> None:

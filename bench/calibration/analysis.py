@@ -9,8 +9,9 @@ check) is taken from the one :class:`Analysis`, never from the recording again.
   unit's registered nominal scale s and zero-g output b₀, e = |(ȳ − b₀)/s| − g over the fit's
   windows (static) or 1 s blocks (moving) — no second fit;
 * the budget's design (:func:`budget_design`): what the GUM budget of b and K needs of the fit
-  beyond its values; for a static fit the specific force f_w (m, 3), the window-mean covariances
-  S_w (m, 3, 3), the windows' mean table angles (m, k) and temperatures (m,); for a moving fit
+  beyond its values; for a static fit the specific force f_w (m, 3), the window means (m, 3)
+  and their covariances V_w (m, 3, 3), the windows' mean table angles (m, k) and temperatures
+  (m,), and whether the fit shared a slow wander between the windows; for a moving fit
   the model terms its sensitivities are refitted with (``bench.uncertainty.dynamic``);
 * the diagnosis (:func:`with_diagnosis`), which the service adds after the verdict.
 
@@ -30,7 +31,7 @@ from bench.calibration.kind import FitKind
 from bench.calibration.recording import calibrate_recording
 from bench.calibration.result import CalibrationResult
 from bench.calibration.static import NATURAL_ZERO_UNITS, nominal_force
-from bench.calibration.windows import select_windows, table_window_angles
+from bench.calibration.windows import select_windows, table_window_angles, window_means
 from bench.estimation.g_check import GCheck, g_check
 from bench.fitted_model import FittedModel, GCheckSummary, NominalReference
 from bench.recording import Recording
@@ -53,10 +54,14 @@ class StaticDesign:
     """The design of a known-orientation fit, as its budget reads it.
 
     :param f_m_s2: (m, 3) specific force of each window (m/s²).
-    :param window_cov: (m, 3, 3) covariance of each window mean, diag(σ²) (channel units²).
+    :param window_cov: (m, 3, 3) covariance of each window mean from its own samples, as the
+        fit had it (``windows.window_means``; channel units²).
     :param table_rad: (m, k) mean encoder angles of the windows (rad), ``None`` without a table.
     :param table: the table's geometry (axes, mount) the angles turn, ``None`` without a table.
     :param temp_c: (m,) mean sensor temperature of the windows (°C), ``None`` when not recorded.
+    :param y_mean: (m, 3) the window means the fit used (channel units).
+    :param correlated_windows: the fit modelled a slow wander shared by the windows
+        (``bias_reference == "long_run"``), not an independent excess per window.
     """
 
     f_m_s2: FloatArray
@@ -64,6 +69,8 @@ class StaticDesign:
     table_rad: FloatArray | None
     table: TableGeometry | None
     temp_c: FloatArray | None
+    y_mean: FloatArray
+    correlated_windows: bool
 
 
 @dataclass(frozen=True)
@@ -216,8 +223,9 @@ def _design(rec: Recording, fit: CalibrationResult) -> BudgetDesign | str:
     if fit.kind is not FitKind.STATIC or any(w.f_m_s2 is None for w in fit.windows):
         return f"the {fit.kind.value} fit has no known specific force per window"
     f = np.array([w.f_m_s2 for w in fit.windows], dtype=float)
-    S = np.array([np.diag(np.asarray(w.mean_sigma, dtype=float) ** 2) for w in fit.windows])
+    y = np.array([w.mean_raw for w in fit.windows], dtype=float)
     wins = select_windows(rec)
+    _, S = window_means(rec, wins)
     angles, table = None, rec.sidecar.table
     if rec.table_deg is not None and table is not None:
         angles = table_window_angles(rec, wins)
@@ -225,4 +233,4 @@ def _design(rec: Recording, fit: CalibrationResult) -> BudgetDesign | str:
     if rec.temp_c is not None:
         t = np.array([float(np.mean(rec.temp_c[w.start : w.stop])) for w in wins])
         temps = t if np.all(np.isfinite(t)) else None
-    return StaticDesign(f, S, angles, table, temps)
+    return StaticDesign(f, S, angles, table, temps, y, fit.bias_reference == "long_run")

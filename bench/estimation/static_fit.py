@@ -38,6 +38,7 @@ from bench.estimation.slow_noise import gls, window_covariance
 from bench.estimation.static_design import check_design, design_rows
 from bench.estimation.static_wander import fit_slow_wander
 from bench.estimation.window_noise import (
+    known_share,
     own_channel_variance,
     pm_statistic,
     pose_scatter,
@@ -146,7 +147,7 @@ def _gls(H: FloatArray, y: FloatArray, S: FloatArray) -> tuple[FloatArray, Float
 
 
 def _variance_components(
-    X: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray
+    X: FloatArray, y: FloatArray, V: FloatArray, K: FloatArray, known: FloatArray | None = None
 ) -> tuple[FloatArray, FloatArray, float, FloatArray]:
     """Between-window covariance per window: the pose part t M_w (m, 3, 3) and diag(τ²) (3,), inflated.
 
@@ -168,22 +169,61 @@ def _variance_components(
     95 % gate of ``own_channel_variance`` holds. Returns the pose part (m, 3, 3), the own
     excess (3,), the pose variance t and the gated own excess (3,), which the slow wander's
     REML keeps as its independent nugget (``static_wander``).
+
+    ``known`` (n, m, 3): effects on the window means of known random inputs, one standard
+    uncertainty each, the same draw in every window (``bench.uncertainty.type_a``); their
+    expected share of each statistic (``window_noise.known_share``) is taken out before it is
+    equated to its degrees of freedom, so t and τ² hold only the scatter they do not explain
+    (each clipped at zero).
     """
     m = X.shape[0]
     dof = m - 4
     M = pose_scatter(K, X[:, 1:4])
     md = np.clip(np.diagonal(M, axis1=1, axis2=2), 0.0, None)
     vd = np.diagonal(V, axis1=1, axis2=2)
+    kn = np.zeros((0, m, 3)) if known is None else np.asarray(known, dtype=float)
     t = 0.0
     if np.any(md > 0):
 
         def pooled_q(t: float) -> float:
-            return sum(pm_statistic(X, y[:, i], vd[:, i] + t * md[:, i]) for i in range(3))
+            return sum(
+                pm_statistic(X, y[:, i], vd[:, i] + t * md[:, i])
+                - known_share(X, kn[:, :, i].T, vd[:, i] + t * md[:, i])
+                for i in range(3)
+            )
 
         t = solve_decreasing(pooled_q, 3 * dof, float(np.median(vd / np.maximum(md, 1e-300))))
-    gated = own_channel_variance(X, y, vd + t * md)
-    own = gated if dof < UNGATED_MIN_DOF else own_channel_variance(X, y, vd + t * md, gated=False)
+    gated = own_channel_variance(X, y, vd + t * md, known=kn)
+    own = gated if dof < UNGATED_MIN_DOF else own_channel_variance(X, y, vd + t * md, gated=False, known=kn)
     return t * t_factor(3 * dof) * M, own * t_factor(dof), t, gated * t_factor(dof)
+
+
+def between_window_excess(
+    f_m_s2: FloatArray,
+    y_mean: FloatArray,
+    y_cov: FloatArray,
+    K: FloatArray,
+    *,
+    known: FloatArray | None = None,
+) -> tuple[FloatArray, float, FloatArray]:
+    """The between-window covariance :func:`fit_static` adds to each window, for a given K.
+
+    :param f_m_s2: (m, 3) specific forces; :param y_mean: (m, 3) window means;
+        :param y_cov: (m, 3, 3) their within-window covariances; :param K: (3, 3) scale matrix.
+    :param known: (n, m, 3) known random effects whose expected share is taken out of the
+        Paule-Mandel statistics (:func:`_variance_components`), or ``None``.
+    :returns: the excess (m, 3, 3) as the fit adds it (pose part + diag(τ²), each inflated by
+        ν/(ν − 2)), the pose variance t ((m/s²)²) and the own excess τ² (3,), both before the
+        inflation. Zero with 4 windows or fewer.
+    """
+    f, y, V = _validate(f_m_s2, y_mean, y_cov)
+    m = f.shape[0]
+    if m <= 4:
+        return np.zeros((m, 3, 3)), 0.0, np.zeros(3)
+    X = check_design(f)
+    V = 0.5 * (V + np.transpose(V, (0, 2, 1)))
+    pose, own, t, _ = _variance_components(X, y, V, np.asarray(K, dtype=float), known)
+    return pose + own[None, :, None] * np.eye(3)[None], t, own / t_factor(m - 4)
 
 
 def fit_static(

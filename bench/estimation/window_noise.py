@@ -188,7 +188,27 @@ def pose_scatter(K: FloatArray, f_m_s2: FloatArray) -> FloatArray:
     return np.asarray(np.einsum("ia,wab,jb->wij", K, P, K), dtype=float)
 
 
-def own_channel_variance(X: FloatArray, y: FloatArray, base: FloatArray, *, gated: bool = True) -> FloatArray:
+def known_share(X: FloatArray, D: FloatArray, v: FloatArray) -> float:
+    """Expected share in Q of known random effects: Σ_n Σ_w (P⊥ d_n)_w² / v_w.
+
+    An effect ξ_n d_n (ξ_n of variance 1, the same in every window) adds E[ξ_n² ‖P⊥ d_n‖²] =
+    ‖P⊥ d_n‖² to the expectation of the weighted residual sum of squares Q of the fit of y on
+    X (P⊥ = I − X (Xᵀ W X)⁻¹ Xᵀ W, W = diag(1/v)): the part of d_n the design cannot absorb.
+
+    :param X: (m, p) design; :param D: (m, n) effects of one standard uncertainty each, in the
+        unit of y; :param v: (m,) variances.
+    """
+    if D.shape[1] == 0:
+        return 0.0
+    Xw = X / v[:, None]
+    theta = np.linalg.solve(X.T @ Xw, Xw.T @ D)
+    r = D - X @ theta
+    return float(np.sum(r**2 / v[:, None]))
+
+
+def own_channel_variance(
+    X: FloatArray, y: FloatArray, base: FloatArray, *, gated: bool = True, known: FloatArray | None = None
+) -> FloatArray:
     """Each channel's own between-window variance τ_i² (Paule-Mandel, χ²-gated).
 
     After the common pose scatter, a channel may still scatter more than its windows'
@@ -201,11 +221,15 @@ def own_channel_variance(X: FloatArray, y: FloatArray, base: FloatArray, *, gate
 
     otherwise τ_i² = 0 (under a common cause alone the channel's share is noise).
     With ``gated=False`` τ_i² is that solution whenever Q_i > m − p (the plain Paule-Mandel
-    estimate, 0 otherwise).
+    estimate, 0 otherwise). With ``known`` effects, their expected share (:func:`known_share`)
+    is taken out of Q_i first, so the excess holds only what they do not explain:
+    Q_i(τ²) − Σ_n ‖P⊥ d_n,i‖²(τ²) = m − p, and τ_i² = 0 when even τ² = 0 leaves it below.
 
     :param X: (m, p) design shared by the channels.
     :param y: (m, c) window means.
     :param base: (m, c) variances already accounted for (within-window + pose).
+    :param known: (n, m, c) known random effects of one standard uncertainty each (channel
+        units), or ``None``.
     :returns: (c,) τ² in channel units², not yet inflated by :func:`t_factor`.
     """
     m, p = X.shape
@@ -215,12 +239,13 @@ def own_channel_variance(X: FloatArray, y: FloatArray, base: FloatArray, *, gate
     if dof <= 0:
         return own
     gate = float(chi2.ppf(OWN_SCATTER_GATE, dof)) if gated else float(dof)
+    kn = np.zeros((0, m, c)) if known is None else np.asarray(known, dtype=float)
     for i in range(c):
-        yi, bi = y[:, i], base[:, i]
-        if pm_statistic(X, yi, bi) > gate:
+        yi, bi, di = y[:, i], base[:, i], kn[:, :, i].T
 
-            def q_own(t: float, yi: FloatArray = yi, bi: FloatArray = bi) -> float:
-                return pm_statistic(X, yi, bi + t)
+        def q_own(t: float, yi: FloatArray = yi, bi: FloatArray = bi, di: FloatArray = di) -> float:
+            return pm_statistic(X, yi, bi + t) - known_share(X, di, bi + t)
 
+        if q_own(0.0) > gate:
             own[i] = solve_decreasing(q_own, dof, float(np.median(bi)))
     return own

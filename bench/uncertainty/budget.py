@@ -23,7 +23,9 @@ Each quantity's combined standard uncertainty (GUM 5.1.2, uncorrelated inputs) i
 
     u_c² = u_A² + Σ_X (c_X u(X))²
 
-with u_A the fit's own standard uncertainty (Type A, from its covariance). Effective degrees of
+with u_A the fit's own standard uncertainty (Type A, from its covariance; for the static fit
+with each input's expected share of the fit's between-window excess taken out first,
+``bench.uncertainty.type_a``, so an input that leaves residuals is counted once). Effective degrees of
 freedom (Welch–Satterthwaite, GUM G.4.1): ν_eff = u_c⁴ / Σ_i (u_i⁴ / ν_i). The coverage factor
 is k = t_p(ν_eff) with p = 95.45 % and ν_eff rounded down to an integer (GUM G.6.4,
 EA-4/02 M:2022 Annex E), which is 2 for ν_eff = ∞; U = k u_c.
@@ -173,7 +175,11 @@ def _weights(m: int, window_cov: FloatArray | None) -> FloatArray:
     return np.asarray(np.linalg.inv(0.5 * (S + np.transpose(S, (0, 2, 1)))), dtype=float)
 
 
-def _moves(inp: TypeBInput, m: int) -> tuple[FloatArray, FloatArray]:
+def moves(inp: TypeBInput, m: int) -> tuple[FloatArray, FloatArray]:
+    """(∂f_w/∂X, ∂y_w/∂X), each (m, 3), of input ``inp`` (zeros where it moves nothing).
+
+    :raises ValueError: a wrong shape, a non-finite move or a bad u(X) (named with the input).
+    """
     zero = np.zeros((m, 3))
     df = zero if inp.df_m_s2 is None else np.asarray(inp.df_m_s2, dtype=float)
     dy = zero if inp.dy is None else np.asarray(inp.dy, dtype=float)
@@ -217,11 +223,11 @@ def sensitivities(
         HtW = np.einsum("wai,wab->wib", H, W)
         N = np.einsum("wib,wbj->ij", HtW, H)
         for n, inp in enumerate(inputs):
-            df, dy = _moves(inp, m)
+            df, dy = moves(inp, m)
             out[n] = np.linalg.solve(N, np.einsum("wib,wb->i", HtW, dy - df @ Km.T))
     elif method == "refit":
         for n, inp in enumerate(inputs):
-            df, dy = _moves(inp, m)
+            df, dy = moves(inp, m)
             h = inp.u if inp.u > 0 else 1e-6
             plus = _gls(f + h * df, y0 + h * dy, W)
             minus = _gls(f - h * df, y0 - h * dy, W)

@@ -5,7 +5,10 @@ design from the recording, the budget of ``bench.uncertainty.budget`` passed on 
 
 The design is the run's analysis's (``bench.calibration.analysis.budget_design``: the windows
 and specific forces of the one fit, or a moving fit's model terms), never a refit; values and
-Type A standard uncertainties are the stored fit's (:class:`bench.fitted_model.FittedModel`).
+Type A standard uncertainties are the stored fit's (:class:`bench.fitted_model.FittedModel`),
+for a static fit with an independent excess per window each σ times the factor that takes the
+Type B inputs' expected share out of that excess (``bench.uncertainty.type_a``; a fit with a
+slow wander shared by the windows keeps its σ and says so).
 A moving fit's sensitivities are refits of the changed recording (``bench.uncertainty.dynamic``),
 minutes of CPU: :func:`analysis_budget` forms a budget once per analysis and Type B settings,
 before any database transaction opens. Inputs that do not apply are listed under ``not_evaluated``
@@ -28,12 +31,19 @@ from bench.uncertainty.budget import RULE, Budget, TypeBInput, uncertainty_budge
 from bench.uncertainty.dynamic import METHOD as DYNAMIC_METHOD
 from bench.uncertainty.dynamic import dynamic_budget, dynamic_inputs
 from bench.uncertainty.inputs import daq_inputs, gravity_input, table_inputs, temperature_inputs
+from bench.uncertainty.type_a import type_a_without_type_b
 
 ANALOG_UNITS = ("V", "mV")
 """Channel units measured through the DAQ (its gain and offset apply)."""
 TYPE_A_BASIS = (
-    "the fit's covariance: batch-means noise of each window and the scatter between windows; "
+    "the fit's covariance: batch-means noise of each window and the scatter between windows, "
+    "with each Type B input's expected share of that scatter taken out (each input counted once); "
     "ν = ∞ (the fit states the standard deviation of the Student-t of its variance components)"
+)
+CORRELATED_TYPE_A_BASIS = (
+    "the fit's covariance: batch-means noise of each window and a slow wander shared by the windows; "
+    "the Type B inputs' share of the scatter between windows is not taken out (it may be counted "
+    "twice); ν = ∞ (the fit states the standard deviation of the Student-t of its variance components)"
 )
 DYNAMIC_TYPE_A_BASIS = (
     "the dynamic fit's covariance: Newey–West sandwich over blocks of the samples, never below "
@@ -184,9 +194,17 @@ def certificate_budget(analysis: Analysis, stored: FittedModel, tb: TypeBSetting
     rec = analysis.recording
     if isinstance(design, MovingDesign):
         return _dynamic_budget(rec, design.terms, stored.channel_unit, tb, b, K, np.diag(sigma**2))
-    f, S, inputs, skipped = budget_inputs(design, rec.sidecar.g_local_m_s2, stored, tb)
-    budget = uncertainty_budget(f, b, K, np.diag(sigma**2), inputs, window_cov=S)
-    return CertificateBudget(budget, stored.channel_unit, tuple(skipped))
+    f, V, inputs, skipped = budget_inputs(design, rec.sidecar.g_local_m_s2, stored, tb)
+    if design.correlated_windows:
+        budget = uncertainty_budget(f, b, K, np.diag(sigma**2), inputs, window_cov=V)
+        return CertificateBudget(budget, stored.channel_unit, tuple(skipped), CORRELATED_TYPE_A_BASIS)
+    type_a = type_a_without_type_b(f, design.y_mean, V, K, inputs)
+    cov_a = np.diag((sigma * type_a.ratio()) ** 2)
+    budget = uncertainty_budget(f, b, K, cov_a, inputs, window_cov=type_a.weights_cov)
+    basis = TYPE_A_BASIS
+    if type_a.clipped:
+        basis += "; at zero once the inputs' share is out: " + ", ".join(type_a.clipped)
+    return CertificateBudget(budget, stored.channel_unit, tuple(skipped), basis)
 
 
 def analysis_budget(

@@ -16,7 +16,8 @@ import pytest
 
 from api.simulated_recording import write_simulated
 from bench.calibration import calibrate_recording
-from bench.calibration.analysis import analyse
+from bench.calibration.analysis import StaticDesign, analyse, budget_design
+from bench.estimation.static_fit import fit_static
 from bench.fitted_model import FittedModel
 from bench.recording import Recording, read_recording
 from db.repo.certificates import canonical_sha256
@@ -156,3 +157,34 @@ def test_combined_reads_u_c_and_the_largest_stated_k_of_each_quantity() -> None:
     assert (stated["K_yz"]["k"], stated["K_yz"]["u_c"], stated["K_yz"]["unit"]) == (2.123, 9e-6, "V/(m/s2)")
     with pytest.raises(ValueError, match="budget quantity 'K': expected 'bias' or 'scale_matrix'"):
         typed.combined("K")
+
+
+def test_type_a_line_counts_each_type_b_input_once(recorded: tuple[Recording, dict[str, Any]]) -> None:
+    """Without Type B inputs the Type A line is the fit's σ. With inputs stated far larger than the
+    scatter the windows show (this simulated bench has no such errors), their expected share takes
+    the whole between-window excess out: the line falls to the σ of the fit's estimator under the
+    windows' own noise, which lies between the within-window-only fit's σ (the generalised least
+    squares with the windows' own covariances, the smallest any weighting reaches) and the fit's σ,
+    and the certificate names what was taken to zero."""
+    rec, cal = recorded
+    analysis = analyse(rec)
+    stored = FittedModel.from_contract(cal)
+    sigma = np.concatenate([np.ravel(cal["bias_sigma"]), np.ravel(cal["scale_matrix_sigma"])])
+
+    def type_a(tb: TypeBSettings) -> tuple[np.ndarray, str]:
+        b = certificate_budget(analysis, stored, tb)
+        return np.array([q.contributions[0].contribution for q in b.budget.quantities]), b.type_a_basis
+
+    line, basis = type_a(ZERO)
+    np.testing.assert_allclose(line, sigma, rtol=1e-12)
+    assert "taken out" in basis and "at zero" not in basis
+    design = budget_design(analysis)
+    assert isinstance(design, StaticDesign) and not design.correlated_windows
+    noise_only = fit_static(design.f_m_s2, design.y_mean, design.window_cov, between_window=False).sigma
+    assert np.all(noise_only < sigma * 0.999)  # the fit found an excess between the windows
+    large = TypeBSettings(0.5, 1e-2, 1e-5, 1e-5, 1e-5, 0.5, 1e-2)
+    line, basis = type_a(large)
+    assert np.all(line <= sigma * (1 + 1e-9)), line / sigma
+    assert np.all(line >= noise_only * (1 - 1e-9)), line / noise_only
+    assert np.all(line < sigma * 0.999), line / sigma
+    assert "at zero once the inputs' share is out" in basis and "own excess" in basis

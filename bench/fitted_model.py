@@ -2,7 +2,7 @@
 the ``calbench calibrate --json`` object (``docs/cli-contract.md``).
 
 A fresh fit gives it by :meth:`bench.calibration.CalibrationResult.fitted_model`; a fit stored
-as JSON (a run's ``params["calibration"]``, a ``fit`` row) is parsed once, where it leaves the
+as JSON (a run's ``fit_model`` row, an uploaded contract) is parsed once, where it leaves the
 database, by :meth:`FittedModel.from_contract`, which names the first missing or ill-typed key.
 Limits, certificates, exports and plots read the typed object, never the JSON by string key.
 

@@ -27,7 +27,7 @@ from bench.run_observer import NullObserver
 from db.models import FINAL_STATES, FitKind, Run, RunState
 from db.models import run_params as rp
 from db.notify import notify_run
-from db.repo import progress, recovery, results, runs, units
+from db.repo import gaps, progress, recovery, results, runs, units
 from db.types import utc_now
 
 T = TypeVar("T")
@@ -54,23 +54,21 @@ def finish_record(s: Session, record: br.RunRecord) -> bool:
 
 def store_fit(s: Session, record: br.RunRecord, *, replace: bool = True) -> None:
     """Store the run's one fit, from its analysis (``record.analysis``, else ``record.calibration``):
-    the ``fit`` row (kind as the fit chose it, the ``calbench calibrate --json`` object, the
-    covariance and its parameter names) and the same object as ``params["calibration"]``, the
-    copy the run's API object shows. A fit already stored is replaced (``replace``) or kept.
+    its ``fit_model`` row (kind as the fit chose it, the ``calbench calibrate --json`` object, the
+    covariance and its parameter names), the one home every reader takes it from. A fit already
+    stored is replaced (``replace``) or kept.
     """
     fit = record.calibration
     if fit is None:
         raise ValueError(f"run {record.run_id} has no fit to store")
+    if s.get(Run, record.run_id, with_for_update=True) is None:
+        raise LookupError(f"run {record.run_id} not found")
     existing = results.list_fits(s, record.run_id)
     if existing and not replace:
         return
     for row in existing:
         s.delete(row)
     contract = record.analysis.contract() if record.analysis is not None else fit.to_contract()
-    run = s.get(Run, record.run_id, with_for_update=True)
-    if run is None:
-        raise LookupError(f"run {record.run_id} not found")
-    run.params = {**run.params, rp.CALIBRATION: contract}
     results.add_fit(
         s,
         record.run_id,
@@ -84,19 +82,17 @@ def store_fit(s: Session, record: br.RunRecord, *, replace: bool = True) -> None
 def update_stored_fit(
     s: Session, run_id: str, change: Callable[[dict[str, Any]], dict[str, Any] | None]
 ) -> None:
-    """Change the run's stored fit: ``change`` gets the stored ``calibrate --json`` object and
-    gives the new one (``None``: no change), written to the ``fit`` row and to
-    ``params["calibration"]`` alike."""
-    run = s.get(Run, run_id, with_for_update=True)
-    stored = run.params.get(rp.CALIBRATION) if run is not None else None
-    if run is None or not isinstance(stored, dict):
+    """Change the run's stored fit: ``change`` gets the ``calibrate --json`` object of its
+    ``fit_model`` row and gives the new one (``None``: no change)."""
+    if s.get(Run, run_id, with_for_update=True) is None:
         return
-    new = change(stored)
+    row = results.fit_of_run(s, run_id)
+    if row is None or not isinstance(row.contract, dict):
+        return
+    new = change(row.contract)
     if new is None:
         return
-    run.params = {**run.params, rp.CALIBRATION: new}
-    for row in results.list_fits(s, run_id):
-        row.contract = new
+    row.contract = new
     s.flush()
 
 
@@ -271,15 +267,12 @@ class DbRunObserver(NullObserver):
         self._tx(lambda s: runs.merge_params(s, run_id, {rp.DWELL: dataclasses.asdict(dwell)}))
 
     def on_gap(self, run_id: str, gap: br.GapRecord) -> None:
-        """A sample gap, stored as it happens in ``params["sample_gaps"]`` (list of objects)."""
+        """A sample gap, stored as it happens (a ``sample_gap`` row)."""
 
         def write(s: Session) -> None:
-            run = s.get(Run, run_id, with_for_update=True)
-            if run is None:
+            if s.get(Run, run_id, with_for_update=True) is None:
                 raise LookupError(f"run {run_id} not found")
-            gaps = list(run.params.get(rp.SAMPLE_GAPS) or [])
-            run.params = {**run.params, rp.SAMPLE_GAPS: [*gaps, dataclasses.asdict(gap)]}
-            s.flush()
+            gaps.add_gap(s, run_id, gap)
 
         self._tx(write, notify=run_id)
 
@@ -299,11 +292,11 @@ class DbRunObserver(NullObserver):
             run.n_samples = record.n_samples
             run.limit_checks = [dataclasses.asdict(c) for c in record.limit_checks]
             # the recording's own list (a resume drops the gaps after the rows it cut)
-            run.params = {**run.params, rp.SAMPLE_GAPS: [dataclasses.asdict(g) for g in record.gaps]}
+            gaps.replace_gaps(s, run_id, record.gaps)
             if record.dwell is not None:
                 run.params = {**run.params, rp.DWELL: dataclasses.asdict(record.dwell)}
             if record.conformity_note:
-                run.params = {**run.params, rp.CONFORMITY_NOTE: record.conformity_note}
+                run.conformity_note = record.conformity_note
             s.flush()
             if not record.state.is_final:
                 recovery.mark_run_interrupted(s, run_id, record.error or "the run stopped before finishing")

@@ -20,7 +20,6 @@ from api.cli import BadInput, decimal_arg
 from db.engine import describe_connection_error, make_session_factory
 from db.migrate import open_database
 from db.models import Run, RunState
-from db.models import run_params as rp
 from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs
 from db.repo.runs import list_runs
 
@@ -60,7 +59,7 @@ def run_as_dict(run: Run) -> dict[str, Any]:
         "procedure": run.procedure,
         "state": run.state.value,
         "outcome": run.outcome,
-        "conformity_note": run.params.get(rp.CONFORMITY_NOTE) or None,
+        "conformity_note": run.conformity_note or None,
         "progress": run.progress,
         "bench": run.bench.name if run.bench is not None else None,
         "created_at": _iso(run.created_at),

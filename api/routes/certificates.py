@@ -12,8 +12,8 @@ from api.routes.views import certificate_out
 from api.schemas import CertificateOut
 from bench.fitted_model import ContractError, FittedModel
 from db.models import Certificate, Unit
-from db.models import run_params as rp
 from db.repo.certificates import get_certificate_by_number
+from db.repo.results import fit_contract
 from db.repo.runs import get_run
 from station.certificates.issue import (
     analyse_recording,
@@ -87,8 +87,8 @@ def issue(run_id: str, session: SessionDep, settings: SettingsDep, _: OperatorDe
         _issuable(session, run_id)
         run = get_run(session, run_id)
         assert run is not None
-        path, diagnosed = run.recording_path, isinstance(run.params.get(rp.DIAGNOSIS), dict)
-        cal = run.params.get(rp.CALIBRATION)
+        path, diagnosed = run.recording_path, isinstance(run.diagnosis, dict)
+        cal = fit_contract(session, run_id)
         g_check = cal.get("g_check", {}) if isinstance(cal, dict) else {}
         nominal = None if "before" in g_check else unit_nominal(session.get(Unit, run.unit_id))
         params = dict(run.params)

@@ -25,11 +25,12 @@ from bench.export import FORMATS, MEDIA_TYPES, SUFFIX
 from bench.fitted_model import ContractError, FittedModel
 from bench.recording.reader import sidecar_path_for
 from db.models import ACTIVE_STATES, Run
-from db.models import run_params as rp
 from db.repo.certificates import certificate_of_run
 from db.repo.progress import list_windows
+from db.repo.results import fit_contract, fit_contracts
 from db.repo.runs import get_run, list_runs
 from db.repo.units import get_unit_by_serial
+from db.types import unreadable_reason
 
 router = APIRouter(tags=["plots"])
 CACHE = BundleCache()
@@ -49,7 +50,7 @@ def _final_run(session: Session, run_id: str) -> Run:
         raise HTTPException(
             status.HTTP_409_CONFLICT, f"run {run_id} is {run.state.value}: no plots until it ends"
         )
-    if not isinstance(run.params.get(rp.CALIBRATION), dict):
+    if not isinstance(fit_contract(session, run_id), dict):
         raise HTTPException(
             status.HTTP_409_CONFLICT, f"run {run_id} is {run.state.value} without a fit: nothing to plot"
         )
@@ -85,12 +86,12 @@ def _registered_nominal(session: Session, run_id: str) -> tuple[float | None, li
         return float(unit.nominal_scale), bias
 
 
-def stored_fit(run: Run) -> FittedModel:
-    """The run's stored fit, parsed.
+def stored_fit(run_id: str, contract: object) -> FittedModel:
+    """The run's stored fit (``contract``: its ``fit_model`` row's object), parsed.
 
     :raises ContractError: the stored object lacks a key or holds an ill-typed one (named).
     """
-    return FittedModel.from_contract(run.params.get(rp.CALIBRATION), f"run {run.id}: stored fit")
+    return FittedModel.from_contract(contract, f"run {run_id}: stored fit")
 
 
 def _previous_calibration(session: Session, run_id: str) -> PreviousCalibration | None:
@@ -99,13 +100,17 @@ def _previous_calibration(session: Session, run_id: str) -> PreviousCalibration 
         run = get_run(session, run_id, with_unit=True)
         if run is None:
             return None
-        for other in list_runs(session, unit_serial=run.unit.serial):  # newest first
-            if other.id == run_id or other.created_at >= run.created_at:
-                continue
-            if not isinstance(other.params.get(rp.CALIBRATION), dict):
+        earlier = [
+            other
+            for other in list_runs(session, unit_serial=run.unit.serial)  # newest first
+            if other.id != run_id and other.created_at < run.created_at
+        ]
+        fits = fit_contracts(session, [other.id for other in earlier])
+        for other in earlier:
+            if not isinstance(fits.get(other.id), dict):
                 continue
             try:
-                return PreviousCalibration(other.id, stored_fit(other))
+                return PreviousCalibration(other.id, stored_fit(other.id, fits[other.id]))
             except ContractError:
                 continue
     return None
@@ -159,9 +164,9 @@ def diagnosis(run_id: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
         run = get_run(session, run_id)
         if run is None:
             raise HTTPException(status.HTTP_404_NOT_FOUND, f"run {run_id} not found")
-        diag = run.params.get(rp.DIAGNOSIS)
-        note = str(run.params.get(rp.DIAGNOSIS_ERROR) or "")
-        if not isinstance(diag, dict):
+        diag = run.diagnosis
+        note = str(run.diagnosis_error or unreadable_reason(diag) or "")
+        if not isinstance(diag, dict) or unreadable_reason(diag) is not None:
             diag = None
             if not note:
                 note = (
@@ -182,11 +187,13 @@ def history(serial: str, session: SessionDep, _: ViewerDep) -> dict[str, Any]:
             raise HTTPException(status.HTTP_404_NOT_FOUND, f"unit {serial} not found")
         points = []
         unreadable = []
-        for run in list_runs(session, unit_serial=serial):
-            if not isinstance(run.params.get(rp.CALIBRATION), dict):
+        runs = list_runs(session, unit_serial=serial)
+        fits = fit_contracts(session, [run.id for run in runs])
+        for run in runs:
+            if not isinstance(fits.get(run.id), dict):
                 continue
             try:
-                fit = stored_fit(run)
+                fit = stored_fit(run.id, fits[run.id])
             except ContractError as exc:
                 unreadable.append({"run_id": run.id, "error": str(exc)})
                 continue
@@ -217,9 +224,9 @@ def export(run_id: str, fmt: str, session: SessionDep, _: ViewerLinkDep) -> Resp
             status.HTTP_404_NOT_FOUND, f"unknown export format {fmt!r}; known: {', '.join(FORMATS)}"
         )
     with session.begin():
-        run = _final_run(session, run_id)
+        _final_run(session, run_id)
         try:
-            fit = stored_fit(run)
+            fit = stored_fit(run_id, fit_contract(session, run_id))
         except ContractError as exc:
             raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
         cert = certificate_of_run(session, run_id)

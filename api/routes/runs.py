@@ -28,6 +28,7 @@ from db.models import Certificate, RunState
 from db.repo.audit import run_audit
 from db.repo.progress import list_windows
 from db.repo.queue import finishing_since
+from db.repo.results import results_of_runs
 from db.repo.runs import get_run, list_runs
 from station.certificates.conformity import unit_warnings
 from station.runs.queue import NotResumable
@@ -96,7 +97,11 @@ def runs(
             sa.select(Certificate.run_id, Certificate.number).where(Certificate.run_id.in_(ids))
         ).all()
         numbers = dict(found)
-        return [run_out(r, r.unit.serial, runner.live(r.id), numbers.get(r.id)) for r in rows]
+        results = results_of_runs(session, ids)
+        return [
+            run_out(r, r.unit.serial, runner.live(r.id), numbers.get(r.id), results=results[r.id])
+            for r in rows
+        ]
 
 
 @router.get("/{run_id}", response_model=RunOut, responses={404: {"description": "no such run"}})
@@ -114,6 +119,7 @@ def run(run_id: str, session: SessionDep, runner: RunnerDep, settings: SettingsD
                 row.unit.serial,
                 runner.live(run_id),
                 cert.number if cert is not None else None,
+                results=results_of_runs(session, [run_id])[run_id],
                 with_diagnosis=True,
                 windows=list_windows(session, run_id),
                 audit=run_audit(session, run_id),

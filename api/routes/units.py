@@ -13,6 +13,7 @@ from api.schemas import SERIAL_PATTERN, UnitHistory, UnitOut, UnitRegistration
 from db.models import Bench, Certificate, DriftCheck, Run, Unit
 from db.repo.certificates import list_certificates
 from db.repo.drift import list_drift_checks
+from db.repo.results import results_of_runs
 from db.repo.runs import list_runs
 from db.repo.units import get_or_create_unit, get_unit_by_serial, list_units
 
@@ -101,9 +102,12 @@ def history(serial: str, session: SessionDep, runner: RunnerDep, _: ViewerDep) -
         by_run = {c.run_id: c.number for c in certs}
         by_id = {c.id: c.number for c in certs}
         runs = list(reversed(list_runs(session, unit_serial=serial)))
+        results = results_of_runs(session, [r.id for r in runs])
         return UnitHistory(
             unit=_unit_out(session, unit),
-            runs=[run_out(r, serial, runner.live(r.id), by_run.get(r.id)) for r in runs],
+            runs=[
+                run_out(r, serial, runner.live(r.id), by_run.get(r.id), results=results[r.id]) for r in runs
+            ],
             certificates=[certificate_out(c, serial) for c in certs],
             drift_checks=[
                 drift_out(d, serial, by_id.get(d.reference_certificate_id or -1))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from api.schemas import (
@@ -18,6 +19,7 @@ from bench.fitted_model import ContractError
 from bench.limits import DECISION_RULES
 from db.models import AuditAction, Certificate, DriftCheck, Run, RunAudit, RunWindow
 from db.models import run_params as rp
+from db.repo.results import RunResults
 from db.types import unreadable_reason
 from station.runs.live import PHASES, window_means
 from station.runs.runner import LiveRun
@@ -46,6 +48,7 @@ def run_out(
     live: LiveRun | None = None,
     certificate: str | None = None,
     *,
+    results: RunResults,
     with_diagnosis: bool = False,
     windows: list[RunWindow] | None = None,
     audit: list[RunAudit] | None = None,
@@ -54,6 +57,7 @@ def run_out(
     """A stored run; a live one shows the runner's fresher progress. A stored value that cannot
     be parsed is shown empty and named in ``unreadable`` (:func:`unreadable_fields`).
 
+    :param results: the run's fit and sample gaps (:func:`db.repo.results.results_of_runs`).
     :param with_diagnosis: include the whole diagnosis object (one run's view, not lists).
     :param windows: the run's stored windows (one run's view), ``None`` in lists.
     :param audit: the run's audit rows (one run's view), ``None`` in lists.
@@ -61,10 +65,9 @@ def run_out(
         replace the stored ones, so the page and the certificate state one U.
     """
     certificate_u = certificate_check_u(certificate_content)
-    cal = run.params.get(rp.CALIBRATION)
+    cal = results.fit
     diag, stored, note = _diagnosis(run)
-    raw_gaps = run.params.get(rp.SAMPLE_GAPS)
-    gaps = [SampleGapOut(**g) for g in raw_gaps if isinstance(g, dict)] if isinstance(raw_gaps, list) else []
+    gaps = [SampleGapOut(**dataclasses.asdict(g)) for g in results.gaps]
     progress = run.progress
     if live is not None and run.state.is_live:
         progress = max(progress, live.progress)
@@ -77,7 +80,7 @@ def run_out(
         state=run.state,
         progress=min(1.0, max(0.0, progress)),
         outcome=run.outcome,
-        conformity_note=str(run.params[rp.CONFORMITY_NOTE]) if run.params.get(rp.CONFORMITY_NOTE) else None,
+        conformity_note=run.conformity_note or None,
         error=run.error,
         bench=run.params.get(rp.BENCH),
         created_at=_readable(run.created_at),
@@ -85,20 +88,18 @@ def run_out(
         finished_at=_readable(run.finished_at),
         n_samples=run.n_samples,
         last_complete_window=run.last_complete_window,
-        calibration=cal if isinstance(cal, dict) else None,
+        calibration=cal if isinstance(cal, dict) and unreadable_reason(cal) is None else None,
         certificate_number=certificate,
         n_findings=len(stored.findings) if stored is not None else None,
         diagnosis=diag if with_diagnosis else None,
         diagnosis_note=str(note) if diag is None and note else None,
         n_samples_lost=sum(g.n_lost or 0 for g in gaps) if run.n_samples is not None or gaps else None,
         gaps=gaps if with_diagnosis else None,
-        certificate_note=str(run.params[rp.CERTIFICATE_ERROR])
-        if run.params.get(rp.CERTIFICATE_ERROR)
-        else None,
+        certificate_note=run.certificate_error or None,
         limit_checks=[_check(c, certificate_u) for c in (run.limit_checks or [])],
         decision_rule=_rule(run.limit_checks),
         windows=[_window(w) for w in windows] if windows is not None else None,
-        unreadable=unreadable_fields(run),
+        unreadable=unreadable_fields(run, cal),
         started_by=started_by(audit) if audit is not None else None,
         audit=[audit_out(a) for a in audit] if audit is not None else None,
     )
@@ -106,6 +107,7 @@ def run_out(
 
 _RUN_FIELDS = (
     "params",
+    "diagnosis",
     "created_at",
     "started_at",
     "finished_at",
@@ -115,10 +117,13 @@ _RUN_FIELDS = (
 )
 
 
-def unreadable_fields(run: Run) -> str | None:
-    """``"params: not JSON: ... ; created_at: not a time: ..."`` for the run's stored values that
-    cannot be parsed, ``None`` when every one reads."""
+def unreadable_fields(run: Run, fit: dict[str, Any] | None = None) -> str | None:
+    """``"params: not JSON: ... ; created_at: not a time: ..."`` for the run's stored values (and
+    its fit's ``calibrate --json`` object, ``fit``) that cannot be parsed, ``None`` when every one
+    reads."""
     found = [f"{name}: {why}" for name in _RUN_FIELDS if (why := unreadable_reason(getattr(run, name)))]
+    if (why := unreadable_reason(fit)) is not None:
+        found.append(f"fit: {why}")
     return "; ".join(found) or None
 
 
@@ -146,9 +151,9 @@ def started_by(audit: list[RunAudit]) -> str | None:
 def _diagnosis(run: Run) -> tuple[dict[str, Any] | None, StoredDiagnosis | None, object]:
     """The run's stored diagnosis as stored and parsed, and why there is none: a stored
     diagnosis that cannot be parsed is shown as none, with the parser's message naming the key."""
-    diag = run.params.get(rp.DIAGNOSIS)
+    diag = run.diagnosis
     if diag is None:
-        return None, None, run.params.get(rp.DIAGNOSIS_ERROR)
+        return None, None, run.diagnosis_error
     try:
         stored = StoredDiagnosis.from_contract(diag, f"run {run.id}: stored diagnosis")
     except ContractError as exc:

@@ -23,7 +23,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from api.runs.wakeup import EVENT_POLL_S
 from db.models import FINAL_STATES, Run, RunState, RunWindow
-from db.models.run_params import SAMPLE_GAPS
+from db.repo.gaps import list_gaps
 from db.repo.recovery import DEFAULT_STALE_AFTER_S
 from db.types import utc_now
 from station.runs.live import window_means
@@ -37,7 +37,7 @@ class RunSnapshot:
     :param last_window: index of the run's last complete window (``None``: none yet).
     :param live: the latest ``progress`` event's data, if the agent stored one.
     :param finished: the final event's data once the run is over and its results stored.
-    :param gaps: ``gap`` events: every sample gap recorded so far (``run.params[SAMPLE_GAPS]``).
+    :param gaps: ``gap`` events: every sample gap recorded so far (the run's ``sample_gap`` rows).
     """
 
     state: RunState
@@ -107,7 +107,7 @@ def run_snapshot(
             tuple(windows),
             last,
             _finished(run, utc_now()),
-            tuple(g for g in run.params.get(SAMPLE_GAPS) or () if isinstance(g, dict)),
+            tuple(dataclasses.asdict(g) for g in list_gaps(s, run_id)),
         )
 
 

@@ -3,7 +3,7 @@
 certificates and run views use.
 
 A fresh diagnosis gives it by :meth:`StoredDiagnosis.of`; a diagnosis stored as JSON (a run's
-``params["diagnosis"]``) is parsed once, where it leaves the database, by
+``run.diagnosis`` column) is parsed once, where it leaves the database, by
 :meth:`StoredDiagnosis.from_contract`, which names the first missing or ill-typed key (its
 dotted path, e.g. ``findings[0].summary``). Keys beyond the ones read are ignored.
 """

@@ -9,7 +9,9 @@ table              holds
 ``run_audit``      every action on a run: operator (or agent, system), time, state, reason
 ``run_window``     a completed window of a run (label, times, per-channel means)
 ``sample_chunk``   a durable chunk of the run's recording CSV (the CSV is the sample store)
-``fit_model``      a fitted model: the ``calibrate --json`` dict and its covariance (.npy)
+``sample_gap``     a sample gap of a run (samples lost, where, the rule applied)
+``fit_model``      a run's fitted model (its one home): the ``calibrate --json`` dict and its
+                   covariance (.npy); the newest row of a run is its fit
 ``finding``        a diagnosis finding (effect id, parameters, sigma, delta BIC)
 ``certificate``    an issued certificate: unique number, JSON content, sha256, optional PDF
 ``drift_check``    a nightly re-measurement compared with the unit's last certificate
@@ -28,6 +30,7 @@ from db.models.runs import (
     RunState,
     RunWindow,
     SampleChunk,
+    SampleGap,
 )
 from db.models.tokens import ApiToken, TokenRole
 from db.models.units import Bench, Unit
@@ -52,6 +55,7 @@ __all__ = [
     "RunState",
     "RunWindow",
     "SampleChunk",
+    "SampleGap",
     "TokenRole",
     "Unit",
 ]

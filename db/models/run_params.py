@@ -2,8 +2,9 @@
 
 ``params`` holds the procedure's parameters as the run was started (the procedure's own
 parameters, the dwell choice, the bench and bench file, the simulated unit's seed, the DAQ
-rate) and, until they get rows of their own, the analysis results (the fit, the diagnosis)
-and the sample gaps. Control requests (abort, pause, continue, resume) and the service's
+rate) and nothing else. The fit is the run's newest ``fit_model`` row, the sample gaps are
+``sample_gap`` rows, the diagnosis and the notes on the analysis are ``run`` columns
+(:data:`MOVED_TO_RESULTS`). Control requests (abort, pause, continue, resume) and the service's
 bookkeeping (the kind of run, the requested dwell, the drift night, the simulated unit's age,
 the latest progress, the final event, the start of finishing, the next automatic resume) are
 columns of ``run``; every action is a ``run_audit`` row. Code reads and writes ``params``
@@ -29,19 +30,6 @@ EXPECTED_DURATION_S = "expected_duration_s"
 DWELL = "dwell"
 """The dwell choice and why (``bench.records.DwellChoice`` as an object)."""
 
-# what the run recorded
-SAMPLE_GAPS = "sample_gaps"
-"""Every sample gap (``bench.records.GapRecord`` objects), in order."""
-
-# analysis results (the fit's and the diagnosis's own homes are being made; until then here)
-CALIBRATION = "calibration"
-DIAGNOSIS = "diagnosis"
-DIAGNOSIS_ERROR = "diagnosis_error"
-CERTIFICATE_ERROR = "certificate_error"
-CONFORMITY_NOTE = "conformity_note"
-"""For a completed fit no limits judged (no PASS or FAIL): ``"no conformity statement: <why>"``
-(``bench.records.RunRecord.conformity_note``)."""
-
 MOVED_TO_COLUMNS = {
     "service_kind": "kind",
     "request": "requested_dwell_s",
@@ -56,3 +44,13 @@ MOVED_TO_COLUMNS = {
     "service_finished": "final_event",
 }
 """Keys ``params`` held before migration 0004 and the ``run`` columns they moved to."""
+
+MOVED_TO_RESULTS = {
+    "calibration": "fit_model.contract (the run's newest fit_model row)",
+    "diagnosis": "diagnosis",
+    "diagnosis_error": "diagnosis_error",
+    "certificate_error": "certificate_error",
+    "conformity_note": "conformity_note",
+    "sample_gaps": "sample_gap rows (one per gap, in order: seq)",
+}
+"""Keys ``params`` held before migration 0005 and where they moved (``run`` columns unless named)."""

@@ -24,7 +24,16 @@ if TYPE_CHECKING:
     from db.models.units import Bench, Unit
 
 
-__all__ = ["ACTIVE_STATES", "FINAL_STATES", "RESUMABLE_STATES", "Run", "RunState", "RunWindow", "SampleChunk"]
+__all__ = [
+    "ACTIVE_STATES",
+    "FINAL_STATES",
+    "RESUMABLE_STATES",
+    "Run",
+    "RunState",
+    "RunWindow",
+    "SampleChunk",
+    "SampleGap",
+]
 
 
 class Run(Base):
@@ -35,8 +44,9 @@ class Run(Base):
     :param state: :class:`bench.records.RunState` (the one run vocabulary).
     :param outcome: ``PASS``/``FAIL``/``ERROR``/``ABORTED`` once finished, else ``None``.
     :param progress: fraction done, 0..1.
-    :param params: the procedure's parameters (JSON), including the dwell choice and its reason,
-        and the analysis results not yet in rows of their own; keys: :mod:`db.models.run_params`.
+    :param params: the procedure's parameters (JSON), including the dwell choice and its reason;
+        keys: :mod:`db.models.run_params`. The fit is the run's newest ``fit_model`` row, the
+        sample gaps are ``sample_gap`` rows.
     :param kind: ``calibration`` or ``drift_check`` for a run the service queued, ``None`` for a
         run started from the command line.
     :param requested_dwell_s: the dwell the request asked for (s), ``None``: decided by the run.
@@ -63,6 +73,13 @@ class Run(Base):
         ``None`` before the first one.
     :param n_samples: samples in the recording at the end of the run.
     :param limit_checks: the unit's limits evaluated on the fit (list of JSON objects).
+    :param conformity_note: for a completed fit no limits judged (no PASS or FAIL): ``"no
+        conformity statement: <why>"`` (``bench.records.RunRecord.conformity_note``), else ``None``.
+    :param diagnosis: the ``calbench diagnose --json`` object of the run's recording (its
+        findings are also ``finding`` rows), ``None``: not diagnosed.
+    :param diagnosis_error: why the run has no diagnosis, ``None``: none said.
+    :param certificate_error: why a completed run got no certificate (a refusal, results that
+        could not be stored), ``None``: none said.
     """
 
     __tablename__ = "run"
@@ -99,6 +116,10 @@ class Run(Base):
     auto_resume: Mapped[dict[str, Any] | None]
     live_progress: Mapped[dict[str, Any] | None]
     final_event: Mapped[dict[str, Any] | None]
+    conformity_note: Mapped[str | None] = mapped_column(sa.Text)
+    diagnosis: Mapped[dict[str, Any] | None]
+    diagnosis_error: Mapped[str | None] = mapped_column(sa.Text)
+    certificate_error: Mapped[str | None] = mapped_column(sa.Text)
 
     unit: Mapped[Unit] = relationship(back_populates="runs", lazy="raise")
     bench: Mapped[Bench | None] = relationship(lazy="raise")
@@ -171,3 +192,36 @@ class SampleChunk(IntId, Base):
     end_byte: Mapped[int | None] = mapped_column(sa.BigInteger)
     daq_seq: Mapped[int | None] = mapped_column(sa.BigInteger)
     window_index: Mapped[int | None]
+
+
+class SampleGap(IntId, Base):
+    """A sample gap of a run (``bench.records.GapRecord``): samples the DAQ produced that the
+    recording does not hold, where they were lost and the rule applied.
+
+    :param seq: 0-based order of the gap within the run (unique per run).
+    :param first_lost_seq: DAQ sequence number of the first lost sample, ``None``: not said.
+    :param n_lost: samples lost, ``None``: unknown.
+    :param cause: ``dropped``, ``overflow``, ``restart`` or ``unknown``.
+    :param after_row: rows of the recording before the gap.
+    :param t_last_s: time of the last row before the gap (recording clock, s), ``None`` at the start.
+    :param t_resume_s: time of the next row (recording clock, s).
+    :param window_index, window_label: the window being recorded, ``None`` and ``""`` between windows.
+    :param action: the rule applied (``window re-measured``, ``between windows``).
+    :param daq_epoch: acquisition epoch (+1 at each DAQ restart).
+    """
+
+    __tablename__ = "sample_gap"
+    __table_args__ = (sa.UniqueConstraint("run_id", "seq"),)
+
+    run_id: Mapped[str] = mapped_column(sa.String(64), sa.ForeignKey("run.id", ondelete="CASCADE"))
+    seq: Mapped[int]
+    first_lost_seq: Mapped[int | None] = mapped_column(sa.BigInteger)
+    n_lost: Mapped[int | None] = mapped_column(sa.BigInteger)
+    cause: Mapped[str] = mapped_column(sa.String(16))
+    after_row: Mapped[int] = mapped_column(sa.BigInteger)
+    t_last_s: Mapped[float | None]
+    t_resume_s: Mapped[float]
+    window_index: Mapped[int | None]
+    window_label: Mapped[str] = mapped_column(sa.String(100), default="")
+    action: Mapped[str] = mapped_column(sa.String(40))
+    daq_epoch: Mapped[int] = mapped_column(default=0)

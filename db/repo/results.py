@@ -1,9 +1,14 @@
-"""Fitted models and diagnosis findings of runs."""
+"""Fitted models, diagnoses and diagnosis findings of runs.
+
+A run's fit has one home: its ``fit_model`` row (the newest, should there be several), whose
+``contract`` is the ``calbench calibrate --json`` object every reader shows and parses.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -11,7 +16,10 @@ import numpy.typing as npt
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
+from bench.records import GapRecord
 from db.models import Finding, FitKind, FitModel, Run, Unit
+from db.notify import notify_run
+from db.repo.gaps import gaps_of_runs
 
 if TYPE_CHECKING:  # the type only: the diagnosis package (scipy) stays out of the database layer
     from bench.diagnosis.stored import StoredFinding
@@ -59,6 +67,67 @@ def add_fit(
 def list_fits(session: Session, run_id: str) -> list[FitModel]:
     """Fits of a run, oldest first."""
     return list(session.scalars(sa.select(FitModel).where(FitModel.run_id == run_id).order_by(FitModel.id)))
+
+
+def fit_of_run(session: Session, run_id: str) -> FitModel | None:
+    """The run's fit (its newest ``fit_model`` row), ``None``: the run has none."""
+    stmt = sa.select(FitModel).where(FitModel.run_id == run_id).order_by(FitModel.id.desc()).limit(1)
+    return session.scalars(stmt).one_or_none()
+
+
+def fit_contract(session: Session, run_id: str) -> dict[str, Any] | None:
+    """The ``calibrate --json`` object of the run's fit, ``None``: the run has none."""
+    fit = fit_of_run(session, run_id)
+    return fit.contract if fit is not None else None
+
+
+def fit_contracts(session: Session, run_ids: Collection[str]) -> dict[str, dict[str, Any]]:
+    """The ``calibrate --json`` object of each run's fit, by run id (runs without one left out),
+    in one query."""
+    if not run_ids:
+        return {}
+    newest = (
+        sa.select(sa.func.max(FitModel.id))
+        .where(FitModel.run_id.in_(list(run_ids)))
+        .group_by(FitModel.run_id)
+    )
+    rows = session.execute(sa.select(FitModel.run_id, FitModel.contract).where(FitModel.id.in_(newest)))
+    return {str(run_id): contract for run_id, contract in rows}
+
+
+@dataclasses.dataclass(frozen=True)
+class RunResults:
+    """What a run's views show from beyond its ``run`` row.
+
+    :param fit: the ``calibrate --json`` object of the run's fit, ``None``: none.
+    :param gaps: the run's sample gaps, in order.
+    """
+
+    fit: dict[str, Any] | None = None
+    gaps: tuple[GapRecord, ...] = ()
+
+
+def results_of_runs(session: Session, run_ids: Collection[str]) -> dict[str, RunResults]:
+    """:class:`RunResults` of each run, by run id (every id present), in two queries."""
+    fits, gaps = fit_contracts(session, run_ids), gaps_of_runs(session, run_ids)
+    return {i: RunResults(fits.get(i), tuple(gaps.get(i, ()))) for i in run_ids}
+
+
+def set_diagnosis(
+    session: Session, run_id: str, contract: Mapping[str, Any] | None, error: str | None
+) -> None:
+    """Store the run's diagnosis (the ``diagnose --json`` object) or why there is none (``error``
+    with ``contract`` ``None``); the run's listeners are told at commit.
+
+    :raises LookupError: no such run.
+    """
+    values = {"diagnosis": dict(contract) if contract is not None else None, "diagnosis_error": error}
+    if contract is None:
+        values.pop("diagnosis")  # a note on a later failure keeps a diagnosis stored before
+    result = session.execute(sa.update(Run).where(Run.id == run_id).values(**values))
+    if getattr(result, "rowcount", 0) != 1:
+        raise LookupError(f"run {run_id} not found")
+    notify_run(session, run_id)
 
 
 def latest_fit_for_unit(

@@ -240,6 +240,18 @@ def merge_params(session: Session, run_id: str, extra: dict[str, Any]) -> None:
     notify_run(session, run_id)
 
 
+def set_certificate_error(session: Session, run_id: str, error: str) -> None:
+    """Store why a completed run got no certificate (``Run.certificate_error``); the run's
+    listeners are told at commit.
+
+    :raises LookupError: no such run.
+    """
+    result = session.execute(sa.update(Run).where(Run.id == run_id).values(certificate_error=error))
+    if getattr(result, "rowcount", 0) != 1:
+        raise LookupError(f"run {run_id} not found")
+    notify_run(session, run_id)
+
+
 def set_service_run(session: Session, run_id: str, kind: str, *, sim_age_days: float | None = None) -> None:
     """Mark a run as the service's (``calibration`` or ``drift_check``) and, on a simulated
     bench, the age of the simulated unit it started with (a resume measures the same sensor).

@@ -14,6 +14,7 @@ transaction, so a number is never visible without its final content.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import math
 from dataclasses import dataclass
@@ -40,8 +41,9 @@ from db.models import Certificate, Run, RunState, Unit
 from db.models import run_params as rp
 from db.observer import store_fit, update_stored_fit
 from db.repo.certificates import canonical_sha256, issue_certificate
-from db.repo.results import add_findings, list_findings
-from db.repo.runs import merge_params
+from db.repo.gaps import list_gaps
+from db.repo.results import add_findings, fit_contract, list_findings, set_diagnosis
+from db.repo.runs import set_certificate_error
 from db.types import utc_now
 from station.certificates.budget import CertificateBudget, TypeBSettings, analysis_budget
 from station.certificates.certificate import certificate_content
@@ -197,13 +199,13 @@ def analyse_recording(
 
 
 def store_diagnosis(s: Session, run_id: str, prepared: RunAnalysis) -> None:
-    """Store the findings (``finding`` rows) and the whole diagnosis object (run params), or
-    why there is none."""
+    """Store the findings (``finding`` rows) and the whole diagnosis object (``Run.diagnosis``),
+    or why there is none (``Run.diagnosis_error``)."""
     if prepared.diagnosis is None:
-        merge_params(s, run_id, {rp.DIAGNOSIS_ERROR: prepared.note})
+        set_diagnosis(s, run_id, None, prepared.note)
         return
     add_findings(s, run_id, StoredDiagnosis.of(prepared.diagnosis).findings)
-    merge_params(s, run_id, {rp.DIAGNOSIS: dict(prepared.diagnosis.to_contract()), rp.DIAGNOSIS_ERROR: None})
+    set_diagnosis(s, run_id, prepared.diagnosis.to_contract(), None)
 
 
 def store_g_before(s: Session, run_id: str, prepared: RunAnalysis) -> None:
@@ -288,7 +290,7 @@ def issue_for_run(
     run = s.get(Run, run_id)
     if run is None:
         raise LookupError(f"run {run_id} not found")
-    stored = run.params.get(rp.CALIBRATION)
+    stored = fit_contract(s, run_id)
     if run.state is not RunState.COMPLETED or not isinstance(stored, dict):
         raise ValueError(f"run {run_id} is {run.state.value} without a fit: no certificate can be issued")
     calibration = FittedModel.from_contract(stored, f"run {run_id}: stored fit")
@@ -297,8 +299,8 @@ def issue_for_run(
     if prepared is None:
         prepared = analyse_recording(run.recording_path, diagnose=False)
     rec = prepared.analysis.recording if prepared.analysis is not None else None
-    if diagnosis is None and run.params.get(rp.DIAGNOSIS) is not None:
-        diagnosis = StoredDiagnosis.from_contract(run.params[rp.DIAGNOSIS], f"run {run_id}: stored diagnosis")
+    if diagnosis is None and run.diagnosis is not None:
+        diagnosis = StoredDiagnosis.from_contract(run.diagnosis, f"run {run_id}: stored diagnosis")
     simulated = bool(run.params.get(rp.SIM))
     blocking, _warnings = settings.certificate_gaps()
     if blocking and not simulated:
@@ -316,7 +318,7 @@ def issue_for_run(
             finished_at=run.finished_at,
             parameters=run.params.get(rp.PARAMETERS, {}),
             bench=run.params.get(rp.BENCH),
-            sample_gaps=run.params.get(rp.SAMPLE_GAPS, []),
+            sample_gaps=[dataclasses.asdict(g) for g in list_gaps(s, run_id)],
             bench_config=run.params.get(rp.BENCH_CONFIG),
             actions=stored_actions(s, run_id),
         ),
@@ -326,7 +328,7 @@ def issue_for_run(
         temp_c=temp_c,
         table=_table(rec) if rec is not None else None,
         diagnosis=diagnosis,
-        diagnosis_note=diagnosis_note or str(run.params.get(rp.DIAGNOSIS_ERROR, "")),
+        diagnosis_note=diagnosis_note or str(run.diagnosis_error or ""),
         simulated=simulated,
         budget=budget,
         budget_note=budget_note,
@@ -365,7 +367,7 @@ def finish_calibration(
     try:
         return _issue_after_run(s, settings, record, analysis)
     except CertificateRefused as exc:
-        merge_params(s, record.run_id, {rp.CERTIFICATE_ERROR: str(exc)})
+        set_certificate_error(s, record.run_id, str(exc))
         return None
 
 

@@ -32,11 +32,10 @@ from bench.run_observer import RunObserver
 from bench.sequencer.control import RunControl, SequencerConfig
 from bench.sequencer.faults import resumable_fault
 from db.models import RunState as DbRunState
-from db.models.run_params import CERTIFICATE_ERROR
 from db.observer import finish_record
 from db.repo.queue import enter_finishing
 from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
-from db.repo.runs import finish_run, merge_params, set_final_event
+from db.repo.runs import finish_run, set_certificate_error, set_final_event
 from db.repo.units import get_unit_by_serial
 from drivers.factory import simulated_unit
 from station.execution import fault_retry
@@ -355,7 +354,7 @@ class BenchRunner:
         try:
             with self.sessions.begin() as s:
                 if finish_record(s, record) and live.error and live.error != record.error:
-                    merge_params(s, live.id, {CERTIFICATE_ERROR: f"results not stored: {live.error}"})
+                    set_certificate_error(s, live.id, f"results not stored: {live.error}")
         except Exception:
             log.exception("run %s: could not store its final state", live.id)
 

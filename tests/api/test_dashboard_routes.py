@@ -30,6 +30,7 @@ from api.plots.run_series import MIN_ALLAN_SAMPLES, allan_series, pick_noise_spa
 from bench.calibration import calibrate_recording
 from bench.recording import Recording, Sidecar, read_recording
 from db.models import RunState
+from db.repo.results import add_fit
 from db.repo.runs import create_run, finish_run
 from db.repo.units import get_or_create_unit
 from tests.conftest import EXAMPLES, STATIC_EXAMPLE
@@ -66,11 +67,12 @@ def _register(
             run_id,
             unit.id,
             "static-12",
-            params={"calibration": cal} if cal else {},
             recording_path=path,
             state=RunState.RUNNING,
             now=now,
         )
+        if cal:
+            add_fit(s, run_id, "static", cal)
         if state is not RunState.RUNNING:
             finish_run(s, run_id, state, outcome="PASS", now=now + dt.timedelta(seconds=60))
 
@@ -309,9 +311,8 @@ def test_g_check_before_uses_the_units_registered_nominal(
     with sessions.begin() as s:
         unit = get_or_create_unit(s, "SN-DASH-NOM", channel_unit="V")
         unit.nominal_scale, unit.nominal_bias = 0.0178, 1.49
-        create_run(
-            s, "run-nom", unit.id, "static-12", params={"calibration": contract}, recording_path=str(example)
-        )
+        create_run(s, "run-nom", unit.id, "static-12", recording_path=str(example))
+        add_fit(s, "run-nom", "static", contract)
         finish_run(s, "run-nom", RunState.COMPLETED, outcome="PASS")
     body = client.get("/api/runs/run-nom/plots/g-check", headers=VIEW).json()
     assert body["before_label"].startswith("nominal scale 0.0178")

@@ -10,6 +10,7 @@ from fastapi.testclient import TestClient
 
 from api.main import create_app
 from db.models import RunState
+from db.repo.results import add_fit
 from db.repo.runs import merge_params
 from station.certificates.issue import issue_for_run
 from tests.db._factories import make_run
@@ -25,7 +26,8 @@ def test_the_export_of_a_certified_run_carries_the_certificates_number_date_and_
             for run_id in ("r-cert", "r-plain"):
                 run = make_run(s, run_id, state=RunState.COMPLETED)
                 run.outcome = "PASS"
-                merge_params(s, run_id, {"calibration": CAL, "sim": {"seed": 1}})
+                merge_params(s, run_id, {"sim": {"seed": 1}})
+                add_fit(s, run_id, "static", CAL)
             s.flush()
             cert = issue_for_run(s, settings, "r-cert")
             number, issued, results = cert.number, cert.issued_at.date().isoformat(), cert.content["results"]

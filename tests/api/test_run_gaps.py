@@ -14,6 +14,7 @@ from bench.records import GapRecord
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import RunState
+from db.repo.gaps import replace_gaps
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_unit
 from station.certificates.certificate import sample_integrity
@@ -32,16 +33,16 @@ def test_gaps_are_returned_with_the_run_and_counted_in_lists(tmp_path: Path) -> 
         engine = open_database(settings.effective_database_url)
         with make_session_factory(engine).begin() as s:
             unit = get_or_create_unit(s, "SN-GAP", channel_unit="V")
-            params = {"bench": "bench-a", "sample_gaps": [dataclasses.asdict(g) for g in GAPS]}
             create_run(
                 s,
                 "run-gaps",
                 unit.id,
                 "static-12",
-                params=params,
+                params={"bench": "bench-a"},
                 state=RunState.ERROR,
                 now=dt.datetime(2025, 1, 1, tzinfo=dt.UTC),
             )
+            replace_gaps(s, "run-gaps", GAPS)
             create_run(s, "run-clean", unit.id, "static-12", params={}, state=RunState.ERROR)
         engine.dispose()
         body = client.get("/api/runs/run-gaps", headers=VIEW).json()

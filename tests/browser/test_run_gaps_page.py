@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as dt
 from collections.abc import Iterator
 from typing import Any
@@ -13,6 +12,7 @@ from bench.records import GapRecord
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import RunState
+from db.repo.gaps import replace_gaps
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_unit
 from station.settings import Settings
@@ -41,8 +41,8 @@ def store_runs(settings: Settings) -> None:
                 "static-12",
                 state=RunState.ERROR,
                 now=t0,
-                params={"sample_gaps": [dataclasses.asdict(g) for g in gaps]},
             )
+            replace_gaps(s, run_id, gaps)
             run.started_at, run.finished_at, run.n_samples, run.error = t0, t0, 40_000, "stopped for the test"
     engine.dispose()
 

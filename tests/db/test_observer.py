@@ -17,6 +17,8 @@ from bench.run_observer import RunObserver
 from db.models import FitKind, FitModel, Run, RunState, SampleChunk
 from db.observer import DbRunObserver, final_state
 from db.repo import progress, recovery
+from db.repo.gaps import list_gaps
+from db.repo.results import fit_contract
 from tests.support.fits import calibration_result
 
 T0 = dt.datetime(2025, 6, 1, 8, 0, tzinfo=dt.UTC)
@@ -142,7 +144,9 @@ def test_fresh_run_to_pass(db_session_factory):
         assert s.scalar(sa.select(sa.func.count()).select_from(SampleChunk)) == 8
         fit = s.scalars(sa.select(FitModel)).one()
         assert fit.kind is FitKind.STATIC and fit.contract == json.loads(json.dumps(FIT.to_contract()))
-        assert run.params["calibration"] == fit.contract and fit.contract["unit"] == "SN-7"
+        # the fit has one home: its row (params keeps the procedure's parameters only)
+        assert fit_contract(s, run.id) == fit.contract and fit.contract["unit"] == "SN-7"
+        assert "calibration" not in run.params
 
 
 def test_killed_run_is_interrupted_then_resumed_from_its_next_window(db_session_factory):
@@ -286,7 +290,10 @@ def test_the_stored_kind_is_the_kind_the_fit_chose(db_session_factory, procedure
     with db_session_factory() as s:
         row = s.scalars(sa.select(FitModel)).one()
         assert row.kind is stored and list(row.param_names) == list(names)
-        assert s.get(Run, start.run_id).params["calibration"] == row.contract
+        assert (
+            fit_contract(s, start.run_id) == row.contract
+            and "calibration" not in s.get(Run, start.run_id).params
+        )
 
 
 def _gap(after_row: int, n_lost: int, window: int | None) -> br.GapRecord:
@@ -310,8 +317,9 @@ def test_sample_gaps_are_stored_as_they_happen_and_the_finished_list_replaces_th
     obs.on_gap(start.run_id, _gap(500, 40, 1))
     obs.on_gap(start.run_id, _gap(900, 3, None))
     with db_session_factory() as s:
-        live = s.get(Run, start.run_id).params["sample_gaps"]
-    assert [(g["after_row"], g["n_lost"], g["action"]) for g in live] == [
+        live = list_gaps(s, start.run_id)
+        assert "sample_gaps" not in s.get(Run, start.run_id).params
+    assert [(g.after_row, g.n_lost, g.action) for g in live] == [
         (500, 40, "window re-measured"),
         (900, 3, "between windows"),
     ]
@@ -321,5 +329,5 @@ def test_sample_gaps_are_stored_as_they_happen_and_the_finished_list_replaces_th
         br.RunRecord(start, br.RunState.COMPLETED, br.Outcome.PASS, (), n_samples=40_000, gaps=kept)
     )
     with db_session_factory() as s:
-        final = s.get(Run, start.run_id).params["sample_gaps"]
-    assert final == [dataclasses.asdict(kept[0])]
+        final = list_gaps(s, start.run_id)
+    assert final == list(kept)

@@ -16,6 +16,7 @@ from bench.recording import read_recording
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import RunState
+from db.repo.results import add_fit
 from db.repo.runs import create_run
 from db.repo.units import get_or_create_unit
 from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg
@@ -54,8 +55,9 @@ def test_the_budget_takes_u_g_from_the_bench_file_and_the_conditions_name_it(tmp
             "static-12",
             state=RunState.COMPLETED,
             recording_path=str(path),
-            params={"calibration": cal, "bench_config": identity, "sim": True},
+            params={"bench_config": identity, "sim": True},
         )
+        add_fit(s, "run-bf", "static", cal)
         run.started_at = run.finished_at = dt.datetime(2025, 1, 1, tzinfo=dt.UTC)
         content = issue_for_run(s, settings, "run-bf").content
     engine.dispose()

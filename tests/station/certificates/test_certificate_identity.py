@@ -13,6 +13,7 @@ from bench.fitted_model import ContractError
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Run, RunState
+from db.repo.results import add_fit, results_of_runs, set_diagnosis
 from db.repo.runs import merge_params
 from station.certificates.issue import CertificateRefused, issue_for_run
 from station.settings import Settings, placeholder_reason
@@ -30,7 +31,8 @@ IDENTITY = {
 def _completed_run(s: Session, run_id: str, *, sim: bool) -> None:
     run = make_run(s, run_id, state=RunState.COMPLETED)
     run.outcome = "PASS"
-    merge_params(s, run_id, {"calibration": CAL, "sim": {"seed": 1} if sim else None})
+    merge_params(s, run_id, {"sim": {"seed": 1} if sim else None})
+    add_fit(s, run_id, "static", CAL)
     s.flush()
 
 
@@ -130,7 +132,7 @@ def test_a_stored_fit_without_its_g_check_is_refused_naming_the_key(tmp_path: Pa
     try:
         with sessions.begin() as s:
             _completed_run(s, "r-old", sim=True)
-            merge_params(s, "r-old", {"calibration": {**CAL, "g_check": {"before": CAL["g_check"]["after"]}}})
+            add_fit(s, "r-old", "static", {**CAL, "g_check": {"before": CAL["g_check"]["after"]}})
         with sessions.begin() as s, pytest.raises(ContractError) as info:
             issue_for_run(s, Settings(**IDENTITY), "r-old")
         assert str(info.value) == "run r-old: stored fit: key 'g_check.after' is missing"
@@ -182,17 +184,18 @@ def test_a_stored_diagnosis_is_read_into_the_certificate_and_a_renamed_key_is_na
     try:
         with sessions.begin() as s:
             _completed_run(s, "r-dg", sim=True)
-            merge_params(s, "r-dg", {"diagnosis": {"findings": [finding]}})
+            set_diagnosis(s, "r-dg", {"findings": [finding]}, None)
         with sessions.begin() as s:
             c = issue_for_run(s, Settings(**IDENTITY), "r-dg").content["diagnosis"]
-            shown = run_out(s.get(Run, "r-dg"), "SN-0001")
+            shown = run_out(s.get(Run, "r-dg"), "SN-0001", results=results_of_runs(s, ["r-dg"])["r-dg"])
         assert c["performed"] is True
         assert c["findings"] == [{k: finding[k] for k in ("effect", "summary", "parameters", "sigma")}]
         assert shown.n_findings == 1 and shown.diagnosis_note is None
         with sessions.begin() as s:
             _completed_run(s, "r-dg2", sim=True)
-            merge_params(s, "r-dg2", {"diagnosis": {"finding": [finding]}})
-            shown = run_out(s.get(Run, "r-dg2"), "SN-0001", with_diagnosis=True)
+            set_diagnosis(s, "r-dg2", {"finding": [finding]}, None)
+            results = results_of_runs(s, ["r-dg2"])["r-dg2"]
+            shown = run_out(s.get(Run, "r-dg2"), "SN-0001", results=results, with_diagnosis=True)
         message = "run r-dg2: stored diagnosis: key 'findings' is missing"
         # the run's view shows no diagnosis and says why; the certificate is refused, naming the key
         assert (shown.n_findings, shown.diagnosis, shown.diagnosis_note) == (None, None, message)

@@ -166,6 +166,15 @@ def _expected_params(params: dict[str, Any]) -> dict[str, Any]:
     return rest
 
 
+CHILDREN = ("fit_model", "finding", "run_window", "sample_chunk")
+"""Tables whose rows refer to a run (ON DELETE CASCADE)."""
+
+
+def _children(engine: Engine) -> dict[str, int]:
+    with engine.connect() as conn:
+        return {t: int(conn.scalar(sa.text(f"SELECT count(*) FROM {t}")) or 0) for t in CHILDREN}
+
+
 def _fill_at_0003(engine: Engine) -> None:
     upgrade(engine, "0003")
     assert current_revision(engine) == "0003"
@@ -185,6 +194,35 @@ def _fill_at_0003(engine: Engine) -> None:
                     resume_count=1,
                     limit_checks=[],
                 )
+            )
+            conn.execute(
+                sa.text(
+                    "INSERT INTO fit_model (run_id, kind, contract, param_names, created_at)"
+                    " VALUES (:r, 'static', '{}', '[]', CURRENT_TIMESTAMP)"
+                ),
+                {"r": run_id},
+            )
+            conn.execute(
+                sa.text(
+                    "INSERT INTO finding (run_id, effect, summary, parameters, sigma, created_at)"
+                    " VALUES (:r, 'lever_arm', 's', '{}', '{}', CURRENT_TIMESTAMP)"
+                ),
+                {"r": run_id},
+            )
+            conn.execute(
+                sa.text(
+                    'INSERT INTO run_window (run_id, "index", label, kind, start_s, end_s, n_samples,'
+                    " pose_deg, means, created_at) VALUES (:r, 0, 'w', 'static', 0, 1, 100, '[]', '{}',"
+                    " CURRENT_TIMESTAMP)"
+                ),
+                {"r": run_id},
+            )
+            conn.execute(
+                sa.text(
+                    "INSERT INTO sample_chunk (run_id, seq, first_sample, n_samples, last_t_s, created_at)"
+                    " VALUES (:r, 0, 0, 100, 1.0, CURRENT_TIMESTAMP)"
+                ),
+                {"r": run_id},
             )
 
 
@@ -211,7 +249,10 @@ RUN_0004 = sa.table(
 
 def _check_upgrade_and_downgrade(engine: Engine) -> None:
     _fill_at_0003(engine)
+    children = _children(engine)
+    assert set(children.values()) == {len(RUNS)}
     upgrade(engine, "0004")
+    assert _children(engine) == children  # no row that refers to a run goes with the copy of run
     assert current_revision(engine) == "0004"
     with engine.connect() as conn:
         rows = {row.id: row for row in conn.execute(sa.select(RUN_0004))}
@@ -223,6 +264,7 @@ def _check_upgrade_and_downgrade(engine: Engine) -> None:
         got = {name: getattr(run, name) for name in columns}
         assert got == columns, run_id
     downgrade(engine, "0003")
+    assert _children(engine) == children
     with engine.connect() as conn:
         stored = dict(conn.execute(sa.select(RUN.c.id, RUN.c.params)).all())
     for run_id, (_, params, _) in RUNS.items():

@@ -21,7 +21,9 @@ own rows). The keys moved, with their columns:
 =========================  =======================================
 
 A key of ``request`` other than ``dwell_s`` stays in ``params["request"]``. The downgrade
-puts every value back where it was.
+puts every value back where it was. The ``run`` columns are added and dropped with ``ALTER
+TABLE`` on SQLite too: a batch copy of ``run`` drops the old table, which with foreign keys on
+deletes every row that refers to a run (fits, findings, windows, chunks).
 
 Revision ID: 0004
 Revises: 0003
@@ -177,9 +179,8 @@ def _restored(row: Any) -> dict[str, Any]:
 
 
 def upgrade() -> None:
-    with op.batch_alter_table("run") as batch:
-        for column in _columns():
-            batch.add_column(column)
+    for column in _columns():
+        op.add_column("run", column)
     with op.batch_alter_table("api_token") as batch:
         batch.add_column(sa.Column("operator", sa.String(100), server_default="", nullable=False))
     op.create_table(
@@ -235,6 +236,5 @@ def downgrade() -> None:
     op.drop_table("run_audit")
     with op.batch_alter_table("api_token") as batch:
         batch.drop_column("operator")
-    with op.batch_alter_table("run") as batch:
-        for column in reversed(_columns()):
-            batch.drop_column(column.name)
+    for column in reversed(_columns()):
+        op.drop_column("run", column.name)

@@ -31,6 +31,7 @@ from db.repo.queue import finishing_since
 from db.repo.results import results_of_runs
 from db.repo.runs import get_run, list_runs
 from station.certificates.conformity import unit_warnings
+from station.execution.resume_admission import ResumeRefused
 from station.runs.queue import NotResumable
 
 router = APIRouter(prefix="/api/runs", tags=["runs"])
@@ -199,7 +200,11 @@ def pause(run_id: str, session: SessionDep, runner: RunnerDep, who: OperatorPrin
     response_model=RunActionOut,
     responses={
         404: {"description": "no such run"},
-        409: {"description": "the run cannot be resumed (its state or recording says why)"},
+        409: {
+            "description": "the run cannot be resumed: its state or recording, or its procedure "
+            "(unknown here, not rebuilt from its stored parameters, or what remains breaks the "
+            "table's limits) says why"
+        },
     },
 )
 def resume(run_id: str, session: SessionDep, runner: RunnerDep, who: OperatorPrincipalDep) -> RunActionOut:
@@ -218,7 +223,7 @@ def resume(run_id: str, session: SessionDep, runner: RunnerDep, who: OperatorPri
         live = runner.resume(run_id, actor=who.actor)
     except LookupError as exc:
         raise HTTPException(status.HTTP_404_NOT_FOUND, str(exc)) from None
-    except NotResumable as exc:
+    except (NotResumable, ResumeRefused) as exc:
         raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
     return RunActionOut(
         id=run_id,

@@ -124,6 +124,7 @@ def preview(
     provisional_dwell_s: float | None = None,
     start_deg: tuple[float, ...] | None = None,
     sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+    check_plan: bool = True,
 ) -> Preview:
     """Walk ``proc`` against ``limits``: duration, poses, windows and limit problems.
 
@@ -134,6 +135,9 @@ def preview(
         (:data:`FALLBACK_DWELL_S` without a noise window).
     :param start_deg: table angles before the run (deg); zeros when ``None``.
     :param sample_rate_hz: the DAQ's rate (Hz), for the noise window's longest dwell.
+    :param check_plan: also ask whether a moving-table plan determines the fit's terms
+        (:func:`~bench.procedures.observability.plan_blockers`); ``False`` for a part of a
+        procedure (what a resume still runs), which is not a plan of its own.
     """
     why = "assumed"
     if provisional_dwell_s is None:
@@ -234,7 +238,7 @@ def preview(
                 for a, p in zip(step.axes, step.peak_rate_deg_s(), strict=True)
             )
             t += step.duration_s + max(stops, default=0.0)
-    if not problems and n == 3 and any(isinstance(s, Rotate | Oscillate) for s in proc.steps):
+    if check_plan and not problems and n == 3 and any(isinstance(s, Rotate | Oscillate) for s in proc.steps):
         from bench.procedures.observability import plan_blockers  # moving-table fit needs (docs/dynamic.md)
 
         problems += plan_blockers(proc, provisional_dwell_s)

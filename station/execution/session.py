@@ -21,7 +21,7 @@ from typing import Any
 from bench.bench_config import apply_to_daq
 from bench.dwell_policy import fixed_dwell
 from bench.limits import LimitsChoice, UnitLimits
-from bench.procedures import admit_procedure, build_procedure, preview
+from bench.procedures import admit_procedure, preview
 from bench.records import DwellChoice, RunRecord, RunStart, RunState, new_run_id
 from bench.run_observer import RunObserver, announce_phase
 from bench.run_recorder import RunRecorder
@@ -41,6 +41,7 @@ from drivers.factory import BenchDevices, SimulatedTruth
 from station.execution.devices import bench_config_for, bench_sidecar, open_devices
 from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed
 from station.execution.not_answering import StartRequest, bench_urls, interrupt_if_not_answering
+from station.execution.resume_admission import admit_resume, admit_stored, request_keywords
 from station.execution.verdict import finish_observers, limits_for, run_record
 from station.settings import Settings
 
@@ -244,6 +245,9 @@ def resume_run(
     """Resume an interrupted run from the window after its last complete one.
 
     :raises ValueError: no such run, or it is not resumable (the message says its state).
+    :raises ResumeRefused: its procedure is unknown here, no longer rebuilds from its stored
+        parameters, or what remains of it breaks the table's limits
+        (:func:`~station.execution.resume_admission.admit_resume`).
     """
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)
@@ -253,6 +257,8 @@ def resume_run(
             run = s.get(Run, run_id)
             if run is None:
                 raise ValueError(f"run {run_id!r} not found in {settings.effective_database_url}")
+            if run.state is DbRunState.INTERRUPTED:  # another state: the claim below says so
+                admit_resume(settings, run)  # before the claim: a refused run is left as it was
             try:
                 point = claim_for_resume(
                     s,
@@ -320,6 +326,7 @@ def continue_run(
             run = s.get(Run, run_id)
             requested_dwell_s = run.requested_dwell_s if run is not None else None
         stored = params.get(rp.PARAMETERS)
+        procedure_kw = request_keywords(run_id, procedure_name, stored) if isinstance(stored, dict) else None
         sim_meta = params.get(rp.SIM)  # the seed it was requested with (calbench run --seed)
         seed = settings.sim_seed
         if isinstance(sim_meta, dict) and isinstance(sim_meta.get("seed"), int):
@@ -336,7 +343,7 @@ def continue_run(
             control=control,
             run_id=run_id,
             truth=truth,
-            procedure_kw=parameters_for(procedure_name, stored) if isinstance(stored, dict) else None,
+            procedure_kw=procedure_kw,
             defer_final_state=defer_final_state,
         )
     csv_path = Path(str(point.recording_path))
@@ -355,14 +362,15 @@ def continue_run(
     stored_parameters = stored.get("parameters", params.get(rp.PARAMETERS, {}))
     if not isinstance(stored_parameters, dict):
         raise ValueError(f"{csv_path}: the stored procedure parameters are not a JSON object")
-    parameters = dict(stored_parameters)
-    dwell_s = parameters.pop("dwell_s", None)
-    proc = build_procedure(procedure_name, dwell_s=dwell_s, **parameters_for(procedure_name, parameters))
+    config = _config(settings)
+    admitted = admit_stored(
+        run_id, procedure_name, dict(stored_parameters), point.next_window_index, config.limits
+    )
+    proc = admitted.procedure
     dwell_dict = stored.get("dwell")
     dwell = DwellChoice(**dwell_dict) if isinstance(dwell_dict, dict) else None
     sim_meta = stored.get("sim") or params.get(rp.SIM)
     seed = int(sim_meta.get("seed", 0)) if isinstance(sim_meta, dict) else 0
-    config = _config(settings)
     bench_config = bench_config_for(settings, sim)
     started_with = stored.get("bench_config")
     if isinstance(started_with, dict) and started_with.get("sha256") != bench_config.sha256:
@@ -411,17 +419,3 @@ def continue_run(
         return execute_resumable(seq, csv_path, obs, limits, settings)
     finally:
         devices.close()
-
-
-def parameters_for(procedure_name: str, stored: dict[str, Any]) -> dict[str, Any]:
-    """Procedure keyword arguments from stored parameters (those the factory accepts, non-null)."""
-    import inspect
-
-    from bench.procedures import PROCEDURES
-
-    accepted = set(inspect.signature(PROCEDURES[procedure_name]).parameters) - {"dwell_s"}
-    out = {k: v for k, v in stored.items() if k in accepted and v is not None}
-    for k, v in list(out.items()):
-        if isinstance(v, list):
-            out[k] = tuple(tuple(x) if isinstance(x, list) else x for x in v)
-    return out

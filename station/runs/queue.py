@@ -211,10 +211,12 @@ class RunQueue:
         (``actor`` asks: stored in its audit trail).
 
         :raises LookupError: no such run. :raises NotResumable: its state or recording forbids it.
+        :raises ResumeRefused: its procedure is unknown here, no longer rebuilds from its stored
+            parameters, or what remains breaks the table's limits (the run is left as it was).
         """
         with self.sessions.begin() as s:
             mark_interrupted_runs(s, socket.gethostname())  # a run whose owner has died since
-            run = service_resume.check_resumable(s, run_id)
+            run = service_resume.check_resumable(s, run_id, self.settings)
             try:
                 point = queue_resume(s, run_id, actor=actor)
             except ValueError as exc:

@@ -33,6 +33,7 @@ from db.repo.queue import ClaimedRun
 from db.repo.recovery import ResumePoint, claim_for_resume
 from db.types import utc_now
 from drivers.factory import SimulatedTruth
+from station.execution.resume_admission import admit_resume
 from station.execution.session import continue_run
 from station.runs.live import RunKind
 from station.settings import Settings
@@ -94,10 +95,14 @@ class Claimed:
     sim_age_days: float | None
 
 
-def check_resumable(session: Session, run_id: str) -> Run:
-    """The run, if it can be resumed now.
+def check_resumable(session: Session, run_id: str, settings: Settings | None = None) -> Run:
+    """The run, if it can be resumed now; with ``settings``, also on this bench (its procedure
+    from the window after its last complete one against the bench's table limits,
+    :func:`~station.execution.resume_admission.admit_resume`).
 
     :raises LookupError: no such run. :raises NotResumable: its state forbids it.
+    :raises ResumeRefused: (``settings`` given) its procedure is unknown here, no longer
+        rebuilds from its stored parameters, or what remains breaks the table's limits.
     """
     run = session.get(Run, run_id)
     if run is None:
@@ -109,6 +114,8 @@ def check_resumable(session: Session, run_id: str) -> Run:
         )
     if not run.recording_path:
         raise NotResumable(f"run {run_id} has no recording path stored: nothing to continue")
+    if settings is not None:
+        admit_resume(settings, run)
     return run
 
 

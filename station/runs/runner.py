@@ -173,7 +173,7 @@ class BenchRunner:
         """
         with self.sessions.begin() as s:
             mark_interrupted_runs(s, socket.gethostname())  # a run whose owner has died since
-            service_resume.check_resumable(s, run_id)
+            service_resume.check_resumable(s, run_id, self.settings)
         with self._lock:
             if self._current is not None:
                 raise BenchBusy(self._current.id)

@@ -229,7 +229,8 @@ def fit_warnings(fits: tuple[NoiseTerms, ...]) -> tuple[str, ...]:
     return tuple(
         f"{CHANNELS[c]}: the noise model does not describe the Allan curve (chi2/dof {f.chi2_dof:.3g} "
         f"above its 95 % point); the noise-term sigmas include a {100 * f.model_floor_rel:.2g} % "
-        "allowance on every point and the model's own misfit"
+        f"allowance on every point, correlated over {f.model_floor_corr_octaves:.3g} octaves of tau, "
+        "and the model's own misfit"
         for c, f in enumerate(fits)
         if math.isfinite(f.model_floor_rel) and f.model_floor_rel > 0.0
     )

@@ -23,12 +23,24 @@ depart from the model: when χ² exceeds its 95 % quantile, a relative allowance
 (``model_floor_rel``) is added to every point, set so that χ²/dof = 1. Without it the
 points at short τ, whose edf run to 10⁵, would decide every term. Points before the curve's
 first maximum are left out when the curve *rises* from τ0 (a sensor low-pass filter
-correlates neighbouring samples; no term of the model rises at short τ). Uncertainties come
-from the generalised normal matrix of the active terms, and are never smaller than those of
-the fit without the allowance scaled by its χ²/dof (the misfit is carried into the sigmas).
-On simulated noise of known N, B, K (tests), (estimate − truth)/sigma has a spread of 0.8-1
-for each term. Fitting Q and R as well when they are truly zero moves N and K by about
-−0.4 σ (the non-negativity bound).
+correlates neighbouring samples; no term of the model rises at short τ).
+
+The values come from the GLS with the allowance independent between τ. A misfit is smooth
+in τ, though, so for the sigmas the allowance is a Gaussian process along log τ
+(:func:`allowance_correlation`, exponential correlation of ``model_floor_corr_octaves``; the
+model discrepancy of Kennedy & O'Hagan 2001), its length the most likely of
+:data:`ALLOWANCE_LENGTHS_OCTAVES` and its level again χ²/dof = 1; the sigmas are the
+sandwich of the values' GLS under that covariance (:func:`_term_variances`), never smaller
+than those of the fit without allowance scaled by its χ²/dof. Independent, the allowance
+averaged down over the many short-τ points as if it were noise: on the imu_utils curves
+(docs/noise-model.md) the 5-term N sigma was 1-2 % while two readings of one curve differed
+by up to 17 %. Every sigma comes from the normal matrix of all fitted terms, also one the
+non-negativity bound set to 0 (it still trades with the others).
+
+Between 50 simulated recordings with a Gauss–Markov bias (benchmarks/study_sigmas_allan.py),
+the RMS over pairs of |Δ|/combined sigma is 0.7-1.2 for N, B and K (docs/noise-model.md).
+Fitting Q and R as well when they are truly zero moves N and K by about −0.4 σ (the
+non-negativity bound).
 
 :func:`slope_method` is the graphical reading of Annex C: N from the points on the −1/2
 line (read at τ = 1 s), K from the points on the +1/2 line (read at τ = 3 s), B from the
@@ -41,6 +53,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -48,6 +61,12 @@ from scipy import stats
 from scipy.optimize import nnls
 
 from bench.estimation.allan import AllanResult
+from bench.estimation.allan_covariance import (
+    allan_correlation,
+    allowance_correlation,
+    cholesky_ridged,
+    forward_solve,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -62,6 +81,13 @@ MISFIT_LEVEL = 0.95
 
 DOMINANT_SHARE = 0.8
 """Slope method: a point belongs to a term's line where that term is ≥ 80 % of the model variance."""
+
+ALLOWANCE_LENGTHS_OCTAVES = (0.0, 1.0, 4.0, 16.0)
+"""Candidate correlation lengths of the model allowance along τ (octaves; 0: independent points).
+
+Those longer than the fitted τ range are dropped; the one of highest likelihood is used
+(:func:`_allowance`).
+"""
 
 
 def basis(taus_s: npt.ArrayLike) -> FloatArray:
@@ -92,6 +118,7 @@ class NoiseTerms:
     method: str
     tau_min_fit_s: float = math.nan
     model_floor_rel: float = math.nan
+    model_floor_corr_octaves: float = math.nan
 
     @property
     def coefficients(self) -> FloatArray:
@@ -114,6 +141,7 @@ class NoiseTerms:
         out["method"] = self.method
         out["tau_min_fit_s"] = float(self.tau_min_fit_s)
         out["model_floor_rel"] = float(self.model_floor_rel)
+        out["model_floor_corr_octaves"] = float(self.model_floor_corr_octaves)
         return out
 
 
@@ -127,11 +155,16 @@ def _terms(
     method: str,
     tau_min_fit_s: float,
     model_floor_rel: float = math.nan,
+    model_floor_corr_octaves: float = math.nan,
 ) -> NoiseTerms:
     """NoiseTerms from [Q, N, B, K, R] values and sigmas."""
     kwargs = dict(zip(_FIELDS, values, strict=True))
     kwargs.update({f"{name}_sigma": s for name, s in zip(_FIELDS, sigmas, strict=True)})
-    kw: dict[str, float] = {"tau_min_fit_s": tau_min_fit_s, "model_floor_rel": model_floor_rel}
+    kw: dict[str, float] = {
+        "tau_min_fit_s": tau_min_fit_s,
+        "model_floor_rel": model_floor_rel,
+        "model_floor_corr_octaves": model_floor_corr_octaves,
+    }
     return NoiseTerms(**kwargs, chi2_dof=chi2_dof, method=method, **kw)
 
 
@@ -152,70 +185,25 @@ def _root_with_sigma(p: float, var_p: float) -> tuple[float, float]:
     return math.sqrt(p), 0.5 * (math.sqrt(p + sp) - math.sqrt(max(p - sp, 0.0)))
 
 
-def spectrum_coefficients(p: npt.ArrayLike) -> FloatArray:
-    """(4,) one-sided power-law coefficients [h₂, h₀, h₋₁, h₋₂] of S_y(f) = Σ h_α f^α from p.
+class _GlsFit(NamedTuple):
+    """One iterated GLS fit (:func:`_gls`); the covariance parts are those of its final model."""
 
-    p = [Q², N², B², K², R²] (R, a deterministic ramp, has no spectrum). SP1065 Table 2 with
-    IEEE 952 Table C.2: h₀ = 2N², h₋₁ = B²/π, h₋₂ = K²/(2π²); white phase noise h₂ = 4π²Q²·τ0·2
-    (its Allan variance 3 f_h h₂/(4π²τ²) = 3Q²/τ² with f_h = 1/(2τ0)).
-    """
-    q2, n2, b2, k2, _ = np.asarray(p, dtype=float)
-    return np.asarray(
-        np.array([0.0, 2.0 * n2, b2 / math.pi, k2 / (2.0 * math.pi**2)])
-        + np.array([8.0 * math.pi**2 * q2, 0.0, 0.0, 0.0]),
-        dtype=float,
-    )
+    chi2: float
+    dof: int
+    p: FloatArray
+    As: FloatArray
+    """(m, k) whitened design L⁻¹A."""
+    L: FloatArray
+    """(m, m) Cholesky factor of the covariance C used."""
+    stat_cov: FloatArray
+    """(m, m) D·R·D, the sampling covariance of σ̂² under the final model."""
+    model: FloatArray
+    """(m,) the final model's Allan variance."""
 
-
-def allan_correlation(taus_s: FloatArray, p: npt.ArrayLike, tau0_s: float) -> FloatArray:
-    """(m, m) correlation of overlapping Allan variance estimates at taus_s under the model p.
-
-    For a Gaussian process the overlapping estimate is a quadratic form of the second
-    differences d_a; for a record long against the τ involved,
-    Cov(σ̂²_a, σ̂²_b) ∝ Σ_h Cov(d_a(i), d_b(i+h))² = ∫ S_y(f)² W_a(f) W_b(f) df (Parseval), so
-
-        ρ_ab = ∫ S² W_a W_b df / √(∫ S² W_a² df · ∫ S² W_b² df),
-
-    W_τ(f) = 2 sin⁴(πfτ) / (m² sin²(πfτ0)) the Allan transfer function of m = τ/τ0 sampled
-    points (SP1065 §5.2; Greenhall, "Estimating the modified Allan variance", 1995, for the
-    quadratic-form covariance), S_y from :func:`spectrum_coefficients`, f up to 1/(2τ0).
-    sin⁴ is replaced by its mean 3/8 beyond ten periods, where the other factors are smooth.
-    """
-    t = np.asarray(taus_s, dtype=float)
-    h = spectrum_coefficients(p)
-    f_nyq = 0.5 / tau0_s
-    f = np.geomspace(f_nyq * 1e-4 * tau0_s / t.max(), f_nyq, 2048)
-    x = np.pi * f[None, :] * t[:, None]
-    s4 = np.where(x < 20.0 * np.pi, np.sin(x) ** 4, 0.375)
-    m = t[:, None] / tau0_s
-    W = 2.0 * s4 / (m**2 * np.sin(np.pi * f * tau0_s) ** 2)
-    S = h[0] * f**2 + h[1] + h[2] / f + h[3] / f**2
-    wts = np.gradient(f) * S**2
-    G = np.einsum("af,bf->ab", W * wts, W)  # einsum: no BLAS threads for a small product
-    d = np.sqrt(np.maximum(np.diag(G), np.finfo(float).tiny))
-    R = np.asarray(G / d[:, None] / d[None, :], dtype=float)
-    np.fill_diagonal(R, 1.0)  # also for a τ where the model has no variance at all
-    return R
-
-
-def _cholesky(cov: FloatArray) -> FloatArray:
-    """Lower Cholesky factor of cov, with a relative ridge 10⁻¹²…10⁻⁴ (closely spaced τ: ρ → 1)."""
-    ridge = 1e-12
-    while True:
-        try:
-            return np.asarray(np.linalg.cholesky(cov + ridge * np.diag(np.diag(cov))), dtype=float)
-        except np.linalg.LinAlgError:
-            if ridge >= 1e-4:
-                raise
-            ridge *= 100.0
-
-
-def _forward_solve(L: FloatArray, b: FloatArray) -> FloatArray:
-    """L⁻¹·b for lower-triangular L (m, m) and b (m, k), row by row (small m; no BLAS threads)."""
-    x = np.empty_like(b)
-    for i in range(L.shape[0]):
-        x[i] = (b[i] - L[i, :i] @ x[:i]) / L[i, i]
-    return x
+    @property
+    def logdet(self) -> float:
+        """ln det C."""
+        return 2.0 * float(np.sum(np.log(np.diag(self.L))))
 
 
 def _gls(
@@ -227,11 +215,13 @@ def _gls(
     tau0_s: float,
     floor_rel: float,
     n_iterations: int,
-) -> tuple[float, int, FloatArray, FloatArray]:
-    """Iterated non-negative GLS of s2 on A: (χ², dof, p (k,), whitened design (m, k)).
+    floor_octaves: float = 0.0,
+) -> _GlsFit:
+    """Iterated non-negative GLS of s2 on A (k columns), non-negative coefficients p (k,).
 
-    Covariance of σ̂²: C = D·R·D + diag(2·floor_rel·σ²)², D = diag(σ²·√(2/edf)), with σ² the
-    current model and R from :func:`allan_correlation` of the current model.
+    Covariance of σ̂²: C = D·R·D + F·R_F·F, D = diag(σ²·√(2/edf)), F = diag(2·floor_rel·σ²),
+    with σ² the current model, R from :func:`allan_correlation` of the current model and R_F
+    from :func:`allowance_correlation` with length floor_octaves.
     """
     model = np.maximum(s2, np.max(s2) * 1e-300)
     Ar = A / model[:, None]
@@ -239,12 +229,14 @@ def _gls(
     p = nnls(Ar / col, np.ones(t.size))[0] / col  # start: relative least squares
     p_full = np.zeros(5)
     p_full[active] = p
+    corr_floor = allowance_correlation(t, floor_octaves)
     for it in range(n_iterations + 1):
         corr = allan_correlation(t, p_full, tau0_s)
         d = model * np.sqrt(2.0 / nu)
-        cov = corr * d[:, None] * d[None, :] + np.diag((2.0 * floor_rel * model) ** 2)
-        L = _cholesky(cov)
-        white = _forward_solve(L, np.column_stack([A, s2]))
+        fl = 2.0 * floor_rel * model
+        stat_cov = corr * d[:, None] * d[None, :]
+        L = cholesky_ridged(stat_cov + corr_floor * fl[:, None] * fl[None, :])
+        white = forward_solve(L, np.column_stack([A, s2]))
         As, s2w = white[:, :-1], white[:, -1]
         if it == n_iterations:
             break
@@ -256,32 +248,70 @@ def _gls(
         model = np.maximum(A @ p, np.max(s2) * 1e-12)
     r = s2w - As @ p
     dof = max(t.size - int(np.count_nonzero(p > 0)), 1)
-    return float(r @ r), dof, p, As
+    return _GlsFit(float(r @ r), dof, p, As, L, stat_cov, model)
 
 
 def _floor_for_unit_chi2(
-    t: FloatArray, s2: FloatArray, nu: FloatArray, A: FloatArray, active: list[int], tau0_s: float, n_it: int
+    t: FloatArray,
+    s2: FloatArray,
+    nu: FloatArray,
+    A: FloatArray,
+    active: list[int],
+    tau0_s: float,
+    n_it: int,
+    floor_octaves: float,
 ) -> float:
-    """Relative model allowance on σ (0.1 % … 50 %) at which the fit's χ²/dof is 1, by bisection in log."""
+    """Relative model allowance on σ (0.1 % … 50 %) at which the fit's χ²/dof is 1, by bisection in log.
+
+    Seven halvings of ln(500): the level to ±5 %; two re-weighting passes per trial.
+    """
     lo, hi = math.log(1e-3), math.log(0.5)
-    for _ in range(8):
+    for _ in range(7):
         mid = 0.5 * (lo + hi)
-        chi2, dof, _, _ = _gls(t, s2, nu, A, active, tau0_s, math.exp(mid), min(n_it, 3))
-        lo, hi = (mid, hi) if chi2 / dof > 1.0 else (lo, mid)
+        g = _gls(t, s2, nu, A, active, tau0_s, math.exp(mid), min(n_it, 2), floor_octaves)
+        lo, hi = (mid, hi) if g.chi2 / g.dof > 1.0 else (lo, mid)
     return math.exp(hi)
 
 
-def _term_variances(p: FloatArray, As: FloatArray, inflate: float) -> FloatArray:
-    """(k,) variances of the squared coefficients from the whitened design (a term at 0: its limit's)."""
-    positive = p > 0
-    var_p = np.zeros(p.size)
-    if positive.any():
-        J = As[:, positive]
-        var_p[positive] = np.diag(np.linalg.pinv(J.T @ J)) * inflate
-    for j in np.flatnonzero(~positive):
-        J = As[:, np.append(np.flatnonzero(positive), j)]
-        var_p[j] = np.linalg.pinv(J.T @ J)[-1, -1] * inflate
-    return var_p
+def _allowance(
+    t: FloatArray, s2: FloatArray, nu: FloatArray, A: FloatArray, active: list[int], tau0_s: float, n_it: int
+) -> tuple[float, float, float]:
+    """(floor_rel, length in octaves, floor_rel at length 0) of the model allowance.
+
+    For each length of :data:`ALLOWANCE_LENGTHS_OCTAVES` within the fitted τ range, the level
+    giving χ²/dof = 1; of those, the pair of highest Gaussian likelihood (smallest
+    χ² + ln det C); and the level for independent points (length 0), which the values use.
+    """
+    span_octaves = float(np.log2(t.max() / t.min()))
+    best = (math.inf, 0.0, 0.0)
+    independent = math.nan
+    for length in ALLOWANCE_LENGTHS_OCTAVES:
+        if length > span_octaves:
+            break
+        floor = _floor_for_unit_chi2(t, s2, nu, A, active, tau0_s, n_it, length)
+        independent = floor if length == 0.0 else independent
+        g = _gls(t, s2, nu, A, active, tau0_s, floor, min(n_it, 2), length)
+        if g.chi2 + g.logdet < best[0]:
+            best = (g.chi2 + g.logdet, floor, length)
+    return best[1], best[2], independent
+
+
+def _term_variances(fit: _GlsFit, inflate: float, cov: FloatArray | None = None) -> FloatArray:
+    """(k,) variances of the squared coefficients of a GLS fit, times inflate.
+
+    ``cov`` None: diag (AsᵀAs)⁻¹, As the whitened design. Otherwise the sandwich for data of
+    covariance ``cov`` (m, m) fitted with the fit's own weights: H⁻¹·Asᵀ(L⁻¹·cov·L⁻ᵀ)As·H⁻¹,
+    H = AsᵀAs (White, Econometrica 48, 1980). The normal matrix holds every fitted term, also
+    one the non-negativity bound set to 0: the others still trade with it (a Q at 0 leaves N
+    free to take the short-τ excess); a sigma from the positive terms alone was too short
+    by that trade (module doc).
+    """
+    H_inv = np.linalg.pinv(fit.As.T @ fit.As)
+    if cov is None:
+        return np.asarray(np.diag(H_inv) * inflate, dtype=float)
+    half = forward_solve(fit.L, cov)  # L⁻¹·cov
+    meat = forward_solve(fit.L, np.ascontiguousarray(half.T))  # L⁻¹·cov·L⁻ᵀ (cov symmetric)
+    return np.asarray(np.diag(H_inv @ fit.As.T @ meat @ fit.As @ H_inv) * inflate, dtype=float)
 
 
 def fit_noise_model_curve(
@@ -292,6 +322,7 @@ def fit_noise_model_curve(
     n_iterations: int = 6,
     tau0_s: float | None = None,
     floor_rel: float | None = None,
+    floor_octaves: float | None = None,
 ) -> NoiseTerms:
     """Weighted non-negative least-squares fit of the noise model to one Allan curve.
 
@@ -303,8 +334,11 @@ def fit_noise_model_curve(
     :param tau0_s: sampling interval of the data behind the curve (s); ``None``: the smallest τ.
     :param floor_rel: relative allowance on σ for model misfit; ``None`` (default) estimates it:
         0 unless χ² exceeds its :data:`MISFIT_LEVEL` quantile, else the value giving χ²/dof = 1.
+    :param floor_octaves: correlation length of the allowance along τ (octaves,
+        :func:`allowance_correlation`); ``None`` (default): by likelihood when the allowance is
+        estimated (:func:`_allowance`), 0 (independent points) when floor_rel is given.
     :returns: :class:`NoiseTerms` with method ``"wls-5term"``; ``chi2_dof`` is that of the fit
-        without allowance, ``model_floor_rel`` the allowance used.
+        without allowance, ``model_floor_rel`` and ``model_floor_corr_octaves`` the allowance used.
     """
     t = np.asarray(taus_s, dtype=float)
     s2 = np.asarray(adev, dtype=float) ** 2
@@ -326,22 +360,37 @@ def fit_noise_model_curve(
         raise ValueError(f"{t.size} Allan points{rising} cannot determine {len(active)} noise terms")
     A = basis(t)[:, active]
     tau0 = float(t.min()) if tau0_s is None else float(tau0_s)
-    chi2, dof, p, As = _gls(t, s2, nu, A, active, tau0, 0.0, n_iterations)
-    chi2_dof = chi2 / dof
+    fit = _gls(t, s2, nu, A, active, tau0, 0.0, n_iterations)
+    chi2_dof = fit.chi2 / fit.dof
     floor = 0.0 if floor_rel is None else float(floor_rel)
-    if floor_rel is None and chi2 > stats.chi2.ppf(MISFIT_LEVEL, dof):
-        floor = _floor_for_unit_chi2(t, s2, nu, A, active, tau0, n_iterations)
-    var_p = _term_variances(p, As, max(1.0, chi2_dof))
+    octaves = 0.0 if floor_octaves is None else float(floor_octaves)
+    level = floor  # the allowance of the values' fit: independent between τ
+    if floor_rel is None and fit.chi2 > stats.chi2.ppf(MISFIT_LEVEL, fit.dof):
+        if floor_octaves is None:
+            floor, octaves, level = _allowance(t, s2, nu, A, active, tau0, n_iterations)
+        else:
+            level = _floor_for_unit_chi2(t, s2, nu, A, active, tau0, n_iterations, 0.0)
+            floor = (
+                level
+                if octaves == 0.0
+                else _floor_for_unit_chi2(t, s2, nu, A, active, tau0, n_iterations, octaves)
+            )
+    var_p = _term_variances(fit, max(1.0, chi2_dof))
     if floor > 0.0:
-        # the allowance keeps the many short-τ points from deciding every term; the misfit's
-        # χ²/dof of the fit without it still bounds the sigmas from below (Birge ratio)
-        chi2_f, dof, p, As = _gls(t, s2, nu, A, active, tau0, floor, n_iterations)
-        var_p = np.maximum(_term_variances(p, As, max(1.0, chi2_f / dof)), var_p)
+        # the values: GLS with the allowance independent between τ, which keeps the many
+        # short-τ points from deciding every term. Their sigmas: the sandwich with the
+        # allowance at its likelihood's correlation length (a misfit is smooth in τ), never
+        # below the fit without allowance scaled by its χ²/dof (Birge ratio).
+        fit = _gls(t, s2, nu, A, active, tau0, level, n_iterations)
+        fl = 2.0 * floor * fit.model
+        honest = fit.stat_cov + allowance_correlation(t, octaves) * fl[:, None] * fl[None, :]
+        var_p = np.maximum(_term_variances(fit, max(1.0, fit.chi2 / fit.dof), honest), var_p)
     values = [math.nan] * 5
     sigmas = [math.nan] * 5
     for k, idx in enumerate(active):
-        values[idx], sigmas[idx] = _root_with_sigma(float(p[k]), float(var_p[k]))
-    return _terms(values, sigmas, chi2_dof, "wls-5term", float(t[0]), floor)
+        values[idx], sigmas[idx] = _root_with_sigma(float(fit.p[k]), float(var_p[k]))
+    corr_octaves = octaves if floor > 0.0 else math.nan
+    return _terms(values, sigmas, chi2_dof, "wls-5term", float(t[0]), floor, corr_octaves)
 
 
 def fit_noise_model(result: AllanResult, terms: tuple[str, ...] = TERMS) -> tuple[NoiseTerms, ...]:
@@ -376,8 +425,8 @@ def _line_reading(
     logs = np.log(dev[mask]) - exponent * np.log(t[mask] / tau_read_s)
     inv_sd = np.sqrt(2.0 * nu[mask])
     cov = corr[np.ix_(mask, mask)] / inv_sd[:, None] / inv_sd[None, :] + floor_rel**2
-    L = _cholesky(cov)
-    white = _forward_solve(L, np.column_stack([np.ones(logs.size), logs]))
+    L = cholesky_ridged(cov)
+    white = forward_solve(L, np.column_stack([np.ones(logs.size), logs]))
     one_w, logs_w = white[:, 0], white[:, 1]
     info = float(one_w @ one_w)
     mean = float(one_w @ logs_w) / info

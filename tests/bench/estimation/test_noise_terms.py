@@ -12,18 +12,22 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 
 from bench.estimation.allan import edf_simple, overlapping_allan
+from bench.estimation.allan_covariance import allan_correlation, allowance_correlation
 from bench.estimation.noise_terms import (
     BI_FACTOR,
-    allan_correlation,
+    _gls,
+    _term_variances,
     basis,
     first_fit_index,
     fit_noise_model,
     fit_noise_model_curve,
     slope_method,
 )
+from benchmarks.study_sigmas_allan import study
 from tests.support.noise import flicker, rate_random_walk, white
 
 
@@ -115,6 +119,61 @@ def test_allan_correlation_of_white_noise_matches_simulation() -> None:
     for k in range(2, 7):  # τ = 4 … 64 samples: long against τ0, short against the record
         assert emp[k, k + 1] == pytest.approx(rho[k, k + 1], abs=0.16), k
         assert emp[k, k + 2] == pytest.approx(rho[k, k + 2], abs=0.16), k
+
+
+def test_allowance_correlation_is_exponential_in_octaves() -> None:
+    taus = np.array([1.0, 2.0, 8.0])
+    np.testing.assert_array_equal(allowance_correlation(taus, 0.0), np.eye(3))
+    rho = allowance_correlation(taus, 2.0)
+    assert rho[0, 1] == pytest.approx(math.exp(-0.5)) and rho[0, 2] == pytest.approx(math.exp(-1.5))
+    np.testing.assert_allclose(rho, rho.T)
+
+
+def test_sandwich_with_the_fits_own_covariance_is_its_normal_matrix() -> None:
+    """H⁻¹AsᵀL⁻¹·C·L⁻ᵀAsH⁻¹ with C = L·Lᵀ (the fit's covariance) reduces to H⁻¹ = (AsᵀAs)⁻¹."""
+    taus = np.asarray(0.01 * 2.0 ** np.arange(14), dtype=np.float64)
+    rng = np.random.default_rng(3)
+    s2: npt.NDArray[np.float64] = (basis(taus) @ np.array([0.0, 1e-3, 2e-4, 2e-5, 0.0]) ** 2) * (
+        1 + 0.01 * rng.normal(size=14)
+    )
+    nu = np.asarray(3e5 * 0.01 / taus, dtype=np.float64)
+    fit = _gls(taus, s2, nu, basis(taus), [0, 1, 2, 3, 4], 0.01, 0.02, 3)
+    np.testing.assert_allclose(
+        _term_variances(fit, 1.0, fit.L @ fit.L.T), _term_variances(fit, 1.0), rtol=1e-6
+    )
+
+
+def test_correlated_misfit_widens_the_white_sigma() -> None:
+    """White noise plus a Gauss–Markov bias of 0.3 s (a hump no power law makes) on a dense τ
+    grid at edf 7·10³-7·10⁵ (about 2 h at 100 Hz): χ² fails and the misfit is smooth in τ. N is
+    ambiguous there (1e-3 at short τ, √(N² + 2q·T_c) = 1.26e-3 beyond the hump); the fit reads
+    1.06e-3. With the allowance independent between τ its sigma leaves the short-τ density
+    more than 4σ away; at the allowance's likelihood length it is within 2σ. The values are
+    those of the independent allowance either way.
+    """
+    taus = np.geomspace(0.01, 1000.0, 60)
+    tc, q = 0.3, (1e-3) ** 2  # Allan variance of a Gauss–Markov process (IEEE 952 C.6)
+    x = taus / tc
+    gm = q / x**2 * (2 * x - 3 + 4 * np.exp(-x) - np.exp(-2 * x))
+    adev = np.sqrt(basis(taus) @ np.array([0.0, 1e-3, 0.0, 2e-5, 0.0]) ** 2 + gm)
+    edf = 7e5 * 0.01 / taus
+    free = fit_noise_model_curve(taus, adev, edf, tau0_s=0.01)
+    independent = fit_noise_model_curve(taus, adev, edf, tau0_s=0.01, floor_octaves=0.0)
+    assert free.model_floor_rel > 0 and free.model_floor_corr_octaves > 0
+    assert free.white_n == independent.white_n
+    assert abs(independent.white_n - 1e-3) > 4.0 * independent.white_n_sigma
+    assert abs(free.white_n - 1e-3) < 2.0 * free.white_n_sigma
+
+
+def test_sigmas_cover_the_spread_between_recordings() -> None:
+    """Sampled ``benchmarks.study_sigmas_allan``: 6 recordings × 3 channels of 1200 s of white
+    noise, a Gauss–Markov bias and rate random walk. RMS over the 153 pairs of |Δ| / combined
+    sigma within 0.4-1.6 for N, B, K (18 values: about ±25 % on each; the 50-recording study
+    at 600, 3000 and 12000 s is in docs/noise-model.md).
+    """
+    res = study(6, 1200.0)
+    for name in ("N_fit", "B_fit", "K_fit"):
+        assert 0.4 < res[f"{name}_pair_z"] < 1.6, (name, res)
 
 
 def test_white_noise_alone_leaves_other_terms_near_zero() -> None:
@@ -225,3 +284,33 @@ def test_imu_utils_curves_give_their_published_noise_levels(shared_dir: Path) ->
             assert fit.white_n <= ours_1s * (1 + 1e-9)
             n_checked += 1
     assert n_checked == 18
+
+
+@pytest.mark.slow  # about 2 min: 36 fits of 81-point curves with the allowance's length searched
+def test_white_sigma_covers_imu_utils_reading_of_the_same_curves(shared_dir: Path) -> None:
+    """N of each measured imu_utils curve against N of the same fit applied to imu_utils' own
+    model curve (a second reading of one recording): z = ΔN / σ_N over the 18 curves.
+
+    Most curves fail χ² (a short-τ filter hump, no clean −1/2 region on the DJI A3/N3), so the
+    two readings differ by what the model leaves out, not by noise. With the allowance
+    independent between τ, RMS z was 4.9 and |z| reached 9.9 (N sigma 1-2 %); the bound
+    is RMS z < 2 and every |z| < 3.5 (measured: docs/noise-model.md).
+    """
+    curves = _imu_utils_acc(shared_dir)
+    z = []
+    for sensor, rows in curves.items():
+        taus = np.array([float(r["tau_s"]) for r in rows])
+        tau0 = 1.0 / IMU_UTILS_RATE_HZ[sensor]
+        m = np.maximum(np.rint(taus / tau0).astype(int), 1)
+        edf = np.array([edf_simple(round(2 * 3600 / tau0) + 1, int(k), 0) for k in m])
+        for axis in "xyz":
+            ours = fit_noise_model_curve(
+                taus, np.array([float(r[f"adev_{axis}"]) for r in rows]), edf, tau0_s=tau0
+            )
+            theirs = fit_noise_model_curve(
+                taus, np.array([float(r[f"fit_{axis}"]) for r in rows]), edf, tau0_s=tau0
+            )
+            z.append((ours.white_n - theirs.white_n) / ours.white_n_sigma)
+    za = np.abs(np.array(z))
+    assert za.size == 18
+    assert math.sqrt(float(np.mean(za**2))) < 2.0 and za.max() < 3.5, np.round(z, 2)

@@ -56,6 +56,8 @@ class Settings(BaseSettings):
         ``None``: the simulated bench's (``bench/data/benches/sim.toml``), and a real table
         URL is refused.
     :param bench_name: this bench's name in the shared database.
+    :param device_lock_dir: the machine-wide directory of the locks on the bench file's real
+        devices (``station.execution.device_lock``); ``None``: ``<temp dir>/calbench-device-locks``.
     :param tokens: API tokens (the service's concern).
     :param sim_speed: simulated seconds per wall second for ``--sim``.
     :param sim_sample_rate_hz: DAQ rate of the simulated bench (Hz).
@@ -115,6 +117,7 @@ class Settings(BaseSettings):
     daq_url: str | None = None
     bench_file: Path | None = None
     bench_name: str = Field(default_factory=socket.gethostname)
+    device_lock_dir: Path | None = None
     tokens: Annotated[list[str], NoDecode] = Field(default_factory=list)
     link_key: str = Field("", repr=False)
     sim_speed: float = 1.0

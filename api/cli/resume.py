@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Execute ``calbench resume`` (exit code 3, one line, when another process drives the bench)."""
     settings = settings_for(args)
-    lock = holding_bench(settings, "calbench resume")
+    lock = holding_bench(settings, "calbench resume", sim=args.sim)
     if lock is None:
         return HELD_EXIT
     try:

@@ -234,11 +234,12 @@ def install_abort_handler(control: RunControl) -> None:
     signal.signal(signal.SIGTERM, handler)
 
 
-def holding_bench(settings: Settings, command: str) -> BenchLock | None:
-    """This process's hold on the bench (:class:`~station.execution.bench_lock.BenchLock`), or ``None``
-    after printing one line naming the process that drives it."""
+def holding_bench(settings: Settings, command: str, sim: bool = False) -> BenchLock | None:
+    """This process's hold on the bench and its bench file's real devices (none with ``sim``)
+    (:class:`~station.execution.bench_lock.BenchLock`), or ``None`` after printing one line
+    naming the process that drives it."""
     try:
-        return BenchLock(settings, command).acquire()
+        return BenchLock(settings, command, sim=sim).acquire()
     except BenchHeld as exc:
         print(f"{command}: {exc}", file=sys.stderr)
         return None
@@ -247,7 +248,7 @@ def holding_bench(settings: Settings, command: str) -> BenchLock | None:
 def run(args: argparse.Namespace) -> int:
     """Execute ``calbench run``."""
     settings = settings_for(args)
-    lock = holding_bench(settings, "calbench run")
+    lock = holding_bench(settings, "calbench run", sim=args.sim)
     if lock is None:
         return HELD_EXIT
     try:

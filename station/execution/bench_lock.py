@@ -35,12 +35,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
+from bench.bench_config import load_bench_config
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.process import process_start_ticks, same_process_alive
 from db.repo.lease import LEASE_TTL_S, LeaseHeld, LeaseHolder, acquire_lease, release_lease, renew_lease
 from db.repo.units import get_or_create_bench
 from db.types import utc_now
+from station.execution.device_lock import Device, DeviceHeld, DeviceLocks, bench_devices, lock_dir
 from station.settings import Settings
 
 log = logging.getLogger(__name__)
@@ -147,6 +149,7 @@ class BenchLock:
     :param lease: also hold the database lease (default).
     :param on_lost: called (from the renewal thread) when the lease was taken by another
         process; the holder must stop driving the table.
+    :param sim: the process drives a simulated bench (``--sim``): no real device to lock.
     """
 
     def __init__(
@@ -157,6 +160,7 @@ class BenchLock:
         lease: bool = True,
         on_lost: Callable[[str], None] | None = None,
         ttl_s: float = LEASE_TTL_S,
+        sim: bool = False,
     ) -> None:
         self.settings, self.kind, self.use_lease, self.on_lost, self.ttl_s = (
             settings,
@@ -173,17 +177,30 @@ class BenchLock:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._engine: Any = None
+        self.sim = sim or settings.sim
+        self._devices: DeviceLocks | None = None
 
     def acquire(self) -> BenchLock:
-        """Take the OS lock, then the lease.
+        """Take the OS lock, the locks of the bench file's real devices, then the lease.
 
-        :raises BenchHeld: another process holds either (named).
+        :raises BenchHeld: another process holds any of them (named: the bench, or the device
+            and the bench its holder drives it as).
         """
         handle = _flock(self.path)
         if handle is None:
             holder = read_holder(self.path)
             who = holder.describe() if holder is not None else "another process"
             raise BenchHeld(f"bench {self.settings.bench_name!r} is driven by {who} (lock {self.path})")
+        try:
+            self._devices = DeviceLocks(
+                self._real_devices(),
+                lock_dir(self.settings.device_lock_dir),
+                self.kind,
+                self.settings.bench_name,
+            ).acquire()
+        except DeviceHeld as exc:
+            handle.close()
+            raise BenchHeld(f"bench {self.settings.bench_name!r}: {exc}") from None
         pid = os.getpid()
         me = LockHolder(pid, socket.gethostname(), self.kind, utc_now(), process_start_ticks(pid))
         record = {
@@ -206,6 +223,16 @@ class BenchLock:
                 self.release()
                 raise
         return self
+
+    def _real_devices(self) -> list[Device]:
+        """The real devices this process will drive: the bench file's, none for a simulated
+        bench (``sim``) or a bench file that does not load (the run says why, later)."""
+        if self.sim or self.settings.bench_file is None:
+            return []
+        try:
+            return bench_devices(load_bench_config(self.settings.bench_file))
+        except (OSError, ValueError):
+            return []
 
     def _take_lease(self, holder: LeaseHolder) -> None:
         self._engine = open_database(self.settings.effective_database_url)
@@ -250,6 +277,9 @@ class BenchLock:
                     log.warning("bench %s: could not release the lease", self.settings.bench_name)
             self._engine.dispose()
             self._engine = None
+        if self._devices is not None:
+            self._devices.release()
+            self._devices = None
         if self._handle is not None:
             self._handle.close()
             self._handle = None

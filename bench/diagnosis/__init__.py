@@ -9,8 +9,9 @@ window means, then reports from the final state (a moving-table recording goes t
 1. ``screen_catalogue``: observability of every effect on this recording (``effects``);
 2. ``orientation_prior`` (orientation-free), ``library_search`` (``library``);
 3. ``forward_selection``, ``prune_redundant``, ``out_of_sample_referee``: the one selection
-   core (``greedy``: forward addition under an F gate and BIC, backward removal) through
-   ``selection`` and ``referee``;
+   core (``greedy``: forward addition under an F gate and BIC, backward removal, and the
+   selection resumed from the step before an effect a check took out) through ``selection``
+   and ``referee``;
 4. ``within_window``, ``refit_sequence`` (``within_window``, ``refit``);
 5. ``bench_lines``, ``settling``, ``unexplained_stage`` (``bench_families``, ``effects.settling``,
    ``unexplained``, ``hysteresis``).

@@ -9,7 +9,7 @@ slow wander by REML, ``likelihood.fit_noise``; the pose error as a variance comp
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -34,7 +34,12 @@ class Step:
 
 @dataclass
 class ModelState:
-    """The current model during selection."""
+    """The current model during selection.
+
+    :param swapped: catalogue effects replaced by library terms (not tried again);
+        :param excluded: catalogue effects taken out of the pool by a check after the
+        selection (``greedy.resume``: not candidates from the step before they entered).
+    """
 
     candidates: list[Candidate] = field(default_factory=list)
     pose: bool = False
@@ -43,6 +48,13 @@ class ModelState:
     steps: list[Step] = field(default_factory=list)
     pose_edf: float = 0.0
     swapped: set[str] = field(default_factory=set)
+    excluded: frozenset[str] = frozenset()
+
+    def copy(self) -> ModelState:
+        """A copy whose lists and sets can change without changing this state."""
+        return replace(
+            self, candidates=list(self.candidates), steps=list(self.steps), swapped=set(self.swapped)
+        )
 
 
 def design(ev: StaticEvidence, K: FloatArray, cands: list[Candidate]) -> FloatArray:

@@ -30,7 +30,8 @@ the expensive part).
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from collections.abc import Collection
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
@@ -41,7 +42,7 @@ from bench.diagnosis.confounding import mimics
 from bench.diagnosis.effects import Candidate, first_order_design, leverage, pose_response
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
-from bench.diagnosis.greedy import Trial, admits, forward, step_alpha
+from bench.diagnosis.greedy import NotedMove, Path, Trial, admits, extend, resume, step_alpha
 from bench.diagnosis.likelihood import GlsFit, NoiseParams, window_covariance
 from bench.diagnosis.model_state import (
     ModelState,
@@ -239,8 +240,9 @@ def _swap(
     simplicity: dict[str, int] | None,
     cap: SlowNoiseCap,
     th: Thresholds,
-) -> bool:
-    """Replace a catalogue effect of the model by one library term where that lowers the BIC.
+) -> ModelState | None:
+    """The model with a catalogue effect replaced by library terms where that lowers the BIC,
+    or ``None``.
 
     A catalogue effect enters first, so one that only partly mimics a term beyond the
     catalogue can enter and then bend the library's choice. For each catalogue effect E of
@@ -262,10 +264,9 @@ def _swap(
             continue
         keep = [c for c in state.candidates if c.effect != effect and c not in library]
         noise0, fit0, K0 = fit_model(ev, keep, state.pose, K, fixed, state.noise, cap=cap)
-        trial = ModelState(
-            candidates=keep, pose=state.pose, noise=noise0, fit=fit0,
+        trial = replace(
+            state.copy(), candidates=keep, noise=noise0, fit=fit0,
             steps=[st for st in state.steps if st.effect != effect and not st.effect.startswith(LIB)],
-            pose_edf=state.pose_edf,
         )  # fmt: skip
         added = 0
         while added < th.max_steps:
@@ -295,17 +296,55 @@ def _swap(
         if b < current - th.tie_chi2 and (best is None or b < best[0]):
             best = (b, effect, trial)
     if best is None:
-        return False
+        return None
     b, effect, trial = best
     new = ", ".join(c.label for c in trial.candidates if c in library)
     notes[effect] = (
         f"entered first but {new} explains the recording better without it "
         f"(BIC {current:.1f} -> {b:.1f}): replaced"
     )
-    state.candidates, state.steps = trial.candidates, trial.steps
-    state.noise, state.fit = trial.noise, trial.fit
-    state.swapped.add(effect)
-    return True
+    trial.swapped.add(effect)
+    return trial
+
+
+@dataclass(frozen=True)
+class Selection:
+    """A forward selection kept with its path (``greedy.Path``), so that a check after it (the
+    catalogue's pruning, the out-of-sample referee) can take catalogue effects out of the pool
+    and the selection resume without them (``greedy.resume``) instead of starting again.
+
+    :param path: the models after each step and each step's notes.
+    :param groups: the selection's groups of candidates, in the order they are asked.
+    :param max_steps: most steps of the path.
+    """
+
+    path: Path[ModelState]
+    groups: tuple[NotedMove[ModelState], ...]
+    max_steps: int
+
+    @property
+    def model(self) -> ModelState:
+        """A copy of the selected model (a check changes its copy; the path keeps its own)."""
+        return self.path.last.copy()
+
+    @property
+    def notes(self) -> dict[str, str]:
+        """Per candidate label, why it was not admitted (the steps of the path, in order)."""
+        return self.path.noted
+
+    def without(self, effects: Collection[str]) -> Selection:
+        """The selection resumed from the step before the first of ``effects`` entered, with
+        ``effects`` no longer candidates (``greedy.resume``). The steps before stand: each of
+        ``effects`` was tried at them and lost, so their gates keep the share it took."""
+        out = frozenset(effects)
+        path = resume(
+            self.path,
+            self.groups,
+            self.max_steps,
+            holds=lambda s: any(c.effect in out for c in s.candidates),
+            without=lambda s: replace(s.copy(), excluded=s.excluded | out),
+        )
+        return replace(self, path=path)
 
 
 def select(
@@ -317,7 +356,7 @@ def select(
     library: list[Candidate] | None = None,
     simplicity: dict[str, int] | None = None,
     th: Thresholds = THRESHOLDS,
-) -> tuple[ModelState, dict[str, str]]:
+) -> Selection:
     """Run the greedy selection.
 
     Each step tries, in this order, and takes the first group with an admissible candidate:
@@ -336,8 +375,8 @@ def select(
     :param library: candidates beyond the catalogue (``library``), or ``None``.
     :param simplicity: library label -> degree, for ties (``_structured``).
     :param th: the diagnosis's knobs (``thresholds``).
-    :returns: the final state and, per candidate label, why it was not admitted when it
-        could not be told from the model (``"indistinguishable"`` notes).
+    :returns: the selection: its model, its path and, per candidate label, why it was not
+        admitted when it could not be told from the model (``"indistinguishable"`` notes).
     """
     n = ev.n_obs
     state = ModelState()
@@ -345,31 +384,32 @@ def select(
     K = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
     cap = SlowNoiseCap(ev, th.cap_alpha)
     state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2, cap=cap)
-    notes: dict[str, str] = {}
     lib = library or []
+
+    def in_pool(st: ModelState) -> list[Candidate]:
+        # the catalogue's candidates: not swapped for library terms, not taken out by a check
+        return [c for c in pool if c.effect not in st.swapped and c.effect not in st.excluded]
 
     def n_catalogue(st: ModelState) -> int:
         # the catalogue's candidates still to try, plus the pose error while it is not in
-        return sum(1 for c in pool if c.effect not in st.swapped and c not in st.candidates) + (
-            1 if pose_allowed and not st.pose else 0
-        )
+        pose_left = 1 if pose_allowed and not st.pose else 0
+        return sum(1 for c in in_pool(st) if c not in st.candidates) + pose_left
 
     def admit(
         st: ModelState, step: tuple[float, Candidate, float, tuple[NoiseParams, GlsFit, FloatArray]]
     ) -> ModelState:
         dbic, chosen, lr, (noise1, fit1, _K1) = step
-        st.candidates.append(chosen)
-        st.steps.append(Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names)))
-        st.noise, st.fit = noise1, fit1
-        return st
+        return replace(
+            st.copy(), candidates=[*st.candidates, chosen], noise=noise1, fit=fit1,
+            steps=[*st.steps, Step(chosen.label, chosen.effect, lr, dbic, len(chosen.names))],
+        )  # fmt: skip
 
-    def catalogue(st: ModelState) -> ModelState | None:
+    def catalogue(st: ModelState, notes: dict[str, str]) -> ModelState | None:
         alpha = step_alpha(th.false_alarm, n_catalogue(st))
-        cands = [c for c in pool if c.effect not in st.swapped]
-        step = _structured(ev, cands, st, scale_matrix_of(st), fixed, alpha, notes, cap=cap, th=th)
+        step = _structured(ev, in_pool(st), st, scale_matrix_of(st), fixed, alpha, notes, cap=cap, th=th)
         return None if step is None else admit(st, step)
 
-    def beyond(st: ModelState) -> ModelState | None:
+    def beyond(st: ModelState, notes: dict[str, str]) -> ModelState | None:
         n_lib = sum(1 for c in lib if c not in st.candidates)
         step = _structured(
             ev, lib, st, scale_matrix_of(st), fixed, th.library_share * step_alpha(th.false_alarm, n_lib), {},
@@ -377,15 +417,14 @@ def select(
         )  # fmt: skip
         return None if step is None else admit(st, step)
 
-    def swap(st: ModelState) -> ModelState | None:
-        return st if _swap(ev, st, scale_matrix_of(st), fixed, lib, notes, simplicity, cap, th) else None
+    def swap(st: ModelState, notes: dict[str, str]) -> ModelState | None:
+        return _swap(ev, st, scale_matrix_of(st), fixed, lib, notes, simplicity, cap, th)
 
-    def pose(st: ModelState) -> ModelState | None:
+    def pose(st: ModelState, notes: dict[str, str]) -> ModelState | None:
         return _pose_step(ev, st, fixed, step_alpha(th.false_alarm, n_catalogue(st)), notes, cap, n, th)
 
-    groups = [catalogue, *((beyond, swap) if lib else ()), *((pose,) if pose_allowed else ())]
-    state, _ = forward(state, groups, th.max_steps)
-    return state, notes
+    groups = (catalogue, *((beyond, swap) if lib else ()), *((pose,) if pose_allowed else ()))
+    return Selection(extend(Path.start(state), groups, th.max_steps), groups, th.max_steps)
 
 
 def scale_matrix_of(state: ModelState) -> FloatArray:
@@ -437,8 +476,7 @@ def _pose_step(
     if not chk.consistent:
         notes["pose_error"] = chk.text()
         return None
-    state.pose = True
-    state.pose_edf = chk.edf
-    state.steps.append(Step("pose_error", "pose_error", lr, dbic, 1))
-    state.noise, state.fit = noise1, fit1
-    return state
+    return replace(
+        state.copy(), pose=True, pose_edf=chk.edf, noise=noise1, fit=fit1,
+        steps=[*state.steps, Step("pose_error", "pose_error", lr, dbic, 1)],
+    )  # fmt: skip

@@ -27,7 +27,7 @@ from bench.diagnosis.pose_quantisation import quantisation_covariance
 from bench.diagnosis.referee import prune_catalogue, referee
 from bench.diagnosis.refit import ModelFit, model_sequence
 from bench.diagnosis.result import Finding, Unexplained
-from bench.diagnosis.selection import select
+from bench.diagnosis.selection import Selection, select
 from bench.diagnosis.summaries import summary
 from bench.diagnosis.thresholds import Thresholds
 from bench.diagnosis.unexplained import unexplained
@@ -49,8 +49,10 @@ class WindowState:
     :param pose_ok: the pose error (a variance component) may be tried; :param settle_ok: the
         settling test (a window test) may run.
     :param fixed: (m, 3, 3) fixed extra covariance per window (orientation-free), or ``None``.
-    :param model: the selected model; :param excluded: catalogue effects no longer candidates
-        (dropped as redundant or refused out of sample).
+    :param selection: the forward selection with its path (``selection.Selection``), resumed
+        when a check takes a catalogue effect out; :param model: the selected model after the
+        checks; :param excluded: catalogue effects no longer candidates (dropped as redundant or
+        refused out of sample).
     :param ev_final: the evidence the final model is reported from (``within_window``).
     :param order: effects in the order they entered; :param seq: the first-order model, then each
         effect added in turn, under the final noise.
@@ -67,6 +69,7 @@ class WindowState:
     pose_ok: bool = False
     settle_ok: bool = False
     fixed: FloatArray | None = None
+    selection: Selection | None = None
     model: ModelState | None = None
     excluded: frozenset[str] = frozenset()
     ev_final: StaticEvidence | None = None
@@ -87,22 +90,6 @@ class WindowState:
         """(3, 3) the model's scale matrix."""
         assert self.model is not None and self.model.fit is not None
         return scale_matrix(self.model.fit)
-
-
-def _reselect(
-    ev: StaticEvidence, st: WindowState, excluded: frozenset[str], th: Thresholds
-) -> tuple[ModelState, dict[str, str]]:
-    """The selection core on the catalogue without ``excluded``, the library unchanged."""
-    library = [*st.beside_library, *(library_candidate(t) for t in st.lib_terms.values())]
-    return select(
-        ev,
-        [c for c in st.pool if c.effect not in excluded],
-        pose_allowed=st.pose_ok,
-        fixed=st.fixed,
-        library=library,
-        simplicity={t.label: t.degree for t in st.lib_terms.values()},
-        th=th,
-    )
 
 
 def screen_catalogue(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
@@ -173,49 +160,66 @@ def library_search(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple
 
 
 def forward_selection(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
-    """Greedy forward selection (``greedy.forward`` through ``selection.select``). Rule: at each
+    """Greedy forward selection (``greedy.extend`` through ``selection.select``). Rule: at each
     step the catalogue, then the library, then a swap, then the pose error are asked; the first
     with a candidate whose statistic passes its gate (F at ``th.false_alarm`` / N; the library
     at ``th.library_share`` of it) and whose BIC change is negative makes the step."""
-    model, notes = _reselect(ev, st, st.excluded, th)
-    return replace(st, model=model), notes
+    library = [*st.beside_library, *(library_candidate(t) for t in st.lib_terms.values())]
+    sel = select(
+        ev,
+        list(st.pool),
+        pose_allowed=st.pose_ok,
+        fixed=st.fixed,
+        library=library,
+        simplicity={t.label: t.degree for t in st.lib_terms.values()},
+        th=th,
+    )
+    return replace(st, selection=sel, model=sel.model), sel.notes
+
+
+def _resumed(st: WindowState, out: list[str]) -> tuple[WindowState, dict[str, str]]:
+    """The state with the selection resumed without the catalogue effects ``out``
+    (``selection.Selection.without``): its model, and the notes with the abandoned steps'
+    notes replaced by the resumed path's."""
+    assert st.selection is not None
+    sel = st.selection.without(out)
+    stale = st.selection.notes
+    kept = {k: v for k, v in st.notes.items() if stale.get(k) != v}
+    return replace(st, selection=sel, model=sel.model, excluded=st.excluded | set(out), notes=kept), sel.notes
 
 
 def prune_redundant(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
     """Backward removal of the catalogue (``referee.prune_catalogue``). Rule: a catalogue effect
     whose Wald statistic, once the library's terms are in, falls below the gate it passed to
-    enter is dropped, and the selection runs again without it (the library's terms were chosen
-    beside it)."""
+    enter is dropped, and the selection resumes without it from the step before it entered
+    (``greedy.resume``: the library's terms after it were chosen beside it)."""
     assert st.model is not None
     notes: dict[str, str] = {}
-    dropped = prune_catalogue(ev, st.model, list(st.pool), st.fixed, notes, th)
+    model = st.model.copy()
+    dropped = prune_catalogue(ev, model, list(st.pool), st.fixed, notes, th)
     if not dropped:
-        return st, notes
-    excluded = st.excluded | set(dropped)
-    model, again = _reselect(ev, st, excluded, th)
-    known = {**st.notes, **notes}
-    return replace(st, model=model, excluded=excluded), {
-        **{k: v for k, v in again.items() if k not in known},
-        **notes,
-    }
+        return replace(st, model=model), notes
+    out, again = _resumed(st, dropped)
+    return out, {**again, **notes}
 
 
 def out_of_sample_referee(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
     """Out-of-sample referee (``referee.referee``). Rule: every structured effect must lower the
     leave-one-window-out prediction error of its channels; the worst offender is removed until
-    all do. A catalogue effect refused is no longer a candidate: the selection runs again
-    without it (it may have bent the library's search) and the referee judges that model."""
+    all do. A catalogue effect refused is no longer a candidate: the selection resumes without
+    it from the step before it entered (``greedy.resume``; it may have bent the library's
+    search) and the referee judges that model."""
     assert st.model is not None
     notes: dict[str, str] = {}
-    refused = [e for e in referee(ev, st.model, st.fixed, notes, th) if not e.startswith(EFFECT + ":")]
+    model = st.model.copy()
+    refused = [e for e in referee(ev, model, st.fixed, notes, th) if not e.startswith(EFFECT + ":")]
     if not refused:
-        return st, notes
-    excluded = st.excluded | set(refused)
-    known = {**st.notes, **notes}
-    model, again = _reselect(ev, st, excluded, th)
-    fresh = {**again, **{k: v for k, v in known.items() if k in excluded}}
-    referee(ev, model, st.fixed, fresh, th)
-    return replace(st, model=model, excluded=excluded, notes={}), fresh
+        return replace(st, model=model), notes
+    out, again = _resumed(st, refused)
+    fresh = {**again, **{k: v for k, v in notes.items() if k in refused}}
+    assert out.model is not None
+    referee(ev, out.model, st.fixed, fresh, th)
+    return out, fresh
 
 
 def within_window(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:

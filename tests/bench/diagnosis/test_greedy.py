@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from bench.diagnosis.greedy import Trial, admits, backward, best, forward, step_alpha
+from bench.diagnosis.greedy import Path, Trial, admits, backward, best, extend, forward, resume, step_alpha
 
 
 def test_admission_needs_the_gate_and_a_lower_bic() -> None:
@@ -64,3 +64,31 @@ def test_backward_removes_the_worst_until_all_pass() -> None:
     state, removed = backward({"a": 3.0, "b": 0.2, "c": 0.5}, worst)
     assert removed == ["b", "c"]
     assert state == {"a": 3.0}
+
+
+def test_resume_goes_back_to_the_step_before_and_keeps_what_came_before() -> None:
+    # the state is the tuple of admitted items; the group admits the smallest item of the pool
+    # not in the state and not excluded (excluded items are the last element, a frozenset)
+    asked: list[tuple[str, ...]] = []
+
+    def admit(s: tuple[frozenset[str], tuple[str, ...]], notes: dict[str, str]):  # type: ignore[no-untyped-def]
+        out, items = s
+        asked.append(items)
+        left = sorted(set("abcd") - set(items) - out)
+        notes[f"after {''.join(items)}"] = "asked"
+        return (out, (*items, left[0])) if left else None
+
+    start: tuple[frozenset[str], tuple[str, ...]] = (frozenset(), ())
+    path = extend(Path.start(start), [admit], 3)
+    assert path.last[1] == ("a", "b", "c") and path.steps == 3
+    assert list(path.noted) == ["after ", "after a", "after ab"]
+    asked.clear()
+    again = resume(path, [admit], 3, lambda s: "b" in s[1], lambda s: (s[0] | {"b"}, s[1]))
+    # back to the state before b entered, b excluded, then forward: a, c, d
+    assert again.last[1] == ("a", "c", "d")
+    assert again.states[0] is path.states[0]
+    assert asked == [("a",), ("a", "c")]  # nothing before b's admission asked again
+    assert list(again.noted) == ["after ", "after a", "after ac"]
+    # nothing holds: the exclusion applies at the end and the path goes on
+    more = resume(again, [admit], 4, lambda s: "z" in s[1], lambda s: s)
+    assert more.last[1] == ("a", "c", "d") and more.steps == 3

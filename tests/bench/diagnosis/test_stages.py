@@ -11,8 +11,10 @@ from bench.diagnosis.effects import NEEDS_TABLE, Candidate, first_order_design
 from bench.diagnosis.effects.base import FloatArray, channel_column
 from bench.diagnosis.effects.sensor import NONLINEARITY
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.greedy import Path
 from bench.diagnosis.library import EFFECT
 from bench.diagnosis.model_state import ModelState, Step, fit_model
+from bench.diagnosis.selection import select
 from bench.diagnosis.stages import (
     NO_TABLE_REASON,
     ORIENTATION_FREE,
@@ -72,6 +74,15 @@ def _model(ev: StaticEvidence, cands: list[Candidate]) -> ModelState:
     noise, fit, _ = fit_model(ev, cands, False, K0, None, iterations=2)
     steps = [Step(c.label, c.effect, 0.0, 0.0, len(c.names)) for c in cands]
     return ModelState(candidates=list(cands), noise=noise, fit=fit, steps=steps)
+
+
+def _selected(ev: StaticEvidence, st: WindowState, cands: list[Candidate]) -> WindowState:
+    """``st`` after a selection whose path admitted ``cands`` one by one (each model refitted);
+    the path's groups are those of the selection on ``st``'s catalogue pool, without a library."""
+    sel = select(ev, list(st.pool), pose_allowed=False)
+    states = tuple(_model(ev, cands[:k]) for k in range(len(cands) + 1))
+    sel = replace(sel, path=Path(states, tuple({} for _ in states)))
+    return replace(st, selection=sel, model=sel.model)
 
 
 def test_screen_sets_the_tables_physics_aside_without_a_table() -> None:
@@ -144,26 +155,54 @@ def test_prune_drops_a_catalogue_effect_a_library_term_made_redundant() -> None:
     ev = _evidence(4, extra)
     st, _ = screen_catalogue(ev, WindowState(), THRESHOLDS)
     quad_x = NONLINEARITY.candidates(ev)[0]
-    model = _model(ev, [quad_x, _column(f"{EFFECT}:cube", 0, cube)])
-    out, notes = prune_redundant(ev, replace(st, model=model), THRESHOLDS)
+    out, notes = prune_redundant(
+        ev, _selected(ev, st, [quad_x, _column(f"{EFFECT}:cube", 0, cube)]), THRESHOLDS
+    )
     assert out.excluded == {"nonlinearity_quadratic"}
     assert "dropped" in notes["nonlinearity_quadratic"]
     assert out.model is not None and "nonlinearity_quadratic" not in {c.effect for c in out.model.candidates}
     # without a library term in the model there is nothing to prune
-    same, none = prune_redundant(ev, replace(st, model=_model(ev, [quad_x])), THRESHOLDS)
+    same, none = prune_redundant(ev, _selected(ev, st, [quad_x]), THRESHOLDS)
     assert none == {} and same.excluded == frozenset()
+
+
+def test_a_pruned_effect_resumes_the_selection_from_the_step_before_it_entered() -> None:
+    # truth: a ramp on ay (30 sigma) and a cube on ax (30 sigma); the path admitted the ramp,
+    # then the x quadratic (truth 0), then the cube
+    ramp, cube = np.linspace(-1.0, 1.0, M), F[:, 0] ** 3 / G**3
+    extra = np.zeros((M, 3))
+    extra[:, 0], extra[:, 1] = 30 * SIGMA * cube, 30 * SIGMA * ramp
+    ev = _evidence(4, extra.reshape(-1))
+    st, _ = screen_catalogue(ev, WindowState(), THRESHOLDS)
+    ramp_y, quad_x = _column("ramp", 1, ramp), NONLINEARITY.candidates(ev)[0]
+    before = _selected(ev, st, [ramp_y, quad_x, _column(f"{EFFECT}:cube", 0, cube)])
+    out, _ = prune_redundant(ev, before, THRESHOLDS)
+    assert before.selection is not None and out.selection is not None and out.model is not None
+    # the step before the quadratic entered stands (its fit kept, not fitted again)
+    now, then = out.selection.path.states, before.selection.path.states
+    assert now[0] is then[0] and now[1].fit is then[1].fit
+    assert out.model.candidates[0] is ramp_y
+    assert "nonlinearity_quadratic" in out.model.excluded
+    assert "nonlinearity_quadratic" not in {c.effect for c in out.model.candidates}
+    # the path it left is unchanged (the states are not changed in place)
+    assert [c.label for c in before.selection.path.last.candidates] == [
+        "ramp[1]", "nonlinearity_quadratic[x]", f"{EFFECT}:cube[0]"
+    ]  # fmt: skip
 
 
 def test_referee_refuses_a_column_that_does_not_predict_a_left_out_window() -> None:
     ev = _evidence(5, _quadratic_z(1e-3))
     st, _ = screen_catalogue(ev, WindowState(), THRESHOLDS)
     noise_col = np.random.default_rng(6).normal(size=M)  # truth 0: it only follows the noise
-    model = _model(ev, [NONLINEARITY.candidates(ev)[2], _column("noise_column", 0, noise_col)])
-    out, notes = out_of_sample_referee(ev, replace(st, model=model), THRESHOLDS)
+    quad_z = NONLINEARITY.candidates(ev)[2]
+    out, notes = out_of_sample_referee(
+        ev, _selected(ev, st, [quad_z, _column("noise_column", 0, noise_col)]), THRESHOLDS
+    )
     assert out.excluded == {"noise_column"}
     assert "left-out window" in notes["noise_column"]
-    # the selection ran again without it: the true effect alone
+    # the selection resumed without it from the step before it entered: the true effect alone
     assert out.model is not None and [c.effect for c in out.model.candidates] == ["nonlinearity_quadratic"]
+    assert out.selection is not None and out.selection.path.steps == 1
 
 
 def test_within_window_leaves_a_model_without_library_terms_alone() -> None:

@@ -8,10 +8,12 @@ and K under ``extra`` (``docs/cli-contract.md``: ``lever_arm.r_m``, ``proof_mass
 ``nonlinearity_quadratic.k2_per_g``, ``table_tilt.tilt_rad``, ``time_skew.delay_s``).
 
 Terms: the model the evidence supports. By default the terms are those the diagnosis of
-the same recording claims (``bench.diagnosis.dynamic.claim_catalogue``: each term the motion
+the same recording claims (``bench.diagnosis.dynamic.claim_moving``: each term the motion
 determines is tried, and enters only if its departure from the believed geometry passes a
 Wald test at the diagnosis's false-alarm rate and lowers the BIC; steps that a term of the
-moving library explains better are left out, as the diagnosis leaves them); the believed geometry of
+moving library explains better are left out, as the diagnosis leaves them; claims that only
+imitated a bench family, an angle harmonic or a growing delay, are withdrawn by the families'
+head to head, as the diagnosis withdraws them); the believed geometry of
 the sidecar is kept for every term left out. Fitting a term that the data do not need only
 spreads the same information over more parameters: on a clean oscillation run the z-bias
 sigma of the all-terms fit is 3.7× the first-order fit's. ``terms=`` (``calbench calibrate
@@ -38,7 +40,7 @@ import numpy.typing as npt
 from bench.calibration.kind import CANDIDATE_TERMS, FitKind
 from bench.calibration.result import CalibrationResult, WindowResult
 from bench.calibration.windows import moving_samples, select_windows
-from bench.diagnosis.dynamic import claim_catalogue
+from bench.diagnosis.dynamic import claim_moving
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_kalman import run_dynamic_kalman
 from bench.estimation.dynamic_model import G0_M_S2, ModelSpec, initial_theta, positions, predict
@@ -304,9 +306,10 @@ def calibrate_dynamic(
     """Fit the dynamic model to a moving-table recording (module docstring).
 
     :param terms: the extra terms to fit (declared, e.g. by the unit model); default: those
-        the recording's evidence supports and its diagnosis claims (``claim_catalogue``: the
-        catalogue's greedy selection less the steps a library term explains better; module
-        docstring), so a calibration never fits a term the diagnosis would not claim.
+        the recording's evidence supports and its diagnosis claims (``claim_moving``: the
+        catalogue's greedy selection less the steps a library term explains better, and less
+        the claims the bench families' head to head withdraws; module docstring), so a
+        calibration fits exactly the terms the diagnosis claims.
     :param nominal_scale: nominal sensitivity (channel unit per m/s²) for the 'before' check.
     :param cross_check: run the Kalman filter over the same data and compare.
     :raises ValueError: no table, too few samples, or a motion that cannot determine bias and K.
@@ -318,11 +321,29 @@ def calibrate_dynamic(
     lever = np.asarray(geo.lever_arm_m, dtype=float)
     m, y = moving_samples(rec)
     if terms is None:
-        claim = claim_catalogue(m, y, g, lever, rec.temp_c)
-        sel = claim.selection
-        spec, fit = ModelSpec(claim.terms), claim.fit
+        whole = claim_moving(
+            m, y, g, lever, temp_c=rec.temp_c, unit=rec.sidecar.unit_serial,
+            channel_unit=rec.sidecar.channel_unit, source=rec.source, findings=False,
+        )  # fmt: skip
+        claim, sel = whole.catalogue, whole.catalogue.selection
+        spec = ModelSpec(whole.terms)
+        fit = claim.fit_of(whole.terms) or fit_dynamic_batch(m, y, g, lever, spec)
         dropped = {**sel.unobservable, **sel.rejected}
         dropped.update(dict.fromkeys(sel.chosen[claim.k :], f"replaced by the library: {claim.note}"))
+        if whole.alternative is not None:
+            why = f"withdrawn by the bench families' head to head: {whole.withdrawn}"
+            dropped.update(dict.fromkeys((t for t in claim.terms if t not in whole.terms), why))
+            for t in whole.terms:
+                dropped.pop(t, None)
+        claimed = (
+            [{"term": t, "wald": w, "delta_bic": dbic} for t, dbic, w in sel.steps[: claim.k]]
+            if whole.alternative is None
+            else [
+                {"term": f.effect, "wald": f.lr, "delta_bic": f.delta_bic}
+                for f in whole.alternative.findings
+                if f.effect in whole.terms
+            ]
+        )
         selection: dict[str, Any] = {
             "rule": "evidence",
             "text": (
@@ -330,7 +351,7 @@ def calibrate_dynamic(
                 f"Wald test passes at false alarm {sel.false_alarm:g} per step (over the terms tried) "
                 "and it lowers the BIC; the sidecar's geometry is kept for the others"
             ),
-            "steps": [{"term": t, "wald": w, "delta_bic": dbic} for t, dbic, w in sel.steps[: claim.k]],
+            "steps": claimed,
         }
     else:
         spec = ModelSpec(tuple(terms))

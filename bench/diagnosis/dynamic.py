@@ -22,9 +22,11 @@ told apart, so a delay found is reported as ``time_skew`` confounded with ``sens
 After the catalogue, the moving term library (``library_motion``, searched by
 ``library_motion_search``, reported in ``discovered``); where a discovered term makes the
 catalogue's later steps redundant, the catalogue path is cut back (``library_motion_swap``).
-``claim_catalogue`` is that claim, shared with ``calibrate``'s term selection; it runs the
-moving stages (``dynamic_selection``: screen_motion, motion_selection on the selection core
-``greedy``, library_cut).
+``claim_catalogue`` is that claim; it runs the moving stages (``dynamic_selection``:
+screen_motion, motion_selection on the selection core ``greedy``, library_cut). The bench
+families are then weighed against it (``family_referee``'s head to head, which may withdraw
+it): :func:`claim_moving` is the whole claim, shared with ``calibrate``'s term selection, so
+a calibration fits exactly the terms the diagnosis claims.
 
 Residuals and correlates: 1 s block means of the baseline residuals (the "windows" of the
 report) against ω² = −tr(B_sym)/2, |ω̇| (from the antisymmetric part of B), f_i², |f_i|, time
@@ -32,6 +34,8 @@ and temperature, by ``regressors.block_correlations``.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -52,7 +56,15 @@ from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit, white_sigma
 from bench.estimation.motion_data import MotionData
 
-__all__ = ["CatalogueClaim", "TermSelection", "claim_catalogue", "diagnose_dynamic", "select_terms"]
+__all__ = [
+    "CatalogueClaim",
+    "MovingClaim",
+    "TermSelection",
+    "claim_catalogue",
+    "claim_moving",
+    "diagnose_dynamic",
+    "select_terms",
+]
 
 FloatArray = np.ndarray
 CHANNELS = ("ax", "ay", "az")
@@ -100,6 +112,73 @@ def _summary_text(term: str, p: dict[str, object], s: dict[str, object]) -> str:
     return f"{term}: {name} = {v.ravel()[k]:.3g} ± {e.ravel()[k]:.2g} {unit} (largest of {v.size} in sigmas)"
 
 
+@dataclass(frozen=True)
+class MovingClaim:
+    """What a moving recording's diagnosis claims, shared with ``calibrate``: the catalogue's
+    claim (``claim_catalogue``) and the bench families beside it, or, where the families' head
+    to head (``family_referee``) withdraws that claim, the diagnosis that won it.
+
+    :param catalogue: the catalogue's claim before the head to head.
+    :param bench: the bench families' findings beside it (empty when it was withdrawn, or not
+        asked for: ``claim_moving(findings=False)``).
+    :param alternative: the diagnosis of the samples without the families, whose claims
+        replace the catalogue's, when it won the head to head; else ``None``.
+    """
+
+    catalogue: CatalogueClaim
+    bench: tuple[Finding, ...]
+    alternative: Diagnosis | None
+
+    @property
+    def terms(self) -> tuple[str, ...]:
+        """The dynamic model's terms the diagnosis claims, in order."""
+        if self.alternative is None:
+            return self.catalogue.terms
+        return tuple(f.effect for f in self.alternative.findings if f.effect in PARAM)
+
+    @property
+    def withdrawn(self) -> str | None:
+        """Why the catalogue's claim was withdrawn (the head to head's note), or ``None``."""
+        return None if self.alternative is None else self.alternative.notes[0]
+
+
+def claim_moving(
+    m: MotionData,
+    y: FloatArray,
+    g_m_s2: float,
+    lever_arm_m: FloatArray,
+    *,
+    temp_c: FloatArray | None = None,
+    unit: str = "",
+    channel_unit: str = "",
+    source: str = "",
+    library: bool = True,
+    thresholds: Thresholds = THRESHOLDS,
+    head_to_head: bool = True,
+    findings: bool = True,
+) -> MovingClaim:
+    """The claim of :func:`diagnose_dynamic` (same arguments): the catalogue claim, then the
+    bench families on its final residual and, where it claims something and a family is left,
+    their head to head against it (``bench_families.moving_stage``). ``findings`` False (the
+    claim alone, for ``calibrate``): a claim of nothing has no head to head and the families
+    are not searched (``bench`` is then empty)."""
+    lever = np.asarray(lever_arm_m, dtype=float).reshape(3)
+    th = thresholds
+    claim = claim_catalogue(m, y, g_m_s2, lever, temp_c, library=library, th=th)
+    lib, vals = claim.library, claim.values
+    if not findings and not (claim.k or lib.included):
+        return MovingClaim(claim, (), None)
+    bench_found, alternative = bench_stage(
+        m, y, g_m_s2, lever, claim.fits[-1], lib.adjustment(vals) if lib.included else None, channel_unit, th,
+        baseline=claim.selection.fits[0], n_claims=claim.k + len(lib.included), n_library=len(lib.included),
+        rerun=None if not head_to_head else lambda y2: diagnose_dynamic(
+            m, y2, g_m_s2, lever_arm_m, temp_c=temp_c, unit=unit, channel_unit=channel_unit, source=source,
+            library=library, thresholds=th, head_to_head=False,
+        ),
+    )  # fmt: skip
+    return MovingClaim(claim, () if alternative is not None else tuple(bench_found), alternative)
+
+
 def diagnose_dynamic(
     m: MotionData,
     y: FloatArray,
@@ -128,11 +207,17 @@ def diagnose_dynamic(
     lever = np.asarray(lever_arm_m, dtype=float).reshape(3)
     sig_w = np.maximum(white_sigma(y[m.valid]), 1e-12)
     th = thresholds
-    claim = claim_catalogue(m, y, g_m_s2, lever, temp_c, library=library, th=th)
+    whole = claim_moving(
+        m, y, g_m_s2, lever_arm_m, temp_c=temp_c, unit=unit, channel_unit=channel_unit, source=source,
+        library=library, thresholds=th, head_to_head=head_to_head,
+    )  # fmt: skip
+    if whole.alternative is not None:
+        return whole.alternative
+    claim = whole.catalogue
     sel, k_cut, lib, vals, cut_note = claim.selection, claim.k, claim.library, claim.values, claim.note
     unobservable = {**STATIC_ONLY, **sel.unobservable}
     n_obs = 3 * int(m.valid.sum())
-    fits = [*sel.fits[: k_cut + 1], *lib.fits[1:]]
+    fits = list(claim.fits)
     steps = list(sel.steps[:k_cut])
     final = fits[-1]
     findings = []
@@ -159,17 +244,7 @@ def diagnose_dynamic(
             )
         )
     discovered = tuple(discovery(inc, final, channel_unit) for inc in lib.included)
-    bench_found, alternative = bench_stage(
-        m, y, g_m_s2, lever, final, lib.adjustment(vals) if lib.included else None, channel_unit, th,
-        baseline=sel.fits[0], n_claims=len(steps) + len(lib.included), n_library=len(lib.included),
-        rerun=None if not head_to_head else lambda y2: diagnose_dynamic(
-            m, y2, g_m_s2, lever_arm_m, temp_c=temp_c, unit=unit, channel_unit=channel_unit, source=source,
-            library=library, thresholds=th, head_to_head=False,
-        ),
-    )  # fmt: skip
-    if alternative is not None:
-        return alternative
-    findings += bench_found
+    findings += whole.bench
     regs = motion_regressors(m, y, final, g_m_s2, lever, temp_c)
     bs = block_summary(
         m, y, fits, g_m_s2, lever, sig_w, regs, n_obs,

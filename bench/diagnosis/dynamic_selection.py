@@ -1,10 +1,10 @@
 """The moving recording's term selection as stages (``pipeline``): which dynamic-model terms
 the motion determines, the greedy selection over them on the selection core (``greedy``), and
 the claim after the moving library's search (``library_motion_search``) and the cut of catalogue
-steps it explains better (``library_motion_swap``). ``claim_catalogue`` runs these stages; it is
-shared by ``dynamic.diagnose_dynamic`` and ``calibrate``'s term selection, so a calibration never
-fits a term the diagnosis would not claim. The selection's statistics: ``dynamic`` module
-docstring.
+steps it explains better (``library_motion_swap``). ``claim_catalogue`` runs these stages;
+``dynamic.claim_moving`` weighs the bench families against its claim (the head to head) and is
+the claim both ``dynamic.diagnose_dynamic`` and ``calibrate``'s term selection use. The
+selection's statistics: ``dynamic`` module docstring.
 """
 
 from __future__ import annotations
@@ -224,6 +224,17 @@ class CatalogueClaim:
         """The catalogue model of the claimed terms."""
         return self.selection.fits[self.k]
 
+    @property
+    def fits(self) -> tuple[DynamicFit, ...]:
+        """The baseline fit, then the fit after each claimed step and each library term;
+        ``fits[-1]`` is the final model."""
+        return (*self.selection.fits[: self.k + 1], *self.library.fits[1:])
+
+    def fit_of(self, terms: tuple[str, ...]) -> DynamicFit | None:
+        """The catalogue model of ``terms`` when they are the selection's first steps, else ``None``."""
+        k = len(terms)
+        return self.selection.fits[k] if self.selection.chosen[:k] == terms else None
+
 
 @dataclass(frozen=True)
 class MovingEvidence:
@@ -326,7 +337,7 @@ def claim_catalogue(
     """The catalogue terms the recording supports and the diagnosis claims: the :data:`MOVING`
     pipeline (the greedy selection, then the steps a library path explains better replaced,
     ``cut_catalogue``). ``library`` False: :data:`MOVING_NO_LIBRARY`, every selected step
-    claimed. ``calibrate`` fits these terms, so it never fits a term the diagnosis would not claim.
+    claimed. The bench families' head to head may still withdraw it (``dynamic.claim_moving``).
     """
     ev = MovingEvidence(m, y, g_m_s2, np.asarray(lever, dtype=float), temp_c)
     st, _ = (MOVING if library else MOVING_NO_LIBRARY).run(ev, MovingState(), th)

@@ -99,7 +99,7 @@ def test_api_writes_answer_while_a_moving_certificate_is_finished(
     calls: Counter[str] = Counter()
     count_everywhere(monkeypatch, calls, bench.recording.reader, "read_recording")
     count_everywhere(monkeypatch, calls, bench.calibration.recording, "calibrate_recording")
-    count_everywhere(monkeypatch, calls, bench.calibration.dynamic, "claim_catalogue")
+    count_everywhere(monkeypatch, calls, bench.calibration.dynamic, "claim_moving")
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)
     finisher = make_finisher(settings, sessions, make_session_factory(engine, read_only=True))

@@ -1,4 +1,5 @@
-"""``calibrate`` on a moving recording fits only the catalogue terms its diagnosis claims."""
+"""``calibrate`` on a moving recording fits only the catalogue terms its diagnosis claims,
+including where the bench families' head to head withdraws the catalogue's claims."""
 
 from __future__ import annotations
 
@@ -8,7 +9,27 @@ import pytest
 
 from bench.calibration.diagnose import diagnose_recording
 from bench.calibration.dynamic import calibrate_dynamic
+from bench.diagnosis import Diagnosis
+from bench.diagnosis.dynamic import PARAM
+from bench.recording import Recording
 from tests.support.diagnose_dynamic_cases import DYNAMIC_CASES, moving_recording
+from tests.support.families_cases import cases
+
+HEAD_TO_HEAD = (
+    "clock_drift: 100 ppm, rate",
+    "angle_harmonic: inner axis, once per turn, ax, oscillation, 1.0 mg",
+)
+"""Families the catalogue imitates on their motion (docs/diagnose.md, "Head to head of the bench
+families"): a growing delay taken as nonlinearity_quadratic, a once-per-turn harmonic as table_tilt."""
+
+
+def _claimed_and_fitted(rec: Recording) -> tuple[Diagnosis, set[str], set[str], dict[str, str]]:
+    """The diagnosis, the dynamic-model terms it claims, the terms calibrate fits and why
+    calibrate left the others out."""
+    d = diagnose_recording(rec)
+    cal = calibrate_dynamic(rec, cross_check=False)
+    claimed = {f.effect for f in d.findings if f.effect in PARAM}
+    return d, claimed, set(cal.terms) - {"bias", "scale_matrix"}, cal.not_fitted
 
 
 @pytest.mark.slow
@@ -38,3 +59,17 @@ def test_calibrate_fits_what_the_diagnosis_claims(effect: str) -> None:
     claimed = {f.effect for f in diagnose_recording(rec).findings}
     fitted = set(calibrate_dynamic(rec, cross_check=False).terms) - {"bias", "scale_matrix"}
     assert fitted == claimed == {effect}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", HEAD_TO_HEAD)
+def test_calibrate_fits_exactly_what_the_diagnosis_claims_after_the_head_to_head(name: str) -> None:
+    (case,) = [c for c in cases() if c.name == name]
+    withdrawn = 0
+    for seed in (100, 101, 102):
+        d, claimed, fitted, why = _claimed_and_fitted(case.recording(seed))
+        assert fitted == claimed, (seed, fitted, claimed)
+        if any("are withdrawn" in n for n in d.notes):
+            withdrawn += 1
+            assert any("head to head" in w for w in why.values()), why
+    assert withdrawn >= 1  # the head to head withdrew a claim: the test is about it

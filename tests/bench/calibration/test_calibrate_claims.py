@@ -7,11 +7,14 @@ from dataclasses import replace
 
 import pytest
 
+from api.simulated_recording import to_recording
 from bench.calibration.diagnose import diagnose_recording
 from bench.calibration.dynamic import calibrate_dynamic
 from bench.diagnosis import Diagnosis
 from bench.diagnosis.dynamic import PARAM
 from bench.recording import Recording
+from drivers.sim.offline import DEFAULT_AXES, simulate_oscillation
+from drivers.sim.physics import SensorPhysics, SensorTruth
 from tests.support.diagnose_dynamic_cases import DYNAMIC_CASES, moving_recording
 from tests.support.families_cases import cases
 
@@ -73,3 +76,22 @@ def test_calibrate_fits_exactly_what_the_diagnosis_claims_after_the_head_to_head
             withdrawn += 1
             assert any("head to head" in w for w in why.values()), why
     assert withdrawn >= 1  # the head to head withdrew a claim: the test is about it
+
+
+def _short_harmonic(seed: int) -> Recording:
+    """30 s of the oscillation at 50 Hz with a 2 mg once-per-turn disturbance of the inner
+    axis on ax (``angle_harmonic``, phase 0.4 rad): the catalogue takes it for table_tilt."""
+    amp = [2e-3 * 9.80665, 0.0, 0.0]
+    eff = {"angle_harmonic": {"axis": 3, "harmonic": 1, "amplitude_m_s2": amp, "phase_rad": 0.4}}
+    truth = SensorTruth.typical("V", seed=seed).with_effects(eff)
+    run = simulate_oscillation(SensorPhysics(truth, DEFAULT_AXES, seed=seed), 50.0, duration_s=30.0)
+    return to_recording(run, serial=f"SIM-DYN-{seed}")
+
+
+def test_calibrate_leaves_out_a_claim_the_head_to_head_withdraws() -> None:
+    d, claimed, fitted, why = _claimed_and_fitted(_short_harmonic(1))
+    assert any(f.effect == "angle_harmonic" for f in d.findings)
+    assert any("are withdrawn" in n for n in d.notes)
+    assert fitted == claimed and "table_tilt" not in fitted
+    # the catalogue claimed table_tilt for the harmonic and the head to head withdrew it
+    assert "head to head" in why["table_tilt"]

@@ -106,6 +106,7 @@ function liveCard(run, session, act) {
     run.state === "interrupted" ? h("p", { class: "note", id: "interrupted-note" },
       "The run stopped before finishing. Every complete window is kept: Resume continues it on this bench "
       + "from the next window, and the certificate is issued at the end.") : null);
+  let analysis = NaN, analysisStart = NaN;
   const update = (p) => {
     if (p.state) st = p.state;
     if (p.phase) phase = p.phase;
@@ -113,9 +114,18 @@ function liveCard(run, session, act) {
     if (p.step_label !== undefined) step.textContent = `${Math.min(p.step_index + 1, p.n_steps)} of ${p.n_steps}: ${p.step_label}`;
     if (p.n_windows) windows.textContent = p.window_index == null ? `between windows (${p.n_windows} planned)` : `${p.window_index + 1} of ${p.n_windows}`;
     if (p.elapsed_s !== undefined) time.textContent = `${seconds(p.elapsed_s)} recorded (bench clock)`;
-    if (phase !== "recording") left.textContent = "recording done; analysing";
+    if (p.analysis_s !== undefined) analysis = p.analysis_s;
+    if (p.analysis_started_at) analysisStart = Date.parse(p.analysis_started_at);
+    const then = Number.isFinite(analysis) ? `, then about ${seconds(analysis)} of analysis (this bench's past runs of the procedure)`
+      : ", then the analysis (no past run of this procedure on this bench to time it by)";
+    if (phase !== "recording") {
+      const spent = Number.isFinite(analysisStart) ? (Date.now() - analysisStart) / 1000 : NaN;
+      left.textContent = Number.isFinite(analysis) && Number.isFinite(spent)
+        ? `recording done; analysing: about ${seconds(Math.max(0, analysis - spent))} left`
+        : "recording done; analysing";
+    }
     else if (st === "paused" || st === "suspended") left.textContent = "on hold";
-    else if (Number.isFinite(p.remaining_s)) left.textContent = `about ${seconds(p.remaining_s)} of recording (from the pace so far)`;
+    else if (Number.isFinite(p.remaining_s)) left.textContent = `about ${seconds(p.remaining_s)} of recording (from the pace so far)${then}`;
     if (p.table_deg) pose.textContent = p.table_deg.map((a) => `${a.toFixed(1)}°`).join("  ");
     controls();
   };

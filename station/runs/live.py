@@ -32,6 +32,7 @@ from bench.run_observer import NullObserver
 from bench.sequencer.control import RunControl
 from db.models import Run
 from db.repo.runs import set_live_progress, set_service_run
+from station.runs.analysis_eta import AnalysisPace
 from station.runs.hub import ProgressHub
 
 RunKind = Literal["calibration", "drift_check"]
@@ -62,6 +63,17 @@ class LiveRun:
     error: str | None = None
     done: threading.Event = dataclasses.field(default_factory=threading.Event)
     extra: dict[str, Any] = dataclasses.field(default_factory=dict)
+    analysis: AnalysisPace | None = None
+    """The bench's analysis pace for this procedure (:mod:`station.runs.analysis_eta`), ``None``:
+    no analysed run of it yet."""
+    analysis_s: float | None = None
+    """Expected analysis wall time (s) once the recording is over, ``None``: unknown."""
+    analysing_since: float | None = None
+    """``time.monotonic()`` when the recording ended and the analysis began."""
+
+    def expected_analysis_s(self) -> float | None:
+        """Expected analysis wall time (s) after the recording, ``None``: unknown."""
+        return None if self.analysis is None else self.analysis.expected_s()
 
 
 class HubObserver(NullObserver):
@@ -81,12 +93,15 @@ class HubObserver(NullObserver):
     def on_progress(self, run_id: str, progress: Progress) -> None:
         self.live.state = progress.state
         self.live.progress = progress.fraction
-        self.hub.publish(run_id, "progress", progress_data(progress))
+        self.hub.publish(run_id, "progress", progress_data(progress, self.live.expected_analysis_s()))
 
     def on_phase(self, run_id: str, phase: Phase) -> None:
         """The recording is over: the run is analysed (then its certificate is stored)."""
         self.live.phase = phase
-        self.hub.publish(run_id, "progress", {"phase": phase, "state": self.live.state.value})
+        if phase == "analysing":
+            self.live.analysing_since = time.monotonic()
+            self.live.analysis_s = self.live.expected_analysis_s()
+        self.hub.publish(run_id, "progress", phase_data(self.live, phase))
 
     def on_gap(self, run_id: str, gap: GapRecord) -> None:
         """A sample gap, as the run page shows it (``GET /api/runs/{id}`` ``gaps`` items)."""
@@ -135,8 +150,10 @@ class DbLiveObserver(NullObserver):
         sessions: sessionmaker[Session],
         min_interval_s: float = 1.0,
         clock: Callable[[], float] = time.monotonic,
+        live: LiveRun | None = None,
     ) -> None:
         self.sessions, self.min_interval_s, self.clock = sessions, min_interval_s, clock
+        self.live = live
         self._last = -math.inf
 
     def on_progress(self, run_id: str, progress: Progress) -> None:
@@ -144,23 +161,41 @@ class DbLiveObserver(NullObserver):
         if now - self._last < self.min_interval_s and progress.fraction < 1.0:
             return
         self._last = now
-        data = progress_data(progress)
+        analysis = None if self.live is None else self.live.expected_analysis_s()
+        data = progress_data(progress, analysis)
         with self.sessions.begin() as s:
             set_live_progress(s, run_id, data)
 
     def on_phase(self, run_id: str, phase: Phase) -> None:
         """Store the run's new phase with its latest progress (always, not rate-limited)."""
-        store_phase(self.sessions, run_id, phase)
+        extra = {} if self.live is None else phase_data(self.live, phase)
+        store_phase(self.sessions, run_id, phase, extra)
 
 
-def store_phase(sessions: sessionmaker[Session], run_id: str, phase: Phase) -> None:
+def phase_data(live: LiveRun, phase: Phase) -> dict[str, Any]:
+    """The ``progress`` event of a new phase: the phase, the state and, once the recording is
+    over, the expected analysis wall time (``analysis_s``, ``None``: no analysed run of the
+    procedure on the bench yet) and when the analysis started (``analysis_started_at``, UTC)."""
+    data: dict[str, Any] = {"phase": phase, "state": live.state.value}
+    if phase == "analysing":
+        live.extra.setdefault("analysis_started_at", utc_now().isoformat())
+    if phase != "recording":
+        data["analysis_s"] = live.analysis_s
+        data["analysis_started_at"] = live.extra.get("analysis_started_at")
+    return data
+
+
+def store_phase(
+    sessions: sessionmaker[Session], run_id: str, phase: Phase, extra: dict[str, Any] | None = None
+) -> None:
     """Store ``phase`` in the run's latest progress (``Run.live_progress``), which the event
-    streams of every API process send as a ``progress`` event."""
+    streams of every API process send as a ``progress`` event (``extra``: more of its keys)."""
     with sessions.begin() as s:
         run = s.get(Run, run_id)
         last = run.live_progress if run is not None and isinstance(run.live_progress, dict) else {}
         done = last.get("progress", 0.0) if phase == "recording" else 1.0  # the recording's fraction
-        set_live_progress(s, run_id, {**last, "phase": phase, "progress": done, "remaining_s": 0.0})
+        data = {**last, **(extra or {}), "phase": phase, "progress": done, "remaining_s": 0.0}
+        set_live_progress(s, run_id, data)
 
 
 def window_means(means: Any) -> dict[str, float]:
@@ -170,13 +205,15 @@ def window_means(means: Any) -> dict[str, float]:
     return {str(k): float(v) for k, v in means.items() if isinstance(v, int | float) and math.isfinite(v)}
 
 
-def progress_data(progress: Progress) -> dict[str, Any]:
+def progress_data(progress: Progress, analysis_s: float | None = None) -> dict[str, Any]:
     """The ``progress`` event's data: ``progress`` the recording's fraction done, ``remaining_s``
-    its remaining time on the bench clock (:mod:`bench.sequencer.progress`)."""
+    its remaining time on the bench clock (:mod:`bench.sequencer.progress`), ``analysis_s`` the
+    analysis expected after it (wall s, :mod:`station.runs.analysis_eta`; ``None``: unknown)."""
     return {
         "phase": "recording",
         "progress": progress.fraction,
         "remaining_s": max(0.0, progress.expected_total_s - progress.elapsed_s),
+        "analysis_s": analysis_s,
         "step_index": progress.step_index,
         "n_steps": progress.n_steps,
         "step_label": progress.step_label,

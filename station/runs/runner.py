@@ -22,6 +22,7 @@ import datetime as dt
 import logging
 import socket
 import threading
+import time
 from collections.abc import Callable
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -42,6 +43,7 @@ from station.execution import fault_retry
 from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed, RetryPolicy, interrupted_by_fault
 from station.execution.session import start_run
 from station.runs import resume as service_resume
+from station.runs.analysis_eta import AnalysisPace, analysis_entry, analysis_pace
 from station.runs.hub import TERMINAL_EVENT, ProgressHub
 from station.runs.live import DbLiveObserver, HubObserver, LiveRun, RunKind, ServiceParamsObserver
 from station.runs.resume import SHUTDOWN_REASON, NotResumable
@@ -248,7 +250,7 @@ class BenchRunner:
             HubObserver(live, self.hub),
         ]
         if self.store_live:
-            observers.append(DbLiveObserver(self.sessions))
+            observers.append(DbLiveObserver(self.sessions, live=live))
         return observers
 
     def _acquire(self, live: LiveRun) -> RunRecord:
@@ -288,6 +290,16 @@ class BenchRunner:
             self.sessions, live.id, fault, windows, self.retry
         )
 
+    def _analysis_pace(self, procedure: str) -> AnalysisPace | None:
+        """This bench's analysis pace for ``procedure`` (``None``: none analysed yet, or the
+        database did not answer: the run goes on without the estimate)."""
+        try:
+            with self.sessions.begin() as s:
+                return analysis_pace(s, self.settings.bench_name, procedure)
+        except Exception:
+            log.exception("could not read the analysis history of %s", procedure)
+            return None
+
     def _finishing_gate(self, run_id: str) -> str | None:
         """The stored abort of ``run_id``, else the run marked finishing in the database in the
         same transaction (:func:`db.repo.queue.enter_finishing`): a request either took effect
@@ -299,6 +311,7 @@ class BenchRunner:
         record: RunRecord | None = None
         interrupted = False
         live.control.finishing_gate = lambda: self._finishing_gate(live.id)
+        live.analysis = self._analysis_pace(live.procedure)
         try:
             record = self._acquire(live)
             live.record = record
@@ -329,6 +342,9 @@ class BenchRunner:
                 self._finalise(live, record)
             live.state = RunState.INTERRUPTED if interrupted else _final_state(record)
             live.progress = 1.0 if live.state is RunState.COMPLETED else live.progress
+            if live.state is RunState.COMPLETED and live.analysing_since is not None:
+                wall_s = time.monotonic() - live.analysing_since
+                live.extra.update(analysis_entry(wall_s))
             hidden = ("dwell_s", "claimed", "procedure_kw")
             finished = {
                 "state": live.state.value,

@@ -447,7 +447,8 @@ def slope_method_curve(taus_s: npt.ArrayLike, adev: npt.ArrayLike, edf: npt.Arra
     t = np.asarray(taus_s, dtype=float)
     dev = np.asarray(adev, dtype=float)
     nu = np.maximum(np.asarray(edf, dtype=float), 1.0)
-    fit = fit_noise_model_curve(t, dev, nu)
+    # the allowance level for independent points; _line_reading makes it common to the line
+    fit = fit_noise_model_curve(t, dev, nu, floor_octaves=0.0)
     parts = basis(t) * fit.coefficients**2
     share = parts / np.maximum(parts.sum(axis=1, keepdims=True), np.finfo(float).tiny)
     usable = np.arange(t.size) >= first_fit_index(dev)

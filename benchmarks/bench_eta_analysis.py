@@ -42,13 +42,19 @@ def one_run(
     r.raise_for_status()
     run_id = r.json()["id"]
     deadline = time.monotonic() + 3600.0
-    while not any(rid == run_id and n == "finished" for _, rid, n, _ in events):
+
+    def ended() -> bool:  # a device fault's "finished" (interrupted) is followed by its resume
+        return any(
+            rid == run_id and n == "finished" and d.get("state") != "interrupted" for _, rid, n, d in events
+        )
+
+    while not ended():
         if time.monotonic() > deadline:
             raise RuntimeError(f"{run_id}: not finished within an hour")
         time.sleep(0.2)
     mine = [(t, n, d) for t, rid, n, d in events if rid == run_id]
-    t_end, at_end = next((t, d) for t, n, d in mine if n == "progress" and d.get("phase") == "analysing")
-    t_done, done = next((t, d) for t, n, d in mine if n == "finished")
+    t_done, done = [(t, d) for t, n, d in mine if n == "finished"][-1]
+    t_end, at_end = [(t, d) for t, n, d in mine if n == "progress" and d.get("phase") == "analysing"][-1]
     if done.get("state") != "completed":
         raise RuntimeError(f"{run_id}: {done.get('state')} {done.get('error')}")
     recording_s = max((float(d.get("elapsed_s", 0.0)) for _, n, d in mine if n == "progress"), default=0.0)

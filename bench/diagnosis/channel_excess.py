@@ -43,6 +43,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import ClassVar
 
 import numpy as np
 from scipy.optimize import minimize
@@ -52,7 +53,7 @@ from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import NoiseParams, gls, window_covariance
 from bench.diagnosis.wander_cap import SlowNoiseCap
-from bench.estimation.window_covariance import invert_blocks
+from bench.estimation.window_covariance import WindowCovariance, invert_blocks
 
 
 @dataclass(frozen=True)
@@ -96,6 +97,97 @@ def _powell(
     return best
 
 
+@dataclass(frozen=True)
+class ExcessModel:
+    """The covariances of the module docstring's hypotheses for one recording and noise.
+
+    A point is x = (log λ, log κ[, log ε_i²]) relative to ``scale`` (channel units²); a log at
+    or below ``LOG_NONE`` (a numerical floor, e⁻³⁰ of the window noise) is no variance at all.
+
+    :param base: the window covariance without wander (T_c and the pose variance as fitted).
+    :param shape: (3,) s_i, the channels' shares of an input-referred variance.
+    :param scale: the median window variance (channel units²).
+    :param u_hi: the upper bound of log λ (the slow-noise cap, ``wander_cap``).
+    """
+
+    LOG_NONE: ClassVar[float] = -30.0
+
+    base: WindowCovariance
+    shape: FloatArray
+    scale: float
+    u_hi: float
+
+    @classmethod
+    def build(
+        cls,
+        ev: StaticEvidence,
+        noise: NoiseParams,
+        J_pose: FloatArray | None,
+        fixed: FloatArray | None,
+        cap: SlowNoiseCap | None,
+    ) -> ExcessModel:
+        """The model of ``channel_excess``'s arguments."""
+        vdiag = np.diagonal(ev.V, axis1=1, axis2=2)
+        gain2 = np.median(vdiag, axis=0)
+        shape = gain2 / float(np.mean(gain2))
+        scale = float(np.median(vdiag))
+        base = window_covariance(ev.V, ev.mid_s, replace(noise, tau2=np.zeros(3)), J_pose, fixed)
+        tc = float(noise.corr_time_s)
+        u_hi = 12.0
+        bound = cap(tc) if cap is not None and tc > 0 else None
+        if bound is not None:
+            u_hi = float(
+                np.clip(np.log(np.maximum(np.min(bound / shape), 1e-300) / scale), cls.LOG_NONE, 12.0)
+            )
+        return cls(base=base, shape=shape, scale=scale, u_hi=u_hi)
+
+    def size(self, u: float) -> float:
+        """The variance (channel units²) of log u."""
+        return 0.0 if u <= self.LOG_NONE + 1e-6 else self.scale * float(np.exp(u))
+
+    def covariance(self, x: FloatArray, channel: int | None) -> WindowCovariance:
+        """C at x, the excess ε² (x[2]) on ``channel`` (none when ``channel`` is ``None``)."""
+        blocks = self.base.blocks + self.size(float(x[1])) * np.diag(self.shape)
+        if channel is not None:
+            blocks = blocks.copy()
+            blocks[:, channel, channel] += self.size(float(x[2]))
+        inv, logdet = invert_blocks(blocks)
+        return replace(
+            self.base,
+            blocks=blocks,
+            tau2=self.size(float(x[0])) * self.shape,
+            blocks_inverse=inv,
+            blocks_logdet=logdet,
+        )
+
+    def neg_reml(self, X: FloatArray, z: FloatArray, x: FloatArray, channel: int | None) -> float:
+        """−ℓ_REML of z on X at x (1e300 where C or X cannot be factored)."""
+        try:
+            return -gls(X, z, self.covariance(x, channel)).loglik_reml
+        except ValueError:
+            return 1e300
+
+    def fit_shared(self, X: FloatArray, z: FloatArray) -> tuple[float, FloatArray]:
+        """(−ℓ_REML, x̂) of H0: λ and κ re-estimated."""
+        return _powell(
+            lambda x: self.neg_reml(X, z, x, None),
+            [(self.u_hi - 4.0, self.LOG_NONE), (self.LOG_NONE, 0.0)],
+            [(self.LOG_NONE, self.u_hi), (self.LOG_NONE, 12.0)],
+        )
+
+    def fit_channel(
+        self, X: FloatArray, z: FloatArray, channel: int, x0: FloatArray
+    ) -> tuple[float, FloatArray]:
+        """(−ℓ_REML, x̂) of H1_i on ``channel``: λ, κ and ε_i² re-estimated; x0 is H0's optimum
+        (starts: it with no excess, and the misfit moved to channel i alone)."""
+        starts = [(x0[0], x0[1], self.LOG_NONE), (x0[0] - 4.0, x0[1] - 4.0, 0.0)]
+        return _powell(
+            lambda x: self.neg_reml(X, z, x, channel),
+            starts,
+            [(self.LOG_NONE, self.u_hi), (self.LOG_NONE, 12.0), (self.LOG_NONE, 12.0)],
+        )
+
+
 def channel_excess(
     ev: StaticEvidence,
     X: FloatArray,
@@ -112,51 +204,15 @@ def channel_excess(
         window or ``None``; :param cap: the recording's slow-noise bound or ``None``.
     :raises ValueError: a covariance or design that cannot be factored.
     """
-    lo = -30.0  # log of a variance relative to the window noise below which it is none
     z = ev.y.reshape(-1)
-    vdiag = np.diagonal(ev.V, axis1=1, axis2=2)
-    gain2 = np.median(vdiag, axis=0)
-    shape = gain2 / float(np.mean(gain2))
-    scale = float(np.median(vdiag))
-    base = window_covariance(ev.V, ev.mid_s, replace(noise, tau2=np.zeros(3)), J_pose, fixed)
-    blocks0 = base.blocks
-    tc = float(noise.corr_time_s)
-    u_hi = 12.0
-    bound = cap(tc) if cap is not None and tc > 0 else None
-    if bound is not None:
-        u_hi = float(np.clip(np.log(np.maximum(np.min(bound / shape), 1e-300) / scale), lo, 12.0))
-
-    def size(u: float) -> float:
-        return 0.0 if u <= lo + 1e-6 else scale * float(np.exp(u))
-
-    def neg_reml(x: FloatArray) -> float:
-        """−ℓ_REML at x = (log λ, log κ[, log ε_i²]) relative to ``scale``; channel i = x's 4th."""
-        blocks = blocks0 + size(float(x[1])) * np.diag(shape)
-        if x.size > 2:
-            blocks = blocks.copy()
-            blocks[:, int(x[3]), int(x[3])] += size(float(x[2]))
-        inv, logdet = invert_blocks(blocks)
-        wc = replace(
-            base, blocks=blocks, tau2=size(float(x[0])) * shape, blocks_inverse=inv, blocks_logdet=logdet
-        )
-        try:
-            return -gls(X, z, wc).loglik_reml
-        except ValueError:
-            return 1e300
-
-    f0, x0 = _powell(neg_reml, [(u_hi - 4.0, lo), (lo, 0.0)], [(lo, u_hi), (lo, 12.0)])
+    model = ExcessModel.build(ev, noise, J_pose, fixed, cap)
+    f0, x0 = model.fit_shared(X, z)
     lr = np.zeros(3)
     eps2 = np.zeros(3)
     for i in range(3):
-
-        def with_excess(x: FloatArray, i: int = i) -> float:
-            return neg_reml(np.append(x, i))
-
-        # starts: H0's optimum with no excess on i, and the misfit moved to channel i alone
-        starts = [(x0[0], x0[1], lo), (x0[0] - 4.0, x0[1] - 4.0, 0.0)]
-        f1, x1 = _powell(with_excess, starts, [(lo, u_hi), (lo, 12.0), (lo, 12.0)])
+        f1, x1 = model.fit_channel(X, z, i, x0)
         lr[i] = max(2.0 * (f0 - f1), 0.0)
-        eps2[i] = size(float(x1[2]))
+        eps2[i] = model.size(float(x1[2]))
     ch = int(np.argmax(lr))
     p = 1.0 if lr[ch] <= 0 else min(1.0, 3.0 * 0.5 * float(chi2_dist.sf(lr[ch], 1)))
     return ChannelExcess(
@@ -164,6 +220,6 @@ def channel_excess(
         excess_var=eps2,
         channel=ch,
         p_value=p,
-        shared_tau2=size(float(x0[0])) * shape,
-        common_var=size(float(x0[1])) * shape,
+        shared_tau2=model.size(float(x0[0])) * model.shape,
+        common_var=model.size(float(x0[1])) * model.shape,
     )

@@ -17,6 +17,7 @@ from bench.diagnosis.effects import EFFECTS, WITH_LIBRARY, Candidate, pose_respo
 from bench.diagnosis.effects.base import FloatArray, first_order_design
 from bench.diagnosis.effects.settling import settling_duration, settling_test
 from bench.diagnosis.evidence import StaticEvidence
+from bench.diagnosis.excess_referee import HeadToHead, excess_referee, flag_instead
 from bench.diagnosis.hysteresis import with_last_move
 from bench.diagnosis.library import EFFECT, LibraryTerm, library_terms
 from bench.diagnosis.library import candidate as library_candidate
@@ -59,6 +60,7 @@ class WindowState:
     :param lines: periodic lines in the windows' samples; :param line_free: the samples without them.
     :param extra: findings of the window tests (settling).
     :param left: what the final model leaves unexplained, or ``None``.
+    :param lost: catalogue claims withdrawn for a channel's own excess (``excess_referee``).
     :param notes: label -> why it was set aside.
     """
 
@@ -79,6 +81,7 @@ class WindowState:
     line_free: tuple[FloatArray, ...] | None = None
     extra: tuple[Finding, ...] = ()
     left: Unexplained | None = None
+    lost: tuple[HeadToHead, ...] = ()
     notes: dict[str, str] = field(default_factory=dict)
 
     def noted(self, notes: Notes) -> WindowState:
@@ -222,6 +225,27 @@ def out_of_sample_referee(ev: StaticEvidence, st: WindowState, th: Thresholds) -
     return out, fresh
 
 
+def excess_head_to_head(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
+    """Head to head with "unexplained on one channel" (``excess_referee``). Rule: each catalogue
+    claim must predict a left-out window (log predictive density) better than the model without
+    it where a channel it acts on carries its own excess variance; one that does not is withdrawn,
+    no longer a candidate, the selection runs again without it (and its out-of-sample referee),
+    and the new model is judged the same way; the channel is flagged unexplained (``unexplained_stage``)."""
+    assert st.model is not None
+    model, excluded, lost = st.model, st.excluded, st.lost
+    notes: dict[str, str] = {}
+    while True:
+        withdrawn = excess_referee(ev, model, st.fixed, notes, th)
+        if not withdrawn:
+            break
+        lost = (*lost, *withdrawn)
+        excluded = excluded | {h.effect for h in withdrawn}
+        model, again = _reselect(ev, st, excluded, th)
+        referee(ev, model, st.fixed, again, th)
+        notes = {**{k: v for k, v in again.items() if k not in notes and k not in st.notes}, **notes}
+    return replace(st, model=model, excluded=excluded, lost=lost), notes
+
+
 def within_window(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
     """Within-window refit (``within_window``). Rule: a library term that changes within a window
     (in temperature or time) is not window noise: the window noise is estimated without it and
@@ -289,14 +313,16 @@ def unexplained_stage(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tu
     """Unexplained (``unexplained``, ``hysteresis.with_last_move``). Rule: the final model's χ²
     whole, per channel and channel against channel is tested against the recording's noise at
     ``th.unexplained_alpha``; where it fails, where the misfit is and what it follows (the
-    direction of the last move among them)."""
+    direction of the last move among them). A channel whose excess won a head to head against a
+    claim (``excess_head_to_head``) is named there when the tests name none."""
     assert st.model is not None and st.ev_final is not None and st.seq
     final, K = st.seq[-1], st.scale
     left = unexplained(st.ev_final, final, st.model, K, st.fixed, th)
+    left = flag_instead(st.ev_final, final, st.model, K, st.fixed, left, st.lost, th)
     return replace(st, left=with_last_move(st.ev_final, final, st.model, K, st.fixed, left, th)), {}
 
 
-_SELECT = (forward_selection, prune_redundant, out_of_sample_referee)
+_SELECT = (forward_selection, prune_redundant, out_of_sample_referee, excess_head_to_head)
 _REPORT = (within_window, refit_sequence, bench_lines, settling, unexplained_stage)
 
 STATIC: Pipeline[StaticEvidence, WindowState] = Pipeline(

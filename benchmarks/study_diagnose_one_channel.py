@@ -10,7 +10,8 @@ offset of c V rms that changes at random from window to window (``window_offsets
 Columns per row: recordings with a catalogue finding; with a discovered term; with the
 truth's term discovered on ax within 3 σ of c (cubic) or named among its look-alikes; with
 ``unexplained``; with ``unexplained`` naming ax as the channel that carries the misfit
-(``Unexplained.channel``); with a channel named that is not ax.
+(``Unexplained.channel``); with a channel named that is not ax; and the acceptance's count,
+recordings with no catalogue finding where the truth is discovered or ax is named.
 """
 
 from __future__ import annotations
@@ -92,7 +93,7 @@ def recording(kind: str, what: str, c: float, seed: int, channel: int = 0) -> Re
 
 def row(kind: str, what: str, c: float, seeds: range, channel: int = 0) -> str:
     """One table row: counts over the seeds."""
-    fin = dis = right = unx = named = wrong = 0
+    fin = dis = right = unx = named = wrong = clean_right = 0
     skipped = []
     for s in seeds:
         try:
@@ -103,26 +104,31 @@ def row(kind: str, what: str, c: float, seeds: range, channel: int = 0) -> str:
         d = diagnose_recording(rec)
         fin += bool(d.findings)
         dis += bool(d.discovered)
+        found = False
         for x in d.discovered:
             if what == "cubic" and x.channel == CHANNELS[channel]:
                 exact = x.term == f"f_{'xyz'[channel]}^3" and abs(x.coefficient - c) <= 3.0 * x.sigma
-                right += exact or f"f_{'xyz'[channel]}^3" in x.confounded_with
+                found = found or exact or f"f_{'xyz'[channel]}^3" in x.confounded_with
+        right += found
         u = d.unexplained
         unx += u is not None
         if u is not None and u.channel is not None:
             named += u.channel == CHANNELS[channel]
             wrong += u.channel != CHANNELS[channel]
+        flagged = u is not None and u.channel == CHANNELS[channel]
+        clean_right += not d.findings and (found or flagged)
     n = len(seeds) - len(skipped)
     note = f" (seeds {', '.join(map(str, skipped))}: not simulated)" if skipped else ""
-    return f"| {kind} | {what} | {c:g} | {n}{note} | {fin} | {dis} | {right} | {unx} | {named} | {wrong} |"
+    counts = " | ".join(str(k) for k in (fin, dis, right, unx, named, wrong, clean_right))
+    return f"| {kind} | {what} | {c:g} | {n}{note} | {counts} |"
 
 
 def main(n: int, rows: list[int]) -> None:
     """Print the table of the module docstring."""
     seeds = range(100, 100 + n)
     cols = ("recording", "on ax", "c", "N", "finding", "discovered", "truth discovered", "unexplained")
-    print("| " + " | ".join((*cols, "names ax", "names another")) + " |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| " + " | ".join((*cols, "names ax", "names another", "no finding, truth or ax")) + " |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for k in rows:
         print(row(*ROWS[k], seeds), flush=True)
 

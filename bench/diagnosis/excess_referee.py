@@ -11,7 +11,9 @@ is scored against it, both out of sample:
     claim:        design X (with E),     C(λ, κ)         λ, κ by REML
     unexplained:  design X₋E (without),  C(λ, κ, ε_c²)   λ, κ, ε_c² by REML, c a channel E acts on
 
-(``channel_excess.ExcessModel``; T_c and the pose variance as the model fitted them). The
+(``channel_excess.ExcessModel``; T_c and the pose variance as the model fitted them), and
+against the model without E and no excess (a misfit common to the channels is κ's in both:
+withdrawn then, but no channel is named). The
 score is the leave-one-window-out log predictive density (``loo_log_score``): each window's
 three means predicted from the other windows with the coefficients re-estimated without it,
 a proper scoring rule, so designs and covariances are compared on one scale (Gneiting &
@@ -55,14 +57,15 @@ from bench.estimation.window_covariance import WindowCovariance
 class HeadToHead:
     """One catalogue claim against its best one-channel alternative.
 
-    :param effect: the catalogue effect; :param channel: the alternative's channel (0, 1, 2).
+    :param effect: the catalogue effect; :param channel: the best alternative's channel (0, 1,
+        2), ``None`` when the model without the claim and without an excess is best.
     :param claim_score: leave-one-window-out log predictive density of the model with the
-        claim (nats); :param excess_score: of the model without it, ``channel`` carrying ε_c².
+        claim (nats); :param excess_score: of the best alternative without it.
     :param excess_var: ε̂_c² of the alternative (channel units²).
     """
 
     effect: str
-    channel: int
+    channel: int | None
     claim_score: float
     excess_score: float
     excess_var: float
@@ -136,14 +139,13 @@ def head_to_heads(
         chans = sorted({i for c in state.candidates if c.effect == effect for i in c.channels})
         X_wo = design(ev, K, [c for c in state.candidates if c.effect != effect])
         _, x0 = model.fit_shared(X_wo, z)
-        best: HeadToHead | None = None
+        best = HeadToHead(effect, None, claim, loo_log_score(X_wo, z, model.covariance(x0, None)), 0.0)
         for ch in chans:
             _, x1 = model.fit_channel(X_wo, z, ch, x0)
             score = loo_log_score(X_wo, z, model.covariance(x1, ch))
-            if best is None or score > best.excess_score:
+            if score > best.excess_score:
                 best = HeadToHead(effect, ch, claim, score, model.size(float(x1[2])))
-        if best is not None:
-            out.append(best)
+        out.append(best)
     return out
 
 
@@ -178,6 +180,12 @@ def excess_referee(
 
 def withdrawn_text(h: HeadToHead) -> str:
     """Why a claim was withdrawn in its head to head."""
+    if h.channel is None:
+        return (
+            "passed its gate but predicts a left-out window no better than the model without it, "
+            f"the noise re-estimated (leave-one-window-out log score {h.claim_score:.1f} with it, "
+            f"{h.excess_score:.1f} without): not claimed"
+        )
     return (
         f"passed its gate but predicts a left-out window no better than {CHANNELS[h.channel]} carrying "
         f"its own excess of {np.sqrt(h.excess_var):.2g} channel units from window to window "
@@ -197,14 +205,16 @@ def flag_instead(
     th: Thresholds = THRESHOLDS,
 ) -> Unexplained | None:
     """``left`` with the channel of the strongest withdrawn claim named, where a claim was withdrawn
-    for its channel's excess and ``left`` names none. The one-channel likelihood ratio of that
+    for one channel's excess and ``left`` names none. The one-channel likelihood ratio of that
     channel on the final model is reported beside it (its p value one-sided, the channel being
     given by the head to head, ½ P(χ²₁ > LR))."""
-    if not lost or (left is not None and left.channel is not None):
+    named = [h for h in lost if h.channel is not None]
+    if not named or (left is not None and left.channel is not None):
         return left
     assert state.noise is not None
-    h = max(lost, key=lambda h: h.excess_score - h.claim_score)
+    h = max(named, key=lambda h: h.excess_score - h.claim_score)
     c = h.channel
+    assert c is not None
     noise = state.noise if final.pose else without_pose(state.noise)
     J = pose_response(ev, K)
     X = design(ev, K, list(final.candidates))

@@ -20,7 +20,7 @@ from scipy.stats import binom
 
 from bench.diagnosis.effects.sensor import NONLINEARITY
 from bench.diagnosis.evidence import StaticEvidence
-from bench.diagnosis.excess_referee import head_to_heads, loo_log_score
+from bench.diagnosis.excess_referee import HeadToHead, head_to_heads, loo_log_score
 from bench.diagnosis.model_state import ModelState, fit_model
 from bench.estimation.window_covariance import WindowCovariance
 from tests.bench.diagnosis.test_channel_excess import K_TRUE, SIGMA_V, _draw
@@ -70,28 +70,28 @@ def _quadratic_ax(ev: StaticEvidence, k2_per_g: float) -> StaticEvidence:
     return replace(ev, y=y)
 
 
-def _margins(n: int, seed: int, excess_sigmas: float, k2_per_g: float) -> list[float]:
+def _head_to_heads(n: int, seed: int, excess_sigmas: float, k2_per_g: float) -> list[HeadToHead]:
     rng = np.random.default_rng(seed)
     out = []
     for _ in range(n):
         ev = _quadratic_ax(_draw(rng, 18, (excess_sigmas * SIGMA_V, 0.0, 0.0)), k2_per_g)
         (h,) = head_to_heads(ev, _with_claim(ev), None)
-        assert h.effect == NONLINEARITY.id and h.channel == 0
-        out.append(h.claim_score - h.excess_score)
+        assert h.effect == NONLINEARITY.id
+        out.append(h)
     return out
 
 
 def test_a_claim_beside_a_loose_connector_loses_to_the_channels_excess() -> None:
-    assert all(d < 0 for d in _margins(3, 1, 4.0, 0.0))
+    assert all(h.withdrawn and h.channel == 0 for h in _head_to_heads(3, 1, 4.0, 0.0))
 
 
 def test_a_true_claim_beats_the_channels_excess() -> None:
-    assert all(d > 0 for d in _margins(3, 2, 0.0, 1e-3))
+    assert not any(h.withdrawn for h in _head_to_heads(3, 2, 0.0, 1e-3))
 
 
 @pytest.mark.slow
 def test_the_head_to_head_rates_over_draws() -> None:
     """40 draws each; a rate of 95 % or more fails with probability below 1e-3."""
     need = binom.ppf(1e-3, 40, 0.95)
-    assert sum(d < 0 for d in _margins(40, 11, 4.0, 0.0)) >= need
-    assert sum(d > 0 for d in _margins(40, 12, 0.0, 1e-3)) >= need
+    assert sum(h.withdrawn and h.channel == 0 for h in _head_to_heads(40, 11, 4.0, 0.0)) >= need
+    assert sum(not h.withdrawn for h in _head_to_heads(40, 12, 0.0, 1e-3)) >= need

@@ -205,9 +205,11 @@ def flag_instead(
     th: Thresholds = THRESHOLDS,
 ) -> Unexplained | None:
     """``left`` with the channel of the strongest withdrawn claim named, where a claim was withdrawn
-    for one channel's excess and ``left`` names none. The one-channel likelihood ratio of that
-    channel on the final model is reported beside it (its p value one-sided, the channel being
-    given by the head to head, ½ P(χ²₁ > LR))."""
+    for one channel's excess, ``left`` names none, and that channel's one-channel likelihood ratio
+    on the final model passes ``th.unexplained_alpha`` (its p value ½ P(χ²₁ > LR), without the
+    factor 3 of ``channel_excess``: the head to head gave the channel). A withdrawal whose
+    channel the final model does not show (a misfit common to the channels that one channel's
+    excess happened to predict better than the claim) names none."""
     named = [h for h in lost if h.channel is not None]
     if not named or (left is not None and left.channel is not None):
         return left
@@ -220,6 +222,8 @@ def flag_instead(
     X = design(ev, K, list(final.candidates))
     ex = channel_excess(ev, X, noise, J, fixed, SlowNoiseCap(ev, th.cap_alpha))
     p = 1.0 if ex.lr[c] <= 0 else 0.5 * float(chi2_dist.sf(ex.lr[c], 1))
+    if p >= th.unexplained_alpha:
+        return left
     why = (
         f"{CHANNELS[c]}: {h.effect} was withdrawn for {CHANNELS[c]}'s own excess from window to window "
         f"(leave-one-window-out log score {h.excess_score:.1f} against {h.claim_score:.1f}); on the final "

@@ -229,21 +229,22 @@ def excess_head_to_head(ev: StaticEvidence, st: WindowState, th: Thresholds) -> 
     """Head to head with "unexplained on one channel" (``excess_referee``). Rule: each catalogue
     claim must predict a left-out window (log predictive density) better than the model without
     it where a channel it acts on carries its own excess variance; one that does not is withdrawn,
-    no longer a candidate, the selection runs again without it (and its out-of-sample referee),
-    and the new model is judged the same way; the channel is flagged unexplained (``unexplained_stage``)."""
+    no longer a candidate, the selection resumes without it from the step before it entered
+    (``greedy.resume``) and the out-of-sample referee judges that model, which is then judged
+    the same way; the channel is flagged unexplained (``unexplained_stage``)."""
     assert st.model is not None
-    model, excluded, lost = st.model, st.excluded, st.lost
     notes: dict[str, str] = {}
-    while True:
-        withdrawn = excess_referee(ev, model, st.fixed, notes, th)
-        if not withdrawn:
-            break
-        lost = (*lost, *withdrawn)
-        excluded = excluded | {h.effect for h in withdrawn}
-        model, again = _reselect(ev, st, excluded, th)
-        referee(ev, model, st.fixed, again, th)
-        notes = {**{k: v for k, v in again.items() if k not in notes and k not in st.notes}, **notes}
-    return replace(st, model=model, excluded=excluded, lost=lost), notes
+    model = st.model.copy()
+    withdrawn = excess_referee(ev, model, st.fixed, notes, th)
+    if not withdrawn:
+        return replace(st, model=model), notes
+    out, again = _resumed(st, [h.effect for h in withdrawn])
+    fresh = {**again, **notes}
+    assert out.model is not None
+    referee(ev, out.model, st.fixed, fresh, th)
+    out = replace(out, lost=(*st.lost, *withdrawn))
+    more, later = excess_head_to_head(ev, out.noted(fresh), th)
+    return more, {**fresh, **later}
 
 
 def within_window(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:

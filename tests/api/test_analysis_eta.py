@@ -7,13 +7,15 @@ Through the real service (TestClient, its embedded agent, the simulated bench at
 tests' speed, SQLite): static-12 runs one after another on one bench, each on its own unit; the
 events the agent publishes are timed as they leave it. The first run has no history
 (``analysis_s`` is ``None`` throughout: unknown, not guessed); each later one predicts its
-analysis from the runs before. Margin: the actual analysis within ``MARGIN`` of the prediction
-plus ``SLACK_S`` — the analysis is wall time on a machine whose load varies (two cores shared
-by every process); ``benchmarks/bench_eta_analysis.py`` gives the errors over more runs.
+analysis from the runs before: the median of what the earlier runs' final events stored. How
+close the prediction comes to the actual analysis is wall time on a machine whose load varies:
+a rate over runs, measured by
+``benchmarks/bench_eta_analysis.py`` (docs/benchmarks.md), not asserted here.
 """
 
 from __future__ import annotations
 
+import statistics
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -28,8 +30,6 @@ from tests.support.service_helpers import OP, service_settings, wait_final
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(1200)]
 
 RUNS = 3
-MARGIN = 0.5
-SLACK_S = 2.0
 
 
 def test_the_expected_analysis_is_the_median_of_the_past_ones() -> None:
@@ -72,12 +72,14 @@ def test_the_eta_at_the_end_of_the_recording_includes_the_analysis(
         t_end, at_end = next((t, d) for t, n, d in mine if n == "progress" and d.get("phase") == "analysing")
         t_done, done = next((t, d) for t, n, d in mine if n == "finished")
         predicted, actual = at_end.get("analysis_s"), t_done - t_end
-        assert done["analysis_wall_s"] == pytest.approx(actual, abs=0.5)  # what the next run learns from
+        stored = done["analysis_wall_s"]  # what the next run learns from
+        assert isinstance(stored, float) and stored > 0, done
         if i == 0:  # no analysed run of static-12 on this bench yet: unknown, not guessed
             assert predicted is None and all(d.get("analysis_s") is None for d in recording)
         else:
             assert isinstance(predicted, float) and predicted > 0
             assert isinstance(recording[-1].get("analysis_s"), float)  # shown while recording
-            assert abs(actual - predicted) <= MARGIN * predicted + SLACK_S, (i, predicted, actual)
-        rows.append((predicted, actual))
+            earlier = statistics.median(a for _, _, a in rows)
+            assert predicted == pytest.approx(earlier, abs=1e-3), (i, predicted, rows)
+        rows.append((predicted, actual, stored))
     print("analysis predicted / actual (s):", rows)

@@ -88,6 +88,7 @@ def _short_harmonic(seed: int) -> Recording:
     return to_recording(run, serial=f"SIM-DYN-{seed}")
 
 
+@pytest.mark.slow  # 15-35 s: a moving diagnosis and calibration with the family search
 def test_calibrate_leaves_out_a_claim_the_head_to_head_withdraws() -> None:
     d, claimed, fitted, why = _claimed_and_fitted(_short_harmonic(1))
     assert any(f.effect == "angle_harmonic" for f in d.findings)

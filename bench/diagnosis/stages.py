@@ -239,10 +239,15 @@ def excess_head_to_head(ev: StaticEvidence, st: WindowState, th: Thresholds) -> 
     if not withdrawn:
         return replace(st, model=model), notes
     out, again = _resumed(st, [h.effect for h in withdrawn])
-    fresh = {**again, **notes}
     assert out.model is not None
+    lost = (*st.lost, *withdrawn)
+    if any(c.effect in out.excluded for c in out.model.candidates):
+        # searched beside the library (``effects.WITH_LIBRARY``), which a resumed path does not
+        # exclude: the model with the claims withdrawn stands
+        return replace(st, model=model, excluded=out.excluded, lost=lost), notes
+    fresh = {**again, **notes}
     referee(ev, out.model, st.fixed, fresh, th)
-    out = replace(out, lost=(*st.lost, *withdrawn))
+    out = replace(out, lost=lost)
     more, later = excess_head_to_head(ev, out.noted(fresh), th)
     return more, {**fresh, **later}
 

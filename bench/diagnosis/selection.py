@@ -409,16 +409,21 @@ def select(
         step = _structured(ev, in_pool(st), st, scale_matrix_of(st), fixed, alpha, notes, cap=cap, th=th)
         return None if step is None else admit(st, step)
 
+    def beside(st: ModelState) -> list[Candidate]:
+        # the library's terms and the catalogue effects searched with them, not taken out by a check
+        return [c for c in lib if c.effect not in st.excluded]
+
     def beyond(st: ModelState, notes: dict[str, str]) -> ModelState | None:
-        n_lib = sum(1 for c in lib if c not in st.candidates)
+        now = beside(st)
+        n_lib = sum(1 for c in now if c not in st.candidates)
         step = _structured(
-            ev, lib, st, scale_matrix_of(st), fixed, th.library_share * step_alpha(th.false_alarm, n_lib), {},
+            ev, now, st, scale_matrix_of(st), fixed, th.library_share * step_alpha(th.false_alarm, n_lib), {},
             prescreen=th.prescreen, simplicity=simplicity, cap=cap, wander_notes=notes, th=th,
         )  # fmt: skip
         return None if step is None else admit(st, step)
 
     def swap(st: ModelState, notes: dict[str, str]) -> ModelState | None:
-        return _swap(ev, st, scale_matrix_of(st), fixed, lib, notes, simplicity, cap, th)
+        return _swap(ev, st, scale_matrix_of(st), fixed, beside(st), notes, simplicity, cap, th)
 
     def pose(st: ModelState, notes: dict[str, str]) -> ModelState | None:
         return _pose_step(ev, st, fixed, step_alpha(th.false_alarm, n_catalogue(st)), notes, cap, n, th)

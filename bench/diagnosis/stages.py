@@ -241,10 +241,7 @@ def excess_head_to_head(ev: StaticEvidence, st: WindowState, th: Thresholds) -> 
     out, again = _resumed(st, [h.effect for h in withdrawn])
     assert out.model is not None
     lost = (*st.lost, *withdrawn)
-    if any(c.effect in out.excluded for c in out.model.candidates):
-        # searched beside the library (``effects.WITH_LIBRARY``), which a resumed path does not
-        # exclude: the model with the claims withdrawn stands
-        return replace(st, model=model, excluded=out.excluded, lost=lost), notes
+    assert not any(c.effect in out.excluded for c in out.model.candidates), "a withdrawn claim re-entered"
     fresh = {**again, **notes}
     referee(ev, out.model, st.fixed, fresh, th)
     out = replace(out, lost=lost)

@@ -300,3 +300,19 @@ def test_a_run_keeps_each_stages_notes_in_order() -> None:
     assert st.order == ("nonlinearity_quadratic",)
     for _, notes in trace.stages:
         assert all(st.notes.get(k) is not None for k in notes)
+
+
+def test_an_effect_searched_beside_the_library_stays_out_once_a_check_took_it_out() -> None:
+    # truth: z² on az, 30 sigma; the only candidate that can take it is searched with the library
+    # (as hysteresis is, ``effects.WITH_LIBRARY``), the catalogue pool is empty
+    square = F[:, 2] ** 2 / G**2
+    extra = np.zeros((M, 3))
+    extra[:, 2] = 30 * SIGMA * square
+    ev = _evidence(7, extra.reshape(-1))
+    beside = _column("beside", 2, square)
+    sel = select(ev, [], pose_allowed=False, library=[beside])
+    assert [c.effect for c in sel.model.candidates] == ["beside"]
+    # a check takes it out: the resumed selection does not take it back
+    out = sel.without(["beside"])
+    assert "beside" in out.model.excluded
+    assert "beside" not in {c.effect for c in out.model.candidates}

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-import fcntl
 import json
 import logging
 import os
@@ -42,7 +41,14 @@ from db.process import process_start_ticks, same_process_alive
 from db.repo.lease import LEASE_TTL_S, LeaseHeld, LeaseHolder, acquire_lease, release_lease, renew_lease
 from db.repo.units import get_or_create_bench
 from db.types import utc_now
-from station.execution.device_lock import Device, DeviceHeld, DeviceLocks, bench_devices, lock_dir
+from station.execution.device_lock import (
+    Device,
+    DeviceHeld,
+    DeviceLocks,
+    bench_devices,
+    lock_dir,
+    try_flock,
+)
 from station.settings import Settings
 
 log = logging.getLogger(__name__)
@@ -89,17 +95,6 @@ def lock_path(settings: Settings) -> Path:
     return settings.data_dir / f"bench-{safe}.lock"
 
 
-def _flock(path: Path) -> IO[str] | None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle = path.open("a+")
-    try:
-        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        handle.close()
-        return None
-    return handle
-
-
 def _parse_holder(text: str) -> LockHolder | None:
     try:
         raw: Any = json.loads(text.splitlines()[0])
@@ -121,7 +116,7 @@ def read_holder(path: Path) -> LockHolder | None:
     """The holder of the lock file ``path``; ``None`` when nobody holds it. (The check holds the
     lock for an instant: a process asking just then is refused, and a supervisor tries again.)
     A held lock whose file cannot be read gives a holder of pid -1."""
-    handle = _flock(path)
+    handle = try_flock(path)
     if handle is not None:
         handle.close()
         return None
@@ -186,7 +181,7 @@ class BenchLock:
         :raises BenchHeld: another process holds any of them (named: the bench, or the device
             and the bench its holder drives it as).
         """
-        handle = _flock(self.path)
+        handle = try_flock(self.path)
         if handle is None:
             holder = read_holder(self.path)
             who = holder.describe() if holder is not None else "another process"

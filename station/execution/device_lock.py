@@ -77,6 +77,20 @@ def bench_devices(config: BenchConfig) -> list[Device]:
     return out
 
 
+def try_flock(path: Path) -> IO[str] | None:
+    """``path`` (created with its folder if absent) opened and locked exclusively without
+    waiting (``fcntl.flock``, dropped by the kernel when the process ends), or ``None`` when
+    another open file description holds it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle = path.open("a+")
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        handle.close()
+        return None
+    return handle
+
+
 def lock_dir(configured: Path | None) -> Path:
     """The machine-wide directory of the device locks (``configured``, else the temp dir's)."""
     if configured is not None:
@@ -118,13 +132,9 @@ class DeviceLocks:
         return self
 
     def _lock(self, device: Device) -> IO[str]:
-        self.directory.mkdir(parents=True, exist_ok=True)
         path = lock_file(self.directory, device.key)
-        handle = path.open("a+")
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            handle.close()
+        handle = try_flock(path)
+        if handle is None:
             raise DeviceHeld(
                 f"the {device.role} {device.url} ({device.key}) is driven by {describe_holder(path)} "
                 f"(lock {path})"

@@ -85,10 +85,15 @@ def _factory(name: str) -> Callable[..., Procedure] | Refusal:
     return factory
 
 
+def accepted_parameters(factory: Callable[..., Procedure]) -> set[str]:
+    """The keywords a procedure factory takes besides ``dwell_s`` (its own parameters)."""
+    return set(inspect.signature(factory).parameters) - {"dwell_s"}
+
+
 def _unknown_parameters(
     name: str, factory: Callable[..., Procedure], parameters: Mapping[str, object]
 ) -> Refusal | None:
-    accepted = set(inspect.signature(factory).parameters) - {"dwell_s"}
+    accepted = accepted_parameters(factory)
     unknown = sorted(set(parameters) - accepted)
     if not unknown:
         return None

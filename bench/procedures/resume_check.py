@@ -17,12 +17,11 @@ names the run and the procedure.
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Mapping
 from typing import Any
 
 from bench.procedures.preview import TableLimits, preview
-from bench.procedures.registry import PROCEDURES, Admitted, Refusal, RefusalKind
+from bench.procedures.registry import PROCEDURES, Admitted, Refusal, RefusalKind, accepted_parameters
 from bench.procedures.steps import Procedure
 
 
@@ -43,7 +42,7 @@ def stored_parameters(name: str, stored: Mapping[str, Any], run_id: str) -> dict
             f"run {run_id} was recorded with procedure {name!r}, which this calbench does not know "
             f"(known: {known}): it cannot be rebuilt to continue; the run stays as it is",
         )
-    accepted = set(inspect.signature(factory).parameters) - {"dwell_s"}
+    accepted = accepted_parameters(factory)
     out = {k: v for k, v in stored.items() if k in accepted and v is not None}
     for k, v in list(out.items()):
         if isinstance(v, list):

@@ -9,8 +9,9 @@ To reuse the fixtures in another test package, import them into its ``conftest.p
     from tests.pg import db_backend, db_engine, db_session_factory, pg_server  # noqa: F401
 
 ``db_engine`` is then parametrised over ``sqlite`` (a fresh file per test) and
-``postgresql`` (one database per test session, emptied after each test); the
-PostgreSQL case is skipped with the reason when the server cannot be reached.
+``postgresql`` (one database per test session, emptied after each test); ``empty_engine``
+likewise, with no schema (a new database per test, for migration tests); the PostgreSQL case
+is skipped with the reason when the server cannot be reached.
 """
 
 from __future__ import annotations
@@ -116,6 +117,29 @@ def db_engine(db_backend: str, request: pytest.FixtureRequest, tmp_path: Path) -
     finally:
         truncate_all(engine)
         engine.dispose()
+
+
+@pytest.fixture
+def empty_engine(db_backend: str, tmp_path: Path) -> Iterator[Engine]:
+    """A fresh database with no schema at all on each backend, for migration tests that build
+    an older revision themselves (a new PostgreSQL database per test: a downgrade to base leaves
+    nothing to empty)."""
+    from db.engine import make_engine
+
+    if db_backend == "sqlite":
+        engine = make_engine(f"sqlite:///{tmp_path / 'empty.db'}")
+        yield engine
+        engine.dispose()
+        return
+    reason = pg_unreachable_reason()
+    if reason:
+        pytest.skip(reason)
+    with pg_database() as url:
+        engine = make_engine(url)
+        try:
+            yield engine
+        finally:
+            engine.dispose()
 
 
 @pytest.fixture

@@ -7,24 +7,19 @@ from __future__ import annotations
 
 import copy
 import datetime as dt
-from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
-import pytest
 import sqlalchemy as sa
 from sqlalchemy.engine import Engine
 
-from db.engine import make_engine
 from db.migrate import current_revision, downgrade, upgrade
 from db.types import UtcDateTime
-from tests.pg import pg_database, pg_unreachable_reason
+from tests.db.old_schema import SETUP as OLD_SETUP
+from tests.db.old_schema import at_revision, row_counts
 
 T0 = dt.datetime(2026, 11, 20, 2, 0, tzinfo=dt.UTC)
 
 # the tables as revision 0003 has them (not the models: they follow the newest revision)
-BENCH = sa.table("bench", sa.column("id", sa.Integer), sa.column("name", sa.String))
-UNIT = sa.table("unit", sa.column("id", sa.Integer), sa.column("serial", sa.String))
 RUN = sa.table(
     "run",
     sa.column("id", sa.String),
@@ -38,19 +33,7 @@ RUN = sa.table(
     sa.column("limit_checks", sa.JSON),
 )
 AUTO = {"attempt": 2, "not_before": "2026-11-20T02:05:00+00:00", "windows": 3, "fault": "lost link"}
-SETUP = {
-    "run_id": "R-SERVICE",
-    "procedure": "static-12",
-    "parameters": {"dwell_s": 3.0, "n_poses": 12},
-    "sim": {"seed": 7},
-    "bench": "bench-a",
-    "bench_config": {"name": "sim", "version": 1, "sha256": "ab" * 32},
-    "sample_rate_hz": 100.0,
-    "n_axes": 3,
-    "n_windows": 12,
-    "expected_duration_s": 96.0,
-    "dwell": {"dwell_s": 3.0, "source": "fixed", "reason": "given", "details": {}},
-}
+SETUP = {"run_id": "R-SERVICE", **OLD_SETUP}
 RESULTS = {
     "calibration": {"method": "static-12", "bias": [0.01, -0.02, 0.03]},
     "diagnosis": {"findings": []},
@@ -171,16 +154,12 @@ CHILDREN = ("fit_model", "finding", "run_window", "sample_chunk")
 
 
 def _children(engine: Engine) -> dict[str, int]:
-    with engine.connect() as conn:
-        return {t: int(conn.scalar(sa.text(f"SELECT count(*) FROM {t}")) or 0) for t in CHILDREN}
+    return row_counts(engine, CHILDREN)
 
 
 def _fill_at_0003(engine: Engine) -> None:
-    upgrade(engine, "0003")
-    assert current_revision(engine) == "0003"
+    at_revision(engine, "0003")
     with engine.begin() as conn:
-        conn.execute(sa.insert(BENCH).values(id=1, name="bench-a"))
-        conn.execute(sa.insert(UNIT).values(id=1, serial="SN-1"))
         for run_id, (state, params, _) in RUNS.items():
             conn.execute(
                 sa.insert(RUN).values(
@@ -272,39 +251,20 @@ def _check_upgrade_and_downgrade(engine: Engine) -> None:
     assert "run_audit" not in sa.inspect(engine).get_table_names()
 
 
-@pytest.fixture
-def sqlite_engine(tmp_path: Path) -> Iterator[Engine]:
-    engine = make_engine(f"sqlite:///{tmp_path / 'at0003.db'}")
-    yield engine
-    engine.dispose()
+def test_0004_moves_every_value(empty_engine: Engine) -> None:
+    """On SQLite and on PostgreSQL (``tests.pg.empty_engine``)."""
+    _check_upgrade_and_downgrade(empty_engine)
 
 
-def test_0004_moves_every_value_on_sqlite(sqlite_engine: Engine) -> None:
-    _check_upgrade_and_downgrade(sqlite_engine)
-
-
-@pytest.mark.postgres
-def test_0004_moves_every_value_on_postgresql() -> None:
-    reason = pg_unreachable_reason()
-    if reason:
-        pytest.skip(reason)
-    with pg_database() as url:
-        engine = make_engine(url)
-        try:
-            _check_upgrade_and_downgrade(engine)
-        finally:
-            engine.dispose()
-
-
-def test_the_moved_values_work_after_the_upgrade(sqlite_engine: Engine) -> None:
+def test_the_moved_values_work_after_the_upgrade(empty_engine: Engine) -> None:
     """The claim and the control look-up read the migrated columns: a resume queued and the
     requests asked before the upgrade are seen after it."""
     from db.engine import make_session_factory
     from db.repo.queue import claim_next_run, pending_control
 
-    _fill_at_0003(sqlite_engine)
-    upgrade(sqlite_engine)
-    with make_session_factory(sqlite_engine).begin() as s:
+    _fill_at_0003(empty_engine)
+    upgrade(empty_engine)
+    with make_session_factory(empty_engine).begin() as s:
         pending = pending_control(s, "R-DRIFT")
         assert (pending.abort, pending.seq, pending.action) == ("operator abort over REST", 1, "pause")
         assert pending_control(s, "R-CLI") == type(pending)(None, 0, None)
@@ -313,7 +273,7 @@ def test_the_moved_values_work_after_the_upgrade(sqlite_engine: Engine) -> None:
     # the resume requested before the upgrade is claimed as a resume, of a drift check
     assert claimed is not None and claimed.run_id == "R-DRIFT" and claimed.kind == "drift_check"
     assert claimed.point is not None and claimed.point.next_window_index == 0
-    with make_session_factory(sqlite_engine).begin() as s:
+    with make_session_factory(empty_engine).begin() as s:
         from db.models import Run
 
         run = s.get(Run, "R-DRIFT")

@@ -7,23 +7,18 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pytest
 import sqlalchemy as sa
 from sqlalchemy.engine import Engine
 
-from db.engine import make_engine, make_session_factory
+from db.engine import make_session_factory
 from db.migrate import current_revision, downgrade, upgrade
 from db.types import NpyArray
-from tests.pg import pg_database, pg_unreachable_reason
+from tests.db.old_schema import SETUP, at_revision, row_counts
 
 # the tables as revision 0004 has them (not the models: they follow the newest revision)
-BENCH = sa.table("bench", sa.column("id", sa.Integer), sa.column("name", sa.String))
-UNIT = sa.table("unit", sa.column("id", sa.Integer), sa.column("serial", sa.String))
 RUN = sa.table(
     "run",
     sa.column("id", sa.String),
@@ -70,18 +65,6 @@ WINDOW = sa.table(
     sa.column("means", sa.JSON),
 )
 
-SETUP = {
-    "procedure": "static-12",
-    "parameters": {"dwell_s": 3.0, "n_poses": 12},
-    "sim": {"seed": 7},
-    "bench": "bench-a",
-    "bench_config": {"name": "sim", "version": 1, "sha256": "ab" * 32},
-    "sample_rate_hz": 100.0,
-    "n_axes": 3,
-    "n_windows": 12,
-    "expected_duration_s": 96.0,
-    "dwell": {"dwell_s": 3.0, "source": "fixed", "reason": "given", "details": {}},
-}
 CONTRACT: dict[str, Any] = {
     "unit": "SN-1",
     "channel_unit": "m/s^2",
@@ -233,11 +216,8 @@ MOVED = ("calibration", "diagnosis", "diagnosis_error", "certificate_error", "co
 
 
 def _fill_at_0004(engine: Engine) -> None:
-    upgrade(engine, "0004")
-    assert current_revision(engine) == "0004"
+    at_revision(engine, "0004")
     with engine.begin() as conn:
-        conn.execute(sa.insert(BENCH).values(id=1, name="bench-a"))
-        conn.execute(sa.insert(UNIT).values(id=1, serial="SN-1"))
         for run_id, case in CASES.items():
             conn.execute(
                 sa.insert(RUN).values(
@@ -275,11 +255,7 @@ def _fill_at_0004(engine: Engine) -> None:
 
 
 def _counts(engine: Engine) -> dict[str, int]:
-    with engine.connect() as conn:
-        return {
-            t: int(conn.scalar(sa.text(f"SELECT count(*) FROM {t}")) or 0)
-            for t in ("run", "run_window", "finding", "run_audit")
-        }
+    return row_counts(engine, ("run", "run_window", "finding", "run_audit"))
 
 
 def _check_upgrade(engine: Engine) -> None:
@@ -339,25 +315,6 @@ def _check_upgrade_and_downgrade(engine: Engine) -> None:
     _check_upgrade(engine)
 
 
-@pytest.fixture
-def sqlite_engine(tmp_path: Path) -> Iterator[Engine]:
-    engine = make_engine(f"sqlite:///{tmp_path / 'at0004.db'}")
-    yield engine
-    engine.dispose()
-
-
-def test_0005_moves_every_result_on_sqlite(sqlite_engine: Engine) -> None:
-    _check_upgrade_and_downgrade(sqlite_engine)
-
-
-@pytest.mark.postgres
-def test_0005_moves_every_result_on_postgresql() -> None:
-    reason = pg_unreachable_reason()
-    if reason:
-        pytest.skip(reason)
-    with pg_database() as url:
-        engine = make_engine(url)
-        try:
-            _check_upgrade_and_downgrade(engine)
-        finally:
-            engine.dispose()
+def test_0005_moves_every_result(empty_engine: Engine) -> None:
+    """On SQLite and on PostgreSQL (``tests.pg.empty_engine``)."""
+    _check_upgrade_and_downgrade(empty_engine)

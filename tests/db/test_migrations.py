@@ -11,7 +11,6 @@ from sqlalchemy.exc import IntegrityError
 import db.models
 from db.engine import default_database_url, make_engine
 from db.migrate import current_revision, downgrade, head_revision, open_database, upgrade
-from tests.pg import pg_database, pg_unreachable_reason
 
 
 def _diff(engine):
@@ -25,29 +24,12 @@ def test_upgrade_head_leaves_no_autogenerate_diff(db_engine):
     assert _diff(db_engine) == []
 
 
-def test_downgrade_to_base_and_up_again(tmp_path):
-    engine = make_engine(f"sqlite:///{tmp_path / 'x.db'}")
-    upgrade(engine)
-    downgrade(engine, "base")
-    assert set(sa.inspect(engine).get_table_names()) <= {"alembic_version"}
-    upgrade(engine)
-    assert _diff(engine) == []
-    engine.dispose()
-
-
-@pytest.mark.postgres
-def test_downgrade_and_up_on_postgresql():
-    reason = pg_unreachable_reason()
-    if reason:
-        pytest.skip(reason)
-    with pg_database() as url:
-        engine = make_engine(url)
-        upgrade(engine)
-        downgrade(engine, "base")
-        assert set(sa.inspect(engine).get_table_names()) <= {"alembic_version"}
-        upgrade(engine)
-        assert _diff(engine) == []
-        engine.dispose()
+def test_downgrade_to_base_and_up_again(empty_engine):
+    upgrade(empty_engine)
+    downgrade(empty_engine, "base")
+    assert set(sa.inspect(empty_engine).get_table_names()) <= {"alembic_version"}
+    upgrade(empty_engine)
+    assert _diff(empty_engine) == []
 
 
 def test_sqlite_pragmas_wal_and_foreign_keys(tmp_path):

@@ -32,7 +32,7 @@ SRC := bench drivers db station api tests benchmarks
 
 # The whole suite after the static checks (what CI runs).
 test: install browser lint
-	$(BIN)/python -m pytest -n 2 --dist loadgroup
+	$(BIN)/python -m pytest -n 2 --dist loadgroup --durations=30
 
 # Everything but Monte-Carlo studies, whole simulated runs and the browser: the edit-test loop.
 test-fast: install

@@ -78,9 +78,10 @@ def gap_from_json(d: dict[str, Any]) -> GapRecord:
     )
 
 
-def _window_to_json(w: WindowRecord) -> dict[str, object]:
+def _window_to_json(w: WindowRecord, held_s: float) -> dict[str, object]:
     d = dataclasses.asdict(w)
     d["kind"] = w.kind.value
+    d["held_s"] = held_s
     return d
 
 
@@ -126,6 +127,8 @@ class RunRecorder:
         self.last_t_s = last_t_s
         self.chunk_seq = chunk_seq
         self.windows = windows
+        self.held_s: list[float] = [0.0] * len(windows)
+        """Per window: recording-clock time the run had spent held by its end (s)."""
         self.chunk_s = chunk_s
         self.min_chunk_wall_s = min_chunk_wall_s
         self._t_offset = 0.0 if last_t_s is None else last_t_s + 1.0 / writer.sidecar.sample_rate_hz
@@ -193,6 +196,7 @@ class RunRecorder:
                 f"but the kept rows end at {state.last_t_s} s"
             )
         rec = cls(writer, state.n_rows, state.last_t_s, chunk_seq, windows, **kw)
+        rec.held_s = [float(meta[i].get("held_s", 0.0)) for i in range(next_window)]  # 0: older files
         rec._set_sidecar_windows(segs[:next_window], windows)
         return rec
 
@@ -337,18 +341,26 @@ class RunRecorder:
     # -- windows -------------------------------------------------------------------------
 
     def _set_sidecar_windows(self, segs: list[Segment], windows: list[WindowRecord]) -> None:
-        extra = {**self.writer.sidecar.extra, WINDOWS_KEY: [_window_to_json(w) for w in windows]}
+        held = self.held_s
+        extra = {
+            **self.writer.sidecar.extra,
+            WINDOWS_KEY: [_window_to_json(w, h) for w, h in zip(windows, held, strict=True)],
+        }
         self.writer.sidecar = dataclasses.replace(self.writer.sidecar, extra=extra)
         self._io("writing the sidecar", self.writer.set_segments, segs)
 
-    def close_window(self, window: WindowRecord) -> ChunkRecord | None:
+    def close_window(self, window: WindowRecord, held_s: float = 0.0) -> ChunkRecord | None:
         """Flush the samples, then add the window's segment to the sidecar (atomic rewrite).
+
+        :param held_s: recording-clock time the run had spent held (paused, suspended) by the
+            window's end (s), kept so a resumed run counts its working time from the file.
 
         :returns: the chunk flushed with it, if samples were pending.
         """
         chunk = self.flush_chunk(window.index)
         segs = [*(self.writer.sidecar.segments or ()), Segment(window.start_s, window.end_s, window.label)]
         self.windows.append(window)
+        self.held_s.append(held_s)
         self._set_sidecar_windows(segs, self.windows)
         return chunk
 

@@ -117,15 +117,21 @@ class Sequencer:
         self.state = RunState.QUEUED
         self.window: WindowCollector | None = None
         self.now_s = recorder.last_t_s or 0.0
-        self.held_s = 0.0
+        self.held_s = recorder.held_s[-1] if recorder.held_s else 0.0  # a resumed run's holds so far
         self.hold_began_s: float | None = None
         self.eta = RemainingTime(
             procedure,
             self.config.limits,
             start_window,
-            self.now_s,
+            self.now_s - self.held_s,
             dwell.dwell_s if dwell else None,
             daq.sample_rate_hz,
+        )
+        self.eta.windows_kept(
+            [
+                (w.index, w.end_s - held, w.end_s - w.start_s)
+                for w, held in zip(recorder.windows, recorder.held_s, strict=True)
+            ]
         )
         self._eta_dwell_s = dwell.dwell_s if dwell else None
         self.step_index = 0
@@ -365,7 +371,7 @@ class Sequencer:
         finally:
             self.window = None
         rec = collector.record()
-        chunk = self.recorder.close_window(rec)
+        chunk = self.recorder.close_window(rec, self.held_s)
         if chunk is not None:
             self.notify("on_chunk", self.start.run_id, chunk)
         self.notify("on_window", self.start.run_id, rec)

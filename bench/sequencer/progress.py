@@ -14,7 +14,8 @@ measured time::
     r_pool = (ΣA + c) / (ΣN + c),     r_k = (A_k + c·r_pool) / (N_k + c),
 
 with ``A_k``, ``N_k`` the actual and nominal gap time of the windows of kind ``k`` this process
-completed (working time: recording clock minus time held) and ``c = 0.1·ΣG`` (s) the weight of
+completed (working time: recording clock minus time held; a resumed run counts the windows
+it kept as well, with the time held stored beside each) and ``c = 0.1·ΣG`` (s) the weight of
 the prior ratio 1. After window ``d``, done at working time ``w_d``, the remaining working time
 at working time ``w`` is
 
@@ -26,6 +27,8 @@ estimate from reaching zero early). The benchmark ``benchmarks/bench_eta.py`` me
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 from bench.procedures.preview import DEFAULT_SAMPLE_RATE_HZ, DEFAULT_TABLE_LIMITS, TableLimits, preview
 from bench.procedures.steps import Procedure
@@ -79,10 +82,27 @@ class RemainingTime:
         if index < self.first_window or index >= len(self.gaps_s):
             return
         previous_s = self.done_work_s if self.done_window is not None else self.start_work_s
-        kind = self.kinds[index]
-        self._actual[kind] = self._actual.get(kind, 0.0) + max(0.0, work_s - recorded_s - previous_s)
-        self._nominal[kind] = self._nominal.get(kind, 0.0) + self.gaps_s[index]
+        self._measure(index, work_s - recorded_s - previous_s)
         self.done_window, self.done_work_s = index, work_s
+
+    def windows_kept(self, done: Sequence[tuple[int, float, float]]) -> None:
+        """The pace of the windows an earlier process completed (a resumed run), so the
+        resumed run's remaining time, and the fraction done with it, go on from where they
+        were instead of starting over from the nominal pace.
+
+        :param done: per kept window, in order from window 0: its index, the working time at
+            its end and the time it recorded (s), as :meth:`window_done` takes them.
+        """
+        previous_s = 0.0
+        for index, work_s, recorded_s in done:
+            if index < self.first_window and index < len(self.gaps_s):
+                self._measure(index, work_s - recorded_s - previous_s)
+            previous_s = work_s
+
+    def _measure(self, index: int, actual_gap_s: float) -> None:
+        kind = self.kinds[index]
+        self._actual[kind] = self._actual.get(kind, 0.0) + max(0.0, actual_gap_s)
+        self._nominal[kind] = self._nominal.get(kind, 0.0) + self.gaps_s[index]
 
     def _prior_s(self) -> float:
         return self.PRIOR_FRACTION * sum(self.gaps_s)

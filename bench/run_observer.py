@@ -63,6 +63,8 @@ class RunObserver(Protocol):
 
     # Optional: ``on_gap(run_id: str, gap: GapRecord) -> None`` is called, when an observer
     # defines it, as soon as a sample gap is recorded (before the window is re-measured).
+    # Optional: ``on_samples(run_id, t_s, accel, table_deg) -> None``: each block once it is
+    # recorded, for a live view (:meth:`bench.sequencer.observers.Observers.samples`).
     # Optional: ``on_phase(run_id: str, phase: str) -> None`` (:func:`announce_phase`): the
     # recording is over and the run is ``"analysing"`` (fit, verdict, diagnosis).
 

@@ -1,7 +1,9 @@
 """The server-sent events of one run, from the database's snapshots of it.
 
 :func:`run_events` turns successive :class:`~api.runs.events.RunSnapshot` reads into
-``gap``, ``state``, ``window`` and ``progress`` events and ends with ``finished``. Between two
+``gap``, ``state``, ``window``, ``progress`` and ``signal`` events (the decimated tail of the
+signal the agent stores beside the progress, :data:`station.runs.live.SIGNAL_KEY`) and ends
+with ``finished``. Between two
 reads it waits on the run's :class:`~api.runs.wakeup.Waiter`: a notification (PostgreSQL
 LISTEN) makes it read at once, otherwise it reads after the poll period. While it waits it
 still ends the stream when the service stops (``shutdown``) or the token is revoked (checked
@@ -18,6 +20,7 @@ from api.runs.events import RunSnapshot
 from api.runs.wakeup import Waiter
 from bench.records import RunState
 from station.runs.hub import CLOSED_EVENT, TERMINAL_EVENT
+from station.runs.live import SIGNAL_KEY
 
 KEEPALIVE_S = 15.0
 """Silence after which a stream sends a keep-alive comment and checks the client is there (s)."""
@@ -51,6 +54,7 @@ async def run_events(
     snap: RunSnapshot | None = first
     state: RunState | None = None
     live: dict[str, object] | None = None
+    signal: dict[str, object] | None = None
     last_window = first.last_window
     n_gaps = 0  # every gap is news: the run page counts the lost samples from them
     last_read = last_sent = last_check = loop.time()
@@ -67,10 +71,17 @@ async def run_events(
             if last_window is None or window["index"] > last_window:
                 yield sse("window", window)
                 last_window, last_sent = window["index"], loop.time()
-        if snap.live is not None and snap.live != live and snap.finished is None:
-            live = snap.live
-            yield sse("progress", live)
-            last_sent = loop.time()
+        if snap.live is not None and snap.finished is None:
+            progress = {k: v for k, v in snap.live.items() if k != SIGNAL_KEY}
+            if progress != live:
+                live = progress
+                yield sse("progress", live)
+                last_sent = loop.time()
+            view = snap.live.get(SIGNAL_KEY)
+            if isinstance(view, dict) and view != signal:
+                signal = view
+                yield sse("signal", view)
+                last_sent = loop.time()
         if snap.finished is not None:
             yield sse(TERMINAL_EVENT, snap.finished)
             return

@@ -5,6 +5,7 @@ import { downloadJson, followEvents, getJson, linkAnchor, postJson } from "./api
 import { badge, card, h, message, progressBar, setProgress, table, when } from "./dom.js";
 import { CHANNEL_COLOURS, bars, chart, fmt, legend } from "./svgplot.js";
 import { fmtU, splitU } from "./uncertainty.js";
+import { signalCard } from "./view_signal.js";
 
 const LIVE = new Set(["queued", "running", "paused", "suspended"]);
 const G0 = 9.80665; // standard gravity: datasheets give sensitivity per g0
@@ -430,7 +431,8 @@ export async function runView(view, runId, session, signal) {
       winBody)));
   const audit = auditCard();
   audit.show(run);
-  view.append(h("div", { class: "grid" }, live.el, winCard, audit.el), status, results);
+  const signalView = signalCard();
+  view.append(h("div", { class: "grid" }, live.el, signalView.el, winCard, audit.el), status, results);
   const seen = new Set();
   const addWindow = (w) => {
     if (seen.has(w.index)) return;
@@ -457,6 +459,7 @@ export async function runView(view, runId, session, signal) {
     await followEvents(runId, (name, data) => {
       if (name === "progress" || name === "state") live.update(data);
       if (name === "window") addWindow(data);
+      if (name === "signal") signalView.update(data);
       if (name === "gap") live.addGap(data);
       if (name === "finished") live.update({ state: data.state, progress: data.state === "completed" ? 1 : undefined });
       if (name === "shutdown") status.textContent = "The service is restarting: the run will be stored interrupted and can be resumed.";

@@ -273,6 +273,7 @@ class Sequencer:
         self.now_s = float(t[-1])
         if self.window is not None:
             self.window.add(t, block.accel, table, temp)
+        self._observers.samples(self.start.run_id, t, block.accel, table)  # recorded first
         finite = temp[np.isfinite(temp)]
         if finite.size:
             self.last_temp_c = float(finite.mean())

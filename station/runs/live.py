@@ -3,7 +3,8 @@
 :class:`LiveRun` is the runner's view of one run (state, phase, progress, control handle);
 :class:`HubObserver` publishes the run's state, progress and windows to the event streams;
 :class:`ServiceParamsObserver` stores with the run what a later resume needs (the kind of
-service run, the age of the simulated unit); :class:`DbLiveObserver` its latest progress.
+service run, the age of the simulated unit); :class:`DbLiveObserver` its latest progress and
+the decimated tail of its signal (:mod:`bench.live_signal`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any, Literal
 
 from sqlalchemy.orm import Session, sessionmaker
 
+from bench.live_signal import Samples, SignalTail, view_to_json
 from bench.records import (
     GapRecord,
     Progress,
@@ -137,13 +139,23 @@ class ServiceParamsObserver(NullObserver):
             )
 
 
+SIGNAL_KEY = "signal"
+"""The key of ``Run.live_progress`` holding the signal's decimated tail, which the event
+streams send as a ``signal`` event (:func:`bench.live_signal.view_to_json`)."""
+
+
 class DbLiveObserver(NullObserver):
     """Stores the latest progress of the run (``Run.live_progress``) at most every
     ``min_interval_s`` (and always on a state change), for the event streams of API processes
-    that do not hold the bench.
+    that do not hold the bench; with it, under :data:`SIGNAL_KEY`, the last ``signal_span_s``
+    of the signal decimated to at most ``signal_points`` points (:class:`SignalTail`: memory
+    bounded whatever the run's length; the recording is not decimated).
 
     :param clock: monotonic clock (s), replaceable in tests.
     """
+
+    signal_span_s = 30.0
+    signal_points = 300
 
     def __init__(
         self,
@@ -155,6 +167,15 @@ class DbLiveObserver(NullObserver):
         self.sessions, self.min_interval_s, self.clock = sessions, min_interval_s, clock
         self.live = live
         self._last = -math.inf
+        self._signal: SignalTail | None = None
+
+    def on_start(self, start: RunStart) -> None:
+        self._signal = SignalTail(start.sample_rate_hz, self.signal_span_s, self.signal_points)
+
+    def on_samples(self, run_id: str, t_s: Samples, accel: Samples, table_deg: Samples) -> None:
+        """Keep the block in the signal's tail (sent with the next stored progress)."""
+        if self._signal is not None:
+            self._signal.add(t_s, accel, table_deg)
 
     def on_progress(self, run_id: str, progress: Progress) -> None:
         now = self.clock()
@@ -163,6 +184,8 @@ class DbLiveObserver(NullObserver):
         self._last = now
         analysis = None if self.live is None else self.live.expected_analysis_s()
         data = progress_data(progress, analysis)
+        if self._signal is not None:
+            data[SIGNAL_KEY] = view_to_json(self._signal.view())
         with self.sessions.begin() as s:
             set_live_progress(s, run_id, data)
 

@@ -54,6 +54,24 @@ class ConsoleWatch:
         page.on("pageerror", lambda e: self.errors.append(f"pageerror: {e}"))
 
 
+def open_new_run(
+    service: str, browser: Any, serial: str, procedure: str = "static-12", page_path: str | None = None
+) -> tuple[str, Any, Any, ConsoleWatch]:
+    """Start ``procedure`` for ``serial`` over the API as the operator and open its run page (or
+    ``page_path``): the run id, the browser context, the page and its console watch."""
+    created = httpx.post(
+        f"{service}/api/runs", json={"unit_serial": serial, "procedure": procedure}, headers=OP
+    )
+    assert created.status_code == 202, created.text
+    run_id = created.json()["id"]
+    ctx = browser.new_context(viewport=DESK)
+    ctx.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
+    page = ctx.new_page()
+    console = ConsoleWatch(page)
+    page.goto(f"{service}{page_path if page_path is not None else f'/#/runs/{run_id}'}")
+    return run_id, ctx, page, console
+
+
 def shot(page: Any, name: str) -> None:
     SHOTS.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=str(SHOTS / f"{name}.png"), full_page=True)

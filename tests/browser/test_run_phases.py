@@ -20,8 +20,8 @@ from playwright.sync_api import expect
 from station.certificates.rounding import format_with_uncertainty
 from tests.browser.conftest import BROWSER
 from tests.browser.live_server import live_service
-from tests.browser.test_dashboard import DESK, ConsoleWatch
-from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings
+from tests.browser.test_dashboard import open_new_run
+from tests.support.service_helpers import OP, VIEW, service_settings
 
 RUN_TIMEOUT_S = 300.0
 
@@ -36,16 +36,7 @@ def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
 
 def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any) -> None:
-    created = httpx.post(
-        f"{service}/api/runs", json={"unit_serial": "SN-PH-1", "procedure": "static-12"}, headers=OP
-    )
-    assert created.status_code == 202, created.text
-    run_id = created.json()["id"]
-    ctx = browser.new_context(viewport=DESK)
-    ctx.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
-    page = ctx.new_page()
-    console = ConsoleWatch(page)
-    page.goto(f"{service}/#/runs/{run_id}")
+    run_id, ctx, page, console = open_new_run(service, browser, "SN-PH-1")
     # recording: its phase current, Pause and Abort offered, a time left from the pace
     expect(page.locator('#run-phases li[data-phase="recording"]')).to_have_class("current", timeout=60_000)
     expect(page.locator("#pause-run")).to_be_visible()
@@ -102,11 +93,11 @@ def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any
     assert got.status == 200 and got.body() == stored.content
     assert stored.content.count(b"\n") > run["n_samples"]  # the header and every sample
     # the windows' means on the page are the stored ones
-    stored = {w["index"] + 1: w["means"] for w in run["windows"]}
+    stored_means = {w["index"] + 1: w["means"] for w in run["windows"]}
     for row in page.locator("#windows tbody tr").all():
         cells = row.locator("td").all_inner_texts()
         shown = cells[5].split()
-        means = stored[int(cells[0])]
+        means = stored_means[int(cells[0])]
         assert shown[0::2] == list(means), cells
         for text, ch in zip(shown[1::2], means, strict=True):
             assert float(text) == pytest.approx(means[ch], rel=1e-5, abs=1e-9), (cells, means)
@@ -131,16 +122,7 @@ def test_phases_time_left_and_controls_follow_the_run(service: str, browser: Any
 
 
 def test_runs_are_searched_and_filtered_on_the_overview(service: str, browser: Any) -> None:
-    created = httpx.post(
-        f"{service}/api/runs", json={"unit_serial": "SN-PH-2", "procedure": "static-12"}, headers=OP
-    )
-    assert created.status_code == 202, created.text
-    run_id = created.json()["id"]
-    ctx = browser.new_context(viewport=DESK)
-    ctx.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
-    page = ctx.new_page()
-    console = ConsoleWatch(page)
-    page.goto(f"{service}/")
+    run_id, ctx, page, console = open_new_run(service, browser, "SN-PH-2", page_path="/")
     runs = page.locator('section[aria-label="Runs"] tbody tr')
     expect(runs.first).to_be_visible(timeout=30_000)
     page.fill("#runs-search", "sn-ph-2")  # the serial, any case

@@ -12,8 +12,9 @@ embedded`` runs the agent in a thread of the service (one process, as before).
 request and streams any run. The bench agent is then never embedded in a worker.
 
 Settings come from ``CALBENCH_*`` (see ``docs/service.md``). Without ``CALBENCH_TOKENS``
-an admin token is generated and printed once on stderr (it may also create database tokens
-at ``/api/tokens``), so there is never an unauthenticated write endpoint; with ``--sim``
+the first start creates an admin token in the database (stored hashed) and prints it once on
+stderr; later starts keep it (:mod:`api.first_admin`). It may create the lab's named tokens at
+``/api/tokens``, so there is never an unauthenticated write endpoint; with ``--sim``
 and no tokens, reads are also opened (``CALBENCH_PUBLIC_READ`` set explicitly wins) so the
 dashboard of a development bench opens without a token.
 
@@ -123,12 +124,10 @@ def serve_settings(args: argparse.Namespace) -> tuple[Settings, dict[str, str]]:
     update["agent"] = "embedded" if getattr(args, "agent", "spawn") == "embedded" else "external"
     if not settings.link_key:  # one key for all the workers of this service
         update["link_key"] = new_secret()
-    generated: dict[str, str] = {}
-    if not settings.tokens:
-        generated[new_secret()] = "admin"
-        if settings.sim or args.sim:
-            explicit = os.environ.get("CALBENCH_PUBLIC_READ") is not None
-            update["public_read"] = settings.public_read if explicit else True
+    generated: dict[str, str] = {}  # tokens handed to the app besides the configured ones: none
+    if not settings.tokens and (settings.sim or args.sim):  # the admin token: api.first_admin, at start
+        explicit = os.environ.get("CALBENCH_PUBLIC_READ") is not None
+        update["public_read"] = settings.public_read if explicit else True
     final = settings.model_copy(update=update)
     try:  # device URLs and database file first, then the bench file (naming the file and the key)
         check_configuration(final)
@@ -192,6 +191,7 @@ def run(args: argparse.Namespace) -> int:
     refused (code 3, one line naming the holder)."""
     import uvicorn
 
+    from api.first_admin import announcement, first_admin
     from api.main import create_app
     from station.execution.bench_lock import HELD_EXIT, BenchHeld, BenchLock
 
@@ -206,8 +206,16 @@ def run(args: argparse.Namespace) -> int:
             sock.close()
             print(f"calbench serve: {exc}", file=sys.stderr)
             return HELD_EXIT
-    for secret, role in generated.items():
-        print(f"calbench serve: no CALBENCH_TOKENS; {role} token of this process: {secret}", file=sys.stderr)
+    if not settings.tokens:
+        try:
+            print(announcement(first_admin(settings.effective_database_url)), file=sys.stderr)
+        except Exception as exc:  # the database cannot be opened: say so on one line
+            sock.close()
+            if lock is not None:
+                lock.release()
+            raise BadInput(
+                f"the admin token could not be read or stored: {type(exc).__name__}: {exc}"
+            ) from None
     if settings.public_read:
         print("calbench serve: reads need no token (public_read)", file=sys.stderr)
     workers = getattr(args, "workers", 1)

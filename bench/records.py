@@ -324,6 +324,8 @@ class Progress:
     :param table_deg: latest encoder angles (deg).
     :param state: current run state.
     :param held_s: recording-clock time spent held so far (operator pause, suspension), s.
+    :param done_fraction: the procedure's fraction done by the sequencer's schedule
+        (:meth:`bench.sequencer.progress.RemainingTime.done_fraction`); ``None``: not known.
     """
 
     step_index: int
@@ -336,14 +338,20 @@ class Progress:
     table_deg: tuple[float, ...]
     state: RunState
     held_s: float = 0.0
+    done_fraction: float | None = None
 
     @property
     def fraction(self) -> float:
-        """Fraction of the expected working time done, in [0, 1]: time held counts in neither,
+        """Fraction done, in [0, 1], for a progress bar: ``done_fraction`` where the sequencer
+        gave it (windows done on the procedure's schedule: it never steps back when the pace
+        is re-measured or the run resumes), else the expected working time done, time held
+        counting in neither,
 
-            fraction = (elapsed_s − held_s) / (expected_total_s − held_s),
+            fraction = (elapsed_s − held_s) / (expected_total_s − held_s);
 
-        so a bar stands still while the run is paused or suspended."""
+        either stands still while the run is paused or suspended."""
+        if self.done_fraction is not None:
+            return min(1.0, max(0.0, self.done_fraction))
         working_s = self.expected_total_s - self.held_s
         if working_s <= 0:
             return 0.0

@@ -189,6 +189,7 @@ class Sequencer:
                 self.positions_deg,
                 self.state,
                 held_s,
+                self.eta.done_fraction(self.now_s - held_s),
             ),
         )
 

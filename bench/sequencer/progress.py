@@ -131,6 +131,29 @@ class RemainingTime:
         tail = self.total_s - (self.ends_s[-1] if self.ends_s else 0.0)
         return rest + self.ratio * max(0.0, tail)
 
+    def done_fraction(self, work_s: float) -> float:
+        """Fraction of the procedure done at working time ``work_s``: its place on the nominal
+        schedule, ``(E_d + s·(E_{d+1} − E_d)) / T`` after window ``d`` (``E_{−1} = 0``; past
+        the last window the tail ``T − E_last``), where ``s = min(1, (w − w_d) / (D_{d+1} +
+        r_{kind}·G_{d+1}))`` is the share of the next window's stretch (approach and window)
+        worked so far at the measured pace. It reflects the windows done, weighted by their
+        nominal time: it grows with working time, jumps to ``E_{d+1}/T`` when window ``d + 1``
+        completes and never moves back when the pace is re-measured. A resumed run starts at
+        its last kept window's ``E_d/T`` (the window in progress at the fault is recorded again)."""
+        if self.total_s <= 0:
+            return 0.0
+        last = self.first_window - 1 if self.done_window is None else self.done_window
+        since_s = work_s - self.done_work_s  # done_work_s is start_work_s until a window completes
+        begin_s = self.ends_s[last] if 0 <= last < len(self.ends_s) else 0.0
+        if last + 1 < len(self.ends_s):
+            stretch_s = self.ends_s[last + 1] - begin_s
+            pace_s = self.lengths_s[last + 1] + self.kind_ratio(self.kinds[last + 1]) * self.gaps_s[last + 1]
+        else:
+            stretch_s = max(0.0, self.total_s - begin_s)
+            pace_s = self.ratio * stretch_s
+        share = 1.0 if pace_s <= 0 else min(1.0, max(0.0, since_s / pace_s))
+        return min(1.0, max(0.0, (begin_s + share * stretch_s) / self.total_s))
+
     def remaining_s(self, work_s: float) -> float:
         """Remaining working time (s) at working time ``work_s`` (the module's equation)."""
         last = self.first_window - 1 if self.done_window is None else self.done_window
@@ -149,6 +172,7 @@ def run_progress(
     positions_deg: tuple[float, ...],
     state: RunState,
     held_s: float = 0.0,
+    done_fraction: float | None = None,
 ) -> Progress:
     """The progress event of a run at step ``step_index`` with the recording clock at ``now_s`` (s).
 
@@ -156,6 +180,7 @@ def run_progress(
     :param next_window: the next window to complete (windows before it are done).
     :param remaining_s: the remaining working time (s), :meth:`RemainingTime.remaining_s`.
     :param held_s: recording-clock time spent held so far (s).
+    :param done_fraction: the procedure's fraction done, :meth:`RemainingTime.done_fraction`.
     """
     step = procedure.steps[min(step_index, len(procedure.steps) - 1)]
     return Progress(
@@ -169,4 +194,5 @@ def run_progress(
         positions_deg,
         state,
         held_s,
+        done_fraction,
     )

@@ -170,3 +170,32 @@ def test_before_the_noise_window_ends_the_dwell_is_the_longest_it_can_choose() -
     eta = RemainingTime(proc, sample_rate_hz=250.0)
     fixed = preview(build_procedure("oscillation-2axis", dwell_s=4096 / 250, noise_window_s=60.0))
     assert eta.total_s == pytest.approx(fixed.duration_s + 60.0)  # + the noise window itself
+
+
+def test_the_fraction_done_is_the_place_on_the_schedule_and_never_steps_back() -> None:
+    """After window k the fraction is its nominal end over the nominal total, E_k / T (the
+    preview's figures); part way to the next window it adds that stretch's share worked at
+    the measured pace; a pace re-measured slower at the next window does not move it back."""
+    proc = build_procedure("static-12", settle_s=0.2, noise_window_s=30.0)
+    pv = preview(proc, provisional_dwell_s=5.0)
+    ends = [w.start_s + w.duration_s for w in pv.windows]
+    eta = NoPrior(proc, dwell_s=5.0)
+    assert eta.done_fraction(0.0) == 0.0
+    r = 4.0
+    for k in range(4):
+        eta.window_done(k, _actual_end(pv, k, r), pv.windows[k].duration_s)
+    w3 = _actual_end(pv, 3, r)
+    assert eta.done_fraction(w3) == pytest.approx(ends[3] / pv.duration_s)
+    stretch_s = pv.windows[4].duration_s + r * (pv.windows[4].start_s - ends[3])  # D_4 + r·G_4
+    w = w3 + 0.25 * stretch_s
+    assert eta.done_fraction(w) == pytest.approx((ends[3] + 0.25 * (ends[4] - ends[3])) / pv.duration_s)
+    assert eta.done_fraction(w3 + 10 * stretch_s) == pytest.approx(ends[4] / pv.duration_s)  # capped
+    shown = eta.done_fraction(w3 + 0.9 * stretch_s)
+    slow_end = w3 + 3.0 * stretch_s  # window 4 took three times the time foreseen
+    eta.window_done(4, slow_end, pv.windows[4].duration_s)
+    assert eta.ratio > r
+    assert eta.done_fraction(slow_end) == pytest.approx(ends[4] / pv.duration_s)
+    assert eta.done_fraction(slow_end) >= shown
+    for k in range(5, len(ends)):
+        eta.window_done(k, slow_end + k, pv.windows[k].duration_s)
+    assert eta.done_fraction(slow_end + len(ends) + 1e6) == pytest.approx(1.0)

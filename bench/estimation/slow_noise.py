@@ -39,8 +39,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 import numpy.typing as npt
 from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg.lapack import dpotrf, dpotrs
 from scipy.optimize import minimize, minimize_scalar
 
+from bench.estimation.warm_search import warm_minimum
 from bench.estimation.window_covariance import (
     FixedQuadratic,
     WindowCovariance,
@@ -176,43 +178,41 @@ def gls(
         logdet_c = 2.0 * float(np.sum(np.log(np.diag(cf[0]))))
         CiX = cho_solve(cf, X)
         A, b, zz = X.T @ CiX, CiX.T @ z, float(z @ cho_solve(cf, z))
-    try:
-        af = cho_factor(A, lower=True)
-    except np.linalg.LinAlgError as exc:
-        raise ValueError("design is rank-deficient: some parameters cannot be determined") from exc
-    theta = cho_solve(af, b)
+    # LAPACK's Cholesky of the (p, p) A directly: scipy's cho_factor/cho_solve wrappers cost
+    # more than the factorisation itself at this size, in a search that calls this thousands of times
+    if not np.all(np.isfinite(A)):
+        raise ValueError("the GLS normal matrix is not finite")
+    La, info = dpotrf(A, lower=1, clean=1)
+    if info != 0:
+        raise ValueError("design is rank-deficient: some parameters cannot be determined")
+    theta = dpotrs(La, b, lower=1)[0]
     r = z - X @ theta
     chi2 = max(zz - float(b @ theta), 0.0)  # rᵀ C⁻¹ r = zᵀC⁻¹z − θ̂ᵀ XᵀC⁻¹z
-    logdet_a = 2.0 * float(np.sum(np.log(np.diag(af[0]))))
+    logdet_a = 2.0 * float(np.sum(np.log(np.diag(La))))
     ml = -0.5 * (chi2 + logdet_c + n * math.log(2 * math.pi))
     reml = -0.5 * (chi2 + logdet_c + logdet_a + (n - p) * math.log(2 * math.pi))
-    cov = cho_solve(af, np.eye(p))
+    cov = dpotrs(La, np.eye(p), lower=1)[0]
     return GlsFit(theta=theta, cov=0.5 * (cov + cov.T), resid=r, chi2=chi2, loglik_ml=ml, loglik_reml=reml)
 
 
-def _search(
+def _powell(
     fun: Callable[[FloatArray], float], u0: FloatArray, bounds: list[tuple[float, float]]
 ) -> tuple[float, FloatArray]:
-    """Bounded Powell minimum of ``fun`` from ``u0``.
+    """Bounded Powell minimum of ``fun`` from ``u0``, each line searched over its whole segment.
 
-    scipy's bounded Powell fails (an empty reduction in its extrapolation step) when an
-    iteration leaves the point where it was; the search is then finished by Brent (one
-    parameter) or Nelder-Mead (more), and the better of that and the start is kept.
+    Used for the joint search over (log τ², log T_c), whose long valley (τ² and T_c trade
+    against each other) a search of each line near its start (``warm_search``) can leave
+    short of the minimum. scipy's bounded Powell fails (an empty reduction in its
+    extrapolation step) when an iteration leaves the point where it was; the search is then
+    finished by Nelder-Mead, and the better of that and the start is kept.
     """
     try:
         res = minimize(fun, u0, method="Powell", bounds=bounds, options={"xtol": 1e-3, "ftol": 1e-6})
         return float(res.fun), np.asarray(res.x, dtype=float)
     except ValueError:
         pass
-    if u0.size == 1:
-        lo, hi = bounds[0]
-        r = minimize_scalar(
-            lambda a: fun(np.array([a])), bounds=(lo, hi), method="bounded", options={"xatol": 1e-3}
-        )
-        val, x = float(r.fun), np.array([float(r.x)])
-    else:
-        r = minimize(fun, u0, method="Nelder-Mead", bounds=bounds, options={"xatol": 1e-3, "fatol": 1e-6})
-        val, x = float(r.fun), np.asarray(r.x, dtype=float)
+    r = minimize(fun, u0, method="Nelder-Mead", bounds=bounds, options={"xatol": 1e-3, "fatol": 1e-6})
+    val, x = float(r.fun), np.asarray(r.x, dtype=float)
     f0 = fun(u0)
     return (val, x) if val <= f0 else (f0, np.asarray(u0, dtype=float))
 
@@ -234,14 +234,16 @@ def fit_noise(
 ) -> tuple[NoiseParams, GlsFit]:
     """REML estimate of the noise parameters for design X; returns them and the GLS fit under them.
 
-    τ² (and σ_p² when ``estimate_pose``) are optimised on a log scale (Powell) for each
+    τ² (and σ_p² when ``estimate_pose``) are optimised on a log scale (Powell's directions with
+    line searches bracketed from the start, ``warm_search``) for each
     T_c of ``CORRELATION_TIMES_FRACTION`` × span; the best ℓ_REML wins. ``init`` (a nearby
     model's estimate) gives the starting point; without it two starts are tried.
     ``tau2_cap`` (T_c -> (3,) upper bound of τ² per channel, or ``None``) bounds the slow
     noise by what the windows' own samples allow (``wander_cap``). ``corr_times_s`` replaces
     the grid of T_c (s; 0 = independent between windows). With ``refine_corr_time`` the grid
     only screens (one common log-scale of τ² per T_c, a 1-D search) and one Powell search
-    over (log τ², log T_c) starts from the best screened point (the cap at the shortest T_c
+    over (log τ², log T_c) starts from the best screened point (scipy's, each line searched
+    whole: :func:`_powell`) (the cap at the shortest T_c
     tried, the tightest, bounds τ² there).
     """
     scale = float(np.median(np.diagonal(V, axis1=1, axis2=2)))
@@ -295,7 +297,11 @@ def fit_noise(
             starts = [np.full(n_par, -2.0), np.full(n_par, _LOG_FLOOR)]
         else:
             t_init = init.tau2 / shape if n_tau == 3 else np.array([np.mean(init.tau2 / shape)])
-            u_init = np.log(np.maximum(t_init, scale * np.exp(_LOG_FLOOR)) / scale)
+            # a level at zero starts where the cold search does: the searches walk downhill
+            # from their start, and −ℓ is flat near zero, so a start there would stay there
+            u_init = np.where(
+                t_init > 0, np.log(np.maximum(t_init, scale * np.exp(_LOG_FLOOR)) / scale), -2.0
+            )
             if estimate_pose:
                 pv = init.pose_var_rad2 if init.pose_var_rad2 > 0 else g_scale * np.exp(-2.0)
                 u_init = np.append(u_init, np.log(pv / g_scale))
@@ -319,7 +325,7 @@ def fit_noise(
                 def at_tc(u: FloatArray, tc: float = tc) -> float:
                     return objective(u, tc)
 
-                val, x = _search(
+                val, x = warm_minimum(
                     at_tc,
                     u0,
                     list(zip([_LOG_FLOOR] * n_par, upper.tolist(), strict=True)),
@@ -347,7 +353,7 @@ def fit_noise(
         def objective_tc(v: FloatArray) -> float:
             return objective(v[:-1], float(np.exp(v[-1])))
 
-        val, x = _search(
+        val, x = _powell(
             objective_tc,
             np.minimum(u0, np.append(up, hi)),
             [*zip([_LOG_FLOOR] * n_par, up.tolist(), strict=True), (lo, hi)],

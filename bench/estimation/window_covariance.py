@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 from scipy.linalg import cho_solve_banded, cholesky_banded
+from scipy.linalg.lapack import dtbtrs
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -200,6 +201,10 @@ class CovarianceFactor:
             logdet += logdet_s + 2.0 * float(np.sum(np.log(self._cb[k])))
         self.logdet = logdet
 
+    def _active_rows(self, W: FloatArray) -> FloatArray:
+        """W[:, act, :] of W (m, 3, q): the channels with a wander (all three: W itself)."""
+        return W if self._k == 3 else np.take(W, self._act, axis=1)
+
     def _to_sorted(self, Y: FloatArray) -> FloatArray:
         return Y.reshape(self.cov.m, 3, -1)[self._order]
 
@@ -212,7 +217,7 @@ class CovarianceFactor:
         if self._k:
             assert self._cb is not None
             m, k, q = self.cov.m, self._k, Ys.shape[2]
-            G = W[:, self._act, :].reshape(m * k, q)
+            G = self._active_rows(W).reshape(m * k, q)
             H = cho_solve_banded((self._cb, False), G, check_finite=False).reshape(m, k, q)
             W = W - np.matmul(self._Binv[:, :, self._act], H)
         out = np.empty_like(W)
@@ -245,9 +250,12 @@ class CovarianceFactor:
         if self._k:
             assert self._cb is not None
             m, q = self.cov.m, W.shape[2]
-            G = W[:, self._act, :].reshape(m * self._k, q)
-            H = cho_solve_banded((self._cb, False), G, check_finite=False)
-            Q = Q - np.einsum("nq,nr->qr", G, H, optimize=False)
+            G = self._active_rows(W).reshape(m * self._k, q)
+            # Gᵀ M⁻¹ G = Hᵀ H with M = Uᵀ U and H = U⁻ᵀ G: one banded triangular solve
+            H, info = dtbtrs(self._cb, G, uplo="U", trans="T")
+            if info != 0:
+                raise ValueError("noise covariance is not positive definite (slow wander)")
+            Q = Q - H.T @ H
         return np.asarray(0.5 * (Q + Q.T), dtype=float)
 
     def inverse_diagonal_blocks(self) -> FloatArray:

@@ -112,7 +112,7 @@ def test_warm_reml_maximum_with_pose_variance_equals_polished_grid() -> None:
     def f(u: np.ndarray) -> float:
         return _dense_neg_reml(p, s * float(np.exp(u[0])), g * float(np.exp(u[1])))
 
-    grid = np.arange(-12.0, 6.0 + 1e-9, 0.25)
+    grid = np.arange(-12.0, 6.0 + 1e-9, 0.5)
     vals = np.array([[f(np.array([a, b])) for b in grid] for a in grid])
     i, j = np.unravel_index(int(np.argmin(vals)), vals.shape)
     r = minimize(

@@ -3,7 +3,8 @@ decimated to at most ``max_points`` points, in memory bounded whatever the run's
 
 Decimation is by block means: ``k = ceil(rate · span_s / max_points)`` consecutive samples
 become one point, at the mean of their time stamps, channels and table angles (a boxcar
-filter before subsampling, so noise is averaged rather than aliased). A block split between
+filter before subsampling, so noise is averaged rather than aliased; each angle taken within
+±180° of the block's first, so a block across the ±180° wrap stays at the wrap). A block split between
 two sample blocks of the DAQ is completed by the next one. The view holds at most
 ``max_points`` points and fewer than ``k`` carried samples: ``O(max_points + k)`` numbers per
 run. It only reads what the recording was given; the recording itself is never decimated.
@@ -79,7 +80,12 @@ class SignalTail:
         k = self.samples_per_point
         full = len(rows) // k * k
         if full:
-            means = rows[:full].reshape(-1, k, rows.shape[1]).mean(axis=1)
+            blocks = rows[:full].reshape(-1, k, rows.shape[1])
+            means = blocks.mean(axis=1)
+            # angles: each sample taken to within ±180° of its block's first before the mean,
+            # so a block across the ±180° wrap averages to the wrap, not to 0
+            first = blocks[:, :1, 4:]
+            means[:, 4:] = (first + ((blocks[:, :, 4:] - first + 180.0) % 360.0 - 180.0)).mean(axis=1)
             for row in means[-(self._points.maxlen or len(means)) :]:
                 self._points.append(row.copy())
         self._carry = rows[full:] if full < len(rows) else None

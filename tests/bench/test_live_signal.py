@@ -88,3 +88,13 @@ def test_bad_shapes_and_settings_are_refused() -> None:
         tail.add(np.zeros(3), np.zeros((3, 2)), np.zeros((3, 3)))
     with pytest.raises(ValueError, match="max_points 1"):
         SignalTail(100.0, 30.0, 1)
+
+
+def test_a_block_across_the_wrap_of_an_angle_stays_at_the_wrap() -> None:
+    tail = SignalTail(10.0, span_s=2.0, max_points=10)  # k = 2
+    t = np.arange(4) / 10.0
+    angles = np.array([[179.0, 10.0], [-179.0, 20.0], [-170.0, 30.0], [-160.0, 40.0]])
+    tail.add(t, np.zeros((4, 3)), angles)
+    (a0, b0), (a1, b1) = tail.view().table_deg
+    assert abs(a0) == pytest.approx(180.0) and b0 == pytest.approx(15.0)  # not (179 - 179) / 2 = 0
+    assert a1 == pytest.approx(-165.0) and b1 == pytest.approx(35.0)

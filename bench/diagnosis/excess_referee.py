@@ -1,15 +1,21 @@
-"""Head to head of each catalogue claim against "unexplained on one channel", out of sample.
+"""Head to head of each claim against "unexplained on one channel", out of sample.
 
 A misfit that lives on one channel alone and changes from window to window (a connector that
 re-seats at each move) is random against the pose set, but with a dozen windows some
-catalogue columns on that channel follow part of it by chance (nonlinearity, cross-coupling)
-and pass their gates before ``unexplained`` looks. The alternative that describes such a
-recording is not another column but a variance: channel c carries its own excess ε_c² from
-window to window (``channel_excess``, H1_c). So each catalogue effect E that the model claims
-is scored against it, both out of sample:
+catalogue columns on that channel follow part of it by chance (nonlinearity, cross-coupling),
+so do library terms among the many the library tries, and the pose error (a variance
+component) takes part of its scatter; each passes its gate before ``unexplained`` looks. The
+alternative that describes such a recording is not another column but a variance: channel c
+carries its own excess ε_c² from window to window (``channel_excess``, H1_c). So each claim E
+the model holds is scored against it, both out of sample:
 
     claim:        design X (with E),     C(λ, κ)         λ, κ by REML
     unexplained:  design X₋E (without),  C(λ, κ, ε_c²)   λ, κ, ε_c² by REML, c a channel E acts on
+
+for a catalogue effect or a library term (its columns taken out), and for the pose error
+
+    claim:        design X,  C(λ, κ) with the pose variance J Jᵀ σ²_pose as fitted
+    unexplained:  design X,  C(λ, κ, ε_c²) without it,                 c any channel
 
 (``channel_excess.ExcessModel``; T_c and the pose variance as the model fitted them), and
 against the model without E and no excess (a misfit common to the channels is κ's in both:
@@ -17,10 +23,11 @@ withdrawn then, but no channel is named). The
 score is the leave-one-window-out log predictive density (``loo_log_score``): each window's
 three means predicted from the other windows with the coefficients re-estimated without it,
 a proper scoring rule, so designs and covariances are compared on one scale (Gneiting &
-Raftery, JASA 102 (2007) 359). A claim whose score is not above the best one-channel
-alternative's is withdrawn and the channel is flagged unexplained instead. This is also the
-whole-signature check: an effect whose physics moves several channels but whose fitted
-signature is one channel's scatter loses to that channel's excess.
+Raftery, JASA 102 (2007) 359): a design column, a pose-geometry covariance and one channel's
+excess variance alike. A claim whose score is not above the best one-channel alternative's is
+withdrawn and the channel is flagged unexplained instead. This is also the whole-signature
+check: an effect whose physics moves several channels but whose fitted signature is one
+channel's scatter loses to that channel's excess.
 
 A true effect's columns predict a left-out window (the pattern is fixed by the poses), which
 an excess variance cannot: it only widens the prediction. Variance parameters are fitted on
@@ -41,9 +48,8 @@ from bench.diagnosis.effects import pose_response
 from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.greedy import backward
-from bench.diagnosis.library import EFFECT
 from bench.diagnosis.likelihood import window_covariance, without_pose
-from bench.diagnosis.model_state import ModelState, design, fit_model, scale_matrix
+from bench.diagnosis.model_state import POSE_ERROR, ModelState, design, fit_model, scale_matrix
 from bench.diagnosis.refit import ModelFit
 from bench.diagnosis.residuals import CHANNELS
 from bench.diagnosis.result import Unexplained
@@ -119,32 +125,38 @@ def loo_log_score(X: FloatArray, z: FloatArray, C: WindowCovariance) -> float:
 def head_to_heads(
     ev: StaticEvidence, state: ModelState, fixed: FloatArray | None, th: Thresholds = THRESHOLDS
 ) -> list[HeadToHead]:
-    """Each catalogue effect of the model against its best one-channel alternative (module
-    docstring), in the order the effects entered."""
+    """Each claim of the model against its best one-channel alternative (module docstring), in
+    the order the claims entered: catalogue effects and library terms (the model without the
+    claim's columns, an excess on a channel they act on) and the pose error (the model without
+    the pose variance, an excess on any channel)."""
     assert state.noise is not None and state.fit is not None
-    if all(c.effect.startswith(EFFECT + ":") for c in state.candidates):
+    if not state.candidates and not state.pose:
         return []
     K = scale_matrix(state.fit)
     J = pose_response(ev, K)
-    noise = state.noise if state.pose else without_pose(state.noise)
-    model = ExcessModel.build(ev, noise, J, fixed, SlowNoiseCap(ev, th.cap_alpha))
+    cap = SlowNoiseCap(ev, th.cap_alpha)
+    model = ExcessModel.build(ev, state.noise if state.pose else without_pose(state.noise), J, fixed, cap)
     z = ev.y.reshape(-1)
     X = design(ev, K, state.candidates)
     _, x_full = model.fit_shared(X, z)
     claim = loo_log_score(X, z, model.covariance(x_full, None))
-    out: list[HeadToHead] = []
+    rivals: list[tuple[str, list[int], FloatArray, ExcessModel]] = []
     for effect in dict.fromkeys(c.effect for c in state.candidates):
-        if effect.startswith(EFFECT + ":"):
-            continue
         chans = sorted({i for c in state.candidates if c.effect == effect for i in c.channels})
         X_wo = design(ev, K, [c for c in state.candidates if c.effect != effect])
-        _, x0 = model.fit_shared(X_wo, z)
-        best = HeadToHead(effect, None, claim, loo_log_score(X_wo, z, model.covariance(x0, None)), 0.0)
+        rivals.append((effect, chans, X_wo, model))
+    if state.pose:
+        bare = ExcessModel.build(ev, without_pose(state.noise), J, fixed, cap)
+        rivals.append((POSE_ERROR, [0, 1, 2], X, bare))
+    out: list[HeadToHead] = []
+    for effect, chans, X_wo, alt in rivals:
+        _, x0 = alt.fit_shared(X_wo, z)
+        best = HeadToHead(effect, None, claim, loo_log_score(X_wo, z, alt.covariance(x0, None)), 0.0)
         for ch in chans:
-            _, x1 = model.fit_channel(X_wo, z, ch, x0)
-            score = loo_log_score(X_wo, z, model.covariance(x1, ch))
+            _, x1 = alt.fit_channel(X_wo, z, ch, x0)
+            score = loo_log_score(X_wo, z, alt.covariance(x1, ch))
             if score > best.excess_score:
-                best = HeadToHead(effect, ch, claim, score, model.size(float(x1[2])))
+                best = HeadToHead(effect, ch, claim, score, alt.size(float(x1[2])))
         out.append(best)
     return out
 
@@ -169,6 +181,8 @@ def excess_referee(
         lost.append(h)
         state.candidates = [c for c in state.candidates if c.effect != h.effect]
         state.steps = [s for s in state.steps if s.effect != h.effect]
+        if h.effect == POSE_ERROR:
+            state.pose, state.pose_edf, state.noise = False, 0.0, without_pose(state.noise)
         notes[h.effect] = withdrawn_text(h)
         K = scale_matrix(state.fit)
         state.noise, state.fit, _ = fit_model(ev, state.candidates, state.pose, K, fixed, state.noise, th=th)

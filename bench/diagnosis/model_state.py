@@ -20,6 +20,9 @@ from bench.diagnosis.likelihood import GlsFit, NoiseParams, fit_noise, gls, wind
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.diagnosis.wander_cap import SlowNoiseCap
 
+POSE_ERROR = "pose_error"
+"""The effect of the pose error, the selection's variance component (``ModelState.pose``)."""
+
 
 @dataclass(frozen=True)
 class Step:
@@ -37,8 +40,9 @@ class ModelState:
     """The current model during selection.
 
     :param swapped: catalogue effects replaced by library terms (not tried again);
-        :param excluded: catalogue effects taken out of the pool by a check after the
-        selection (``greedy.resume``: not candidates from the step before they entered).
+        :param excluded: effects taken out by a check after the selection (catalogue effects,
+        library terms, :data:`POSE_ERROR`; ``greedy.resume``: not candidates from the step
+        before they entered).
     """
 
     candidates: list[Candidate] = field(default_factory=list)

@@ -45,6 +45,7 @@ from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.greedy import NotedMove, Path, Trial, admits, extend, resume, step_alpha
 from bench.diagnosis.likelihood import GlsFit, NoiseParams, window_covariance
 from bench.diagnosis.model_state import (
+    POSE_ERROR,
     ModelState,
     Step,
     bic,
@@ -341,7 +342,7 @@ class Selection:
             self.path,
             self.groups,
             self.max_steps,
-            holds=lambda s: any(c.effect in out for c in s.candidates),
+            holds=lambda s: any(c.effect in out for c in s.candidates) or (s.pose and POSE_ERROR in out),
             without=lambda s: replace(s.copy(), excluded=s.excluded | out),
         )
         return replace(self, path=path)
@@ -392,7 +393,7 @@ def select(
 
     def n_catalogue(st: ModelState) -> int:
         # the catalogue's candidates still to try, plus the pose error while it is not in
-        pose_left = 1 if pose_allowed and not st.pose else 0
+        pose_left = 1 if pose_allowed and not st.pose and POSE_ERROR not in st.excluded else 0
         return sum(1 for c in in_pool(st) if c not in st.candidates) + pose_left
 
     def admit(
@@ -450,7 +451,7 @@ def _pose_step(
 ) -> ModelState | None:
     """The pose error, a catch-all variance component, as the selection's last group (``select``)."""
     assert state.noise is not None and state.fit is not None
-    if state.pose:
+    if state.pose or POSE_ERROR in state.excluded:
         return None
     noise1, fit1, K1 = fit_model(
         ev, state.candidates, True, scale_matrix_of(state), fixed, state.noise, cap=cap
@@ -483,5 +484,5 @@ def _pose_step(
         return None
     return replace(
         state.copy(), pose=True, pose_edf=chk.edf, noise=noise1, fit=fit1,
-        steps=[*state.steps, Step("pose_error", "pose_error", lr, dbic, 1)],
+        steps=[*state.steps, Step(POSE_ERROR, POSE_ERROR, lr, dbic, 1)],
     )  # fmt: skip

@@ -21,7 +21,7 @@ from bench.diagnosis.excess_referee import HeadToHead, excess_referee, flag_inst
 from bench.diagnosis.hysteresis import with_last_move
 from bench.diagnosis.library import EFFECT, LibraryTerm, library_terms
 from bench.diagnosis.library import candidate as library_candidate
-from bench.diagnosis.model_state import ModelState, scale_matrix
+from bench.diagnosis.model_state import POSE_ERROR, ModelState, scale_matrix
 from bench.diagnosis.periodic_lines import Line
 from bench.diagnosis.pipeline import Notes, Pipeline
 from bench.diagnosis.pose_quantisation import quantisation_covariance
@@ -181,14 +181,17 @@ def forward_selection(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tu
 
 
 def _resumed(st: WindowState, out: list[str]) -> tuple[WindowState, dict[str, str]]:
-    """The state with the selection resumed without the catalogue effects ``out``
+    """The state with the selection resumed without the effects ``out``
     (``selection.Selection.without``): its model, and the notes with the abandoned steps'
-    notes replaced by the resumed path's."""
+    notes replaced by the resumed path's. Effects taken out before stay out: a resume that goes
+    back to a step before an earlier one's would otherwise start from a state that still had
+    them as candidates."""
     assert st.selection is not None
-    sel = st.selection.without(out)
+    excluded = st.excluded | set(out)
+    sel = st.selection.without(excluded)
     stale = st.selection.notes
     kept = {k: v for k, v in st.notes.items() if stale.get(k) != v}
-    return replace(st, selection=sel, model=sel.model, excluded=st.excluded | set(out), notes=kept), sel.notes
+    return replace(st, selection=sel, model=sel.model, excluded=excluded, notes=kept), sel.notes
 
 
 def prune_redundant(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
@@ -226,10 +229,11 @@ def out_of_sample_referee(ev: StaticEvidence, st: WindowState, th: Thresholds) -
 
 
 def excess_head_to_head(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
-    """Head to head with "unexplained on one channel" (``excess_referee``). Rule: each catalogue
-    claim must predict a left-out window (log predictive density) better than the model without
-    it where a channel it acts on carries its own excess variance; one that does not is withdrawn,
-    no longer a candidate, the selection resumes without it from the step before it entered
+    """Head to head with "unexplained on one channel" (``excess_referee``). Rule: each claim of
+    the model (a catalogue effect, a library term, the pose error) must predict a left-out window
+    (log predictive density) better than the model without it where a channel carries its own
+    excess variance (a channel the claim acts on; any channel for the pose error); one that does
+    not is withdrawn, no longer a candidate, the selection resumes without it from the step before it entered
     (``greedy.resume``) and the out-of-sample referee judges that model, which is then judged
     the same way; the channel is flagged unexplained (``unexplained_stage``)."""
     assert st.model is not None
@@ -241,7 +245,8 @@ def excess_head_to_head(ev: StaticEvidence, st: WindowState, th: Thresholds) -> 
     out, again = _resumed(st, [h.effect for h in withdrawn])
     assert out.model is not None
     lost = (*st.lost, *withdrawn)
-    assert not any(c.effect in out.excluded for c in out.model.candidates), "a withdrawn claim re-entered"
+    taken = {c.effect for c in out.model.candidates} | ({POSE_ERROR} if out.model.pose else set())
+    assert not taken & out.excluded, "a withdrawn claim re-entered"
     fresh = {**again, **notes}
     referee(ev, out.model, st.fixed, fresh, th)
     out = replace(out, lost=lost)

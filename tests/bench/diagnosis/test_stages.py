@@ -21,6 +21,7 @@ from bench.diagnosis.stages import (
     STATIC,
     STATIC_NO_LIBRARY,
     WindowState,
+    _resumed,
     bench_lines,
     encoder_quantisation,
     forward_selection,
@@ -316,3 +317,23 @@ def test_an_effect_searched_beside_the_library_stays_out_once_a_check_took_it_ou
     out = sel.without(["beside"])
     assert "beside" in out.model.excluded
     assert "beside" not in {c.effect for c in out.model.candidates}
+
+
+def test_an_effect_taken_out_stays_out_when_a_later_check_resumes_from_an_earlier_step() -> None:
+    # truth: z² on az at 40 sigma and x² on ax at 20 sigma; "first" (z²) enters before "second"
+    # (x²). A check takes "second" out (resumed from step 1), then another takes "first" out
+    # (resumed from the start, a step before "second" entered): "second" must not come back
+    sq_z, sq_x = F[:, 2] ** 2 / G**2, F[:, 0] ** 2 / G**2
+    extra = np.zeros((M, 3))
+    extra[:, 2] = 40 * SIGMA * sq_z
+    extra[:, 0] = 20 * SIGMA * sq_x
+    ev = _evidence(8, extra.reshape(-1))
+    first, second = _column("first", 2, sq_z), _column("second", 0, sq_x)
+    sel = select(ev, [first, second], pose_allowed=False)
+    assert [c.effect for c in sel.model.candidates] == ["first", "second"]
+    st = WindowState(selection=sel, model=sel.model)
+    st, _ = _resumed(st, ["second"])
+    assert st.model is not None and [c.effect for c in st.model.candidates] == ["first"]
+    st, _ = _resumed(st, ["first"])
+    assert st.excluded == {"first", "second"}
+    assert st.model is not None and not st.model.candidates

@@ -30,17 +30,23 @@ in τ, though, so for the sigmas the allowance is a Gaussian process along log �
 (:func:`allowance_correlation`, exponential correlation of ``model_floor_corr_octaves``; the
 model discrepancy of Kennedy & O'Hagan 2001), its length the most likely of
 :data:`ALLOWANCE_LENGTHS_OCTAVES` and its level again χ²/dof = 1; the sigmas are the
-sandwich of the values' GLS under that covariance (:func:`_term_variances`), never smaller
+sandwich of the values' GLS under that covariance (:func:`term_variances`), never smaller
 than those of the fit without allowance scaled by its χ²/dof. Independent, the allowance
 averaged down over the many short-τ points as if it were noise: on the imu_utils curves
 (docs/noise-model.md) the 5-term N sigma was 1-2 % while two readings of one curve differed
-by up to 17 %. Every sigma comes from the normal matrix of all fitted terms, also one the
-non-negativity bound set to 0 (it still trades with the others).
+by up to 17 %.
 
-Between 50 simulated recordings with a Gauss–Markov bias (benchmarks/study_sigmas_allan.py),
-the RMS over pairs of |Δ|/combined sigma is 0.7-1.2 for N, B and K (docs/noise-model.md).
-Fitting Q and R as well when they are truly zero moves N and K by about −0.4 σ (the
-non-negativity bound).
+Which terms: N, B and K are always in the model, and their sigmas come from the normal
+matrix of all three, also one the non-negativity bound set to 0 (it still trades with the
+others). Quantisation Q and rate ramp R enter only where the curve needs them
+(:func:`select_terms`): backward elimination, a term leaving when that raises χ² (per χ²/dof
+when above 1) by less than :data:`SELECT_DELTA_CHI2`, the 1 % point of the ½χ²₀ + ½χ²₁ law
+of a likelihood ratio for a parameter on its bound (Self & Liang, JASA 82, 1987). A term
+left out reads 0 with its one-sigma upper limit from the full model. Counting the trade with
+a Q or R held at 0 by the bound made every sigma too wide on short records, where the
+estimates cannot follow that trade (they stay on the bound): between recordings of one
+sensor pair z 0.47-0.73 at 600 s, also for a sensor of pure power laws (docs/noise-model.md);
+with the selection 0.83-1.02.
 
 :func:`slope_method` is the graphical reading of Annex C: N from the points on the −1/2
 line (read at τ = 1 s), K from the points on the +1/2 line (read at τ = 3 s), B from the
@@ -53,12 +59,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 from scipy import stats
-from scipy.optimize import nnls
 
 from bench.estimation.allan import AllanResult
 from bench.estimation.allan_covariance import (
@@ -67,33 +71,24 @@ from bench.estimation.allan_covariance import (
     cholesky_ridged,
     forward_solve,
 )
+from bench.estimation.noise_gls import BI_FACTOR as BI_FACTOR
+from bench.estimation.noise_gls import (
+    MISFIT_LEVEL,
+    allowance,
+    floor_for_unit_chi2,
+    gls,
+    select_terms,
+    term_variances,
+)
+from bench.estimation.noise_gls import basis as basis
 
 FloatArray = npt.NDArray[np.float64]
-
-BI_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
-"""0.6643: Allan deviation of the bias-instability floor per unit B (IEEE 952 Table C.2)."""
 
 TERMS = ("quantization", "white", "bias_instability", "rate_random_walk", "rate_ramp")
 """Term names, in the order of :func:`basis`."""
 
-MISFIT_LEVEL = 0.95
-"""χ² above this quantile of its distribution counts as model misfit (see :func:`fit_noise_model_curve`)."""
-
 DOMINANT_SHARE = 0.8
 """Slope method: a point belongs to a term's line where that term is ≥ 80 % of the model variance."""
-
-ALLOWANCE_LENGTHS_OCTAVES = (0.0, 1.0, 4.0, 16.0)
-"""Candidate correlation lengths of the model allowance along τ (octaves; 0: independent points).
-
-Those longer than the fitted τ range are dropped; the one of highest likelihood is used
-(:func:`_allowance`).
-"""
-
-
-def basis(taus_s: npt.ArrayLike) -> FloatArray:
-    """(m, 5) Allan variance per unit squared coefficient: 3/τ², 1/τ, 0.664², τ/3, τ²/2."""
-    t = np.asarray(taus_s, dtype=float)
-    return np.stack([3.0 / t**2, 1.0 / t, np.full_like(t, BI_FACTOR**2), t / 3.0, t**2 / 2.0], axis=1)
 
 
 @dataclass(frozen=True)
@@ -185,135 +180,6 @@ def _root_with_sigma(p: float, var_p: float) -> tuple[float, float]:
     return math.sqrt(p), 0.5 * (math.sqrt(p + sp) - math.sqrt(max(p - sp, 0.0)))
 
 
-class _GlsFit(NamedTuple):
-    """One iterated GLS fit (:func:`_gls`); the covariance parts are those of its final model."""
-
-    chi2: float
-    dof: int
-    p: FloatArray
-    As: FloatArray
-    """(m, k) whitened design L⁻¹A."""
-    L: FloatArray
-    """(m, m) Cholesky factor of the covariance C used."""
-    stat_cov: FloatArray
-    """(m, m) D·R·D, the sampling covariance of σ̂² under the final model."""
-    model: FloatArray
-    """(m,) the final model's Allan variance."""
-
-    @property
-    def logdet(self) -> float:
-        """ln det C."""
-        return 2.0 * float(np.sum(np.log(np.diag(self.L))))
-
-
-def _gls(
-    t: FloatArray,
-    s2: FloatArray,
-    nu: FloatArray,
-    A: FloatArray,
-    active: list[int],
-    tau0_s: float,
-    floor_rel: float,
-    n_iterations: int,
-    floor_octaves: float = 0.0,
-) -> _GlsFit:
-    """Iterated non-negative GLS of s2 on A (k columns), non-negative coefficients p (k,).
-
-    Covariance of σ̂²: C = D·R·D + F·R_F·F, D = diag(σ²·√(2/edf)), F = diag(2·floor_rel·σ²),
-    with σ² the current model, R from :func:`allan_correlation` of the current model and R_F
-    from :func:`allowance_correlation` with length floor_octaves.
-    """
-    model = np.maximum(s2, np.max(s2) * 1e-300)
-    Ar = A / model[:, None]
-    col = np.maximum(np.linalg.norm(Ar, axis=0), np.finfo(float).tiny)
-    p = nnls(Ar / col, np.ones(t.size))[0] / col  # start: relative least squares
-    p_full = np.zeros(5)
-    p_full[active] = p
-    corr_floor = allowance_correlation(t, floor_octaves)
-    for it in range(n_iterations + 1):
-        corr = allan_correlation(t, p_full, tau0_s)
-        d = model * np.sqrt(2.0 / nu)
-        fl = 2.0 * floor_rel * model
-        stat_cov = corr * d[:, None] * d[None, :]
-        L = cholesky_ridged(stat_cov + corr_floor * fl[:, None] * fl[None, :])
-        white = forward_solve(L, np.column_stack([A, s2]))
-        As, s2w = white[:, :-1], white[:, -1]
-        if it == n_iterations:
-            break
-        scale = np.linalg.norm(As, axis=0)
-        p_scaled, _ = nnls(As / scale, s2w)
-        p = p_scaled / scale
-        p_full = np.zeros(5)
-        p_full[active] = p
-        model = np.maximum(A @ p, np.max(s2) * 1e-12)
-    r = s2w - As @ p
-    dof = max(t.size - int(np.count_nonzero(p > 0)), 1)
-    return _GlsFit(float(r @ r), dof, p, As, L, stat_cov, model)
-
-
-def _floor_for_unit_chi2(
-    t: FloatArray,
-    s2: FloatArray,
-    nu: FloatArray,
-    A: FloatArray,
-    active: list[int],
-    tau0_s: float,
-    n_it: int,
-    floor_octaves: float,
-) -> float:
-    """Relative model allowance on σ (0.1 % … 50 %) at which the fit's χ²/dof is 1, by bisection in log.
-
-    Seven halvings of ln(500): the level to ±5 %; two re-weighting passes per trial.
-    """
-    lo, hi = math.log(1e-3), math.log(0.5)
-    for _ in range(7):
-        mid = 0.5 * (lo + hi)
-        g = _gls(t, s2, nu, A, active, tau0_s, math.exp(mid), min(n_it, 2), floor_octaves)
-        lo, hi = (mid, hi) if g.chi2 / g.dof > 1.0 else (lo, mid)
-    return math.exp(hi)
-
-
-def _allowance(
-    t: FloatArray, s2: FloatArray, nu: FloatArray, A: FloatArray, active: list[int], tau0_s: float, n_it: int
-) -> tuple[float, float, float]:
-    """(floor_rel, length in octaves, floor_rel at length 0) of the model allowance.
-
-    For each length of :data:`ALLOWANCE_LENGTHS_OCTAVES` within the fitted τ range, the level
-    giving χ²/dof = 1; of those, the pair of highest Gaussian likelihood (smallest
-    χ² + ln det C); and the level for independent points (length 0), which the values use.
-    """
-    span_octaves = float(np.log2(t.max() / t.min()))
-    best = (math.inf, 0.0, 0.0)
-    independent = math.nan
-    for length in ALLOWANCE_LENGTHS_OCTAVES:
-        if length > span_octaves:
-            break
-        floor = _floor_for_unit_chi2(t, s2, nu, A, active, tau0_s, n_it, length)
-        independent = floor if length == 0.0 else independent
-        g = _gls(t, s2, nu, A, active, tau0_s, floor, min(n_it, 2), length)
-        if g.chi2 + g.logdet < best[0]:
-            best = (g.chi2 + g.logdet, floor, length)
-    return best[1], best[2], independent
-
-
-def _term_variances(fit: _GlsFit, inflate: float, cov: FloatArray | None = None) -> FloatArray:
-    """(k,) variances of the squared coefficients of a GLS fit, times inflate.
-
-    ``cov`` None: diag (AsᵀAs)⁻¹, As the whitened design. Otherwise the sandwich for data of
-    covariance ``cov`` (m, m) fitted with the fit's own weights: H⁻¹·Asᵀ(L⁻¹·cov·L⁻ᵀ)As·H⁻¹,
-    H = AsᵀAs (White, Econometrica 48, 1980). The normal matrix holds every fitted term, also
-    one the non-negativity bound set to 0: the others still trade with it (a Q at 0 leaves N
-    free to take the short-τ excess); a sigma from the positive terms alone was too short
-    by that trade (module doc).
-    """
-    H_inv = np.linalg.pinv(fit.As.T @ fit.As)
-    if cov is None:
-        return np.asarray(np.diag(H_inv) * inflate, dtype=float)
-    half = forward_solve(fit.L, cov)  # L⁻¹·cov
-    meat = forward_solve(fit.L, np.ascontiguousarray(half.T))  # L⁻¹·cov·L⁻ᵀ (cov symmetric)
-    return np.asarray(np.diag(H_inv @ fit.As.T @ meat @ fit.As @ H_inv) * inflate, dtype=float)
-
-
 def fit_noise_model_curve(
     taus_s: npt.ArrayLike,
     adev: npt.ArrayLike,
@@ -323,6 +189,7 @@ def fit_noise_model_curve(
     tau0_s: float | None = None,
     floor_rel: float | None = None,
     floor_octaves: float | None = None,
+    select: bool = True,
 ) -> NoiseTerms:
     """Weighted non-negative least-squares fit of the noise model to one Allan curve.
 
@@ -337,6 +204,8 @@ def fit_noise_model_curve(
     :param floor_octaves: correlation length of the allowance along τ (octaves,
         :func:`allowance_correlation`); ``None`` (default): by likelihood when the allowance is
         estimated (:func:`_allowance`), 0 (independent points) when floor_rel is given.
+    :param select: leave out quantisation and rate ramp where the curve does not need them
+        (:func:`select_terms`, module doc); a term left out reads 0 with its upper limit.
     :returns: :class:`NoiseTerms` with method ``"wls-5term"``; ``chi2_dof`` is that of the fit
         without allowance, ``model_floor_rel`` and ``model_floor_corr_octaves`` the allowance used.
     """
@@ -352,42 +221,48 @@ def fit_noise_model_curve(
         raise ValueError(f"unknown noise terms {unknown}; known: {list(TERMS)}")
     if not (np.all(np.isfinite(t)) and np.all(t > 0) and np.all(np.isfinite(s2))):
         raise ValueError("taus_s must be finite and > 0 and adev finite")
-    active = [TERMS.index(name) for name in terms]
+    active = sorted(TERMS.index(name) for name in terms)
     start = first_fit_index(s2)
     t, s2, nu = t[start:], s2[start:], nu[start:]
     if t.size < len(active) + 1:
         rising = f" (the curve rises from τ0 to τ = {t[0]:.3g} s: is the stretch static?)" if start else ""
         raise ValueError(f"{t.size} Allan points{rising} cannot determine {len(active)} noise terms")
-    A = basis(t)[:, active]
     tau0 = float(t.min()) if tau0_s is None else float(tau0_s)
-    fit = _gls(t, s2, nu, A, active, tau0, 0.0, n_iterations)
+    full = gls(t, s2, nu, basis(t)[:, active], active, tau0, 0.0, n_iterations)
+    bound_var = term_variances(full, max(1.0, full.chi2 / full.dof))
+    chosen = select_terms(t, s2, nu, active, tau0, n_iterations, full) if select else active
+    A = basis(t)[:, chosen]
+    fit = full if chosen == active else gls(t, s2, nu, A, chosen, tau0, 0.0, n_iterations)
     chi2_dof = fit.chi2 / fit.dof
     floor = 0.0 if floor_rel is None else float(floor_rel)
     octaves = 0.0 if floor_octaves is None else float(floor_octaves)
     level = floor  # the allowance of the values' fit: independent between τ
     if floor_rel is None and fit.chi2 > stats.chi2.ppf(MISFIT_LEVEL, fit.dof):
         if floor_octaves is None:
-            floor, octaves, level = _allowance(t, s2, nu, A, active, tau0, n_iterations)
+            floor, octaves, level = allowance(t, s2, nu, A, chosen, tau0, n_iterations)
         else:
-            level = _floor_for_unit_chi2(t, s2, nu, A, active, tau0, n_iterations, 0.0)
+            level = floor_for_unit_chi2(t, s2, nu, A, chosen, tau0, n_iterations, 0.0)
             floor = (
                 level
                 if octaves == 0.0
-                else _floor_for_unit_chi2(t, s2, nu, A, active, tau0, n_iterations, octaves)
+                else floor_for_unit_chi2(t, s2, nu, A, chosen, tau0, n_iterations, octaves)
             )
-    var_p = _term_variances(fit, max(1.0, chi2_dof))
+    var_p = term_variances(fit, max(1.0, chi2_dof))
     if floor > 0.0:
         # the values: GLS with the allowance independent between τ, which keeps the many
         # short-τ points from deciding every term. Their sigmas: the sandwich with the
         # allowance at its likelihood's correlation length (a misfit is smooth in τ), never
         # below the fit without allowance scaled by its χ²/dof (Birge ratio).
-        fit = _gls(t, s2, nu, A, active, tau0, level, n_iterations)
+        fit = gls(t, s2, nu, A, chosen, tau0, level, n_iterations)
         fl = 2.0 * floor * fit.model
         honest = fit.stat_cov + allowance_correlation(t, octaves) * fl[:, None] * fl[None, :]
-        var_p = np.maximum(_term_variances(fit, max(1.0, fit.chi2 / fit.dof), honest), var_p)
+        var_p = np.maximum(term_variances(fit, max(1.0, fit.chi2 / fit.dof), honest), var_p)
     values = [math.nan] * 5
     sigmas = [math.nan] * 5
     for k, idx in enumerate(active):
+        # a term the selection left out: 0 and its one-sigma upper limit from the full model
+        values[idx], sigmas[idx] = _root_with_sigma(0.0, float(bound_var[k]))
+    for k, idx in enumerate(chosen):
         values[idx], sigmas[idx] = _root_with_sigma(float(fit.p[k]), float(var_p[k]))
     corr_octaves = octaves if floor > 0.0 else math.nan
     return _terms(values, sigmas, chi2_dof, "wls-5term", float(t[0]), floor, corr_octaves)

@@ -39,14 +39,14 @@ by up to 17 %.
 Which terms: N, B and K are always in the model, and their sigmas come from the normal
 matrix of all three, also one the non-negativity bound set to 0 (it still trades with the
 others). Quantisation Q and rate ramp R enter only where the curve needs them
-(:func:`select_terms`): backward elimination, a term leaving when that raises χ² (per χ²/dof
-when above 1) by less than :data:`SELECT_DELTA_CHI2`, the 1 % point of the ½χ²₀ + ½χ²₁ law
-of a likelihood ratio for a parameter on its bound (Self & Liang, JASA 82, 1987). A term
-left out reads 0 with its one-sigma upper limit from the full model. Counting the trade with
-a Q or R held at 0 by the bound made every sigma too wide on short records, where the
-estimates cannot follow that trade (they stay on the bound): between recordings of one
-sensor pair z 0.47-0.73 at 600 s, also for a sensor of pure power laws (docs/noise-model.md);
-with the selection 0.83-1.02.
+(:func:`select_terms`): backward elimination, a term leaving when that raises χ² by less
+than :data:`SELECT_DELTA_CHI2`, the 1 % point of the ½χ²₀ + ½χ²₁ law of a likelihood ratio
+for a parameter on its bound (Self & Liang, JASA 82, 1987). That law needs the model to
+hold: where χ² fails (above), every term stays. A term left out reads 0 with its one-sigma
+upper limit from the full model. Counting the trade with a Q or R held at 0 by the bound
+made every sigma too wide on short records, where the estimates cannot follow that trade
+(they stay on the bound): between recordings of one sensor pair z 0.47-0.73 at 600 s, also
+for a sensor of pure power laws (docs/noise-model.md); with the selection 0.78-1.02.
 
 :func:`slope_method` is the graphical reading of Annex C: N from the points on the −1/2
 line (read at τ = 1 s), K from the points on the +1/2 line (read at τ = 3 s), B from the
@@ -230,7 +230,9 @@ def fit_noise_model_curve(
     tau0 = float(t.min()) if tau0_s is None else float(tau0_s)
     full = gls(t, s2, nu, basis(t)[:, active], active, tau0, 0.0, n_iterations)
     bound_var = term_variances(full, max(1.0, full.chi2 / full.dof))
-    chosen = select_terms(t, s2, nu, active, tau0, n_iterations, full) if select else active
+    # the bounded likelihood-ratio test needs the model to hold: where χ² rejects it, all terms stay
+    holds = full.chi2 <= stats.chi2.ppf(MISFIT_LEVEL, full.dof)
+    chosen = select_terms(t, s2, nu, active, tau0, n_iterations, full) if select and holds else active
     A = basis(t)[:, chosen]
     fit = full if chosen == active else gls(t, s2, nu, A, chosen, tau0, 0.0, n_iterations)
     chi2_dof = fit.chi2 / fit.dof

@@ -48,7 +48,7 @@ def certificate(run_id: str, session: SessionDep, _: ViewerDep) -> CertificateOu
     """The run's certificate: number, sha256 of the canonical JSON, and the content."""
     with session.begin():
         cert, serial = _of_run(session, run_id)
-        return certificate_out(cert, serial)
+        return certificate_out(cert, serial, get_run(session, run_id))
 
 
 @router.get(
@@ -132,4 +132,4 @@ def by_number(number: str, session: SessionDep, _: ViewerDep) -> CertificateOut:
         if cert is None:
             raise HTTPException(status.HTTP_404_NOT_FOUND, f"certificate {number} not found")
         serial = session.scalar(sa.select(Unit.serial).where(Unit.id == cert.unit_id))
-        return certificate_out(cert, serial or "")
+        return certificate_out(cert, serial or "", get_run(session, cert.run_id))

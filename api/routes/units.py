@@ -103,12 +103,13 @@ def history(serial: str, session: SessionDep, runner: RunnerDep, _: ViewerDep) -
         by_id = {c.id: c.number for c in certs}
         runs = list(reversed(list_runs(session, unit_serial=serial)))
         results = results_of_runs(session, [r.id for r in runs])
+        run_by_id = {r.id: r for r in runs}
         return UnitHistory(
             unit=_unit_out(session, unit),
             runs=[
                 run_out(r, serial, runner.live(r.id), by_run.get(r.id), results=results[r.id]) for r in runs
             ],
-            certificates=[certificate_out(c, serial) for c in certs],
+            certificates=[certificate_out(c, serial, run_by_id.get(c.run_id)) for c in certs],
             drift_checks=[
                 drift_out(d, serial, by_id.get(d.reference_certificate_id or -1))
                 for d in list_drift_checks(session, unit.id)

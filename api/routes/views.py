@@ -218,8 +218,19 @@ def live_out(live: LiveRun, bench: str) -> RunOut:
     )
 
 
-def certificate_out(cert: Certificate, serial: str) -> CertificateOut:
-    """An issued certificate."""
+def conformity_withdrawn(cert: Certificate, run: Run | None) -> str | None:
+    """Why the statement of conformity an issued certificate makes no longer stands: the run's
+    ``conformity_note`` when the certificate states PASS or FAIL and the run holds no verdict now
+    (withdrawn, e.g. by migration 0006); ``None`` otherwise. The document stays as issued."""
+    conformity = cert.content.get("conformity") if isinstance(cert.content, dict) else None
+    stated = isinstance(conformity, dict) and conformity.get("requested") is True
+    if run is None or not stated or run.outcome in ("PASS", "FAIL"):
+        return None
+    return run.conformity_note or "the run no longer holds the verdict this certificate states"
+
+
+def certificate_out(cert: Certificate, serial: str, run: Run | None = None) -> CertificateOut:
+    """An issued certificate (with :func:`conformity_withdrawn` of ``run``, its run)."""
     return CertificateOut(
         number=cert.number,
         run_id=cert.run_id,
@@ -227,6 +238,7 @@ def certificate_out(cert: Certificate, serial: str) -> CertificateOut:
         issued_at=cert.issued_at,
         sha256=cert.sha256,
         content=cert.content,
+        conformity_withdrawn=conformity_withdrawn(cert, run),
     )
 
 

@@ -182,8 +182,9 @@ class AuditEntryOut(BaseModel):
 
     at: dt.datetime = Field(description="when (UTC)")
     actor: str = Field(description="the operator's name (from the token), `agent` or `system`")
-    action: Literal["start", "pause", "continue", "abort", "resume", "state"] = Field(
-        description="an operator's request, or `state`: the run's state changed (to `state`)"
+    action: Literal["start", "pause", "continue", "abort", "resume", "state", "withdraw"] = Field(
+        description="an operator's request, `state`: the run's state changed (to `state`), or "
+        "`withdraw`: a stored PASS or FAIL was withdrawn (the detail says which and why)"
     )
     state: RunStateName | None = Field(default=None, description="the new state of a `state` action")
     detail: str = Field(default="", description="the reason or request, e.g. `interlock open`")

@@ -84,6 +84,11 @@ class CertificateOut(BaseModel):
     issued_at: dt.datetime
     sha256: str
     content: dict[str, Any]
+    conformity_withdrawn: str | None = Field(
+        default=None,
+        description="why the statement of conformity in `content` no longer stands (the run's verdict "
+        "was withdrawn; the issued document is kept unchanged), null when it stands or none is made",
+    )
 
 
 class DriftCheckOut(BaseModel):

@@ -28,7 +28,9 @@ nightly drift scheduler)."""
 
 
 class AuditAction(enum.Enum):
-    """What was done to a run: an operator's request, or a state change (with the new state)."""
+    """What was done to a run: an operator's request, a state change (with the new state), or
+    ``withdraw``: a stored statement of conformity (PASS or FAIL) withdrawn from the record, the
+    detail starting with the withdrawn outcome and saying why (migration 0006)."""
 
     START = "start"
     PAUSE = "pause"
@@ -36,6 +38,7 @@ class AuditAction(enum.Enum):
     ABORT = "abort"
     RESUME = "resume"
     STATE = "state"
+    WITHDRAW = "withdraw"
 
 
 class RunAudit(IntId, Base):

@@ -79,6 +79,8 @@ def run_deviations(run: RunFacts) -> list[str]:
     held: ActionFact | None = None
     asked: dict[str, ActionFact] = {}
     for a in run.actions:
+        if a.action == "withdraw":
+            continue
         if a.action != "state":
             asked[a.action] = a
             if a.action == "resume":
@@ -121,7 +123,10 @@ def action_lines(run: RunFacts) -> list[str]:
     """The run's audit trail, one line per action: time, who, what."""
     lines = []
     for a in run.actions:
-        what = f"state {a.state.value}" if a.state is not None else f"{a.action} requested"
+        if a.state is not None:
+            what = f"state {a.state.value}"
+        else:
+            what = "statement of conformity withdrawn" if a.action == "withdraw" else f"{a.action} requested"
         detail = f" ({a.detail})" if a.detail else ""
         lines.append(f"{utc_text(a.at)}  {a.actor}: {what}{detail}")
     return lines

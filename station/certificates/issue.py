@@ -310,6 +310,7 @@ def issue_for_run(
     g_local = rec.sidecar.g_local_m_s2 if rec is not None else None
     budget, budget_note = form_budget(prepared, settings, run.params, calibration)
     settings = certificate_settings(settings, run.params)
+    judged = (run.limit_checks or []) if run.outcome in ("PASS", "FAIL") else []  # withdrawn: none
     inputs = CertificateInputs(
         run=RunFacts(
             id=run.id,
@@ -333,12 +334,11 @@ def issue_for_run(
         budget=budget,
         budget_note=budget_note,
         limit_checks=tuple(
-            LimitCheck.from_stored(c, f"run {run_id}: limit check {i}")
-            for i, c in enumerate(run.limit_checks or [])
+            LimitCheck.from_stored(c, f"run {run_id}: limit check {i}") for i, c in enumerate(judged)
         ),
         outcome=run.outcome,
-        limits_model=limits_model_name(settings, unit.model) if run.limit_checks else None,
-        limits_note="" if run.limit_checks else limits_choice(settings, unit.model, unit.channel_unit).reason,
+        limits_model=limits_model_name(settings, unit.model) if judged else None,
+        limits_note="" if judged else limits_choice(settings, unit.model, unit.channel_unit).reason,
         g_check_n=prepared.analysis.g_check_windows if prepared.analysis is not None else None,
     )
     now = now or utc_now()

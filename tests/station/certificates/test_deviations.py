@@ -83,3 +83,18 @@ def test_who_started_the_run_and_the_record() -> None:
     assert record["actions"][2] == "2026-11-20 08:00:40 UTC  Grace Hopper: pause requested"
     assert record["actions"][3] == "2026-11-20 08:00:41 UTC  agent: state paused (operator pause)"
     assert started_by(RunFacts()).startswith("not recorded")
+
+
+def test_a_withdrawn_verdict_is_in_the_record_and_no_deviation() -> None:
+    withdrawn = ActionFact(
+        _at(5000),
+        "migration 0006",
+        "withdraw",
+        detail="PASS withdrawn: judged against model ADXL325's limits",
+    )
+    run = RunFacts(id="R", actions=(*COURSE, withdrawn), sample_gaps=[GAP])
+    assert run_deviations(run) == run_deviations(RunFacts(id="R", actions=COURSE, sample_gaps=[GAP]))
+    assert run_record_section(run)["actions"][-1] == (
+        "2026-11-20 09:23:20 UTC  migration 0006: statement of conformity withdrawn "
+        "(PASS withdrawn: judged against model ADXL325's limits)"
+    )

@@ -30,10 +30,13 @@ freedom (Welch–Satterthwaite, GUM G.4.1): ν_eff = u_c⁴ / Σ_i (u_i⁴ / ν_
 is k = t_p(ν_eff) with p = 95.45 % and ν_eff rounded down to an integer (GUM G.6.4,
 EA-4/02 M:2022 Annex E), which is 2 for ν_eff = ∞; U = k u_c.
 
-The Type A part is taken with ν = ∞: the fit already reports the standard deviation of the
-Student-t distribution of its estimated variance components (its covariance is multiplied by
-ν/(ν − 2), JCGM 101:2008 6.4.9), and k = 2 on that standard deviation covers at least
-95 % for every ν ≥ 3 (2√(ν/(ν − 2)) ≥ t_0.975(ν)). A Type B input is ν = ∞ unless it states
+The Type A part of a static fit with an independent excess per window is the unbiased estimate
+of ``bench.uncertainty.type_a`` with its Satterthwaite degrees of freedom (``type_a_dof``), so
+k = t_p(ν_eff) > 2 where the excess between the windows is poorly determined. Otherwise (a
+moving fit, a fit with the slow wander) the Type A part is taken with ν = ∞: the fit reports the
+standard deviation of the Student-t distribution of its estimated variance components (its
+covariance multiplied by ν/(ν − 2), JCGM 101:2008 6.4.9), and k = 2 on that standard deviation
+covers at least 95 % for every ν ≥ 3 (2√(ν/(ν − 2)) ≥ t_0.975(ν)). A Type B input is ν = ∞ unless it states
 otherwise (GUM G.4.3: a u taken from a calibration certificate or a specification).
 """
 
@@ -246,10 +249,13 @@ def uncertainty_budget(
     *,
     window_cov: FloatArray | None = None,
     method: str = "analytic",
+    type_a_dof: FloatArray | None = None,
 ) -> Budget:
     """The budget of the 12 parameters of a static fit.
 
     :param cov_type_a: (12, 12) the fit's covariance (``StaticFit.cov``), the Type A part.
+    :param type_a_dof: (12,) degrees of freedom of each Type A variance (``type_a.TypeA.dof``);
+        ``None``: ∞.
     :returns: :class:`Budget`; each quantity lists the Type A line first, then every input.
     :raises ValueError: see :func:`sensitivities`; a non-finite or wrongly shaped covariance.
     """
@@ -260,7 +266,7 @@ def uncertainty_budget(
         )
     sens = sensitivities(f_m_s2, bias, K, inputs, window_cov=window_cov, method=method)
     theta = np.concatenate([np.asarray(bias, dtype=float).reshape(3), np.asarray(K, dtype=float).ravel()])
-    return combine(theta, C, inputs, sens, method)
+    return combine(theta, C, inputs, sens, method, type_a_dof=type_a_dof)
 
 
 def combine(
@@ -270,18 +276,21 @@ def combine(
     sens: FloatArray,
     method: str,
     type_a_name: str = TYPE_A_NAME,
+    type_a_dof: FloatArray | None = None,
 ) -> Budget:
     """The budget from the sensitivities ``sens`` (n_inputs, 12) of θ (12,) to each input, however found.
 
     :param cov_type_a: (12, 12) the fit's covariance, the Type A part (its diagonal is used).
     :param method: how ``sens`` was found (stored in :class:`Budget`).
     :param type_a_name: the Type A line's name (its group is ``"Type A"``).
+    :param type_a_dof: (12,) the Type A line's degrees of freedom; ``None``: ∞.
     """
     C = np.asarray(cov_type_a, dtype=float)
+    nu_a = np.full(12, math.inf) if type_a_dof is None else np.asarray(type_a_dof, dtype=float)
     quantities = []
     for j, name in enumerate(PARAMETER_NAMES):
         u_a = math.sqrt(C[j, j])
-        lines = [Contribution(type_a_name, "Type A", None, u_a, "", 1.0, u_a, math.inf)]
+        lines = [Contribution(type_a_name, "Type A", None, u_a, "", 1.0, u_a, float(nu_a[j]))]
         for n, inp in enumerate(inputs):
             c = float(sens[n, j])
             lines.append(
@@ -291,6 +300,7 @@ def combine(
             )
         u_c = math.sqrt(sum(x.contribution**2 for x in lines))
         nu = welch_satterthwaite([x.contribution for x in lines], [x.dof for x in lines])
+        nu = max(nu, min(x.dof for x in lines))  # ν_eff ≥ min ν_i; only rounding breaks it
         k = coverage_factor(nu)
         quantities.append(QuantityBudget(name, float(theta[j]), tuple(lines), u_c, nu, k, k * u_c))
     return Budget(tuple(quantities), tuple(inputs), sens, method)

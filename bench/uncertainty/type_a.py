@@ -1,34 +1,32 @@
-"""The Type A part of a static budget with the Type B inputs' share of the scatter taken out.
+"""The Type A part of a static budget: the excess between windows in the amount the data support,
+with the Type B inputs' share taken out.
 
-The static fit (``bench.estimation.static_fit``) estimates a between-window excess (a pose
-variance t common to the channels and each channel's own τ_i², Paule-Mandel) from its
-residuals. A Type B input X of the budget (``bench.uncertainty.budget``) moves every window
-mean by ξ_X d_X (ξ_X of standard uncertainty u(X), one draw for the whole run):
+The static fit (``bench.estimation.static_fit``) weights its windows with V_w + E_w, E_w a
+between-window excess (a pose variance t common to the channels and each channel's own τ_i²,
+Paule-Mandel) clipped at zero and inflated by ν/(ν − 2). As the fit's variance that excess is
+biased up where the windows agree within their own noise (E[max(0, τ̂²)] > 0 for τ² = 0): a
+budget built on it stated u_c 1.05–1.3× the spread of the misalignments' errors with no excess
+at all (docs/noise-model.md). A Type B input X of the budget (``bench.uncertainty.budget``)
+moves every window mean by ξ_X d_X (ξ_X of standard uncertainty u(X), one draw for the run):
 
-    d_X,w = ∂y_w/∂X − K ∂f_w/∂X          (m, 3), channel units per unit X.
+    d_X,w = ∂y_w/∂X − K ∂f_w/∂X          (m, 3), channel units per unit X;
 
-The part of d_X the design [1, f_w] cannot absorb, P⊥ d_X, stays in the residuals, so the
-residual sum of squares Q of channel i has the expectation
+the part the design [1, f_w] cannot absorb stays in the residuals and would be counted again
+in the excess.
 
-    E[Q_i] = (m − 4) + Σ_X u(X)² ‖P⊥ d_X,i‖²_W,
+The Type A covariance is that of the fit's own estimator θ̂ = A y (its weights W_w = (V_w +
+E_w)⁻¹, its values: no refit) with the excess estimated without bias at those weights and each
+input's expected share taken out (MINQUE, ``excess_moments``; Rao 1971, the moment estimator
+of DerSimonian & Laird 1986 for a variance component generalised to the fit's design):
 
-and the plain estimate of the excess (Q_i = m − 4) takes the inputs' scatter into the Type A
-line, where the budget then adds the same inputs again as Type B lines. Here each statistic
-has the inputs' expected share taken out before it is equated to its degrees of freedom
-(``window_noise.known_share``), the solution clipped at zero (an input stated larger than the
-scatter the run shows leaves no excess; the within-window noise stays), so each input is
-counted once.
+    C_A = A (V + φ̂_pose G_pose + Σ_i φ̂_i G_i) Aᵀ,   A = (Σ H_wᵀ W_w H_w)⁻¹ Hᵀ W,
 
-The Type A covariance is that of the fit's own estimator θ̂ = N⁻¹ Σ Hᵀ W y (the weights W_w =
-(V_w + E_w)⁻¹ with the excess E_w the fit estimated; its values are not refitted) under the
-window covariances with the inputs' share removed, S'_w = V_w + E'_w (a sandwich):
-
-    C_A = N⁻¹ (Σ_w H_wᵀ W_w S'_w W_w H_w) N⁻¹,   N = Σ_w H_wᵀ W_w H_w.
-
+φ̂ not clipped at zero, so over runs E[C_A,jj] = Var(θ̂_j) whether or not the windows show an
+excess; each diagonal element has its Satterthwaite degrees of freedom (:attr:`TypeA.dof`).
 :meth:`TypeA.ratio` is √(C_A,jj / C_jj) with C = N⁻¹ the fit's own covariance recomputed from
-the same design: the fit's stated σ_j times it is the Type A line (exactly σ_j when nothing is
-taken out). The fit's slow-wander model (windows correlated in time) is not covered: its
-covariance is not a per-window excess (``static_fit.fit_static`` with window times).
+the same design: the fit's stated σ_j times it is the Type A line. The fit's slow-wander model
+(windows correlated in time) is not covered: its covariance is not a per-window excess
+(``static_fit.fit_static`` with window times).
 """
 
 from __future__ import annotations
@@ -39,35 +37,40 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.static_design import design_rows
+from bench.estimation.static_design import PARAMETER_NAMES, design_rows
 from bench.estimation.static_fit import between_window_excess
 from bench.uncertainty.budget import TypeBInput, moves
+from bench.uncertainty.excess_moments import COMPONENTS, excess_moments
 
 FloatArray = npt.NDArray[np.float64]
-
-CHANNELS = ("x", "y", "z")
 
 
 @dataclass(frozen=True)
 class TypeA:
-    """The Type A part of a static fit with and without the Type B inputs' share.
+    """The Type A part of a static fit with the excess in the amount the data support.
 
-    :param cov: (12, 12) C_A, the fit's estimator under the window covariances with the share removed.
+    :param cov: (12, 12) C_A, the fit's estimator under V + the unbiased excess (module docstring).
     :param cov_fit: (12, 12) the fit's covariance N⁻¹ recomputed from its design and excess.
     :param weights_cov: (m, 3, 3) V_w + E_w, the window covariances the fit weighted with.
-    :param pose_var: (fit, removed) pose variance t, (m/s²)², before the ν/(ν − 2) inflation.
-    :param own_var: (2, 3) each channel's own excess τ² (fit, removed), channel units², before
-        the inflation.
-    :param clipped: the components that were positive in the fit and are zero with the share
-        removed (e.g. ``"own excess, channel y"``).
+    :param dof: (12,) Satterthwaite degrees of freedom of each C_A,jj.
+    :param components: (4,) the excess φ̂ (``excess_moments.COMPONENTS``: pose variance t in
+        (m/s²)², each channel's own τ² in channel units²), unclipped.
+    :param components_sd: (4,) their standard deviations.
+    :param model: the excess model used (``excess_moments.MODEL_NAMES``).
+    :param below_zero: the components estimated below zero (no excess shown there).
+    :param floored: names of the parameters whose variance was held at the floor
+        (``excess_moments.FLOOR`` of the within-window part).
     """
 
     cov: FloatArray
     cov_fit: FloatArray
     weights_cov: FloatArray
-    pose_var: tuple[float, float]
-    own_var: FloatArray
-    clipped: tuple[str, ...]
+    dof: FloatArray
+    components: FloatArray
+    components_sd: FloatArray
+    model: str
+    below_zero: tuple[str, ...]
+    floored: tuple[str, ...]
 
     def ratio(self) -> FloatArray:
         """(12,) √(C_A,jj / C_jj): the factor on each of the fit's stated σ_j."""
@@ -105,25 +108,20 @@ def type_a_without_type_b(
     V = np.asarray(y_cov, dtype=float)
     V = 0.5 * (V + np.transpose(V, (0, 2, 1)))
     m = f.shape[0]
-    known = residual_moves(inputs, K, m)
-    E, t0, own0 = between_window_excess(f, y_mean, V, K)
-    E1, t1, own1 = between_window_excess(f, y_mean, V, K, known=known)
-    H = design_rows(f)
+    E, _, _ = between_window_excess(f, y_mean, V, K)
     S = V + E
-    W = np.linalg.inv(S)
-    HtW = np.einsum("wai,wab->wib", H, W)
+    H = design_rows(f)
+    HtW = np.einsum("wai,wab->wib", H, np.linalg.inv(S))
     Ninv = np.linalg.inv(np.einsum("wib,wbj->ij", HtW, H))
-    meat = np.einsum("wib,wbc,wjc->ij", HtW, V + E1, HtW)
-    cov = Ninv @ meat @ Ninv
-    clipped = ["pose scatter"] if t0 > 0 and t1 == 0 else []
-    clipped += [
-        f"own excess, channel {c}" for c, a, b in zip(CHANNELS, own0, own1, strict=True) if a > 0 and b == 0
-    ]
+    em = excess_moments(f, y_mean, V, K, S, residual_moves(inputs, K, m))
     return TypeA(
-        cov=0.5 * (cov + cov.T),
+        cov=em.cov,
         cov_fit=0.5 * (Ninv + Ninv.T),
         weights_cov=S,
-        pose_var=(t0, t1),
-        own_var=np.array([own0, own1]),
-        clipped=tuple(clipped),
+        dof=em.dof,
+        components=em.components,
+        components_sd=em.components_sd,
+        model=em.model,
+        below_zero=tuple(c for c, p in zip(COMPONENTS, em.components, strict=True) if p < 0),
+        floored=tuple(n for n, x in zip(PARAMETER_NAMES, em.floored, strict=True) if x),
     )

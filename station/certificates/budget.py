@@ -6,9 +6,10 @@ design from the recording, the budget of ``bench.uncertainty.budget`` passed on 
 The design is the run's analysis's (``bench.calibration.analysis.budget_design``: the windows
 and specific forces of the one fit, or a moving fit's model terms), never a refit; values and
 Type A standard uncertainties are the stored fit's (:class:`bench.fitted_model.FittedModel`),
-for a static fit with an independent excess per window each σ times the factor that takes the
-Type B inputs' expected share out of that excess (``bench.uncertainty.type_a``; a fit with a
-slow wander shared by the windows keeps its σ and says so).
+for a static fit with an independent excess per window each σ times the factor that puts the
+excess in the amount the data support, with the Type B inputs' expected share out of it
+(``bench.uncertainty.type_a``, with its degrees of freedom; a fit with a slow wander shared by
+the windows keeps its σ and says so).
 A moving fit's sensitivities are refits of the changed recording (``bench.uncertainty.dynamic``),
 minutes of CPU: :func:`analysis_budget` forms a budget once per analysis and Type B settings,
 before any database transaction opens. Inputs that do not apply are listed under ``not_evaluated``
@@ -36,9 +37,10 @@ from bench.uncertainty.type_a import type_a_without_type_b
 ANALOG_UNITS = ("V", "mV")
 """Channel units measured through the DAQ (its gain and offset apply)."""
 TYPE_A_BASIS = (
-    "the fit's covariance: batch-means noise of each window and the scatter between windows, "
-    "with each Type B input's expected share of that scatter taken out (each input counted once); "
-    "ν = ∞ (the fit states the standard deviation of the Student-t of its variance components)"
+    "the covariance of the fit's estimator: batch-means noise of each window and the scatter between "
+    "windows (pose and each channel's own) estimated without bias (MINQUE at the fit's weights, not "
+    "clipped at zero), with each Type B input's expected share of that scatter taken out (each input "
+    "counted once); ν of each quantity by Satterthwaite from the scatter of that estimate"
 )
 CORRELATED_TYPE_A_BASIS = (
     "the fit's covariance: batch-means noise of each window and a slow wander shared by the windows; "
@@ -200,10 +202,12 @@ def certificate_budget(analysis: Analysis, stored: FittedModel, tb: TypeBSetting
         return CertificateBudget(budget, stored.channel_unit, tuple(skipped), CORRELATED_TYPE_A_BASIS)
     type_a = type_a_without_type_b(f, design.y_mean, V, K, inputs)
     cov_a = np.diag((sigma * type_a.ratio()) ** 2)
-    budget = uncertainty_budget(f, b, K, cov_a, inputs, window_cov=type_a.weights_cov)
-    basis = TYPE_A_BASIS
-    if type_a.clipped:
-        basis += "; at zero once the inputs' share is out: " + ", ".join(type_a.clipped)
+    budget = uncertainty_budget(f, b, K, cov_a, inputs, window_cov=type_a.weights_cov, type_a_dof=type_a.dof)
+    basis = f"{TYPE_A_BASIS}; excess model: {type_a.model}"
+    if type_a.below_zero:
+        basis += "; estimated below zero (no excess shown): " + ", ".join(type_a.below_zero)
+    if type_a.floored:
+        basis += "; held at half the within-window variance: " + ", ".join(type_a.floored)
     return CertificateBudget(budget, stored.channel_unit, tuple(skipped), basis)
 
 

@@ -40,6 +40,9 @@ whose effect the fit's model absorbs (no trace in the residuals)."""
 U_MC_UNMODELLED = {**U_MC, "angle": np.deg2rad(0.005), "tilt": 1e-4, "cb": 3e-3, "ck": 2e-4}
 """A base tilt and temperature coefficients large enough to leave window-to-window residuals
 comparable to the window noise."""
+POSE_ERROR_RAD = np.deg2rad(3.0 / 60.0)
+"""Each pose placed 3 arc-minutes off (1σ per rotation angle): a real between-window excess,
+larger than the window noise across gravity."""
 CASES = {"absorbed": U_MC, "unmodelled": U_MC_UNMODELLED}
 
 
@@ -59,9 +62,10 @@ class Draw:
     """One simulated run: the fit's error θ̂ − θ (12,) and the u_c (12,) of its budget formed
     three ways: ``before`` (Type A the fit's σ, sensitivities weighted by the within-window
     covariances), ``after`` (Type A with the inputs' share removed, sensitivities with the fit's
-    own weights), ``type_a`` (the Type A line after), ``clipped`` (components clipped at 0) and
+    own weights), ``type_a`` (the Type A line after), ``clipped`` (excess components estimated below zero) and
     ``clean_sigma`` (12,): the fit's σ on the same run (same truth, same noise) without any Type B
-    input, what the Type A line should be when each input is counted once."""
+    input, what the Type A line should be when each input is counted once; ``k_after`` (12,) the
+    coverage factors of the budget after (t_95.45 %(ν_eff))."""
 
     error: np.ndarray
     before: np.ndarray
@@ -70,11 +74,15 @@ class Draw:
     fit_sigma: np.ndarray
     clean_sigma: np.ndarray
     clipped: int
+    k_after: np.ndarray
 
 
-def draw(rng: np.random.Generator, u_mc: dict[str, float], *, paired: bool = True) -> Draw:
+def draw(
+    rng: np.random.Generator, u_mc: dict[str, float], *, paired: bool = True, pose_error_rad: float = 0.0
+) -> Draw:
     """Simulate, fit and budget one run with its Type B inputs drawn from their normal distributions
-    (``paired``: also fit the same run without them; ``clean_sigma`` is NaN otherwise)."""
+    (``paired``: also fit the same run without them; ``clean_sigma`` is NaN otherwise;
+    ``pose_error_rad``: each pose placed off by that angle, 1σ per rotation angle)."""
     d_angle = rng.normal(0, u_mc["angle"], 2)
     tilt = rng.normal(0, u_mc["tilt"], 2)
     g_true = G_LOCAL + rng.normal(0, u_mc["g_u"])
@@ -83,7 +91,7 @@ def draw(rng: np.random.Generator, u_mc: dict[str, float], *, paired: bool = Tru
     )
     f_true = R_true.inv().apply([0.0, 0.0, g_true])
     twin = copy.deepcopy(rng)  # the noise does not depend on f: the same run without Type B inputs
-    run = simulate_run(rng, f=f_true, dwell_s=10.0, fs=100.0)
+    run = simulate_run(rng, f=f_true, dwell_s=10.0, fs=100.0, pose_error_rad=pose_error_rad)
     cb, ck = rng.normal(0, u_mc["cb"], 3), rng.normal(0, u_mc["ck"], 3)
     gain, offset = rng.normal(0, u_mc["gain"], 3), rng.normal(0, u_mc["offset"], 3)
     dT = TEMP_C - TEMP_C.mean()
@@ -97,7 +105,7 @@ def draw(rng: np.random.Generator, u_mc: dict[str, float], *, paired: bool = Tru
     fit = fit_static(f, y, V)
     clean_sigma = np.full(12, np.nan)
     if paired:
-        clean = simulate_run(twin, f=f, dwell_s=10.0, fs=100.0)
+        clean = simulate_run(twin, f=f, dwell_s=10.0, fs=100.0, pose_error_rad=pose_error_rad)
         cn = [window_noise(x) for x in clean.windows]
         clean_sigma = fit_static(f, np.array([n.mean for n in cn]), pooled_mean_covariances(cn)).sigma
     truth = np.concatenate([run.bias_true, run.K_true.ravel()])
@@ -105,7 +113,10 @@ def draw(rng: np.random.Generator, u_mc: dict[str, float], *, paired: bool = Tru
     before = uncertainty_budget(f, fit.bias, fit.K, fit.cov, inputs, window_cov=V).u_c
     ta = type_a_without_type_b(f, y, V, fit.K, inputs)
     cov_a = np.diag((fit.sigma * ta.ratio()) ** 2)
-    after = uncertainty_budget(f, fit.bias, fit.K, cov_a, inputs, window_cov=ta.weights_cov).u_c
+    after_budget = uncertainty_budget(
+        f, fit.bias, fit.K, cov_a, inputs, window_cov=ta.weights_cov, type_a_dof=ta.dof
+    )
+    after = after_budget.u_c
     return Draw(
         fit.params - truth,
         before,
@@ -113,7 +124,8 @@ def draw(rng: np.random.Generator, u_mc: dict[str, float], *, paired: bool = Tru
         np.sqrt(np.diag(cov_a)),
         fit.sigma,
         clean_sigma,
-        len(ta.clipped),
+        len(ta.below_zero),
+        np.array([q.k for q in after_budget.quantities]),
     )
 
 
@@ -121,7 +133,8 @@ def draw(rng: np.random.Generator, u_mc: dict[str, float], *, paired: bool = Tru
 class MonteCarlo:
     """Over n runs, per parameter (12,): the standard deviation of the errors, their mean, the
     RMS over the runs of each budget's u_c (what the certificates state on average) and the RMS
-    of each run's error over its own u_c (z, before and after)."""
+    of each run's error over its own u_c (z, before and after), and the fraction of runs whose
+    error lies within U (2 u_c before, k u_c after; 95.45 % when U is honest)."""
 
     n: int
     spread: np.ndarray
@@ -134,12 +147,16 @@ class MonteCarlo:
     z_before: np.ndarray
     z_after: np.ndarray
     clipped_runs: int
+    cover_before: np.ndarray
+    cover_after: np.ndarray
 
 
-def monte_carlo(u_mc: dict[str, float], seed: int, n: int, *, paired: bool = True) -> MonteCarlo:
+def monte_carlo(
+    u_mc: dict[str, float], seed: int, n: int, *, paired: bool = True, pose_error_rad: float = 0.0
+) -> MonteCarlo:
     """``n`` runs of :func:`draw` from ``numpy.random.default_rng(seed)``."""
     rng = np.random.default_rng(seed)
-    draws = [draw(rng, u_mc, paired=paired) for _ in range(n)]
+    draws = [draw(rng, u_mc, paired=paired, pose_error_rad=pose_error_rad) for _ in range(n)]
     err = np.array([d.error for d in draws])
 
     def rms(a: list[np.ndarray]) -> np.ndarray:
@@ -157,6 +174,8 @@ def monte_carlo(u_mc: dict[str, float], seed: int, n: int, *, paired: bool = Tru
         z_before=rms([d.error / d.before for d in draws]),
         z_after=rms([d.error / d.after for d in draws]),
         clipped_runs=sum(d.clipped > 0 for d in draws),
+        cover_before=np.mean([np.abs(d.error) <= 2 * d.before for d in draws], axis=0),
+        cover_after=np.mean([np.abs(d.error) <= d.k_after * d.after for d in draws], axis=0),
     )
 
 

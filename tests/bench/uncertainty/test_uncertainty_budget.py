@@ -179,24 +179,25 @@ DIAG = [0, 1, 2, 3, 7, 11]  # biases and the diagonal of K
 OFF = [4, 5, 6, 8, 9, 10]
 
 
+COVER_FLOOR = 0.9545 - 3 * math.sqrt(0.9545 * 0.0455 / MC_RUNS)
+"""Coverage of U = k u_c over MC_RUNS runs: 95.45 % less three standard errors of a fraction."""
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_monte_carlo_spread_matches_the_combined_uncertainty() -> None:
     """JCGM 101 style (``tests/support/budget_mc.py``): 400 runs with the Type B inputs drawn from
-    their distributions (mostly absorbed by b and K), each refitted with its own budget. No
-    parameter's spread is above its RMS u_c beyond the sampling band; biases and the diagonal of K
-    are inside 1 ± 0.11; the Type A part alone falls clearly short where the Type B inputs dominate.
-
-    The off-diagonal K elements are allowed down to 0.72: the fit's ungated between-window excess
-    over-states them with no Type B input at all (spread/u_c down to 0.80 on 600 runs; docs/
-    noise-model.md), which the budget does not change; 0.80 less the sampling band."""
+    their distributions (mostly absorbed by b and K), each refitted with its own budget. Every
+    parameter's spread is inside 1 ± 0.11 of its RMS u_c and U = k u_c covers its error in
+    95.45 % of the runs less the sampling band; the Type A part alone falls clearly short where
+    the Type B inputs dominate. (With the fit's clipped, inflated excess as the Type A line the
+    misalignments were at 0.80–0.90, docs/noise-model.md.)"""
     mc = monte_carlo(U_MC, 20250101, MC_RUNS, paired=False)
     ratio = mc.spread / mc.u_after
     named = dict(zip(PARAMETER_NAMES, ratio.round(3), strict=True))
     assert np.all(np.abs(mc.mean_error) < 4.5 * mc.u_after / math.sqrt(MC_RUNS))  # no bias
-    assert np.all(ratio < 1 + HONEST), named
-    assert np.all(np.abs(ratio[DIAG] - 1) < HONEST), named
-    assert np.all(ratio[OFF] > 0.72), named
+    assert np.all(np.abs(ratio - 1) < HONEST), named
+    assert np.all(mc.cover_after > COVER_FLOOR), mc.cover_after.round(3)
     assert np.sum(mc.spread / mc.u_type_a > 1.5) >= 6, (mc.spread / mc.u_type_a).round(2)
 
 
@@ -206,19 +207,21 @@ def test_monte_carlo_unmodelled_type_b_is_counted_once_in_the_type_a_line() -> N
     """A base tilt, angle offsets and temperature coefficients that leave residuals between the
     windows comparable to their noise. Left in the fit's excess, their scatter made the Type A line
     1.3–1.5x the σ of the same runs without them, and u_c of the misalignments 1.5x their spread.
-    With their expected share taken out (``bench.uncertainty.type_a``) the Type A line comes down
-    toward the clean σ on every parameter and no parameter's spread exceeds u_c beyond the sampling
-    band. What remains above (Type A 1.09–1.19x clean, off-diagonal spread/u_c 0.77–0.95 on 600
-    runs) is each input's single draw per run (χ²₁ about its expected share) against the clip at
-    zero, and the fit's own over-statement of the first test: off-diagonal K down to 0.68 (0.77
-    less the sampling band); the gain over the double count is paired (same runs), so 0.04 is
-    far outside its noise (measured 0.07–0.16)."""
+    With their expected share taken out of an unbiased excess (``bench.uncertainty.type_a``) no
+    parameter's spread is above 1.11 u_c, the biases and the diagonal of K are within 1 ± 0.11,
+    U = k u_c covers within the sampling band, the misalignments gain at least 0.1 over the
+    double-counted budget of the same runs (paired, far outside its noise; 0.13–0.28 on 400 runs
+    of another seed) and the Type A line is below the fit's σ on every parameter. The lowest
+    misalignment stays at 0.87–0.89 (seeds 7 and 2101, docs/noise-model.md: each input drawn once
+    per run leaves a χ²₁ share about the expectation taken out): off-diagonal K above 0.76, that
+    less the sampling band."""
     mc = monte_carlo(U_MC_UNMODELLED, 7, MC_RUNS)
     ratio, before = mc.spread / mc.u_after, mc.spread / mc.u_before
     named = dict(zip(PARAMETER_NAMES, ratio.round(3), strict=True))
     assert np.all(ratio < 1 + HONEST), named
     assert np.all(np.abs(ratio[DIAG] - 1) < HONEST), named
-    assert np.all(ratio[OFF] > 0.68), named
-    assert np.all(ratio[OFF] > before[OFF] + 0.04), (before.round(3), named)
-    kept, removed = mc.u_fit / mc.u_clean, mc.u_type_a / mc.u_clean
-    assert np.all(removed < kept) and np.all(removed > 0.97), (kept.round(3), removed.round(3))
+    assert np.all(ratio[OFF] > 0.76), named
+    assert np.all(mc.cover_after > COVER_FLOOR), mc.cover_after.round(3)
+    worst = [4, 5, 8, 9, 10]  # the misalignments the inputs' residuals reach (K_yx least)
+    assert np.all(ratio[worst] > before[worst] + 0.1), (before.round(3), named)
+    assert np.all(mc.u_type_a < mc.u_fit), (mc.u_type_a / mc.u_fit).round(3)

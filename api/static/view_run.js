@@ -159,7 +159,8 @@ function auditCard() {
     el.hidden = !rows.length;
     body.replaceChildren(...rows.map((a) => h("tr", {},
       h("td", { class: "mono" }, utc(a.at)), h("td", {}, a.actor),
-      h("td", {}, a.action === "state" ? `state: ${a.state}` : `${a.action} requested`),
+      h("td", {}, a.action === "state" ? `state: ${a.state}`
+        : a.action === "withdraw" ? "statement of conformity withdrawn" : `${a.action} requested`),
       h("td", {}, [a.detail, a.window_index == null ? "" : `window index ${a.window_index}`].filter(Boolean).join(" · ")))));
   };
   return { el, show };
@@ -339,7 +340,10 @@ function certificateCard(run) {
     return c;
   }
   const status = h("span", { class: "note", "aria-live": "polite" });
+  const withdrawn = (run.audit || []).find((a) => a.action === "withdraw");
   c.append(h("p", {}, h("strong", {}, run.certificate_number)),
+    ...(withdrawn ? [message(`The statement of conformity on this certificate was withdrawn (${withdrawn.detail}); `
+      + "the certificate is kept as issued.")] : []),
     h("p", {},
       h("button", { type: "button", id: "download-json", onclick: async () => {
         try { const data = await downloadJson(`/api/runs/${enc(run.id)}/certificate`, `${run.certificate_number}.json`); status.textContent = `downloaded, sha256 ${data.sha256.slice(0, 12)}…`; }

@@ -110,6 +110,7 @@ def fit_model(
             init=noise,
             channel_gain=None if own else np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
             tau2_cap=cap,
+            near_init=True,
         )
         K = scale_matrix(fit)
     assert noise is not None and fit is not None

@@ -200,19 +200,27 @@ def _powell(
 ) -> tuple[float, FloatArray]:
     """Bounded Powell minimum of ``fun`` from ``u0``, each line searched over its whole segment.
 
-    Used for the joint search over (log τ², log T_c), whose long valley (τ² and T_c trade
-    against each other) a search of each line near its start (``warm_search``) can leave
-    short of the minimum. scipy's bounded Powell fails (an empty reduction in its
+    For starts that are not a nearby model's estimate: a search of each line near its start
+    (``warm_search``) can stay on a flat floor of a variance or stop short in the long valley
+    of (log τ², log T_c). scipy's bounded Powell fails (an empty reduction in its
     extrapolation step) when an iteration leaves the point where it was; the search is then
-    finished by Nelder-Mead, and the better of that and the start is kept.
+    finished by Brent (one parameter) or Nelder-Mead (more), and the better of that and the
+    start is kept.
     """
     try:
         res = minimize(fun, u0, method="Powell", bounds=bounds, options={"xtol": 1e-3, "ftol": 1e-6})
         return float(res.fun), np.asarray(res.x, dtype=float)
     except ValueError:
         pass
-    r = minimize(fun, u0, method="Nelder-Mead", bounds=bounds, options={"xatol": 1e-3, "fatol": 1e-6})
-    val, x = float(r.fun), np.asarray(r.x, dtype=float)
+    if u0.size == 1:
+        lo, hi = bounds[0]
+        r = minimize_scalar(
+            lambda a: fun(np.array([a])), bounds=(lo, hi), method="bounded", options={"xatol": 1e-3}
+        )
+        val, x = float(r.fun), np.array([float(r.x)])
+    else:
+        r = minimize(fun, u0, method="Nelder-Mead", bounds=bounds, options={"xatol": 1e-3, "fatol": 1e-6})
+        val, x = float(r.fun), np.asarray(r.x, dtype=float)
     f0 = fun(u0)
     return (val, x) if val <= f0 else (f0, np.asarray(u0, dtype=float))
 
@@ -231,6 +239,7 @@ def fit_noise(
     tau2_cap: Callable[[float], FloatArray | None] | None = None,
     corr_times_s: Sequence[float] | None = None,
     refine_corr_time: bool = False,
+    near_init: bool = False,
 ) -> tuple[NoiseParams, GlsFit]:
     """REML estimate of the noise parameters for design X; returns them and the GLS fit under them.
 
@@ -244,7 +253,10 @@ def fit_noise(
     only screens (one common log-scale of τ² per T_c, a 1-D search) and one Powell search
     over (log τ², log T_c) starts from the best screened point (scipy's, each line searched
     whole: :func:`_powell`) (the cap at the shortest T_c
-    tried, the tightest, bounds τ² there).
+    tried, the tightest, bounds τ² there). With ``near_init`` (``init`` is the estimate of a
+    model a column away, as in a selection) the searches at each T_c of the grid are local:
+    each line bracketed from the start (``warm_search``); otherwise scipy's bounded Powell
+    searches each line whole (:func:`_powell`).
     """
     scale = float(np.median(np.diagonal(V, axis1=1, axis2=2)))
     span = float(np.ptp(mid_s)) if mid_s.shape[0] > 1 else 0.0
@@ -297,11 +309,9 @@ def fit_noise(
             starts = [np.full(n_par, -2.0), np.full(n_par, _LOG_FLOOR)]
         else:
             t_init = init.tau2 / shape if n_tau == 3 else np.array([np.mean(init.tau2 / shape)])
-            # a level at zero starts where the cold search does: the searches walk downhill
-            # from their start, and −ℓ is flat near zero, so a start there would stay there
-            u_init = np.where(
-                t_init > 0, np.log(np.maximum(t_init, scale * np.exp(_LOG_FLOOR)) / scale), -2.0
-            )
+            u_init = np.log(np.maximum(t_init, scale * np.exp(_LOG_FLOOR)) / scale)
+            if near_init:  # a local search from a level at zero would stay on the flat floor:
+                u_init = np.where(t_init > 0, u_init, -2.0)  # start where the cold search does
             if estimate_pose:
                 pv = init.pose_var_rad2 if init.pose_var_rad2 > 0 else g_scale * np.exp(-2.0)
                 u_init = np.append(u_init, np.log(pv / g_scale))
@@ -325,7 +335,8 @@ def fit_noise(
                 def at_tc(u: FloatArray, tc: float = tc) -> float:
                     return objective(u, tc)
 
-                val, x = warm_minimum(
+                search = warm_minimum if near_init and init is not None else _powell
+                val, x = search(
                     at_tc,
                     u0,
                     list(zip([_LOG_FLOOR] * n_par, upper.tolist(), strict=True)),

@@ -93,7 +93,14 @@ def test_warm_and_cold_reml_maximum_equal_a_grid_search(seed: int, tau2_true: fl
     for shift in (-3.0, 2.0):
         init = NoiseParams(tau2=np.full(3, s * np.exp(ref_u + shift)), corr_time_s=200.0)
         fits[f"warm{shift:+}"] = fit_noise(
-            p["X"], p["z"], p["V"], p["mid"], channel_gain=gain, corr_times_s=[200.0], init=init
+            p["X"],
+            p["z"],
+            p["V"],
+            p["mid"],
+            channel_gain=gain,
+            corr_times_s=[200.0],
+            init=init,
+            near_init=True,
         )
     for name, (noise, fit) in fits.items():
         # ℓ at the optimiser's tolerance of the grid's (xtol 1e-3 in log τ²: Δℓ ~ ℓ'' 1e-6)
@@ -134,6 +141,7 @@ def test_warm_reml_maximum_with_pose_variance_equals_polished_grid() -> None:
             channel_gain=gain,
             corr_times_s=[200.0],
             init=init,
+            near_init=True,
         )
         assert -fit.loglik_reml == pytest.approx(float(r.fun), abs=1e-4)
         assert -fit.loglik_reml >= float(r.fun) - 1e-8

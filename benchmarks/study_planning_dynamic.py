@@ -8,10 +8,11 @@ the design is then run
 
 - on calbench's simulator (``drivers.sim``, trapezoidal moves at 200°/s and 200°/s², the limits
   the plan is made for) and fitted by ``calibrate_dynamic`` (bias and K), and
-- on an independent simulator written here: its own kinematics (quintic minimum-jerk moves of
-  the same duration, orientations composed by ``scipy.spatial.transform.Rotation``), its own
-  noise (exact AR(1) Gauss-Markov, white, random walk) and its own least squares of every
-  sample.
+- on an independent simulator (``benchmarks.planning_independent_sim``): its own kinematics
+  (quintic minimum-jerk moves of the same duration, orientations composed by
+  ``scipy.spatial.transform.Rotation``, the angular rate and acceleration of the axis chain
+  worked out from the profile's derivatives), its own noise (exact AR(1) Gauss-Markov, white,
+  random walk) and its own least squares of every sample.
 
 Each row prints the predicted RMS σ(K_ij), the achieved RMS K error of both simulators (over the
 nine elements and the seeds), achieved / predicted, achieved / the white-noise bound of any
@@ -19,11 +20,13 @@ motion and the z spread (error / predicted σ per element). Then the time target
 a 192 s dwell (40 min) under the window fit sets the U; ``plan(..., fits=("window",
 "every-sample"))`` designs the shortest procedure for it, which is run on calbench's simulator.
 
-``--effects``: every simulated unit has a base tilt of 3′ rms and a 3 cm lever arm
-(``study_planning.simulate_k_errors``); the recordings are fitted with the lever arm and the
-table tilt declared (``calibrate_dynamic(terms=("lever_arm", "table_tilt"))``) and the
-prediction carries them as nuisance parameters (``bench.planning.trajectory.nuisance_response``);
-each row also prints the prediction without them. calbench's simulator only.
+``--effects``: every simulated unit has a base tilt of 3′ rms and a lever arm of a few cm: on
+calbench's simulator (``study_planning.simulate_k_errors``) r = (3, −2, 1) cm, fitted with the
+lever arm and the table tilt declared (``calibrate_dynamic(terms=("lever_arm", "table_tilt"))``);
+on the independent one 3 cm in a random direction per seed, fitted by its own least squares with
+r and the tilt as parameters. The prediction carries both as nuisance parameters
+(``bench.planning.trajectory.nuisance_response``); each row also prints the prediction without
+them.
 
 Run: ``nice .venv/bin/python -m benchmarks.study_planning_dynamic [n_seeds] [--quick] [--effects]``
 (``--quick``: 1.5, 6 and 24 min only, no static-12 reference); docs/planning.md quotes it.
@@ -34,13 +37,12 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from bench.planning.noise import UnitNoise
 from bench.planning.search import Evaluation, Targets, best_within, evaluate, plan
 from bench.procedures import build_procedure
-from bench.procedures.preview import TableLimits, move_time_s
-from bench.procedures.steps import Dwell, MoveTo, Procedure
+from bench.procedures.preview import TableLimits
+from benchmarks.planning_independent_sim import k_error
 from benchmarks.study_planning import FS_HZ, G0, LENGTHS_MIN, achieved, simulate_k_errors
 
 SIM_LIMITS = TableLimits(
@@ -61,59 +63,12 @@ UNITS = {
 }
 
 
-def independent_angles(proc: Procedure, fs_hz: float) -> np.ndarray:
-    """(n, 3) table angles (deg) of ``proc`` with quintic minimum-jerk moves, each as long as the
-    slowest axis's trapezoid on :data:`SIM_LIMITS`; the table starts at the first pose."""
-    pieces: list[np.ndarray] = []
-    pos: np.ndarray | None = None
-    for step in proc.steps:
-        if isinstance(step, MoveTo):
-            target = np.asarray(step.angles_deg, dtype=float)
-            if pos is not None:
-                d = target - pos
-                d[[0, 2]] = (d[[0, 2]] + 180.0) % 360.0 - 180.0  # slip rings: the short way
-                dur = max(move_time_s(abs(d[a]), 200.0, 200.0) for a in range(3))
-                u = np.arange(round(dur * fs_hz)) / (dur * fs_hz)
-                s = 10 * u**3 - 15 * u**4 + 6 * u**5
-                pieces.append(pos + s[:, None] * d)
-                target = pos + d
-            pos = target
-            pieces.append(np.repeat(pos[None], round(step.settle_s * fs_hz), axis=0))
-        elif isinstance(step, Dwell):
-            assert pos is not None and step.duration_s is not None
-            pieces.append(np.repeat(pos[None], round(step.duration_s * fs_hz), axis=0))
-    return np.concatenate(pieces)
-
-
-def independent_k_error(proc: Procedure, noise: UnitNoise, seed: int) -> np.ndarray:
-    """(3, 3) K error of an every-sample least-squares fit on the independent simulator."""
-    rng = np.random.default_rng([seed, 2323])
-    ang = independent_angles(proc, FS_HZ)
-    R = Rotation.from_euler("ZXZ", ang, degrees=True)  # intrinsic: Rz(outer)·Rx(middle)·Rz(inner)
-    f = R.inv().apply(np.array([0.0, 0.0, G0]))
-    n, dt = len(f), 1.0 / FS_HZ
-    K = np.eye(3) + 2e-3 * rng.standard_normal((3, 3))
-    b = 0.05 * rng.standard_normal(3)
-    e = noise.white_m_s2_rt_hz / np.sqrt(dt) * rng.standard_normal((n, 3))
-    if noise.wander_m_s2 > 0:
-        a = np.exp(-dt / noise.wander_tau_s)
-        w = np.empty((n, 3))
-        w[0] = noise.wander_m_s2 * rng.standard_normal(3)
-        kick = noise.wander_m_s2 * np.sqrt(1 - a * a) * rng.standard_normal((n, 3))
-        for k in range(1, n):
-            w[k] = a * w[k - 1] + kick[k]
-        e += w
-    if noise.random_walk_m_s2_rt_s > 0:
-        e += np.cumsum(noise.random_walk_m_s2_rt_s * np.sqrt(dt) * rng.standard_normal((n, 3)), axis=0)
-    y = b + f @ K.T + e
-    x = np.column_stack([np.ones(n), f])
-    theta, *_ = np.linalg.lstsq(x, y, rcond=None)  # (4, 3): column i = [b_i, K_i·]
-    return np.asarray(theta[1:].T - K, dtype=float)
-
-
-def independent(e: Evaluation, noise: UnitNoise, n_seeds: int, base: int) -> tuple[float, float]:
-    """(RMS K error, z spread against ``e``'s prediction) on the independent simulator."""
-    errs = np.array([independent_k_error(e.procedure, noise, base + s) for s in range(n_seeds)])
+def independent(
+    e: Evaluation, noise: UnitNoise, n_seeds: int, base: int, effects: bool = False
+) -> tuple[float, float]:
+    """(RMS K error, z spread against ``e``'s prediction) on the independent simulator
+    (``benchmarks.planning_independent_sim``; ``effects``: a tilted base and a lever arm, fitted)."""
+    errs = np.array([k_error(e.procedure, noise, base + s, FS_HZ, effects) for s in range(n_seeds)])
     z = errs / e.predicted.k_elements[None]
     return float(np.sqrt(np.mean(errs**2))), float(np.std(z))
 
@@ -164,17 +119,22 @@ def time_target(name: str, noise: UnitNoise, n_seeds: int) -> None:
 def nuisance_rows(name: str, noise: UnitNoise, n_seeds: int, lengths: tuple[float, ...]) -> None:
     """Rows with a tilted base and a lever arm (module docstring, ``--effects``)."""
     print(f"== {name}: {noise.describe()}; 3 arcmin tilt + 3 cm lever arm, fitted as terms; {n_seeds} seeds")
-    print("length  design           pred  pred w/o nuisance  achieved  ach/pred  ach/bound  z")
+    print(
+        "length  design           pred  pred w/o nuisance  calbench  ach/pred  ach/bound  z"
+        "     indep  ach/pred  ach/bound  z"
+    )
     for i, minutes in enumerate(lengths):
         e = best_within(noise, minutes * 60, limits=SIM_LIMITS, fit="every-sample")
         bare = evaluate(e.procedure, noise, limits=SIM_LIMITS, fit="every-sample", with_tilt=False)
         err, z = achieved(e, noise, n_seeds, True, 700 + 50 * i, every_sample=True)
+        ierr, iz = independent(e, noise, n_seeds, 700 + 50 * i, effects=True)
         par = e.procedure.parameters
         p = e.predicted.k_rms
         print(
             f"{minutes:5.1f}  {par['dwell_s']:4.1f} s x{par['repeats']:>3}  {1e6 * p:7.2f}  "
             f"{1e6 * bare.predicted.k_rms:14.2f}"
             f"  {1e6 * err:8.2f}  {err / p:8.2f}  {err / e.bound_k:9.2f}  {z:4.2f}"
+            f"  {1e6 * ierr:6.2f}  {ierr / p:8.2f}  {ierr / e.bound_k:9.2f}  {iz:4.2f}"
             + ("" if not e.notes else f"  ({e.notes[0]})"),
             flush=True,
         )

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, HTTPException, Query, status
 
 from api.deps import SettingsDep, ViewerDep
 from bench.planning.noise import G0_M_S2, UnitNoise
 from bench.planning.report import plan_dict
-from bench.planning.search import Targets, plan
+from bench.planning.search import Fit, Targets, plan
 from bench.sequencer.control import SequencerConfig
 
 router = APIRouter(prefix="/api", tags=["procedures"])
@@ -30,13 +30,16 @@ def plan_procedure(
     misalignment_urad: Annotated[float | None, Query(gt=0, le=1e6)] = None,
     settle_s: Annotated[float, Query(ge=0, le=60)] = 2.0,
     max_minutes: Annotated[float, Query(gt=0, le=MAX_PLAN_MINUTES)] = 60.0,
+    fit: Annotated[Literal["window", "every-sample", "best"], Query()] = "window",
 ) -> dict[str, Any]:
-    """The shortest ``planned-static`` design on this bench's table limits whose static window
-    fit meets the targets (U at k = 2: bias µg, scale ppm, misalignment µrad) for the unit's noise
-    (µg/√Hz white, µg wander with its correlation time, µg/√s random walk), its predicted U, table
-    time and the white-noise bound of any motion (docs/planning.md). ``plan`` is ``null`` and
+    """The shortest planned design on this bench's table limits whose fit meets the targets (U at
+    k = 2: bias µg, scale ppm, misalignment µrad) for the unit's noise (µg/√Hz white, µg wander
+    with its correlation time, µg/√s random walk), its predicted U, table time and the white-noise
+    bound of any motion (docs/planning.md). ``plan`` is ``null`` and
     ``problems`` says why when no design within ``max_minutes`` meets them; start the design with
-    ``POST /api/runs`` (procedure ``planned-static``, the plan's ``dwell_s``)."""
+    ``POST /api/runs`` (the plan's ``start``). ``fit``: ``window`` plans ``planned-static`` (the
+    static window fit, the default), ``every-sample`` plans ``planned-tumble`` (the every-sample
+    fit, moves included), ``best`` the shorter of the two, as ``calbench plan --fit`` does."""
     try:
         noise = UnitNoise.from_ug(white_ug_rt_hz, wander_ug, wander_tau_s, random_walk_ug_rt_s)
         targets = Targets(
@@ -45,7 +48,10 @@ def plan_procedure(
             None if misalignment_urad is None else misalignment_urad * 1e-6,
         )
         limits = SequencerConfig(temp_band_c=settings.temp_band_c).limits
-        result = plan(noise, targets, limits=limits, settle_s=settle_s, max_duration_s=max_minutes * 60)
+        fits: tuple[Fit, ...] = ("window", "every-sample") if fit == "best" else (fit,)
+        result = plan(
+            noise, targets, limits=limits, settle_s=settle_s, max_duration_s=max_minutes * 60, fits=fits
+        )
     except ValueError as exc:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc)) from None
     return plan_dict(result, noise.describe())

@@ -20,6 +20,7 @@ from typing import Any
 
 from bench.planning.report import predicted_and_achieved
 from bench.procedures.planned import NAME as PLANNED_STATIC
+from bench.procedures.planned import TUMBLE_NAME as PLANNED_TUMBLE
 from station.certificates.conformity import check_uncertainties, conformity_statement
 from station.certificates.deviations import no_deviation, run_deviations, run_record_section
 from station.certificates.inputs import CertificateInputs, Laboratory, UnitFacts
@@ -175,7 +176,7 @@ def certificate_content(
                         run.parameters, inp.calibration.K, inp.calibration.K_sigma, inp.calibration.bias_sigma
                     )
                 }
-                if procedure == PLANNED_STATIC
+                if procedure in (PLANNED_STATIC, PLANNED_TUMBLE)
                 else {}
             ),
         },

@@ -63,3 +63,41 @@ def test_a_planned_procedure_runs_through_the_service(client: TestClient) -> Non
     planned = method["planned_U_k2"]
     assert planned["scale_ppm"]["predicted"] == 1500.0 and planned["bias_ug"]["predicted"] is None
     assert all(v["achieved"] > 0 for v in planned.values())
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(400)
+def test_a_planned_tumble_runs_through_the_service(client: TestClient) -> None:
+    """The every-sample plan for the simulated unit's own noise (ADXL325-like: 250 µg/√Hz, 40 µg
+    wander, 200 s) and a loose scale target, fetched over REST and started as its ``start`` body,
+    records on the simulated bench and is fitted by every sample; its certificate carries the
+    design, the plan's predicted U and the U the fit achieved, which agrees with the prediction
+    (both are 2 × the largest σ of the group for the same noise and motion: the ratio is 1 up to
+    the fit's estimate of the noise from one short run, checked within 0.6–1.6)."""
+    from tests.support.service_helpers import OP, wait_final
+
+    q = {"white_ug_rt_hz": 250, "wander_ug": 40, "wander_tau_s": 200, "scale_ppm": 400, "max_minutes": 3}
+    r = client.get("/api/plan", params={**q, "fit": "every-sample"}, headers=VIEW)
+    assert r.status_code == 200, r.text
+    body = r.json()
+    design, start = body["plan"], body["start"]
+    assert design["procedure"] == start["procedure"] == "planned-tumble" and design["fit"] == "every-sample"
+    assert design["predicted_U_k2"]["scale_ppm"] <= 400
+    run_req = {"unit_serial": "SN-PLAN-2", **start}
+    r = client.post("/api/runs", json=run_req, headers=OP)
+    assert r.status_code == 202, r.text
+    run = wait_final(client, r.json()["id"], timeout_s=300.0)
+    assert run["state"] == "completed", run["error"]
+    assert run["calibration"]["procedure"] == "planned-tumble"
+    cert = client.get(f"/api/runs/{run['id']}/certificate", headers=VIEW)
+    assert cert.status_code == 200, cert.text
+    method = cert.json()["content"]["method"]
+    assert method["procedure"] == "planned-tumble"
+    for key in ("repeats", "settle_s"):
+        assert method["parameters"][key] == design["parameters"][key]
+    planned = method["planned_U_k2"]
+    for group in ("bias_ug", "scale_ppm", "misalignment_urad"):
+        predicted = design["predicted_U_k2"][group]
+        assert planned[group]["predicted"] == pytest.approx(predicted, rel=1e-12)
+        ratio = planned[group]["achieved"] / predicted
+        assert 0.6 < ratio < 1.6, (group, planned[group])

@@ -3,7 +3,8 @@
 ``diagnose(evidence)`` runs the pipeline of the evidence's kind (``stages.pipeline_for``:
 static, static without the library, orientation-free) over a static or hand-held recording's
 window means, then reports from the final state (a moving-table recording goes to
-:func:`bench.diagnosis.dynamic.diagnose_dynamic` instead). The stages, one rule each
+:func:`bench.diagnosis.dynamic.diagnose_dynamic` instead: the same method, its own stages,
+``moving_stages``). The stages, one rule each
 (``stages``, docs/diagnose.md "Following one recording through the stages"):
 
 1. ``screen_catalogue``: observability of every effect on this recording (``effects``);

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 from dataclasses import replace as dc_replace
 
 import numpy as np
@@ -196,7 +197,27 @@ def moving_findings(
     return out, fam, left
 
 
-def moving_stage(
+@dataclass(frozen=True)
+class MovingSearch:
+    """The bench families on a moving recording's final residual (:func:`moving_search`).
+
+    :param findings: the angle harmonics, the clock drift and the periodic lines as findings.
+    :param families: the harmonics and the growth found; :param left: (n_used, 3) the final
+        residual without them.
+    :param residual: (n, 3) the final model's residual, the discovered terms taken out
+        (channel units); :param f_m_s2: (n, 3) its specific force (m/s²); :param K: (3, 3) its
+        scale matrix.
+    """
+
+    findings: tuple[Finding, ...]
+    families: Families
+    left: FloatArray
+    residual: FloatArray
+    f_m_s2: FloatArray
+    K: FloatArray
+
+
+def moving_search(
     m: MotionData,
     y: FloatArray,
     g_m_s2: float,
@@ -205,22 +226,11 @@ def moving_stage(
     library: FloatArray | None,
     channel_unit: str,
     th: Thresholds = THRESHOLDS,
-    *,
-    baseline: DynamicFit | None = None,
-    n_claims: int = 0,
-    n_library: int = 0,
-    rerun: Callable[[FloatArray], Diagnosis] | None = None,
-) -> tuple[list[Finding], Diagnosis | None]:
-    """:func:`moving_findings` on the final dynamic model's residual; where the model claims
-    ``n_claims`` catalogue steps or discovered terms, ``rerun`` is given and a family is left in
-    the final residual or in the catalogue's (the discovered terms added back: library terms
-    can take a family whole), the head to head of ``family_referee``: the alternative diagnosis
-    when it wins, else ``None``.
+) -> MovingSearch:
+    """:func:`moving_findings` on the final dynamic model's residual.
 
-    :param library: (n, 3) the discovered terms' contribution (channel units) or ``None``.
-    :param baseline: the first-order fit; :param n_claims: catalogue steps and discovered terms;
-        :param n_library: discovered terms.
-    :param rerun: samples -> their diagnosis without the head to head.
+    :param final: the final fit; :param library: (n, 3) the discovered terms' contribution
+        (channel units) or ``None``.
     """
     model, _ = predict(final.theta, m, final.spec, g_m_s2, lever)
     r = y - model - (0.0 if library is None else library)
@@ -229,21 +239,57 @@ def moving_stage(
     found, fam, full_left = moving_findings(
         m.t_s, r, f, K, m.angles_rad, m.valid, 1.0 / m.step_s, channel_unit, th
     )
-    if not n_claims or rerun is None or baseline is None:
-        return found, None
+    return MovingSearch(tuple(found), fam, full_left, r, f, K)
+
+
+def moving_head_to_head(
+    m: MotionData,
+    y: FloatArray,
+    g_m_s2: float,
+    lever: FloatArray,
+    search: MovingSearch,
+    library: FloatArray | None,
+    channel_unit: str,
+    th: Thresholds = THRESHOLDS,
+    *,
+    baseline: DynamicFit,
+    n_params: int,
+    rerun: Callable[[FloatArray], Diagnosis],
+) -> Diagnosis | None:
+    """Where a family is left in the final residual (``search``) or in the catalogue's (the
+    discovered terms added back: library terms can take a family whole), the head to head of
+    ``family_referee``: the alternative diagnosis when it wins, else ``None``.
+
+    :param library: (n, 3) the discovered terms' contribution (channel units) or ``None``.
+    :param baseline: the first-order fit; :param n_params: the claimed model's parameters
+        beyond bias and K (catalogue terms' and discovered terms').
+    :param rerun: samples -> their diagnosis without the head to head.
+    """
+    fam = search.families
     if fam.empty and (
-        library is None or moving_families(m.t_s, r + library, f, K, m.angles_rad, m.valid, th)[0].empty
+        library is None
+        or moving_families(
+            m.t_s, search.residual + library, search.f_m_s2, search.K, m.angles_rad, m.valid, th
+        )[0].empty
     ):
-        return found, None
-    k_full = len(final.theta) - 12 + n_library + fam.n_params
-    won = head_to_head(m, y, g_m_s2, lever, baseline, full_left, k_full, rerun, th)
+        return None
+    k_full = n_params + fam.n_params
+    won = head_to_head(m, y, g_m_s2, lever, baseline, search.left, k_full, rerun, th)
     if won is None:
-        return found, None
+        return None
     alt, fam_alt, left_alt, note = won
     ok = np.asarray(m.valid, dtype=bool)
     span = float(np.ptp(m.t_s[ok])) if ok.any() else 0.0
     alt_findings = (*family_findings(fam_alt, left_alt, span, channel_unit), *alt.findings)
-    return found, dc_replace(alt, findings=alt_findings, notes=(note, *alt.notes))
+    return dc_replace(alt, findings=alt_findings, notes=(note, *alt.notes))
 
 
-__all__ = ["moving_families", "moving_findings", "moving_stage", "static_line_findings", "static_lines"]
+__all__ = [
+    "MovingSearch",
+    "moving_families",
+    "moving_findings",
+    "moving_head_to_head",
+    "moving_search",
+    "static_line_findings",
+    "static_lines",
+]

@@ -1,24 +1,20 @@
-"""The moving recording's term selection as stages (``pipeline``): which dynamic-model terms
-the motion determines, the greedy selection over them on the selection core (``greedy``), and
-the claim after the moving library's search (``library_motion_search``) and the cut of catalogue
-steps it explains better (``library_motion_swap``). ``claim_catalogue`` runs these stages;
-``dynamic.claim_moving`` weighs the bench families against its claim (the head to head) and is
-the claim both ``dynamic.diagnose_dynamic`` and ``calibrate``'s term selection use. The
-selection's statistics: ``dynamic`` module docstring.
+"""The moving recording's term selection: which dynamic-model terms the motion determines
+(:func:`screen_terms`), the greedy selection over them on the selection core (``greedy``,
+:func:`forward_terms`) and the claim the selection and the moving library make together
+(:class:`CatalogueClaim`). The stages that run them are in ``moving_stages``; the selection's
+statistics: ``dynamic`` module docstring.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
 from bench.diagnosis.greedy import Trial, best, forward, step_alpha
-from bench.diagnosis.library_motion_search import MotionLibraryResult, refit_terms, search_motion_library
-from bench.diagnosis.library_motion_swap import cut_catalogue, fit_bic
-from bench.diagnosis.pipeline import Notes, Pipeline
+from bench.diagnosis.library_motion_search import MotionLibraryResult
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.estimation.dynamic_batch import DynamicFit, fit_dynamic_batch, linear_start, white_sigma
 from bench.estimation.dynamic_model import TERM_ORDER, ModelSpec, initial_theta
@@ -235,117 +231,14 @@ class CatalogueClaim:
         k = len(terms)
         return self.selection.fits[k] if self.selection.chosen[:k] == terms else None
 
-
-@dataclass(frozen=True)
-class MovingEvidence:
-    """What a moving recording's selection works from.
-
-    :param motion: the motion (``motion_data.prepare_motion``); :param y: (n, 3) raw samples.
-    :param g_m_s2: local gravity; :param lever_arm_m: (3,) the lever arm the recording believes (m).
-    :param temp_c: (n,) temperature (°C) or ``None``.
-    """
-
-    motion: MotionData
-    y: FloatArray
-    g_m_s2: float
-    lever_arm_m: FloatArray
-    temp_c: FloatArray | None = None
+    @property
+    def library_signal(self) -> FloatArray | None:
+        """(n, 3) the discovered terms' contribution Σ c_k x_k (channel units), or ``None``
+        when the library discovered nothing."""
+        return self.library.adjustment(self.values) if self.library.included else None
 
 
-@dataclass(frozen=True)
-class MovingState:
-    """What the moving stages have decided: the terms the motion determines (``pool``), why the
-    others are not (``unobservable``), the greedy selection, the claim, and the notes."""
-
-    pool: tuple[str, ...] = ()
-    unobservable: dict[str, str] = field(default_factory=dict)
-    selection: TermSelection | None = None
-    claim: CatalogueClaim | None = None
-    notes: dict[str, str] = field(default_factory=dict)
-
-    def noted(self, notes: Notes) -> MovingState:
-        """The state with ``notes`` added (a label's later note replaces an earlier one)."""
-        return replace(self, notes={**self.notes, **notes}) if notes else self
-
-
-def screen_motion(ev: MovingEvidence, st: MovingState, th: Thresholds) -> tuple[MovingState, Notes]:
-    """Motion screen. Rule: a term of the dynamic model is a candidate only where the motion
-    determines it (the Fisher information of the extended model is of full rank)."""
-    pool, unobservable = screen_terms(ev.motion, ev.y, ev.g_m_s2, ev.lever_arm_m)
-    return replace(st, pool=pool, unobservable={**st.unobservable, **unobservable}), {}
-
-
-def motion_selection(ev: MovingEvidence, st: MovingState, th: Thresholds) -> tuple[MovingState, Notes]:
-    """Greedy forward selection (``greedy.forward``). Rule: at each step every candidate is
-    fitted; it enters if its Wald statistic (sandwich covariance) passes χ²_q at
-    ``th.false_alarm`` / N and its BIC change is negative, the lowest BIC change first."""
-    sel = forward_terms(ev.motion, ev.y, ev.g_m_s2, ev.lever_arm_m, st.pool, st.unobservable, th)
-    return replace(st, selection=sel), {}
-
-
-def claim_all(ev: MovingEvidence, st: MovingState, th: Thresholds) -> tuple[MovingState, Notes]:
-    """Claim without a library. Rule: every selected step is claimed."""
-    sel = st.selection
-    assert sel is not None
-    empty = MotionLibraryResult((), sel.fits[-1:], 0, ())
-    return replace(st, claim=CatalogueClaim(sel, len(sel.steps), empty, {}, None)), {}
-
-
-def library_cut(ev: MovingEvidence, st: MovingState, th: Thresholds) -> tuple[MovingState, Notes]:
-    """Moving library and catalogue cut (``library_motion_search``, ``library_motion_swap``).
-    Rule: the moving library is searched after the catalogue (its own gates); where a shorter
-    catalogue path with the library's terms has a BIC lower by more than ``th.tie_chi2``, the
-    later catalogue steps are replaced."""
-    sel = st.selection
-    assert sel is not None
-    m, y, g, lever = ev.motion, ev.y, ev.g_m_s2, ev.lever_arm_m
-
-    def search(k: int) -> tuple[MotionLibraryResult, dict[str, FloatArray]]:
-        span = _catalogue_span(sel, lever, k)
-        return search_motion_library(m, y, g, lever, sel.fits[k], ev.temp_c, span, th=th)
-
-    def rescore(k: int, full: MotionLibraryResult, vals: dict[str, FloatArray]) -> float:
-        coef = np.array([i.coefficient for i in full.included])
-        terms = [i.term for i in full.included]
-        return fit_bic(refit_terms(m, y, g, lever, sel.fits[k], terms, coef, vals, th)[0], len(terms))
-
-    k, lib, vals, note = cut_catalogue(search, rescore, len(sel.steps), sel.chosen, th)
-    return replace(st, claim=CatalogueClaim(sel, k, lib, vals, note)), {}
-
-
-MOVING: Pipeline[MovingEvidence, MovingState] = Pipeline(
-    "moving", (screen_motion, motion_selection, library_cut)
-)
-"""The catalogue claim of a moving recording (``diagnose_dynamic`` and ``calibrate``)."""
-
-MOVING_NO_LIBRARY: Pipeline[MovingEvidence, MovingState] = Pipeline(
-    "moving, catalogue only", (screen_motion, motion_selection, claim_all)
-)
-"""As :data:`MOVING` without the moving library."""
-
-
-def claim_catalogue(
-    m: MotionData,
-    y: FloatArray,
-    g_m_s2: float,
-    lever: FloatArray,
-    temp_c: FloatArray | None,
-    *,
-    library: bool = True,
-    th: Thresholds = THRESHOLDS,
-) -> CatalogueClaim:
-    """The catalogue terms the recording supports and the diagnosis claims: the :data:`MOVING`
-    pipeline (the greedy selection, then the steps a library path explains better replaced,
-    ``cut_catalogue``). ``library`` False: :data:`MOVING_NO_LIBRARY`, every selected step
-    claimed. The bench families' head to head may still withdraw it (``dynamic.claim_moving``).
-    """
-    ev = MovingEvidence(m, y, g_m_s2, np.asarray(lever, dtype=float), temp_c)
-    st, _ = (MOVING if library else MOVING_NO_LIBRARY).run(ev, MovingState(), th)
-    assert st.claim is not None
-    return st.claim
-
-
-def _catalogue_span(sel: TermSelection, lever: FloatArray, k: int) -> tuple[ModelSpec, FloatArray] | None:
+def catalogue_span(sel: TermSelection, lever: FloatArray, k: int) -> tuple[ModelSpec, FloatArray] | None:
     """The catalogue's observable terms together at the fit after its first k steps (the others at
     their null): a library term inside their span beyond the model is the catalogue's
     (``library_motion``)."""

@@ -25,7 +25,7 @@ i (raw_i += c·x, c in channel units per unit of x). Left out:
   quadratic nonlinearity, scale asymmetry and cross-coupling), as in ``library``;
 - monomials of t and temp alone (t, t², temp·t, …): a bias wander makes such slow trends
   over one run, and nothing in a moving recording measures the wander at the run's length
-  (``dynamic.STATIC_ONLY``, bias_drift);
+  (``moving_report.STATIC_ONLY``, bias_drift);
 - what the catalogue's motion effects are (the lever arm's ω²·r and ω̇·r, the proof
   masses, the common time skew K·ḟ, the tilt): not by name but by signature, in the search
   (``library_motion_search``): a term whose signature beyond the fitted model lies within

@@ -5,8 +5,9 @@ written in its docstring: it reads the evidence and what the stages before it de
 state, a frozen record), decides one thing, and says why it set something aside (``notes``:
 label -> sentence, kept beside the state and reported). A :class:`Pipeline` is the tuple of
 stages for one kind of recording (``stages`` for static, hand-held and orientation-free window
-means; ``dynamic_stages`` for moving recordings); kinds whose physics is the same share the
-same stage functions, and every selection stage calls the one selection core (``greedy``).
+means; ``moving_stages``, put in order by ``dynamic``, for moving recordings); kinds whose
+physics is the same share the same stage functions, and every selection stage calls the one
+selection core (``greedy``).
 
 :meth:`Pipeline.run` keeps the trace: each stage's name and its notes, in order, so a
 recording can be followed through the stages (docs/diagnose.md, "Following one recording

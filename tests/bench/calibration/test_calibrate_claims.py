@@ -11,7 +11,7 @@ from api.simulated_recording import to_recording
 from bench.calibration.diagnose import diagnose_recording
 from bench.calibration.dynamic import calibrate_dynamic
 from bench.diagnosis import Diagnosis
-from bench.diagnosis.dynamic import PARAM
+from bench.diagnosis.moving_report import PARAM
 from bench.recording import Recording
 from drivers.sim.offline import DEFAULT_AXES, simulate_oscillation
 from drivers.sim.physics import SensorPhysics, SensorTruth

@@ -356,6 +356,7 @@ def select(
     fixed: FloatArray | None = None,
     library: list[Candidate] | None = None,
     simplicity: dict[str, int] | None = None,
+    excluded: Collection[str] = (),
     th: Thresholds = THRESHOLDS,
 ) -> Selection:
     """Run the greedy selection.
@@ -375,12 +376,13 @@ def select(
     :param fixed: fixed extra covariance per window (orientation-free diagnosis).
     :param library: candidates beyond the catalogue (``library``), or ``None``.
     :param simplicity: library label -> degree, for ties (``_structured``).
+    :param excluded: effects that are not candidates (withdrawn by a check before).
     :param th: the diagnosis's knobs (``thresholds``).
     :returns: the selection: its model, its path and, per candidate label, why it was not
         admitted when it could not be told from the model (``"indistinguishable"`` notes).
     """
     n = ev.n_obs
-    state = ModelState()
+    state = ModelState(excluded=frozenset(excluded))
     X0 = first_order_design(ev.f_m_s2)
     K = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
     cap = SlowNoiseCap(ev, th.cap_alpha)

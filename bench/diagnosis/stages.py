@@ -21,7 +21,7 @@ from bench.diagnosis.excess_referee import HeadToHead, excess_referee, flag_inst
 from bench.diagnosis.hysteresis import with_last_move
 from bench.diagnosis.library import EFFECT, LibraryTerm, library_terms
 from bench.diagnosis.library import candidate as library_candidate
-from bench.diagnosis.model_state import POSE_ERROR, ModelState, scale_matrix
+from bench.diagnosis.model_state import POSE_ERROR, ModelState, fit_model, scale_matrix
 from bench.diagnosis.periodic_lines import Line
 from bench.diagnosis.pipeline import Notes, Pipeline
 from bench.diagnosis.pose_quantisation import quantisation_covariance
@@ -50,6 +50,9 @@ class WindowState:
     :param pose_ok: the pose error (a variance component) may be tried; :param settle_ok: the
         settling test (a window test) may run.
     :param fixed: (m, 3, 3) fixed extra covariance per window (orientation-free), or ``None``.
+    :param carried: (m, 3, 3) each channel's own excess ε̂_c² that won a head to head
+        (``excess_head_to_head``), added to ``fixed`` in the selection's noise only (the report
+        reads the final model under ``fixed``), or ``None``.
     :param selection: the forward selection with its path (``selection.Selection``), resumed
         when a check takes a catalogue effect out; :param model: the selected model after the
         checks; :param excluded: catalogue effects no longer candidates (dropped as redundant or
@@ -71,6 +74,7 @@ class WindowState:
     pose_ok: bool = False
     settle_ok: bool = False
     fixed: FloatArray | None = None
+    carried: FloatArray | None = None
     selection: Selection | None = None
     model: ModelState | None = None
     excluded: frozenset[str] = frozenset()
@@ -87,6 +91,14 @@ class WindowState:
     def noted(self, notes: Notes) -> WindowState:
         """The state with ``notes`` added (a label's later note replaces an earlier one)."""
         return replace(self, notes={**self.notes, **notes}) if notes else self
+
+    @property
+    def selection_fixed(self) -> FloatArray | None:
+        """(m, 3, 3) the fixed covariance per window the selection and its checks read: ``fixed``
+        and the excess carried from the head to heads."""
+        if self.carried is None:
+            return self.fixed
+        return self.carried if self.fixed is None else self.fixed + self.carried
 
     @property
     def scale(self) -> FloatArray:
@@ -172,8 +184,9 @@ def forward_selection(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tu
         ev,
         list(st.pool),
         pose_allowed=st.pose_ok,
-        fixed=st.fixed,
+        fixed=st.selection_fixed,
         library=library,
+        excluded=st.excluded,
         simplicity={t.label: t.degree for t in st.lib_terms.values()},
         th=th,
     )
@@ -194,6 +207,19 @@ def _resumed(st: WindowState, out: list[str]) -> tuple[WindowState, dict[str, st
     return replace(st, selection=sel, model=sel.model, excluded=excluded, notes=kept), sel.notes
 
 
+def _rerun(
+    ev: StaticEvidence, st: WindowState, out: list[str], carried: FloatArray, th: Thresholds
+) -> tuple[WindowState, dict[str, str]]:
+    """As ``_resumed``, but the selection run again from its start under the noise with the
+    excess ``carried`` (every step's noise changes, not only those after the claim)."""
+    assert st.selection is not None
+    stale = st.selection.notes
+    kept = {k: v for k, v in st.notes.items() if stale.get(k) != v}
+    again = replace(st, carried=carried, excluded=st.excluded | set(out), notes=kept)
+    ran, notes = forward_selection(ev, again, th)
+    return ran, dict(notes)
+
+
 def prune_redundant(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
     """Backward removal of the catalogue (``referee.prune_catalogue``). Rule: a catalogue effect
     whose Wald statistic, once the library's terms are in, falls below the gate it passed to
@@ -202,7 +228,7 @@ def prune_redundant(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tupl
     assert st.model is not None
     notes: dict[str, str] = {}
     model = st.model.copy()
-    dropped = prune_catalogue(ev, model, list(st.pool), st.fixed, notes, th)
+    dropped = prune_catalogue(ev, model, list(st.pool), st.selection_fixed, notes, th)
     if not dropped:
         return replace(st, model=model), notes
     out, again = _resumed(st, dropped)
@@ -218,13 +244,13 @@ def out_of_sample_referee(ev: StaticEvidence, st: WindowState, th: Thresholds) -
     assert st.model is not None
     notes: dict[str, str] = {}
     model = st.model.copy()
-    refused = [e for e in referee(ev, model, st.fixed, notes, th) if not e.startswith(EFFECT + ":")]
+    refused = [e for e in referee(ev, model, st.selection_fixed, notes, th) if not e.startswith(EFFECT + ":")]
     if not refused:
         return replace(st, model=model), notes
     out, again = _resumed(st, refused)
     fresh = {**again, **{k: v for k, v in notes.items() if k in refused}}
     assert out.model is not None
-    referee(ev, out.model, st.fixed, fresh, th)
+    referee(ev, out.model, out.selection_fixed, fresh, th)
     return out, fresh
 
 
@@ -233,25 +259,50 @@ def excess_head_to_head(ev: StaticEvidence, st: WindowState, th: Thresholds) -> 
     the model (a catalogue effect, a library term, the pose error) must predict a left-out window
     (log predictive density) better than the model without it where a channel carries its own
     excess variance (a channel the claim acts on; any channel for the pose error); one that does
-    not is withdrawn, no longer a candidate, the selection resumes without it from the step before it entered
-    (``greedy.resume``) and the out-of-sample referee judges that model, which is then judged
-    the same way; the channel is flagged unexplained (``unexplained_stage``)."""
+    not is withdrawn and no longer a candidate. Where a channel's excess won, that excess ε̂_c²
+    (per window, on channel c) is carried into the selection's noise (``carried``) and the
+    selection runs again under it, so a later candidate on that channel is judged against a
+    model that already holds the excess; otherwise the selection resumes without the claim from
+    the step before it entered (``greedy.resume``). The out-of-sample referee judges that model,
+    which is then judged the same way; the channel is flagged unexplained
+    (``unexplained_stage``)."""
     assert st.model is not None
     notes: dict[str, str] = {}
     model = st.model.copy()
-    withdrawn = excess_referee(ev, model, st.fixed, notes, th)
+    withdrawn = excess_referee(ev, model, st.selection_fixed, notes, th)
     if not withdrawn:
         return replace(st, model=model), notes
-    out, again = _resumed(st, [h.effect for h in withdrawn])
-    assert out.model is not None
     lost = (*st.lost, *withdrawn)
+    carried = _carry(ev, st.carried, withdrawn)
+    if carried is None or carried is st.carried:
+        out, again = _resumed(st, [h.effect for h in withdrawn])
+    else:
+        out, again = _rerun(ev, st, [h.effect for h in withdrawn], carried, th)
+    assert out.model is not None
     taken = {c.effect for c in out.model.candidates} | ({POSE_ERROR} if out.model.pose else set())
     assert not taken & out.excluded, "a withdrawn claim re-entered"
     fresh = {**again, **notes}
-    referee(ev, out.model, st.fixed, fresh, th)
+    referee(ev, out.model, out.selection_fixed, fresh, th)
     out = replace(out, lost=lost)
     more, later = excess_head_to_head(ev, out.noted(fresh), th)
     return more, {**fresh, **later}
+
+
+def _carry(ev: StaticEvidence, carried: FloatArray | None, lost: list[HeadToHead]) -> FloatArray | None:
+    """``carried`` with, for each channel whose own excess won a head to head in ``lost``, the
+    largest such ε̂_c² added on that channel in every window ((m, 3, 3), channel units²); each
+    ε̂_c² was estimated beside the excess already carried, so the two add. ``carried`` itself
+    when no channel won."""
+    won: dict[int, float] = {}
+    for h in lost:
+        if h.channel is not None and h.excess_var > 0:
+            won[h.channel] = max(won.get(h.channel, 0.0), h.excess_var)
+    if not won:
+        return carried
+    out = np.zeros((ev.y.shape[0], 3, 3)) if carried is None else carried.copy()
+    for c, var in won.items():
+        out[:, c, c] += var
+    return out
 
 
 def within_window(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
@@ -259,7 +310,15 @@ def within_window(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[
     (in temperature or time) is not window noise: the window noise is estimated without it and
     the model refitted under that noise."""
     assert st.model is not None
-    ev_final, model = refit_within_window(ev, st.model, st.lib_terms, st.fixed, th)
+    model = st.model
+    if st.carried is not None:
+        # the report reads the model under ``fixed`` alone: its noise again without the carried excess
+        assert model.noise is not None and model.fit is not None
+        noise, fit, _ = fit_model(
+            ev, model.candidates, model.pose, scale_matrix(model.fit), st.fixed, model.noise, th=th
+        )
+        model = replace(model.copy(), noise=noise, fit=fit)
+    ev_final, model = refit_within_window(ev, model, st.lib_terms, st.fixed, th)
     return replace(st, ev_final=ev_final, model=model), {}
 
 

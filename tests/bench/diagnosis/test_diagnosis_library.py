@@ -211,8 +211,8 @@ def test_concealed_cube_is_not_taken_for_cross_coupling() -> None:
 @pytest.mark.slow
 def test_loose_connector_is_never_a_pose_error_and_mostly_unexplained_on_ax() -> None:
     """Random per-window offsets on ax (study seeds 100-105): never a pose error; ``unexplained``
-    names ax in at least 3 of 6 (measured 3 of 6; in the others catalogue columns follow the
-    pattern or the shared slow noise absorbs it, docs/diagnose.md)."""
+    names ax in at least 3 of 6 (measured 6 of 6 with a winning excess carried into the
+    selection's noise; 3 of 6 before the head to head, docs/diagnose.md)."""
     from bench.calibration.diagnose import diagnose_recording
     from benchmarks.library_cases import CASES
 

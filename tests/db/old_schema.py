@@ -13,6 +13,25 @@ from db.migrate import current_revision, upgrade
 
 BENCH = sa.table("bench", sa.column("id", sa.Integer), sa.column("name", sa.String))
 UNIT = sa.table("unit", sa.column("id", sa.Integer), sa.column("serial", sa.String))
+
+
+def run_table(*later: sa.ColumnClause[Any]) -> sa.TableClause:
+    """The ``run`` table with the columns every revision since 0003 has and ``later`` ones."""
+    return sa.table(
+        "run",
+        sa.column("id", sa.String),
+        sa.column("unit_id", sa.Integer),
+        sa.column("bench_id", sa.Integer),
+        sa.column("procedure", sa.String),
+        sa.column("state", sa.String),
+        sa.column("progress", sa.Float),
+        sa.column("params", sa.JSON),
+        sa.column("resume_count", sa.Integer),
+        sa.column("limit_checks", sa.JSON),
+        *later,
+    )
+
+
 SETUP: dict[str, Any] = {
     "procedure": "static-12",
     "parameters": {"dwell_s": 3.0, "n_poses": 12},

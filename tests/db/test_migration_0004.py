@@ -15,23 +15,12 @@ from sqlalchemy.engine import Engine
 from db.migrate import current_revision, downgrade, upgrade
 from db.types import UtcDateTime
 from tests.db.old_schema import SETUP as OLD_SETUP
-from tests.db.old_schema import at_revision, row_counts
+from tests.db.old_schema import at_revision, row_counts, run_table
 
 T0 = dt.datetime(2026, 11, 20, 2, 0, tzinfo=dt.UTC)
 
 # the tables as revision 0003 has them (not the models: they follow the newest revision)
-RUN = sa.table(
-    "run",
-    sa.column("id", sa.String),
-    sa.column("unit_id", sa.Integer),
-    sa.column("bench_id", sa.Integer),
-    sa.column("procedure", sa.String),
-    sa.column("state", sa.String),
-    sa.column("progress", sa.Float),
-    sa.column("params", sa.JSON),
-    sa.column("resume_count", sa.Integer),
-    sa.column("limit_checks", sa.JSON),
-)
+RUN = run_table()
 AUTO = {"attempt": 2, "not_before": "2026-11-20T02:05:00+00:00", "windows": 3, "fault": "lost link"}
 SETUP = {"run_id": "R-SERVICE", **OLD_SETUP}
 RESULTS = {

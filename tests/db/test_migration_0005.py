@@ -16,21 +16,11 @@ from sqlalchemy.engine import Engine
 from db.engine import make_session_factory
 from db.migrate import current_revision, downgrade, upgrade
 from db.types import NpyArray
-from tests.db.old_schema import SETUP, at_revision, row_counts
+from tests.db.old_schema import SETUP, at_revision, row_counts, run_table
 
 # the tables as revision 0004 has them (not the models: they follow the newest revision)
-RUN = sa.table(
-    "run",
-    sa.column("id", sa.String),
-    sa.column("unit_id", sa.Integer),
-    sa.column("bench_id", sa.Integer),
-    sa.column("procedure", sa.String),
-    sa.column("state", sa.String),
+RUN = run_table(
     sa.column("outcome", sa.String),
-    sa.column("progress", sa.Float),
-    sa.column("params", sa.JSON),
-    sa.column("resume_count", sa.Integer),
-    sa.column("limit_checks", sa.JSON),
     sa.column("n_samples", sa.BigInteger),
     sa.column("kind", sa.String),
 )

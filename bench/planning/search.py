@@ -13,6 +13,7 @@ against the white-noise bound of any motion for the same table time.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Literal
@@ -241,7 +242,8 @@ def _plan_one(
     best: Evaluation | None = None
     longest: Evaluation | None = None
 
-    def ev(dwell: float, reps: int) -> Evaluation:
+    @functools.cache
+    def ev(dwell: float, reps: int) -> Evaluation:  # the search asks for some designs twice
         return evaluate(
             FAMILY[fit](dwell_s=dwell, repeats=reps, settle_s=settle_s),
             noise,

@@ -23,7 +23,16 @@ from api.deps import (
 from api.routes.views import audit_out, live_out, run_out
 from api.runs.events import RunSnapshot, SnapshotCache
 from api.runs.stream import run_events
-from api.schemas import AbortOut, AuditEntryOut, RunActionOut, RunCreate, RunCreated, RunOut, RunStateName
+from api.schemas import (
+    MAX_PAGE_OFFSET,
+    AbortOut,
+    AuditEntryOut,
+    RunActionOut,
+    RunCreate,
+    RunCreated,
+    RunOut,
+    RunStateName,
+)
 from db.models import Certificate, RunState
 from db.repo.audit import run_audit
 from db.repo.progress import list_windows
@@ -76,7 +85,9 @@ def runs(
     unit_serial: Annotated[str | None, Query(max_length=64)] = None,
     state: RunStateName | None = None,
     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
-    offset: Annotated[int, Query(ge=0, description="runs skipped from the newest (paging)")] = 0,
+    offset: Annotated[
+        int, Query(ge=0, le=MAX_PAGE_OFFSET, description="runs skipped from the newest (paging)")
+    ] = 0,
     procedure: Annotated[str | None, Query(max_length=64)] = None,
     q: Annotated[str | None, Query(max_length=64, description="text in the run id or unit serial")] = None,
 ) -> list[RunOut]:

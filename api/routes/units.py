@@ -9,7 +9,7 @@ from fastapi import APIRouter, HTTPException, Path, Query, status
 
 from api.deps import OperatorDep, RunnerDep, SessionDep, ViewerDep
 from api.routes.views import certificate_out, drift_out, run_out
-from api.schemas import SERIAL_PATTERN, UnitHistory, UnitOut, UnitRegistration
+from api.schemas import MAX_PAGE_OFFSET, SERIAL_PATTERN, UnitHistory, UnitOut, UnitRegistration
 from db.models import Bench, Certificate, DriftCheck, Run, Unit
 from db.repo.certificates import list_certificates
 from db.repo.drift import list_drift_checks
@@ -60,7 +60,9 @@ def units(
         str | None, Query(max_length=64, description="text in the serial, model or customer")
     ] = None,
     limit: Annotated[int | None, Query(ge=1, le=1000, description="at most this many (paging)")] = None,
-    offset: Annotated[int, Query(ge=0, description="units skipped from the first by serial (paging)")] = 0,
+    offset: Annotated[
+        int, Query(ge=0, le=MAX_PAGE_OFFSET, description="units skipped from the first by serial (paging)")
+    ] = 0,
 ) -> list[UnitOut]:
     """Units by serial, with their last certificate and whether their last drift check flagged
     them; filtered by a text in the serial, model or customer (``q``), paged by ``limit`` and

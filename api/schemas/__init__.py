@@ -23,7 +23,7 @@ from api.schemas.access import (
     TokenRoleName,
     WhoAmI,
 )
-from api.schemas.common import MIN_DWELL_S, SERIAL_PATTERN, RunStateName
+from api.schemas.common import MAX_PAGE_OFFSET, MIN_DWELL_S, SERIAL_PATTERN, RunStateName
 from api.schemas.runs import (
     AbortOut,
     AuditEntryOut,
@@ -51,6 +51,7 @@ from api.schemas.units import (
 
 __all__ = [
     "LINK_PATH_PATTERN",
+    "MAX_PAGE_OFFSET",
     "MIN_DWELL_S",
     "SERIAL_PATTERN",
     "AbortOut",

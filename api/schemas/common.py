@@ -1,5 +1,6 @@
 """What the wire models of every resource share: the run state vocabulary, the serial pattern, the
-shortest dwell, and the text rule of stored text (:func:`bench.inputs.check_text`)."""
+largest paging offset, the shortest dwell, and the text rule of stored text
+(:func:`bench.inputs.check_text`)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,9 @@ from bench.records import RunState
 RunStateName = RunState
 """A run's state on the wire: the values of the one run vocabulary (``bench.records.RunState``)."""
 SERIAL_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"
+MAX_PAGE_OFFSET = 2**53
+"""Largest paging offset a list accepts: a 64-bit database integer holds it on every backend
+(SQLite refuses a Python int beyond 2**63 - 1 with an OverflowError), and no table nears it."""
 MIN_DWELL_S = 0.5
 """Shortest static dwell a run may ask for (s): shorter windows hold too few samples to fit."""
 

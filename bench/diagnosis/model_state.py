@@ -41,8 +41,7 @@ class ModelState:
 
     :param swapped: catalogue effects replaced by library terms (not tried again);
         :param excluded: effects taken out by a check after the selection (catalogue effects,
-        library terms, :data:`POSE_ERROR`; ``greedy.resume``: not candidates from the step
-        before they entered).
+        library terms; ``greedy.resume``: not candidates from the step before they entered).
     """
 
     candidates: list[Candidate] = field(default_factory=list)

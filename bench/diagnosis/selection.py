@@ -342,7 +342,7 @@ class Selection:
             self.path,
             self.groups,
             self.max_steps,
-            holds=lambda s: any(c.effect in out for c in s.candidates) or (s.pose and POSE_ERROR in out),
+            holds=lambda s: any(c.effect in out for c in s.candidates),
             without=lambda s: replace(s.copy(), excluded=s.excluded | out),
         )
         return replace(self, path=path)
@@ -395,7 +395,7 @@ def select(
 
     def n_catalogue(st: ModelState) -> int:
         # the catalogue's candidates still to try, plus the pose error while it is not in
-        pose_left = 1 if pose_allowed and not st.pose and POSE_ERROR not in st.excluded else 0
+        pose_left = 1 if pose_allowed and not st.pose else 0
         return sum(1 for c in in_pool(st) if c not in st.candidates) + pose_left
 
     def admit(
@@ -453,7 +453,7 @@ def _pose_step(
 ) -> ModelState | None:
     """The pose error, a catch-all variance component, as the selection's last group (``select``)."""
     assert state.noise is not None and state.fit is not None
-    if state.pose or POSE_ERROR in state.excluded:
+    if state.pose:
         return None
     noise1, fit1, K1 = fit_model(
         ev, state.candidates, True, scale_matrix_of(state), fixed, state.noise, cap=cap

@@ -21,7 +21,7 @@ from bench.diagnosis.excess_referee import HeadToHead, excess_referee, flag_inst
 from bench.diagnosis.hysteresis import with_last_move
 from bench.diagnosis.library import EFFECT, LibraryTerm, library_terms
 from bench.diagnosis.library import candidate as library_candidate
-from bench.diagnosis.model_state import POSE_ERROR, ModelState, fit_model, scale_matrix
+from bench.diagnosis.model_state import ModelState, fit_model, scale_matrix
 from bench.diagnosis.periodic_lines import Line
 from bench.diagnosis.pipeline import Notes, Pipeline
 from bench.diagnosis.pose_quantisation import quantisation_covariance
@@ -279,7 +279,7 @@ def excess_head_to_head(ev: StaticEvidence, st: WindowState, th: Thresholds) -> 
     else:
         out, again = _rerun(ev, st, [h.effect for h in withdrawn], carried, th)
     assert out.model is not None
-    taken = {c.effect for c in out.model.candidates} | ({POSE_ERROR} if out.model.pose else set())
+    taken = {c.effect for c in out.model.candidates}
     assert not taken & out.excluded, "a withdrawn claim re-entered"
     fresh = {**again, **notes}
     referee(ev, out.model, out.selection_fixed, fresh, th)

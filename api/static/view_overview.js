@@ -2,9 +2,10 @@
 
 import { getJson, postJson } from "./api.js";
 import { badge, card, h, message, outcomeCell, progressBar, table, when } from "./dom.js";
+import { planForm } from "./plan_form.js";
 import { uploadCard } from "./view_upload.js";
 
-const PROCEDURES = ["static-12", "rate-1axis", "oscillation-2axis", "planned-static"];
+const PROCEDURES = ["static-12", "rate-1axis", "oscillation-2axis", "planned-static", "planned-tumble"];
 const LIVE = new Set(["queued", "running", "paused", "suspended"]);
 const RUN_STATES = ["queued", "running", "paused", "suspended", "interrupted", "completed", "failed", "error", "aborted"];
 const REFRESH_MS = 3000;
@@ -79,31 +80,23 @@ function startForm(session) {
     showPreview();
     loadBenches();
   }
-  // the planner (GET /api/plan): noise and targets in, the planned-static design and its start request out
+  // the planner (plan_form.js): its start body is what Start run sends while the procedure and dwell are the plan's
   let planned = null;
-  const num = (id, label, value) => h("label", { for: id }, label, h("input", { id, type: "number", min: "0", step: "any", value }));
-  const planOut = h("p", { class: "preview", id: "plan-result", "aria-live": "polite" }, "");
-  const planButton = h("button", { type: "button", id: "plan-run" }, "Plan");
-  const planBox = h("details", { class: "plan", id: "start-plan" }, h("summary", {}, "Plan the procedure for target uncertainties…"),
-    num("plan-white", "white noise (µg/√Hz)", "250"), num("plan-wander", "wander (µg)", "40"), num("plan-tau", "its correlation (s)", "200"),
-    num("plan-scale", "scale U, k=2 (ppm)", "40"), num("plan-mis", "misalignment U, k=2 (µrad)", "40"), planButton, planOut);
-  planButton.addEventListener("click", async () => {
-    const v = (id) => planBox.querySelector(`#${id}`).value;
-    const q = new URLSearchParams({ white_ug_rt_hz: v("plan-white"), wander_ug: v("plan-wander") || "0", wander_tau_s: v("plan-tau") || "100" });
-    if (v("plan-scale")) q.set("scale_ppm", v("plan-scale"));
-    if (v("plan-mis")) q.set("misalignment_urad", v("plan-mis"));
-    planOut.textContent = "Planning…";
-    try {
-      const r = await getJson(`/api/plan?${q}`);
-      planned = r.start;
-      if (!planned) { planOut.textContent = `No plan: ${r.problems.join("; ")}`; return; }
-      const u = r.plan.predicted_U_k2;
-      planOut.textContent = `planned-static: ${r.plan.parameters.repeats} passes of 12 poses, ${r.plan.parameters.dwell_s} s each, `
-        + `${(r.plan.duration_s / 60).toFixed(1)} min; predicted U scale ${u.scale_ppm.toFixed(1)} ppm, misalignment ${u.misalignment_urad.toFixed(1)} µrad, `
-        + `bias ${u.bias_ug.toFixed(0)} µg; ${r.plan.k_fraction_of_bound.toFixed(2)}× the bound of any motion. Start run uses it.`;
-      proc.value = "planned-static";
-    } catch (err) { planOut.textContent = `No plan: ${err.message}`; }
+  const { box: planBox, button: planButton, detach } = planForm((start) => {
+    planned = start;
+    if (!start) return;
+    proc.value = start.procedure;
+    dwell.value = String(start.dwell_s);
+    showPreview();
   });
+  const keepPlan = () => {
+    if (!planned) return;
+    const why = proc.value !== planned.procedure ? `the procedure is now ${proc.value}`
+      : Number(dwell.value) !== planned.dwell_s ? `the dwell is now ${dwell.value || "empty"} s` : "";
+    if (why) { planned = null; detach(`Start run no longer uses the plan: ${why}.`); }
+  };
+  proc.addEventListener("change", keepPlan);
+  dwell.addEventListener("change", keepPlan);
   const details = h("a", { href: "#/units", id: "unit-details", title: "customer, model, date of receipt, nominal values: what the certificate states" }, "unit registration…");
   serial.addEventListener("input", () => { details.href = serial.value.trim() ? `#/units/${encodeURIComponent(serial.value.trim())}` : "#/units"; });
   const form = h("form", { class: "start", "aria-label": "start a run" },

@@ -19,10 +19,11 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from bench.calibration.diagnose import recording_evidence
+from bench.diagnosis import check_stages, head_to_head_stage, stages
 from bench.diagnosis import referee as referee_module
-from bench.diagnosis import stages
 from bench.diagnosis.selection import Selection
 from bench.diagnosis.thresholds import THRESHOLDS
+from bench.diagnosis.window_state import WindowState
 from bench.recording import Recording
 from benchmarks.library_cases import CASES
 from benchmarks.study_diagnose_one_channel import cubic, hand_held, tableless
@@ -50,17 +51,19 @@ def recordings(n: int) -> Iterator[tuple[str, Callable[[], Recording]]]:
 def main(n: int) -> None:
     """Print the lines of the module docstring."""
     Selection.without = _counted("resumed", Selection.without)  # type: ignore[method-assign]
-    setattr(stages, "referee", _counted("referee", referee_module.referee))  # noqa: B010
+    counted = _counted("referee", referee_module.referee)
+    for module in (check_stages, head_to_head_stage):
+        setattr(module, "referee", counted)  # noqa: B010
     total = {"recordings": 0, "resumed": 0, "referee": 0, "cpu_s": 0.0}
     for label, make in recordings(n):
         ev = recording_evidence(make())
         COUNTS.update(resumed=0, referee=0)
-        st = stages.WindowState()
+        st = WindowState()
         t0 = time.process_time()
         for stage in stages.pipeline_for(ev).stages:
             st, notes = stage(ev, st, THRESHOLDS)
             st = st.noted(notes)
-            if stage is stages.out_of_sample_referee:
+            if stage is check_stages.out_of_sample_referee:
                 break
         cpu = time.process_time() - t0
         assert st.model is not None

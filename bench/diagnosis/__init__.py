@@ -36,9 +36,11 @@ from bench.diagnosis.refit import ModelFit, effect_parameters
 from bench.diagnosis.regressors import correlations
 from bench.diagnosis.residuals import summarise, where
 from bench.diagnosis.result import Diagnosis, Finding, ModelSummary
-from bench.diagnosis.stages import NO_TABLE_REASON, WindowState, pipeline_for
+from bench.diagnosis.screen_stages import NO_TABLE_REASON
+from bench.diagnosis.stages import pipeline_for
 from bench.diagnosis.summaries import summary
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
+from bench.diagnosis.window_state import WindowState
 
 __all__ = ["NO_TABLE_REASON", "Diagnosis", "StaticEvidence", "Thresholds", "diagnose"]
 

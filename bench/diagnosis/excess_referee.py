@@ -28,7 +28,7 @@ the predictive covariance, as the excess does, and on a dozen windows the two sh
 told apart out of sample (a hand-held session whose pose error takes χ²/dof from 2812 to 1.0
 lost to one channel's excess, docs/diagnose.md). The two variances meet inside the noise
 model instead: an excess that wins a head to head is carried into the selection's noise
-(``stages.excess_head_to_head``), where REML weighs it against the pose variance.
+(``head_to_head_stage.excess_head_to_head``), where REML weighs it against the pose variance.
 
 A true effect's columns predict a left-out window (the pattern is fixed by the poses), which
 an excess variance cannot: it only widens the prediction. Variance parameters are fitted on

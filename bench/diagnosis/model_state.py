@@ -71,6 +71,12 @@ def scale_matrix(fit: GlsFit) -> FloatArray:
     return fit.theta[3:12].reshape(3, 3)
 
 
+def scale_matrix_of(state: ModelState) -> FloatArray:
+    """K (3, 3) of the state's fit."""
+    assert state.fit is not None
+    return scale_matrix(state.fit)
+
+
 def fit_model(
     ev: StaticEvidence,
     cands: list[Candidate],

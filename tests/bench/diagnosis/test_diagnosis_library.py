@@ -186,7 +186,7 @@ def test_concealed_cube_is_not_taken_for_cross_coupling() -> None:
     """f_x³ on ax (``cubic`` of benchmarks/library_cases), seeds 1-6: on the 12-pose set it is
     the signature of f_x·|f_x| (|cos| = 1.00 beyond f_x), which cross_coupling's three products
     partly mimic. cross_coupling enters first; where the library then needs a term beside it
-    on ax, the two compete head to head (``selection._swap``) and the cube's twin wins: no
+    on ax, the two compete head to head (``catalogue_swap.swap_step``) and the cube's twin wins: no
     catalogue claim, and the term named on ax is f_x^3 or lists it. Measured over seeds 1-12:
     cross_coupling claimed on 7 without the head to head; with it on 4 (seeds 3, 6, 7, 11,
     each resting on c_yz, beside a term that is not the cube's twin, docs/diagnose.md), so

@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from bench.diagnosis.check_stages import out_of_sample_referee, prune_redundant
 from bench.diagnosis.effects import NEEDS_TABLE, Candidate, first_order_design
 from bench.diagnosis.effects.base import FloatArray, channel_column
 from bench.diagnosis.effects.sensor import NONLINEARITY
@@ -14,29 +15,25 @@ from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.greedy import Path
 from bench.diagnosis.library import EFFECT
 from bench.diagnosis.model_state import ModelState, Step, fit_model
-from bench.diagnosis.selection import select
-from bench.diagnosis.stages import (
-    NO_TABLE_REASON,
-    ORIENTATION_FREE,
-    STATIC,
-    STATIC_NO_LIBRARY,
-    WindowState,
-    _resumed,
+from bench.diagnosis.report_stages import (
     bench_lines,
-    encoder_quantisation,
-    forward_selection,
-    library_search,
-    orientation_prior,
-    out_of_sample_referee,
-    pipeline_for,
-    prune_redundant,
     refit_sequence,
-    screen_catalogue,
     settling,
     unexplained_stage,
     within_window,
 )
+from bench.diagnosis.screen_stages import (
+    NO_TABLE_REASON,
+    encoder_quantisation,
+    library_search,
+    orientation_prior,
+    screen_catalogue,
+)
+from bench.diagnosis.selection import select
+from bench.diagnosis.selection_stages import forward_selection, resumed
+from bench.diagnosis.stages import ORIENTATION_FREE, STATIC, STATIC_NO_LIBRARY, pipeline_for
 from bench.diagnosis.thresholds import THRESHOLDS
+from bench.diagnosis.window_state import WindowState
 from tests.bench.diagnosis.test_diagnosis_tableless import B_TRUE, K_TRUE, RATE_HZ, G
 from tests.bench.diagnosis.test_diagnosis_tableless import F_TRUE as F
 from tests.bench.diagnosis.test_pose_quantisation import _evidence as table_evidence
@@ -332,8 +329,8 @@ def test_an_effect_taken_out_stays_out_when_a_later_check_resumes_from_an_earlie
     sel = select(ev, [first, second], pose_allowed=False)
     assert [c.effect for c in sel.model.candidates] == ["first", "second"]
     st = WindowState(selection=sel, model=sel.model)
-    st, _ = _resumed(st, ["second"])
+    st, _ = resumed(st, ["second"])
     assert st.model is not None and [c.effect for c in st.model.candidates] == ["first"]
-    st, _ = _resumed(st, ["first"])
+    st, _ = resumed(st, ["first"])
     assert st.excluded == {"first", "second"}
     assert st.model is not None and not st.model.candidates

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -71,9 +72,14 @@ def test_a_planned_tumble_runs_through_the_service(client: TestClient) -> None:
     """The every-sample plan for the simulated unit's own noise (ADXL325-like: 250 µg/√Hz, 40 µg
     wander, 200 s) and a loose scale target, fetched over REST and started as its ``start`` body,
     records on the simulated bench and is fitted by every sample; its certificate carries the
-    design, the plan's predicted U and the U the fit achieved, which agrees with the prediction
-    (both are 2 × the largest σ of the group for the same noise and motion: the ratio is 1 up to
-    the fit's estimate of the noise from one short run, checked within 0.6–1.6)."""
+    design, the plan's predicted U and the U the fit achieved: 2 × the largest σ the run's own fit
+    states in each group, relative to its fitted scale (recomputed here from the run's
+    calibration). Both describe the same noise and motion, but one run's stated σ is the fit's own
+    estimate from three minutes with a 200 s wander, so the ratio scatters widely around 1: it is
+    checked within the band that holds every seed of ``benchmarks/study_planning_achieved`` with
+    a factor 1.5 to spare (bias 0.3–10, scale and misalignment 0.5–3). That the prediction is the
+    fit's actual error is the study of ``test_planning_sim`` over many seeds."""
+    from benchmarks.study_planning_achieved import BAND
     from tests.support.service_helpers import OP, wait_final
 
     q = {"white_ug_rt_hz": 250, "wander_ug": 40, "wander_tau_s": 200, "scale_ppm": 400, "max_minutes": 3}
@@ -96,8 +102,18 @@ def test_a_planned_tumble_runs_through_the_service(client: TestClient) -> None:
     for key in ("repeats", "settle_s"):
         assert method["parameters"][key] == design["parameters"][key]
     planned = method["planned_U_k2"]
+    cal = run["calibration"]
+    K, K_sigma = np.array(cal["scale_matrix"]), np.array(cal["scale_matrix_sigma"])
+    rel = K_sigma / np.abs(np.diag(K))[:, None]  # σ(K_ij) / |K_ii|, dimensionless
+    off = ~np.eye(3, dtype=bool)
+    by_hand = {  # σ(b_i) / |K_ii|: channel unit over channel unit per m/s², in m/s², then µg
+        "bias_ug": 2e6 * max(np.array(cal["bias_sigma"]) / np.abs(np.diag(K))) / 9.80665,
+        "scale_ppm": 2e6 * max(np.diag(rel)),
+        "misalignment_urad": 2e6 * max(rel[off]),
+    }
     for group in ("bias_ug", "scale_ppm", "misalignment_urad"):
         predicted = design["predicted_U_k2"][group]
         assert planned[group]["predicted"] == pytest.approx(predicted, rel=1e-12)
-        ratio = planned[group]["achieved"] / predicted
-        assert 0.6 < ratio < 1.6, (group, planned[group])
+        assert planned[group]["achieved"] == pytest.approx(by_hand[group], rel=1e-9)
+        lo, hi = BAND[group]
+        assert lo < planned[group]["achieved"] / predicted < hi, (group, planned[group])

@@ -32,7 +32,7 @@ from typing import Any
 
 from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
-from bench.records import Outcome
+from bench.run_state import Outcome
 
 DEFAULT_LIMITS_FILE = Path(__file__).with_name("data") / "unit_limits.json"
 FORMAT = "calbench-unit-limits/1"

@@ -7,7 +7,7 @@ recording, which is what a restart needs to resume. Transient database errors
 (``OperationalError``: a lock held too long, a dropped connection) are retried a few
 times before the error is raised to the sequencer, which then ends the run as ERROR.
 
-The bench and the database share one state vocabulary (``bench.records.RunState``): a run's
+The bench and the database share one state vocabulary (``bench.run_state.RunState``): a run's
 record carries its final state (``RunState.finished`` of its outcome) as it is stored.
 """
 
@@ -22,8 +22,8 @@ from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
 from bench import records as br
-from bench.records import HOLDING_STATES
 from bench.run_observer import NullObserver
+from bench.run_state import HOLDING_STATES, Outcome
 from db.models import FINAL_STATES, FitKind, Run, RunState
 from db.models import run_params as rp
 from db.notify import notify_run
@@ -35,7 +35,7 @@ T = TypeVar("T")
 _LIVE = frozenset({RunState.QUEUED, *HOLDING_STATES})
 
 
-def final_state(outcome: br.Outcome | None) -> RunState:
+def final_state(outcome: Outcome | None) -> RunState:
     """The stored state of a run that ended with ``outcome``."""
     return RunState.finished(outcome)
 
@@ -201,7 +201,7 @@ class DbRunObserver(NullObserver):
 
     def on_state(self, run_id: str, change: br.StateChange) -> None:
         """Pause, suspension, resumption; INTERRUPTED marks the run resumable."""
-        if change.state is br.RunState.INTERRUPTED:
+        if change.state is RunState.INTERRUPTED:
             self._tx(
                 lambda s: recovery.mark_run_interrupted(s, run_id, change.reason or "stopped", now=change.at)
             )
@@ -301,7 +301,7 @@ class DbRunObserver(NullObserver):
             if not record.state.is_final:
                 recovery.mark_run_interrupted(s, run_id, record.error or "the run stopped before finishing")
                 return
-            if self._defer_final_state and record.state in (br.RunState.COMPLETED, br.RunState.FAILED):
+            if self._defer_final_state and record.state in (RunState.COMPLETED, RunState.FAILED):
                 run.progress = 1.0
             else:
                 finish_record(s, record)

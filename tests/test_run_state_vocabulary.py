@@ -1,4 +1,4 @@
-"""One run-state vocabulary: ``bench.records.RunState``.
+"""One run-state vocabulary: ``bench.run_state.RunState``.
 
 The bench, the database, the REST schema and the live state all name a run's state with that
 enum. This test reads the source of every package and fails on a second vocabulary: another
@@ -12,11 +12,11 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-from bench.records import RunState
+from bench.run_state import RunState
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("api", "bench", "db", "drivers")
-HOME = ROOT / "bench" / "records.py"
+HOME = ROOT / "bench" / "run_state.py"
 STATE_NAMES = frozenset(s.value for s in RunState) | {"pending", "finished"}
 """The values of the enum and the names the bench's former vocabulary used."""
 # "error" and "running" are ordinary words of other vocabularies (a log level, a bench's
@@ -97,7 +97,8 @@ def test_one_run_state_vocabulary_remains() -> None:
             continue
         tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
         problems += [f"{path.relative_to(ROOT)}:{line}: {what}" for line, what in second_vocabularies(tree)]
-    assert not problems, "a second run-state vocabulary (use bench.records.RunState):\n" + "\n".join(problems)
+    hint = "a second run-state vocabulary (use bench.run_state.RunState):\n"
+    assert not problems, hint + "\n".join(problems)
 
 
 def test_the_home_defines_the_enum_once() -> None:

@@ -28,8 +28,9 @@ from typing import Any, TextIO
 from api.cli import decimal_arg
 from bench.limits import describe
 from bench.procedures import PROCEDURES
-from bench.records import Progress, RunRecord, RunState, StateChange
+from bench.records import Progress, RunRecord, StateChange
 from bench.run_observer import NullObserver
+from bench.run_state import RunState
 from bench.sequencer.control import RunControl
 from station.execution.bench_lock import HELD_EXIT, BenchHeld, BenchLock
 from station.execution.fault_retry import NeverStarted, run_resuming

@@ -18,7 +18,7 @@ from collections.abc import AsyncIterator, Awaitable, Callable, Mapping
 
 from api.runs.events import RunSnapshot
 from api.runs.wakeup import Waiter
-from bench.records import RunState
+from bench.run_state import RunState
 from station.runs.hub import CLOSED_EVENT, TERMINAL_EVENT
 from station.runs.live import SIGNAL_KEY
 

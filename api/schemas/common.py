@@ -5,10 +5,10 @@ largest paging offset, the shortest dwell, and the text rule of stored text
 from __future__ import annotations
 
 from bench.inputs import InputError, check_text
-from bench.records import RunState
+from bench.run_state import RunState
 
 RunStateName = RunState
-"""A run's state on the wire: the values of the one run vocabulary (``bench.records.RunState``)."""
+"""A run's state on the wire: the values of the one run vocabulary (``bench.run_state.RunState``)."""
 SERIAL_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"
 MAX_PAGE_OFFSET = 2**53
 """Largest paging offset a list accepts: a 64-bit database integer holds it on every backend

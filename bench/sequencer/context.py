@@ -13,8 +13,9 @@ from contextlib import AbstractContextManager
 from typing import Protocol, TypeVar
 
 from bench.procedures.steps import Procedure
-from bench.records import DwellChoice, RunStart, RunState, WindowRecord
+from bench.records import DwellChoice, RunStart, WindowRecord
 from bench.run_recorder import RunRecorder
+from bench.run_state import RunState
 from bench.sequencer.control import RunControl, SequencerConfig
 from bench.sequencer.window import WindowCollector
 from drivers.base import Daq, RotaryTable

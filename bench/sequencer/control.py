@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits
-from bench.records import RunState
+from bench.run_state import RunState
 
 
 class AbortRequested(Exception):

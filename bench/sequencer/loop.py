@@ -36,17 +36,10 @@ from typing import TypeVar
 import numpy as np
 
 from bench.procedures.steps import Procedure
-from bench.records import (
-    DwellChoice,
-    GapRecord,
-    Outcome,
-    RunStart,
-    RunState,
-    StateChange,
-    WindowRecord,
-)
+from bench.records import DwellChoice, GapRecord, RunStart, StateChange, WindowRecord
 from bench.run_observer import RunObserver
 from bench.run_recorder import RunRecorder
+from bench.run_state import Outcome, RunState
 from bench.sequencer.control import AbortRequested, Interruption, RunControl, SequencerConfig, WindowSpoiled
 from bench.sequencer.daq import DaqPump, Failed, Gap, Restarted
 from bench.sequencer.deadline import call_with_deadline

@@ -32,7 +32,8 @@ from collections.abc import Sequence
 
 from bench.procedures.preview import DEFAULT_SAMPLE_RATE_HZ, DEFAULT_TABLE_LIMITS, TableLimits, preview
 from bench.procedures.steps import Procedure
-from bench.records import Progress, RunState
+from bench.records import Progress
+from bench.run_state import RunState
 
 
 class RemainingTime:

@@ -16,7 +16,7 @@ import time
 from bench.dwell_policy import dwell_from_noise_window
 from bench.procedures.preview import move_time_s
 from bench.procedures.steps import Dwell, MoveTo, NoiseWindow, Oscillate, Rotate, Step
-from bench.records import RunState
+from bench.run_state import RunState
 from bench.sequencer.context import RunContext
 from bench.sequencer.control import Interruption, WindowSpoiled
 from bench.sequencer.safety import optional_table_method

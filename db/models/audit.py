@@ -16,7 +16,7 @@ import enum
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column
 
-from bench.records import RunState
+from bench.run_state import RunState
 from db.base import Base, IntId
 from db.models._enum import value_enum
 

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
-from bench.records import ACTIVE_STATES, FINAL_STATES, RESUMABLE_STATES, RunState
+from bench.run_state import ACTIVE_STATES, FINAL_STATES, RESUMABLE_STATES, RunState
 from db.base import Base, IntId
 from db.models._enum import value_enum
 
@@ -41,7 +41,7 @@ class Run(Base):
 
     :param id: the bench's run id (``bench.records.new_run_id``), shared by the recording's
         file name, this row and the REST resource.
-    :param state: :class:`bench.records.RunState` (the one run vocabulary).
+    :param state: :class:`bench.run_state.RunState` (the one run vocabulary).
     :param outcome: ``PASS``/``FAIL``/``ERROR``/``ABORTED`` once finished, else ``None``.
     :param progress: fraction done, 0..1.
     :param params: the procedure's parameters (JSON), including the dwell choice and its reason;

@@ -9,7 +9,7 @@ import socket
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from bench.records import RunState
+from bench.run_state import RunState
 from db.models import AuditAction, RunAudit
 from db.types import utc_now
 

@@ -29,7 +29,7 @@ from typing import Any, Literal
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from bench.records import HOLDING_STATES
+from bench.run_state import HOLDING_STATES
 from db.models import SYSTEM, AuditAction, Bench, Run, RunState, SampleChunk, Unit
 from db.notify import notify_run
 from db.repo.audit import record_action, record_resume, record_state

@@ -21,7 +21,7 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
-from bench.records import RunState
+from bench.run_state import RunState
 from db.repo.audit import run_audit
 from station.certificates.inputs import ActionFact, RunFacts
 

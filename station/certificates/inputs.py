@@ -11,7 +11,7 @@ from typing import Any
 from bench.diagnosis.stored import StoredDiagnosis
 from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
-from bench.records import RunState
+from bench.run_state import RunState
 from station.certificates.budget import CertificateBudget
 
 

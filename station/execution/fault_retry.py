@@ -28,7 +28,8 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, sessionmaker
 
-from bench.records import RunRecord, RunState
+from bench.records import RunRecord
+from bench.run_state import RunState
 from bench.sequencer.control import RunControl
 from db.models import Run
 from db.types import utc_now

@@ -22,9 +22,10 @@ from bench.bench_config import apply_to_daq
 from bench.dwell_policy import fixed_dwell
 from bench.limits import LimitsChoice, UnitLimits
 from bench.procedures import admit_procedure, preview
-from bench.records import DwellChoice, RunRecord, RunStart, RunState, new_run_id
+from bench.records import DwellChoice, RunRecord, RunStart, new_run_id
 from bench.run_observer import RunObserver, announce_phase
 from bench.run_recorder import RunRecorder
+from bench.run_state import RunState
 from bench.sequencer.control import RunControl, SequencerConfig
 from bench.sequencer.loop import Sequencer
 from db.engine import make_session_factory

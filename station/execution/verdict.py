@@ -20,8 +20,9 @@ from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
 from bench.limits import LimitsChoice, describe, verdict
 from bench.recording.reader import read_recording
-from bench.records import Outcome, RunRecord, RunState
+from bench.records import RunRecord
 from bench.run_observer import RunObserver, announce_phase
+from bench.run_state import Outcome, RunState
 from bench.sequencer.loop import Sequencer
 from station.certificates.budget import TypeBSettings, analysis_budget
 from station.certificates.conformity import check_uncertainties, limits_choice

@@ -20,17 +20,9 @@ from typing import Any, Literal
 from sqlalchemy.orm import Session, sessionmaker
 
 from bench.live_signal import Samples, SignalTail, view_to_json
-from bench.records import (
-    GapRecord,
-    Progress,
-    RunRecord,
-    RunStart,
-    RunState,
-    StateChange,
-    WindowRecord,
-    utc_now,
-)
+from bench.records import GapRecord, Progress, RunRecord, RunStart, StateChange, WindowRecord, utc_now
 from bench.run_observer import NullObserver
+from bench.run_state import RunState
 from bench.sequencer.control import RunControl
 from db.models import Run
 from db.repo.runs import set_live_progress, set_service_run

@@ -28,8 +28,9 @@ from collections.abc import Callable
 from sqlalchemy.orm import Session, sessionmaker
 
 from bench.procedures import admit_procedure
-from bench.records import Outcome, RunRecord, RunState, new_run_id, utc_now
+from bench.records import RunRecord, new_run_id, utc_now
 from bench.run_observer import RunObserver
+from bench.run_state import Outcome, RunState
 from bench.sequencer.control import RunControl, SequencerConfig
 from bench.sequencer.faults import resumable_fault
 from db.models import RunState as DbRunState

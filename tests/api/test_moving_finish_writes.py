@@ -24,7 +24,8 @@ import bench.recording.reader
 import bench.uncertainty.dynamic
 from api.main import create_app
 from bench.calibration.analysis import analyse
-from bench.records import Outcome, RunRecord, RunStart, RunState
+from bench.records import RunRecord, RunStart
+from bench.run_state import Outcome, RunState
 from bench.sequencer.control import RunControl
 from db.engine import make_session_factory
 from db.migrate import open_database

@@ -13,7 +13,7 @@ import pytest
 from api.runs.events import RunSnapshot
 from api.runs.stream import run_events
 from api.runs.wakeup import EVENT_POLL_S, FALLBACK_POLL_S, RunWakeups
-from bench.records import RunState
+from bench.run_state import RunState
 
 LONG_S = 60.0
 """A poll period no test waits out: a stream that returns before it was woken."""

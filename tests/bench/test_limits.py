@@ -12,7 +12,7 @@ import pytest
 from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
 from bench.limits import Limit, choose_limits, load_limits, verdict
-from bench.records import Outcome
+from bench.run_state import Outcome
 from tests.support.fits import stored_fit
 from tests.support.limits import SPEC
 

@@ -11,6 +11,7 @@ import sqlalchemy as sa
 from sqlalchemy.exc import OperationalError
 
 from bench import records as br
+from bench import run_state as rs
 from bench.calibration import FitKind as BenchFitKind
 from bench.limit_check import LimitCheck
 from bench.run_observer import RunObserver
@@ -92,8 +93,8 @@ def test_fresh_run_to_pass(db_session_factory):
     obs.on_finish(
         br.RunRecord(
             start,
-            br.RunState.COMPLETED,
-            br.Outcome.PASS,
+            rs.RunState.COMPLETED,
+            rs.Outcome.PASS,
             tuple(_window(i) for i in range(4)),
             ended_at=T0 + dt.timedelta(minutes=7),
             calibration=FIT,
@@ -174,7 +175,7 @@ def test_killed_run_is_interrupted_then_resumed_from_its_next_window(db_session_
     _play(second, start.run_id, range(2, 4))
     second.on_finish(
         br.RunRecord(
-            resumed, br.RunState.FAILED, br.Outcome.FAIL, tuple(_window(i) for i in range(4)), error=None
+            resumed, rs.RunState.FAILED, rs.Outcome.FAIL, tuple(_window(i) for i in range(4)), error=None
         )
     )
     with db_session_factory() as s:
@@ -189,7 +190,7 @@ def test_finished_run_cannot_start_again(db_session_factory):
     obs = DbRunObserver(db_session_factory)
     start = _start(pid=1)
     obs.on_start(start)
-    obs.on_finish(br.RunRecord(start, br.RunState.ABORTED, br.Outcome.ABORTED, (), error="operator stop"))
+    obs.on_finish(br.RunRecord(start, rs.RunState.ABORTED, rs.Outcome.ABORTED, (), error="operator stop"))
     with pytest.raises(ValueError, match="aborted"):
         obs.on_start(start)
 
@@ -197,11 +198,11 @@ def test_finished_run_cannot_start_again(db_session_factory):
 @pytest.mark.parametrize(
     ("outcome", "state"),
     [
-        (br.Outcome.PASS, "completed"),
+        (rs.Outcome.PASS, "completed"),
         (None, "completed"),
-        (br.Outcome.FAIL, "failed"),
-        (br.Outcome.ERROR, "error"),
-        (br.Outcome.ABORTED, "aborted"),
+        (rs.Outcome.FAIL, "failed"),
+        (rs.Outcome.ERROR, "error"),
+        (rs.Outcome.ABORTED, "aborted"),
     ],
 )
 def test_outcome_to_state(outcome, state):
@@ -212,11 +213,11 @@ def test_state_changes_and_unfinished_record(db_session_factory):
     obs = DbRunObserver(db_session_factory)
     start = _start(pid=1)
     obs.on_start(start)
-    obs.on_state(start.run_id, br.StateChange(br.RunState.SUSPENDED, "interlock open"))
+    obs.on_state(start.run_id, br.StateChange(rs.RunState.SUSPENDED, "interlock open"))
     with db_session_factory() as s:
         assert s.get(Run, start.run_id).state is RunState.SUSPENDED
-    obs.on_state(start.run_id, br.StateChange(br.RunState.RUNNING, "interlock closed"))
-    obs.on_finish(br.RunRecord(start, br.RunState.INTERRUPTED, None, (), error="DAQ link lost"))
+    obs.on_state(start.run_id, br.StateChange(rs.RunState.RUNNING, "interlock closed"))
+    obs.on_finish(br.RunRecord(start, rs.RunState.INTERRUPTED, None, (), error="DAQ link lost"))
     with db_session_factory() as s:
         run = s.get(Run, start.run_id)
         assert run.state is RunState.INTERRUPTED and "DAQ link lost" in run.error
@@ -229,7 +230,7 @@ def test_progress_is_throttled(db_session_factory):
     obs.on_start(start)
 
     def progress_at(elapsed_s: float) -> br.Progress:
-        return br.Progress(0, 10, "move", None, 4, elapsed_s, 400.0, (0.0, 0.0), br.RunState.RUNNING)
+        return br.Progress(0, 10, "move", None, 4, elapsed_s, 400.0, (0.0, 0.0), rs.RunState.RUNNING)
 
     def stored() -> float:
         with db_session_factory() as s:
@@ -284,7 +285,7 @@ def test_the_stored_kind_is_the_kind_the_fit_chose(db_session_factory, procedure
     fit = calibration_result(kind, serial="SN-7")
     cov, names = fit.covariance_rows()
     obs.on_finish(
-        br.RunRecord(start, br.RunState.COMPLETED, br.Outcome.PASS, (), calibration=fit,
+        br.RunRecord(start, rs.RunState.COMPLETED, rs.Outcome.PASS, (), calibration=fit,
                      fit_covariance=cov, fit_param_names=names)
     )  # fmt: skip
     with db_session_factory() as s:
@@ -326,7 +327,7 @@ def test_sample_gaps_are_stored_as_they_happen_and_the_finished_list_replaces_th
     # A resume cut the rows after 800: the run's final list is the recording's, not the union.
     kept = (_gap(500, 40, 1),)
     obs.on_finish(
-        br.RunRecord(start, br.RunState.COMPLETED, br.Outcome.PASS, (), n_samples=40_000, gaps=kept)
+        br.RunRecord(start, rs.RunState.COMPLETED, rs.Outcome.PASS, (), n_samples=40_000, gaps=kept)
     )
     with db_session_factory() as s:
         final = list_gaps(s, start.run_id)

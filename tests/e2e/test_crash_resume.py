@@ -22,7 +22,7 @@ import pytest
 
 from bench.fitted_model import FittedModel
 from bench.recording.reader import read_recording
-from bench.records import Outcome
+from bench.run_state import Outcome
 from drivers.sim.physics import SensorTruth
 from station.execution.session import start_run
 from tests.e2e.helpers import RATE_HZ, SIM_SPEED, difference_z, settings_for, wall_budget_s, z_scores

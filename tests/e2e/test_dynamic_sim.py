@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from bench.recording.reader import read_recording
-from bench.records import Outcome, WindowKind
+from bench.records import WindowKind
+from bench.run_state import Outcome
 from drivers.sim.physics import SensorTruth
 from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores

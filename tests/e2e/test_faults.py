@@ -19,9 +19,10 @@ import numpy as np
 import pytest
 
 from bench.recording.reader import read_recording
-from bench.records import Outcome, RunRecord, RunState, StateChange, WindowRecord
+from bench.records import RunRecord, StateChange, WindowRecord
 from bench.run_observer import NullObserver
 from bench.run_recorder import RunRecorder
+from bench.run_state import Outcome, RunState
 from bench.sequencer.control import RunControl, SequencerConfig
 from drivers.base import AxisMode
 from drivers.factory import BenchDevices, open_bench

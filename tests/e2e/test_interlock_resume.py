@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from bench.recording.reader import read_recording
-from bench.records import Outcome, RunState, StateChange, WindowRecord
+from bench.records import StateChange, WindowRecord
 from bench.run_observer import NullObserver
+from bench.run_state import Outcome, RunState
 from bench.sequencer.control import RunControl, SequencerConfig
 from drivers.factory import BenchDevices, open_bench
 from drivers.sim.physics import SensorTruth

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bench.limits import load_limits
-from bench.records import Outcome
+from bench.run_state import Outcome
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import Run

@@ -14,8 +14,9 @@ import sqlalchemy as sa
 
 from bench.estimation.static_design import PARAMETER_NAMES as STATIC_NAMES
 from bench.recording.reader import read_recording
-from bench.records import Outcome, Progress, RunRecord, WindowKind
+from bench.records import Progress, RunRecord, WindowKind
 from bench.run_observer import NullObserver
+from bench.run_state import Outcome
 from db.engine import make_session_factory
 from db.models import Run
 from db.repo.results import list_fits

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 
-from bench.records import Outcome, RunRecord
+from bench.records import RunRecord
+from bench.run_state import Outcome
 from drivers.sim.physics import SensorTruth
 from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for, z_scores

@@ -11,8 +11,8 @@ from typing import Any
 import pytest
 
 from bench.recording.reader import read_recording
-from bench.records import Outcome
 from bench.run_recorder import RunRecorder
+from bench.run_state import Outcome
 from tests.bench.sequencer.test_sequencer import make, quick_static
 
 pytestmark = pytest.mark.timeout(120)

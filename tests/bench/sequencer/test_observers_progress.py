@@ -5,8 +5,9 @@ from __future__ import annotations
 import pytest
 
 from bench.procedures import build_procedure, preview
-from bench.records import GapRecord, RunState, StateChange
+from bench.records import GapRecord, StateChange
 from bench.run_observer import NullObserver
+from bench.run_state import RunState
 from bench.sequencer.observers import ObserverError, Observers
 from bench.sequencer.progress import RemainingTime, run_progress
 

@@ -20,19 +20,10 @@ from bench.procedures import build_procedure
 from bench.procedures.steps import Procedure
 from bench.recording.model import Sidecar, TableAxis, TableGeometry
 from bench.recording.reader import read_recording
-from bench.records import (
-    ChunkRecord,
-    DwellChoice,
-    Outcome,
-    Progress,
-    RunStart,
-    RunState,
-    StateChange,
-    WindowKind,
-    WindowRecord,
-)
+from bench.records import ChunkRecord, DwellChoice, Progress, RunStart, StateChange, WindowKind, WindowRecord
 from bench.run_observer import NullObserver
 from bench.run_recorder import RunRecorder
+from bench.run_state import Outcome, RunState
 from bench.sequencer.control import RunControl, SequencerConfig
 from bench.sequencer.loop import Sequencer
 from drivers.base import AxisMode, AxisStatus, SampleBlock, TableStatus

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from bench.records import Outcome, RunStart
+from bench.records import RunStart
 from bench.run_recorder import RunRecorder
+from bench.run_state import Outcome
 from bench.sequencer.control import RunControl
 from bench.sequencer.loop import Sequencer
 from drivers.errors import DeviceError, DeviceTimeout, LinkLost

@@ -5,7 +5,8 @@ from __future__ import annotations
 import threading
 from pathlib import Path
 
-from bench.records import Outcome, RunState, WindowRecord
+from bench.records import WindowRecord
+from bench.run_state import Outcome, RunState
 from bench.sequencer.control import SequencerConfig
 from tests.bench.sequencer.test_sequencer import FAST, FakeTable, make, quick_static
 

@@ -14,7 +14,7 @@ import sqlalchemy as sa
 import bench.calibration.recording
 import bench.calibration.static
 import bench.recording.reader
-from bench.records import RunState
+from bench.run_state import RunState
 from bench.sequencer.control import RunControl
 from db.engine import make_session_factory
 from db.migrate import open_database

@@ -17,7 +17,7 @@ import pytest
 from bench.fitted_model import FittedModel
 from bench.limit_check import LimitCheck
 from bench.limits import load_limits, verdict
-from bench.records import Outcome
+from bench.run_state import Outcome
 from db.repo.certificates import canonical_sha256
 from station.certificates.certificate import certificate_content
 from station.certificates.conformity import check_uncertainties, conformity_statement

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import datetime as dt
 
-from bench.records import RunState
+from bench.run_state import RunState
 from station.certificates.deviations import no_deviation, run_deviations, run_record_section, started_by
 from station.certificates.inputs import ActionFact, RunFacts
 

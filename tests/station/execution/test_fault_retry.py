@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.records import RunRecord, RunStart, RunState, WindowKind, WindowRecord
+from bench.records import RunRecord, RunStart, WindowKind, WindowRecord
+from bench.run_state import RunState
 from bench.sequencer.control import RunControl
 from bench.sequencer.faults import resumable_fault
 from bench.sequencer.observers import ObserverError

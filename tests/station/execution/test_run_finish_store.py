@@ -8,8 +8,9 @@ import sqlite3
 
 import pytest
 
-from bench.records import Outcome, RunRecord, RunStart, RunState
+from bench.records import RunRecord, RunStart
 from bench.run_observer import NullObserver
+from bench.run_state import Outcome, RunState
 from station.execution.verdict import RunNotStored, finish_observers
 
 START = RunStart("run-x", "SN-X", "static-12", "bench-a", "/tmp/r.csv", 100.0, 3, 12, 100.0)

@@ -15,8 +15,8 @@ no torn row stays, and raises an ``OSError`` naming the file, what failed and wh
 cut; nothing more is written (the run ends ERROR with the table made safe).
 
 Window metadata the format has no column for (kind, pose, means) is kept in the sidecar's
-``calbench_windows`` list beside ``segments``, so a resumed run can rebuild its record from
-the files alone.
+``calbench_windows`` list beside ``segments`` (:mod:`bench.run_sidecar`), so a resumed run
+can rebuild its record from the files alone.
 
 Sample gaps: ``t_daq`` is the DAQ's sample counter over its rate, so a gap leaves its hole
 in the time axis by itself; :meth:`RunRecorder.record_gap` also writes where it is (rows
@@ -34,71 +34,21 @@ import os
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from bench.recording.model import Segment, Sidecar
 from bench.recording.writer import RecordingWriter
-from bench.records import ChunkRecord, DwellChoice, GapRecord, WindowKind, WindowRecord
-
-WINDOWS_KEY = "calbench_windows"
-RUN_KEY = "calbench_run"
-GAPS_KEY = "calbench_gaps"
-
-
-def gap_to_json(g: GapRecord) -> dict[str, object]:
-    """A :class:`GapRecord` as the JSON object of the sidecar's ``calbench_gaps`` list."""
-    return dataclasses.asdict(g)
-
-
-def gap_from_json(d: dict[str, Any]) -> GapRecord:
-    """Inverse of :func:`gap_to_json` (unknown keys ignored).
-
-    :raises KeyError, TypeError, ValueError: a required key is missing or not a number.
-    """
-
-    def opt_int(v: int | float | str | None) -> int | None:
-        return None if v is None else int(v)
-
-    def opt_float(v: int | float | str | None) -> float | None:
-        return None if v is None else float(v)
-
-    return GapRecord(
-        first_lost_seq=opt_int(d.get("first_lost_seq")),
-        n_lost=opt_int(d.get("n_lost")),
-        cause=str(d["cause"]),
-        after_row=int(d["after_row"]),
-        t_last_s=opt_float(d.get("t_last_s")),
-        t_resume_s=float(d["t_resume_s"]),
-        window_index=opt_int(d.get("window_index")),
-        window_label=str(d.get("window_label", "")),
-        action=str(d.get("action", "")),
-        daq_epoch=int(d.get("daq_epoch", 0)),
-    )
-
-
-def _window_to_json(w: WindowRecord, held_s: float) -> dict[str, object]:
-    d = dataclasses.asdict(w)
-    d["kind"] = w.kind.value
-    d["held_s"] = held_s
-    return d
-
-
-def _window_from_json(d: dict[str, Any], seg: Segment) -> WindowRecord:
-    return WindowRecord(
-        index=int(d["index"]),
-        label=seg.label,
-        kind=WindowKind(d["kind"]),
-        start_s=seg.start_s,
-        end_s=seg.end_s,
-        n_samples=int(d["n_samples"]),
-        pose_deg=tuple(d["pose_deg"]),
-        mean_table_deg=tuple(d["mean_table_deg"]),
-        temp_c_mean=float(d["temp_c_mean"]),
-        step_index=int(d["step_index"]),
-        means=dict(d.get("means", {})),
-    )
+from bench.records import ChunkRecord, DwellChoice, GapRecord, WindowRecord
+from bench.run_sidecar import (
+    GAPS_KEY,
+    RUN_KEY,
+    WINDOWS_KEY,
+    gap_from_json,
+    gap_to_json,
+    window_from_json,
+    window_to_json,
+)
 
 
 class RunRecorder:
@@ -189,7 +139,7 @@ class RunRecorder:
             raise ValueError(
                 f"{path}: the sidecar holds {len(segs)} windows, cannot resume at window {next_window}"
             )
-        windows = [_window_from_json(meta[i], segs[i]) for i in range(next_window)]
+        windows = [window_from_json(meta[i], segs[i]) for i in range(next_window)]
         if state.last_t_s is not None and windows and windows[-1].end_s > state.last_t_s:
             raise ValueError(
                 f"{path}: window {next_window - 1} ends at {windows[-1].end_s} s "
@@ -344,7 +294,7 @@ class RunRecorder:
         held = self.held_s
         extra = {
             **self.writer.sidecar.extra,
-            WINDOWS_KEY: [_window_to_json(w, h) for w, h in zip(windows, held, strict=True)],
+            WINDOWS_KEY: [window_to_json(w, h) for w, h in zip(windows, held, strict=True)],
         }
         self.writer.sidecar = dataclasses.replace(self.writer.sidecar, extra=extra)
         self._io("writing the sidecar", self.writer.set_segments, segs)

@@ -21,7 +21,8 @@ from bench.bench_config import SIM_BENCH_FILE, load_bench_config
 from bench.procedures import build_procedure
 from bench.recording.reader import read_recording
 from bench.records import GapRecord, RunStart
-from bench.run_recorder import RunRecorder, gap_from_json
+from bench.run_recorder import RunRecorder
+from bench.run_sidecar import gap_from_json
 from bench.sequencer.control import SequencerConfig
 from bench.sequencer.loop import Sequencer
 from drivers.factory import BenchDevices, open_table

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
+from scipy.signal import lfilter
 
 from bench.planning.information import N_CORE, PredictedUncertainty
 from bench.planning.noise import UnitNoise
@@ -78,11 +79,8 @@ def every_sample_uncertainty(
         raise ValueError(f"the trajectory does not identify bias and K (information condition {cond:.2g})")
     B = noise.white_m_s2_rt_hz**2 / dt * A
     if noise.wander_m_s2 > 0 or noise.random_walk_m_s2_rt_s > 0:
-        idx = np.floor((t - t[0]) / block_s).astype(int)
-        nb = int(idx[-1]) + 1
-        S = np.zeros((nb, 4))
-        np.add.at(S, idx, x)
-        B += slow_information(S, t[0] + (np.arange(nb) + 0.5) * block_s, block_s, noise)
+        idx, t_b = _blocks(t, block_s)
+        B += slow_information(block_sums(x, idx, len(t_b)), t_b, block_s, noise)
     Ai = np.linalg.inv(A)
     cov4 = Ai @ B @ Ai
     cov4 = 0.5 * (cov4 + cov4.T)
@@ -103,35 +101,47 @@ def _with_nuisance(
         raise ValueError(f"nuisance: expected (n, 3, q) with n = {n}, got {dfdv.shape}")
     p = N_CORE + q
     dt = float(t[1] - t[0])
-    rows = []  # channel i's rows x_ti (n, p)
+    slow = noise.wander_m_s2 > 0 or noise.random_walk_m_s2_rt_s > 0
+    if slow:
+        idx, t_b = _blocks(t, block_s)
+    # channel i's row x_ti is zero but in columns [b_i, K_i·, ν]; its nonzero part z_ti = [1, f, ∂f_i/∂ν]
+    # gives A's and B_slow's entries on those columns (both are sums of products of the row's entries)
+    A = np.zeros((p, p))
+    B_slow = np.zeros((p, p))
+    ones = np.ones((n, 1))
     for i in range(3):
-        x = np.zeros((n, p))
-        x[:, i] = 1.0
-        x[:, 3 + 3 * i : 6 + 3 * i] = f
-        x[:, N_CORE:] = dfdv[:, i, :]
-        rows.append(x)
-    A = sum(x.T @ x for x in rows)
+        cols = np.ix_(*2 * ([i, 3 + 3 * i, 4 + 3 * i, 5 + 3 * i, *range(N_CORE, p)],))
+        z = np.concatenate([ones, f, dfdv[:, i, :]], axis=1)
+        A[cols] += z.T @ z
+        if slow:
+            B_slow[cols] += slow_information(block_sums(z, idx, len(t_b)), t_b, block_s, noise)
     d = np.sqrt(np.diag(A))
     cond = np.linalg.cond(A / np.outer(d, d)) if np.all(d > 0) else np.inf
     if not np.isfinite(cond) or cond > 1e12:
         raise ValueError(
             f"the trajectory does not identify bias, K and the nuisance parameters (condition {cond:.2g})"
         )
-    B = noise.white_m_s2_rt_hz**2 / dt * A
-    if noise.wander_m_s2 > 0 or noise.random_walk_m_s2_rt_s > 0:
-        idx = np.floor((t - t[0]) / block_s).astype(int)
-        nb = int(idx[-1]) + 1
-        t_b = t[0] + (np.arange(nb) + 0.5) * block_s
-        for x in rows:
-            S = np.zeros((nb, p))
-            np.add.at(S, idx, x)
-            B += slow_information(S, t_b, block_s, noise)
+    B = noise.white_m_s2_rt_hz**2 / dt * A + B_slow
     Ai = np.linalg.inv(A)
     cov = Ai @ B @ Ai
     cov = 0.5 * (cov + cov.T)
     sd = np.sqrt(np.diag(cov))
     return PredictedUncertainty(
         cov, sd[:3].copy(), sd[3:12].reshape(3, 3).copy(), np.zeros(0), sd[N_CORE:].copy()
+    )
+
+
+def _blocks(t: FloatArray, block_s: float) -> tuple[npt.NDArray[np.int64], FloatArray]:
+    """Each sample's block (n,) and the blocks' centres (n_b,) (s)."""
+    idx = np.floor((t - t[0]) / block_s).astype(np.int64)
+    nb = int(idx[-1]) + 1
+    return idx, t[0] + (np.arange(nb) + 0.5) * block_s
+
+
+def block_sums(x: FloatArray, idx: npt.NDArray[np.int64], n_blocks: int) -> FloatArray:
+    """(n_blocks, p) S_b = Σ_{t∈b} x_t of rows x (n, p) in blocks ``idx`` (n,), summed in order."""
+    return np.stack(
+        [np.bincount(idx, weights=x[:, k], minlength=n_blocks) for k in range(x.shape[1])], axis=1
     )
 
 
@@ -148,9 +158,7 @@ def slow_information(S: FloatArray, t_b: FloatArray, block_s: float, noise: Unit
     out = np.zeros((S.shape[1], S.shape[1]))
     if noise.wander_m_s2 > 0:
         a = float(np.exp(-block_s / noise.wander_tau_s))
-        G = np.zeros_like(S)
-        for b in range(1, len(S)):
-            G[b] = a * (G[b - 1] + S[b - 1])
+        G = lfilter([0.0, a], [1.0, -a], S, axis=0)  # G_b = a·G_{b−1} + a·S_{b−1}, G_0 = 0
         cross = S.T @ G
         out += noise.wander_m_s2**2 * (S.T @ S + cross + cross.T)
     if noise.random_walk_m_s2_rt_s > 0:

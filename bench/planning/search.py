@@ -9,6 +9,13 @@ covariance of the static window fit with the unit's coloured noise
 :data:`DWELL_GRID_S` the fewest passes that meet every target are found by bisection (the
 covariance only shrinks with more passes); the shortest candidate wins. Each design is reported
 against the white-noise bound of any motion for the same table time.
+
+Cost (docs/benchmarks.md): once a design meets the targets, a later dwell is searched only over
+the passes that are shorter than it (none when one pass is not), and one pass that meets is the
+dwell's answer without evaluating the longest design. For the every-sample fit the longest
+design's trajectory is sampled once per dwell and the shorter designs take its first samples
+(``bench.planning.sampled``), and a design whose sampled span's white-noise bound already misses a
+target is passed over unevaluated (:func:`cannot_meet`). None of this changes the chosen design.
 """
 
 from __future__ import annotations
@@ -29,7 +36,7 @@ from bench.planning.information import (
     white_bound_k,
 )
 from bench.planning.noise import UnitNoise, window_mean_covariance
-from bench.planning.trajectory import angle_trajectory, nuisance_response, specific_force
+from bench.planning.sampled import SampledTrajectory
 from bench.procedures.planned import MAX_WINDOWS, planned_static, planned_tumble
 from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits, preview
 from bench.procedures.steps import Dwell, Procedure
@@ -150,11 +157,14 @@ def evaluate(
     g_m_s2: float = 9.80665,
     with_tilt: bool = True,
     fit: Fit = "window",
+    sampled: SampledTrajectory | None = None,
 ) -> Evaluation:
     """Predict a static procedure's uncertainties under ``fit`` and its table time.
 
     ``"every-sample"`` samples the procedure's specific-force trajectory on ``limits``
-    (``bench.planning.trajectory``) and predicts the every-sample fit's covariance on it.
+    (``bench.planning.trajectory``) and predicts the every-sample fit's covariance on it; when
+    ``sampled`` (sampled on the same ``limits``) begins with the procedure's steps, its first
+    samples are taken instead (``bench.planning.sampled``: the same samples).
 
     :raises ValueError: the procedure has no static windows with a fixed dwell, exceeds the
         table's limits, or does not identify the parameters.
@@ -170,9 +180,12 @@ def evaluate(
     T = pv.duration_s
     bounds = white_bound_k(noise.white_m_s2_rt_hz, T, g_m_s2), white_bound_bias(noise.white_m_s2_rt_hz, T)
     if fit == "every-sample":
-        t, ang = angle_trajectory(proc, EVERY_SAMPLE_FS_HZ, limits)
-        f = specific_force(ang, g_m_s2)
-        resp = nuisance_response(ang, EVERY_SAMPLE_FS_HZ, g_m_s2)
+        same = sampled is not None and (sampled.fs_hz, sampled.g_m_s2) == (EVERY_SAMPLE_FS_HZ, g_m_s2)
+        if sampled is not None and same and sampled.begins(proc):
+            traj = sampled.prefix(proc)
+        else:
+            traj = SampledTrajectory.sample(proc, EVERY_SAMPLE_FS_HZ, limits, g_m_s2)
+        t, f, resp = traj.t_s, traj.f_m_s2, traj.nuisance
         notes: list[str] = []
         cols = [0, 1, 2, 3, 4] if with_tilt else [0, 1, 2]
         try:
@@ -241,6 +254,7 @@ def _plan_one(
 ) -> Plan:
     best: Evaluation | None = None
     longest: Evaluation | None = None
+    sampled: dict[float, SampledTrajectory] = {}  # per dwell, the longest design's samples
 
     @functools.cache
     def ev(dwell: float, reps: int) -> Evaluation:  # the search asks for some designs twice
@@ -251,24 +265,58 @@ def _plan_one(
             g_m_s2=g_m_s2,
             with_tilt=with_tilt,
             fit=fit,
+            sampled=sampled.get(dwell),
         )
 
+    def out_of_reach(dwell: float, reps: int) -> bool:
+        """The every-sample design cannot meet the targets: the white-noise bound of its samples'
+        span already misses one (the prediction is never below it: :func:`cannot_meet`)."""
+        s = sampled.get(dwell)
+        if fit != "every-sample" or s is None:
+            return False
+        n_steps = len(FAMILY[fit](dwell_s=dwell, repeats=reps, settle_s=settle_s).steps)
+        return cannot_meet(targets, noise, int(s.step_ends[n_steps - 1]) / s.fs_hz, g_m_s2)
+
+    def duration(dwell: float, reps: int) -> float:
+        return preview(FAMILY[fit](dwell_s=dwell, repeats=reps, settle_s=settle_s), limits).duration_s
+
     for dwell in DWELL_GRID_S:
-        one = ev(dwell, 1)
-        per_pass = one.duration_s
+        per_pass = duration(dwell, 1)
         hi = max(1, min(MAX_WINDOWS // 12, int(max_duration_s // per_pass)))
-        top = ev(dwell, hi)
-        if longest is None or top.predicted.k_rms < longest.predicted.k_rms:
-            longest = top
-        if not targets.met_by(top.predicted):
-            continue
-        lo_ok, lo = top, 0  # invariant: reps=hi meets, reps=lo does not (0 never does)
+        if best is not None:
+            # only a design shorter than the best so far can take its place: at most `hi` passes
+            # that are shorter; none when one pass is not (the covariance only shrinks with passes,
+            # so the bisection below finds the same fewest passes within this range)
+            if per_pass >= best.duration_s:
+                continue
+            lo_d = 1  # invariant: lo_d passes are shorter than the best, hi + 1 are not (or hi is the cap)
+            if duration(dwell, hi) >= best.duration_s:
+                top_d = hi
+                while top_d - lo_d > 1:
+                    mid = (lo_d + top_d) // 2
+                    if duration(dwell, mid) < best.duration_s:
+                        lo_d = mid
+                    else:
+                        top_d = mid
+                hi = lo_d
+        one = ev(dwell, 1)
+        if fit == "every-sample" and hi > 1 and not targets.met_by(one.predicted):
+            longest_proc = FAMILY[fit](dwell_s=dwell, repeats=hi, settle_s=settle_s)
+            sampled[dwell] = SampledTrajectory.sample(longest_proc, EVERY_SAMPLE_FS_HZ, limits, g_m_s2)
         if targets.met_by(one.predicted):
             lo_ok = one
         else:
-            lo = 1
+            top = ev(dwell, hi)
+            if best is None and (longest is None or top.predicted.k_rms < longest.predicted.k_rms):
+                longest = top
+            if not targets.met_by(top.predicted):
+                continue
+            lo_ok, lo = top, 1  # invariant: reps=hi meets, reps=lo does not
             while hi - lo > 1:
                 mid = (lo + hi) // 2
+                if out_of_reach(dwell, mid):
+                    lo = mid
+                    continue
                 e = ev(dwell, mid)
                 if targets.met_by(e.predicted):
                     hi, lo_ok = mid, e
@@ -286,6 +334,26 @@ def _plan_one(
         else "no design could be evaluated"
     ]
     return Plan(None, longest, tuple(problems))
+
+
+BOUND_MARGIN = 1e-6
+"""Relative margin by which the white-noise bound must miss a target before a design is passed
+over unevaluated (rounding never decides it)."""
+
+
+def cannot_meet(targets: Targets, noise: UnitNoise, span_s: float, g_m_s2: float) -> bool:
+    """Whether no every-sample prediction over ``span_s`` seconds of samples can meet ``targets``.
+
+    The prediction's covariance A⁻¹BA⁻¹ is at least its white part N²f_s·A⁻¹ (the slow part of
+    B is a sum over a positive kernel), and [A⁻¹]_jj ≥ 1/A_jj; with A_jj = Σ_t f_j(t)² and
+    Σ_j Σ_t f_j² = n·g² (|f| = g), the least-covered direction j gives σ(K_ij) ≥ √3·N/(g·√T)
+    for every channel i (so both the largest scale and the largest misalignment σ are at least
+    that), and σ(b_i) ≥ N/√T, T = n/f_s: the bound of any motion (``information``).
+    """
+    k = white_bound_k(noise.white_m_s2_rt_hz, span_s, g_m_s2) * (1.0 - BOUND_MARGIN)
+    b = white_bound_bias(noise.white_m_s2_rt_hz, span_s) * (1.0 - BOUND_MARGIN)
+    pairs = ((targets.bias_m_s2, b), (targets.scale, k), (targets.misalignment_rad, k))
+    return any(t is not None and 2.0 * s > t for t, s in pairs)
 
 
 def describe_sigmas(u: PredictedUncertainty) -> str:

@@ -83,12 +83,23 @@ def angle_trajectory(
 
     :raises ValueError: a step that is neither MoveTo nor a fixed Dwell, or not a 3-axis table.
     """
+    t, ang, _ = angle_trajectory_steps(proc, fs_hz, limits)
+    return t, ang
+
+
+def angle_trajectory_steps(
+    proc: Procedure, fs_hz: float, limits: TableLimits = DEFAULT_TABLE_LIMITS
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
+    """:func:`angle_trajectory` and, per step, the number of samples once it is done (n_steps,)."""
     if limits.n_axes != 3 or proc.n_axes != 3:
         raise ValueError(f"{proc.name}: the trajectory needs a 3-axis table and procedure")
     dt = 1.0 / fs_hz
     pos = np.zeros(3)
     pieces: list[FloatArray] = []
+    ends: list[int] = []
+    n_done = 0
     for i, step in enumerate(proc.steps):
+        first = len(pieces)
         if isinstance(step, MoveTo):
             target = np.asarray(step.angles_deg, dtype=float)
             dist = target - pos
@@ -120,8 +131,10 @@ def angle_trajectory(
             raise ValueError(
                 f"{proc.name}: step {i} is a {type(step).__name__}; only MoveTo and Dwell are sampled"
             )
+        n_done += sum(len(p) for p in pieces[first:])
+        ends.append(n_done)
     ang = np.concatenate(pieces) if pieces else np.zeros((0, 3))
-    return np.arange(len(ang), dtype=float) * dt, ang
+    return np.arange(len(ang), dtype=float) * dt, ang, np.array(ends, dtype=np.int64)
 
 
 def specific_force(angles_deg: FloatArray, g_m_s2: float = 9.80665) -> FloatArray:

@@ -153,11 +153,17 @@ def nuisance_response(angles_deg: FloatArray, fs_hz: float, g_m_s2: float = 9.80
     rate = np.gradient(q, dt, axis=0)
     acc = np.gradient(rate, dt, axis=0)
     R = rotations(np.asarray(angles_deg, dtype=float))
-    w = angular_velocity(AXES, q, rate)
-    wd = angular_acceleration(AXES, q, rate, acc)
-    A = _skew(wd) + _skew(w) @ _skew(w)
     out = np.empty((len(q), 3, 5))
-    out[:, :, :3] = np.transpose(R, (0, 2, 1)) @ A @ R
+    # at rest (every axis rate and acceleration exactly 0) ω = ω̇ = 0 and the lever arm's columns
+    # are 0: B(t) is taken on the moving samples only, each sample on its own
+    moving = np.any(rate != 0.0, axis=1) | np.any(acc != 0.0, axis=1)
+    out[:, :, :3] = 0.0
+    if np.any(moving):
+        qm, rm, am, Rm = q[moving], rate[moving], acc[moving], R[moving]
+        w = angular_velocity(AXES, qm, rm)
+        wd = angular_acceleration(AXES, qm, rm, am)
+        A = _skew(wd) + _skew(w) @ _skew(w)
+        out[moving, :, :3] = np.transpose(Rm, (0, 2, 1)) @ A @ Rm
     D = g_m_s2 * np.array([[0.0, 1.0], [-1.0, 0.0], [0.0, 0.0]])
     out[:, :, 3:] = np.einsum("nji,jk->nik", R, D)
     return out

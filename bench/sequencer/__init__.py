@@ -1,7 +1,8 @@
 """Execution of a procedure on the bench: the run loop and its parts.
 
 * ``loop``: :class:`Sequencer`, the run's loop: DAQ pumping, observers, blocking table calls
-  under a deadline, the life cycle and its outcome;
+  under a deadline, the life cycle;
+* ``outcome``: how the run ended (ABORTED, ERROR, resumable) and what it leaves behind;
 * ``observers``: the run's observers told as one, an observer's failure named;
 * ``progress``: the progress event and its expected duration;
 * ``steps``: what each procedure step does on the table;

@@ -8,16 +8,11 @@ table's interlock. Blocking table calls run in a helper thread under a deadline 
 loop keeps draining the DAQ. Window lengths and settling count DAQ samples, so a simulated
 bench running faster than real time gives the same recording.
 
-Outcomes: an operator abort ends as ABORTED; any driver fault, deadline or DAQ stall as
-ERROR naming the step; in both cases, and on success, the table is stopped (safe state),
-acquisition stopped and the recording closed with everything recorded so far. A fault a
-lab's bench recovers from — a device that stops answering (stall, reset), a lost link, a
-garbled reply, a recording write refused (disk full) — is marked ``resumable``
-(:mod:`bench.sequencer.faults`): the caller leaves the run interrupted and resumes it from
-its last durable window (:mod:`station.execution.fault_retry`); a fault the device reports itself (an axis
-fault, a Modbus exception), a limit, a rejected window or a database refusal is not. Pause, an
-open interlock or a temperature outside its band *suspend* the run: the window in progress
-is dropped, the table held, and the window recorded again once the condition clears.
+Pause, an open interlock or a temperature outside its band *suspend* the run: the window in
+progress is dropped, the table held, and the window recorded again once the condition clears.
+How the run ended (ABORTED, ERROR, whether the bench may resume it) is decided by
+:mod:`bench.sequencer.outcome`; in every case the table is stopped (safe state), acquisition
+stopped and the recording closed with everything recorded so far.
 
 Step execution is in :mod:`bench.sequencer.steps` and the safe state in
 :mod:`bench.sequencer.safety`, both over the :class:`~bench.sequencer.context.RunContext` this
@@ -30,53 +25,28 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import TypeVar
 
 import numpy as np
 
 from bench.procedures.steps import Procedure
-from bench.records import DwellChoice, GapRecord, RunStart, StateChange, WindowRecord
+from bench.records import DwellChoice, RunStart, StateChange, WindowRecord
 from bench.run_observer import RunObserver
 from bench.run_recorder import RunRecorder
-from bench.run_state import Outcome, RunState
+from bench.run_state import RunState
 from bench.sequencer.control import AbortRequested, Interruption, RunControl, SequencerConfig, WindowSpoiled
 from bench.sequencer.daq import DaqPump, Failed, Gap, Restarted
 from bench.sequencer.deadline import call_with_deadline
-from bench.sequencer.faults import resumable_fault
-from bench.sequencer.observers import ObserverError, Observers
+from bench.sequencer.observers import Observers
+from bench.sequencer.outcome import RUN_FAULTS, Acquisition, Ending
 from bench.sequencer.progress import RemainingTime, run_progress
 from bench.sequencer.safety import make_safe, prepare_table
 from bench.sequencer.steps import execute_steps
 from bench.sequencer.window import WindowCollector
 from drivers.base import Daq, RotaryTable, SampleBlock
-from drivers.errors import DataGap, DeviceError, DeviceTimeout, DriverError
+from drivers.errors import DataGap, DeviceError, DeviceTimeout
 
 T = TypeVar("T")
-
-
-@dataclass(frozen=True)
-class Acquisition:
-    """What the sequencer leaves behind.
-
-    :param outcome: ``None`` when every step completed, else ERROR or ABORTED.
-    :param error: what went wrong and where (ERROR, ABORTED), else ``None``.
-    :param windows: every completed window (also those from before a resume).
-    :param dwell: the dwell choice used.
-    :param n_samples: rows in the recording.
-    :param gaps: every sample gap met, in order (also those from before a resume).
-    :param resumable: the ERROR was a fault the bench recovers from
-        (:func:`bench.sequencer.faults.resumable_fault`): the run may continue from its last
-        durable window.
-    """
-
-    outcome: Outcome | None
-    error: str | None
-    windows: tuple[WindowRecord, ...]
-    dwell: DwellChoice | None
-    n_samples: int
-    gaps: tuple[GapRecord, ...] = ()
-    resumable: bool = False
 
 
 class Sequencer:
@@ -378,9 +348,7 @@ class Sequencer:
 
     def run(self) -> Acquisition:
         """Execute the procedure; never raises for device faults (they become ERROR)."""
-        outcome: Outcome | None = None
-        error: str | None = None
-        resumable = False
+        ending = Ending()
         try:
             self.notify("on_start", self.start)
             prepare_table(self)
@@ -396,24 +364,19 @@ class Sequencer:
                 self.where = "the end of the last step"
                 raise AbortRequested(aborted)
         except AbortRequested as exc:
-            outcome, error = Outcome.ABORTED, f"aborted at {self.where}: {exc}"
-        except (DriverError, TimeoutError, OSError, ObserverError, ValueError) as exc:
-            outcome, error = Outcome.ERROR, f"{self.where}: {type(exc).__name__}: {exc}"
-            resumable = resumable_fault(exc)
+            ending = Ending.aborted(self.where, exc)
+        except RUN_FAULTS as exc:
+            ending = Ending.fault(self.where, exc)
         finally:
             problems = make_safe(self)
-        if problems:
-            error = "; ".join([error or "completed", *problems])
-            if outcome is None:  # every step done, the safe state unconfirmed: a lost link resumes
-                faults = [*self.safe_faults, *([self._pump.stop_error] if self._pump.stop_error else [])]
-                resumable = bool(faults) and all(resumable_fault(e) for e in faults)
-            outcome = outcome or Outcome.ERROR
+        stop_error = self._pump.stop_error
+        ending = ending.after_safe_state(problems, [*self.safe_faults, *([stop_error] if stop_error else [])])
         return Acquisition(
-            outcome,
-            error,
+            ending.outcome,
+            ending.error,
             tuple(self.recorder.windows),
             self.dwell,
             self.recorder.n_rows,
             tuple(self.recorder.gaps),
-            resumable,
+            ending.resumable,
         )

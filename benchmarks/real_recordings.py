@@ -1,4 +1,4 @@
-"""calbench against real recordings calibrated by other people's tools (../shared/data/real).
+"""calbench against real recordings calibrated by other people's tools (tests/data/real).
 
 Each recording is converted with ``calbench convert`` into a temporary directory (nothing is
 written beside the data), then calibrated, diagnosed (``calbench diagnose``, text and
@@ -23,7 +23,7 @@ every window), and the largest |difference| / √(σ₁² + σ₂²) over the pa
 
     python -m benchmarks.real_recordings [DATA_DIR]
 
-DATA_DIR defaults to ../shared/data/real beside the repository.
+DATA_DIR defaults to the repository's tests/data/real (each data set's README: source, licence).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ from bench.recording import Recording, Segment, read_recording, write_recording
 from benchmarks.other_tools import ferraris_closed_form, imu_tk_fit, imu_tk_intervals
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_DATA = ROOT.parent / "shared" / "data" / "real"
+DEFAULT_DATA = ROOT / "tests" / "data" / "real"
 IMU_UTILS_RATE_HZ = {"xsens": 100.0, "16448": 200.0, "gx4": 500.0, "A3": 400.0, "N3": 400.0, "BMI160": 196.0}
 IMU_UTILS_RECORD_S = 2 * 3600.0
 
@@ -391,7 +391,7 @@ def imu_utils(data: Path) -> None:
 def main(argv: list[str]) -> int:
     data = Path(argv[0]) if argv else DEFAULT_DATA
     if not data.is_dir():
-        print(f"{data}: no such directory (the real data sets live beside the repository)", file=sys.stderr)
+        print(f"{data}: no such directory (the real data sets are in tests/data/real)", file=sys.stderr)
         return 2
     with tempfile.TemporaryDirectory(prefix="calbench-real-") as tmp:
         xsens(data, Path(tmp))

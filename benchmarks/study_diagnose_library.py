@@ -9,8 +9,8 @@ many recordings claimed a catalogue effect or a pose error, and how many carried
 ``unexplained`` block. Then M clean recordings (seeds 1000…): recordings with any
 catalogue finding or discovered term; the time of ``diagnose`` with and without the
 library on the first 10 of them (same evidence, same process, interleaved); and what each
-example recording gives: the independent simulator's in ``../shared/data/examples`` (beside the
-repository, when present) and the shipped ones in ``examples/``.
+example recording gives: the independent simulator's in ``tests/data/independent`` and the
+shipped ones in ``examples/``.
 """
 
 from __future__ import annotations
@@ -27,9 +27,10 @@ from bench.recording import read_recording
 from benchmarks.library_cases import CASES, LibraryCase, score
 from tests.support.diagnose_cases import static_recording
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "data" / "examples"
-"""The independent simulator's recordings (not shipped; the glob finds none without them)."""
-SHIPPED = Path(__file__).resolve().parents[1] / "examples"
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "tests" / "data" / "independent"
+"""The independent simulator's recordings (tests/data/independent/README.md)."""
+SHIPPED = ROOT / "examples"
 
 
 def row(case: LibraryCase, n: int) -> str:
@@ -65,6 +66,9 @@ def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else argv
     n = int(args[0]) if args else 6
     m = int(args[1]) if len(args) > 1 else 200
+    independent = sorted(EXAMPLES.glob("*.csv"))
+    if not independent:  # checked first: the table takes minutes
+        raise FileNotFoundError(f"{EXAMPLES}: no recordings (tests/data/independent/README.md)")
     t0 = time.perf_counter()
     print(
         "| scenario | truth | coefficient (V per unit) | named | alike named | abs z (median / max) | "
@@ -92,7 +96,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"clean: {len(false)} of {m} recordings with a finding or a discovered term {false}")
     print(f"clean: {unexplained} of {m} with an unexplained block")
     print(f"diagnose time with / without the library (10 clean recordings): {t_lib / t_cat:.2f}")
-    for path in [*sorted(EXAMPLES.glob("*.csv")), *sorted(SHIPPED.glob("*.csv"))]:
+    for path in [*independent, *sorted(SHIPPED.glob("*.csv"))]:
         d = diagnose_recording(read_recording(path))
         u = d.unexplained.where if d.unexplained else "none"
         found = [f.summary for f in d.findings]

@@ -147,6 +147,8 @@ def study(
     return out
 
 
+REAL_DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "real"
+"""The real data sets (tests/data/real; each folder's README says where it comes from)."""
 XSENS_REST_S = (0.5, 51.9)
 """The initial rest of the IMU-TK Xsens recording (its data README: the first static interval)."""
 
@@ -189,7 +191,7 @@ if __name__ == "__main__":
     kind = sys.argv[3] if len(sys.argv) > 3 else "gm"
     if kind == "real":
         for parts in (2, 4):
-            print(_show(f"Xsens rest in {parts} parts:", real_split(Path("../shared/data/real"), parts)))
+            print(_show(f"Xsens rest in {parts} parts:", real_split(REAL_DATA, parts)))
         sys.exit(0)
     for sec in lengths:
         if kind == "lines":

@@ -1,5 +1,6 @@
-"""Shared fixtures: the example recordings shipped in ``examples/``, and ``../shared`` (the
-independent simulator's example recordings and the real data sets, kept beside the repository)."""
+"""Shared fixtures: the example recordings shipped in ``examples/``, the independent simulator's
+recordings in ``tests/data/independent/`` and the real data sets in ``tests/data/real/`` (each
+folder's README says where its files come from, SHA256SUMS what they are)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,10 @@ import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO_ROOT / "examples"
-SHARED = REPO_ROOT.parent / "shared"
+REAL_DATA = REPO_ROOT / "tests" / "data" / "real"
+"""Real recordings of other people's tools, one folder per data set with its licence."""
+INDEPENDENT = REPO_ROOT / "tests" / "data" / "independent"
+"""Recordings of a simulator written separately from calbench, with their truth."""
 STATIC_EXAMPLE = "static12_nonlinearity"
 """The shipped static-12 example (a z nonlinearity concealed; ``examples/README.md``)."""
 MOVING_EXAMPLE = "oscillation_lever_arm"
@@ -31,12 +35,12 @@ def copy_example(stem: str, dst: Path, name: str = "rec") -> Path:
 
 
 @pytest.fixture(scope="session")
-def shared_dir() -> Path:
-    """``../shared`` beside the project root: the independent simulator's example recordings
-    (``data/examples``) and the real data sets (``data/real``), which the repository does not ship."""
-    if not SHARED.is_dir():
-        pytest.skip(
-            f"{SHARED} not found: the independent simulator's recordings and the real data sets are "
-            "not part of the repository (tests on the shipped examples/ run without them)"
-        )
-    return SHARED
+def real_dir() -> Path:
+    """``tests/data/real/``: the real data sets (imu_tk-xsens, imucal-ferraris, imu_utils-allan)."""
+    return REAL_DATA
+
+
+@pytest.fixture(scope="session")
+def independent_dir() -> Path:
+    """``tests/data/independent/``: the independent simulator's recordings and their truth."""
+    return INDEPENDENT

@@ -140,8 +140,8 @@ def test_bad_inputs_are_refused() -> None:
         k.derivatives([0.0, 0.1, 0.1, 0.2], np.zeros(4), method="gradient")
 
 
-def _truth(shared: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
-    tr = json.loads((shared / f"data/examples/{name}.truth.json").read_text())
+def _truth(independent: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
+    tr = json.loads((independent / f"{name}.truth.json").read_text())
     return np.array(tr["bias_v"]), np.array(tr["K_v_per_m_s2"])
 
 
@@ -149,9 +149,9 @@ def _truth(shared: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
 WANDER_V = 40e-6 * 9.80665 * 0.018
 
 
-def test_example_static12_window_means_reproduced_from_truth(shared_dir: Path) -> None:
-    rec = read_recording(shared_dir / "data/examples/example_static12.csv")
-    bias, K = _truth(shared_dir, "example_static12")
+def test_example_static12_window_means_reproduced_from_truth(independent_dir: Path) -> None:
+    rec = read_recording(independent_dir / "example_static12.csv")
+    bias, K = _truth(independent_dir, "example_static12")
     tb = rec.sidecar.table
     assert tb is not None and rec.table_deg is not None and rec.sidecar.segments is not None
     ws = windows_from_segments(rec.t_s, rec.sidecar.segments)
@@ -169,9 +169,9 @@ def test_example_static12_window_means_reproduced_from_truth(shared_dir: Path) -
     assert np.sqrt(np.mean(z**2)) < 2.0
 
 
-def test_example_rate_lever_known_reproduced_sample_by_sample(shared_dir: Path) -> None:
-    rec = read_recording(shared_dir / "data/examples/example_rate_lever_known.csv")
-    bias, K = _truth(shared_dir, "example_rate_lever_known")
+def test_example_rate_lever_known_reproduced_sample_by_sample(independent_dir: Path) -> None:
+    rec = read_recording(independent_dir / "example_rate_lever_known.csv")
+    bias, K = _truth(independent_dir, "example_rate_lever_known")
     tb = rec.sidecar.table
     q = rec.table_rad_unwrapped()
     assert tb is not None and q is not None and rec.sidecar.segments is not None

@@ -128,16 +128,16 @@ def test_general_motion_matches_second_derivative_of_position():
     np.testing.assert_allclose(f, expected, atol=2e-5)
 
 
-def _load_example(shared_dir, stem: str):
-    base = shared_dir / "data" / "examples" / stem
+def _load_example(independent_dir, stem: str):
+    base = independent_dir / stem
     data = np.genfromtxt(f"{base}.csv", delimiter=",", names=True)
     side = json.loads(base.with_suffix(".json").read_text())
     truth = json.loads(base.with_suffix(".truth.json").read_text())
     return data, side, truth
 
 
-def test_static_example_agrees_on_frames_and_signs(shared_dir):
-    data, side, truth = _load_example(shared_dir, "example_static12")
+def test_static_example_agrees_on_frames_and_signs(independent_dir):
+    data, side, truth = _load_example(independent_dir, "example_static12")
     K, bias = np.array(truth["K_v_per_m_s2"]), np.array(truth["bias_v"])
     phys = _physics()
     for seg in side["segments"]:
@@ -151,8 +151,8 @@ def test_static_example_agrees_on_frames_and_signs(shared_dir):
         np.testing.assert_allclose(f_theirs, f, atol=2e-3, err_msg=seg["label"])
 
 
-def test_rate_example_agrees_on_lever_arm_signs(shared_dir):
-    data, side, truth = _load_example(shared_dir, "example_rate_lever_known")
+def test_rate_example_agrees_on_lever_arm_signs(independent_dir):
+    data, side, truth = _load_example(independent_dir, "example_rate_lever_known")
     K, bias = np.array(truth["K_v_per_m_s2"]), np.array(truth["bias_v"])
     phys = _physics({"lever_arm": {"r_m": side["table"]["lever_arm_m"]}})
     worst = 0.0

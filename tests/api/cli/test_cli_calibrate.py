@@ -95,9 +95,9 @@ def test_missing_sidecar_exits_2_with_one_line(example, capsys) -> None:
     assert cap.out == "" and len(err) == 1 and "rec.json" in err[0] and "sidecar" in err[0]
 
 
-def test_imucal_annotated_session_prints_per_window_residuals(shared_dir, tmp_path, capsys) -> None:
+def test_imucal_annotated_session_prints_per_window_residuals(real_dir, tmp_path, capsys) -> None:
     """The converted imucal session from the command line: one row per pose with its residuals."""
-    src = shared_dir / "data" / "real" / "imucal-ferraris" / "annotated_session.csv"
+    src = real_dir / "imucal-ferraris" / "annotated_session.csv"
     out = tmp_path / "ann.csv"
     assert main(["convert", "imucal", str(src), "--sample-rate-hz", "204.8", "-o", str(out)]) == 0
     capsys.readouterr()

@@ -23,8 +23,8 @@ CONTRACT_KEYS = {
 }  # fmt: skip
 
 
-def test_independent_example_recovered_within_three_sigma(shared_dir) -> None:
-    ex = shared_dir / "data" / "examples"
+def test_independent_example_recovered_within_three_sigma(independent_dir) -> None:
+    ex = independent_dir
     rec = read_recording(ex / "example_static12.csv")
     truth = json.loads((ex / "example_static12.truth.json").read_text())
     res = calibrate_recording(rec)

@@ -110,9 +110,9 @@ def test_rate_table_lever_arm_to_a_millimetre() -> None:
     assert np.all(np.abs(_z(c["bias"], c["bias_sigma"], run.bias_seen())) < Z_MAX)
 
 
-def test_independent_example_rate_recording(shared_dir: Path) -> None:
+def test_independent_example_rate_recording(independent_dir: Path) -> None:
     """An independent simulator's rate recording to ±240 °/s: its truth recovered."""
-    stem = shared_dir / "data" / "examples" / "example_rate_lever_known"
+    stem = independent_dir / "example_rate_lever_known"
     rec = read_recording(stem.with_suffix(".csv"))
     truth_doc = json.loads(stem.with_name(stem.name + ".truth.json").read_text())
     c = calibrate_recording(rec).to_contract()
@@ -198,11 +198,11 @@ def test_reported_sigma_is_honest_over_seeds() -> None:
 
 
 def test_cli_json_contract_for_a_dynamic_recording(
-    shared_dir: Path, capsys: pytest.CaptureFixture[str]
+    independent_dir: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from api.cli import main
 
-    example = shared_dir / "data" / "examples" / "example_rate_lever_known.csv"
+    example = independent_dir / "example_rate_lever_known.csv"
     assert main(["calibrate", str(example), "--json", "--terms", "lever_arm"]) == 0
     out = json.loads(capsys.readouterr().out)
     for key in (

@@ -1,5 +1,4 @@
-"""The real data sets in ../shared/data/real (beside the repository, not shipped), calibrated
-(numbers recorded in docs/real-datasets.md)."""
+"""The real data sets in tests/data/real, calibrated (numbers recorded in docs/real-datasets.md)."""
 
 from __future__ import annotations
 
@@ -15,8 +14,8 @@ from bench.estimation.g_check import g_check
 
 
 @pytest.fixture(scope="module")
-def imucal_dir(shared_dir):
-    return shared_dir / "data" / "real" / "imucal-ferraris"
+def imucal_dir(real_dir):
+    return real_dir / "imucal-ferraris"
 
 
 def test_imucal_annotated_session_against_imucal_output(imucal_dir) -> None:
@@ -76,9 +75,9 @@ def test_imucal_session_in_m_s2_has_before_and_after(imucal_dir) -> None:
     assert res.residual_rms == pytest.approx(0.0173, rel=0.02)  # research-peers §6: 13 mm/s² class misfit
 
 
-def test_xsens_scalar_calibration(shared_dir) -> None:
+def test_xsens_scalar_calibration(real_dir) -> None:
     rec = read_imu_tk(
-        shared_dir / "data" / "real" / "imu_tk-xsens" / "xsens_mti_raw_counts.csv",
+        real_dir / "imu_tk-xsens" / "xsens_mti_raw_counts.csv",
         channel_unit=None,
         g_local_m_s2=9.81744,
     )

@@ -19,8 +19,8 @@ XSENS_CLI = ["--channel-unit", "count", "--gyro-unit", "count", "--g-local-m-s2"
 
 
 @pytest.fixture(scope="module")
-def real(shared_dir: Path) -> Path:
-    return shared_dir / "data/real"
+def real(real_dir: Path) -> Path:
+    return real_dir
 
 
 def _lines(path: Path) -> int:

@@ -1,5 +1,5 @@
-"""``calbench diagnose`` on the real data sets of ../shared/data/real, beside the repository and
-not shipped with it (docs/diagnose.md, "Real data sets").
+"""``calbench diagnose`` on the real data sets of tests/data/real (docs/diagnose.md, "Real data
+sets").
 
 - imucal annotated session (counts, hand-held, six labelled poses): the window means disagree
   with their labels far beyond anything the windows' own samples allow for bias wander, so
@@ -27,8 +27,8 @@ from bench.recording import read_recording
 
 
 @pytest.fixture(scope="module")
-def real(shared_dir: Path) -> Path:
-    return shared_dir / "data/real"
+def real(real_dir: Path) -> Path:
+    return real_dir
 
 
 def _convert(tmp_path: Path, args: list[str]) -> Path:
@@ -95,12 +95,12 @@ def test_xsens_orientation_free_session(real: Path, tmp_path: Path) -> None:
     assert d.unexplained is None  # only magnitudes are tested without known orientations
 
 
-def test_independent_example_with_no_effect_gives_no_finding(shared_dir: Path) -> None:
+def test_independent_example_with_no_effect_gives_no_finding(independent_dir: Path) -> None:
     """example_static12 (independent simulator, truth: no effect, its .truth.json): no catalogue
     finding and no library term. Its z channel's trend once passed as ``abs(f_y)*t`` on az
     (likelihood ratio 39.5 with the slow noise collapsed to 1.6e-10 V); beside the trend a
     wander makes on az its pose-modulated part is noise, and the note says so."""
-    ex = shared_dir / "data/examples"
+    ex = independent_dir
     truth = json.loads((ex / "example_static12.truth.json").read_text())
     assert truth["effects"] == []
     d = diagnose_recording(read_recording(ex / "example_static12.csv"))

@@ -114,10 +114,10 @@ def test_catalogue_effect_is_named_as_itself_not_as_library_terms(effect: str) -
     assert d.discovered == () and d.unexplained is None
 
 
-def test_independent_rate_example_gives_no_discovered_term(shared_dir: Path) -> None:
+def test_independent_rate_example_gives_no_discovered_term(independent_dir: Path) -> None:
     """``example_rate_lever_known`` (another simulator, lever arm (60, 0, −15) mm known in its
     sidecar): the catalogue claims nothing, the library adds nothing, the model fits."""
-    d = diagnose_recording(read_recording(shared_dir / "data/examples/example_rate_lever_known.csv"))
+    d = diagnose_recording(read_recording(independent_dir / "example_rate_lever_known.csv"))
     assert d.method == "dynamic"
     assert d.findings == () and d.discovered == () and d.unexplained is None
 

@@ -246,17 +246,17 @@ def test_bad_curve_is_named() -> None:
 IMU_UTILS_RATE_HZ = {"xsens": 100.0, "16448": 200.0, "gx4": 500.0, "A3": 400.0, "N3": 400.0, "BMI160": 196.0}
 
 
-def _imu_utils_acc(shared_dir: Path) -> dict[str, list[dict[str, str]]]:
+def _imu_utils_acc(real_dir: Path) -> dict[str, list[dict[str, str]]]:
     rows: dict[str, list[dict[str, str]]] = defaultdict(list)
-    with (shared_dir / "data/real/imu_utils-allan/imu_utils_allan_curves.csv").open() as fh:
+    with (real_dir / "imu_utils-allan/imu_utils_allan_curves.csv").open() as fh:
         for row in csv.DictReader(fh):
             if row["quantity"] == "acc":
                 rows[row["sensor"]].append(row)
     return rows
 
 
-def _yaml_acc(shared_dir: Path, sensor: str, axis: str) -> tuple[float, float]:
-    text = (shared_dir / f"data/real/imu_utils-allan/original/{sensor}_imu_param.yaml").read_text()
+def _yaml_acc(real_dir: Path, sensor: str, axis: str) -> tuple[float, float]:
+    text = (real_dir / f"imu_utils-allan/original/{sensor}_imu_param.yaml").read_text()
     block = text[text.index("Acc:") :]
     block = block[block.index(f"{axis}-axis:") :]
     acc_n = re.search(r"acc_n:\s*(\S+)", block)
@@ -266,7 +266,7 @@ def _yaml_acc(shared_dir: Path, sensor: str, axis: str) -> tuple[float, float]:
 
 
 @pytest.mark.slow  # 24 s: Allan fits of the 18 published curves
-def test_imu_utils_curves_give_their_published_noise_levels(shared_dir: Path) -> None:
+def test_imu_utils_curves_give_their_published_noise_levels(real_dir: Path) -> None:
     """Our fit of imu_utils' own Allan curves lands near the acc_n, acc_w its YAML files publish.
 
     imu_utils reports acc_n = its fitted model's σ_A at τ = 1 s (all terms, not N alone) and
@@ -284,7 +284,7 @@ def test_imu_utils_curves_give_their_published_noise_levels(shared_dir: Path) ->
     YAML is ~15× off its own curves (see the data README), so its σ_A(1 s) is compared with
     imu_utils' fitted curve file instead of the YAML.
     """
-    curves = _imu_utils_acc(shared_dir)
+    curves = _imu_utils_acc(real_dir)
     assert set(curves) == set(IMU_UTILS_RATE_HZ)
     n_checked = 0
     for sensor, rows in curves.items():
@@ -296,7 +296,7 @@ def test_imu_utils_curves_give_their_published_noise_levels(shared_dir: Path) ->
         for axis in "xyz":
             adev = np.array([float(r[f"adev_{axis}"]) for r in rows])
             fit = fit_noise_model_curve(taus, adev, edf)
-            acc_n, acc_w = _yaml_acc(shared_dir, sensor, axis)
+            acc_n, acc_w = _yaml_acc(real_dir, sensor, axis)
             if sensor == "BMI160":
                 their_fit = np.array([float(r[f"fit_{axis}"]) for r in rows])
                 acc_n = float(np.exp(np.interp(0.0, np.log(taus), np.log(their_fit))))
@@ -313,7 +313,7 @@ def test_imu_utils_curves_give_their_published_noise_levels(shared_dir: Path) ->
 
 
 @pytest.mark.slow  # about 2 min: 36 fits of 81-point curves with the allowance's length searched
-def test_white_sigma_covers_imu_utils_reading_of_the_same_curves(shared_dir: Path) -> None:
+def test_white_sigma_covers_imu_utils_reading_of_the_same_curves(real_dir: Path) -> None:
     """N of each measured imu_utils curve against N of the same fit applied to imu_utils' own
     model curve (a second reading of one recording): z = ΔN / σ_N over the 18 curves.
 
@@ -322,7 +322,7 @@ def test_white_sigma_covers_imu_utils_reading_of_the_same_curves(shared_dir: Pat
     independent between τ, RMS z was 4.9 and |z| reached 9.9 (N sigma 1-2 %); the bound
     is RMS z < 2 and every |z| < 3.5 (measured: docs/noise-model.md).
     """
-    curves = _imu_utils_acc(shared_dir)
+    curves = _imu_utils_acc(real_dir)
     z = []
     for sensor, rows in curves.items():
         taus = np.array([float(r["tau_s"]) for r in rows])

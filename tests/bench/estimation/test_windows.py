@@ -28,8 +28,8 @@ class Seg:
     nominal_up: str | None = None
 
 
-def test_detection_recovers_the_example_segments(shared_dir: Path) -> None:
-    rec = read_recording(shared_dir / "data/examples/example_static12.csv")
+def test_detection_recovers_the_example_segments(independent_dir: Path) -> None:
+    rec = read_recording(independent_dir / "example_static12.csv")
     assert rec.table_deg is not None and rec.sidecar.segments is not None
     found = detect_static_windows(rec.t_s, rec.accel_raw, np.deg2rad(rec.table_deg))
     segs = rec.sidecar.segments

@@ -109,8 +109,8 @@ def test_unknown_columns_and_keys_survive_a_round_trip(tmp_path: Path) -> None:
     assert_same(rec, read_recording(tmp_path / "out.csv"))
 
 
-def test_reads_the_independent_example_recording(shared_dir: Path) -> None:
-    rec = read_recording(shared_dir / "data/examples/example_static12.csv")
+def test_reads_the_independent_example_recording(independent_dir: Path) -> None:
+    rec = read_recording(independent_dir / "example_static12.csv")
     assert rec.n_samples == 40800
     assert rec.sidecar.table is not None and len(rec.sidecar.table.axes) == 3
     assert rec.sidecar.segments is not None and len(rec.sidecar.segments) == 12

@@ -154,6 +154,10 @@ class Settings(BaseSettings):
     daq_offset_u: float = Field(1e-5, ge=0, description="each DAQ channel's offset, channel units (V)")
     temp_coeff_bias_u_m_s2_per_k: float = Field(5e-4, ge=0, description="bias tempco, m/s2 per K")
     temp_coeff_scale_u_rel_per_k: float = Field(3e-5, ge=0, description="scale tempco, per K")
+    # The unit's slow bias wander (Gauss-Markov): a moving fit's bias U then covers the unit's
+    # long-run bias (bench.uncertainty.dynamic); 0: not stated, the fit's own sigma is used.
+    bias_wander_m_s2: float = Field(3.9e-4, ge=0, description="unit's bias wander level, m/s2 (40 ug)")
+    bias_wander_corr_time_s: float = Field(200.0, gt=0, description="its correlation time, s")
 
     @field_validator("tokens", mode="before")
     @classmethod

@@ -98,6 +98,15 @@ class DynamicFit:
     converged: bool
     bias_reference: BiasReference = "run_mean"
     wander: BlockWander | None = None
+    cov_run_mean: FloatArray | None = None
+
+    @property
+    def bias_sigma_run_mean(self) -> FloatArray:
+        """(3,) the bias sigma against the run's mean bias (channel units): the white bound and
+        the wander's share that is not its own average over the run (``dynamic_wander``), each
+        at least the sandwich's; equal to the bias sigma when no wander was estimated."""
+        cov = self.cov if self.cov_run_mean is None else self.cov_run_mean
+        return np.asarray(np.sqrt(np.diag(cov)[:3]), dtype=float)
 
     @property
     def sigma(self) -> FloatArray:
@@ -285,8 +294,14 @@ def fit_dynamic_batch(
     )
     model = cov_white if wander is None else cov_white + wander.cov
     small = nb / (nb - p) if nb > p + 1 else np.inf
-    c = np.sqrt(np.maximum(np.diag(Hinv @ newey_west(scores) @ Hinv) * small / np.diag(model), 1.0))
+    sandwich = np.diag(Hinv @ newey_west(scores) @ Hinv) * small
+    c = np.sqrt(np.maximum(sandwich / np.diag(model), 1.0))
     cov = model * np.outer(c, c)
+    cov_run = None
+    if wander is not None:
+        model_run = cov_white + wander.cov_run_mean
+        c_run = np.sqrt(np.maximum(sandwich / np.diag(model_run), 1.0))
+        cov_run = model_run * np.outer(c_run, c_run)
     return DynamicFit(
         spec=spec,
         names=tuple(spec.names),
@@ -301,4 +316,5 @@ def fit_dynamic_batch(
         converged=converged,
         bias_reference="long_run" if wander is not None and wander.correlated else "run_mean",
         wander=wander,
+        cov_run_mean=cov_run,
     )

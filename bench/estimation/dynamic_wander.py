@@ -26,6 +26,13 @@ extra variance per block. The WLS estimate's error from the wander is, to first 
 M_c (p, n_b) the columns n_b X_b[c, :], P the exponential correlation of the block times,
 W = diag(w_c) the fit's weights. Because s(t) is the wander about the unit's long-run bias,
 this covariance describes the error against the long-run bias, not the run's mean.
+
+Against the run's mean bias b_c + s̄_c (s̄_c = Σ_b n_b s_b,c / N, N the fitted samples) the
+bias row c of the map loses the run's mean: G_c = H⁻¹ M_c w_c, G'_c = G_c − e_c (n_b / N)ᵀ,
+
+    Cov_run = Σ_c τ_c² G'_c P G'_cᵀ   (``cov_run_mean``; rows and columns of K as in ``cov``),
+
+zero for a bias-only fit, whose estimate is the run's mean itself.
 """
 
 from __future__ import annotations
@@ -47,12 +54,15 @@ class BlockWander:
 
     :param noise: τ² (3,) channel units², T_c (s; 0: independent excess per block).
     :param lr: 2Δℓ_REML of the correlated wander over independent block excesses.
-    :param cov: (p, p) the wander's contribution to Cov(θ̂).
+    :param cov: (p, p) the wander's contribution to Cov(θ̂), the bias against the long-run bias.
+    :param cov_run_mean: (p, p) the same with the bias against the run's mean bias (module
+        docstring); the bias parameters are θ's first three, in channel order.
     """
 
     noise: NoiseParams
     lr: float
     cov: FloatArray
+    cov_run_mean: FloatArray
 
     @property
     def correlated(self) -> bool:
@@ -99,11 +109,15 @@ def fit_block_wander(
             noise = n1
     P = correlation(mid_s, noise.corr_time_s)
     w = 1.0 / noise_sigma**2
-    inner = np.zeros((p, p))
+    cov, cov_run = np.zeros((p, p)), np.zeros((p, p))
+    share = counts / counts.sum()
     for c in range(3):
         if noise.tau2[c] <= 0:
             continue
-        M = (j_sum[:, c, :] * w[c]).T  # (p, n_b): Σ_{t∈b} J_t[c, :] w_c
-        inner += noise.tau2[c] * (M @ P @ M.T)
-    cov = h_inv @ inner @ h_inv
-    return BlockWander(noise=noise, lr=float(lr), cov=0.5 * (cov + cov.T))
+        G = h_inv @ (j_sum[:, c, :] * w[c]).T  # (p, n_b): H⁻¹ Σ_{t∈b} J_t[c, :]ᵀ w_c
+        cov += noise.tau2[c] * (G @ P @ G.T)
+        G[c] -= share  # against the run's mean: b_c + Σ_b (n_b / N) s_b,c
+        cov_run += noise.tau2[c] * (G @ P @ G.T)
+    return BlockWander(
+        noise=noise, lr=float(lr), cov=0.5 * (cov + cov.T), cov_run_mean=0.5 * (cov_run + cov_run.T)
+    )

@@ -51,6 +51,11 @@ DYNAMIC_TYPE_A_BASIS = (
     "the dynamic fit's covariance: Newey–West sandwich over blocks of the samples, never below "
     "the white-noise bound; ν = ∞ (many blocks)"
 )
+DYNAMIC_WANDER_BASIS = (
+    "; the bias's Type A is its sigma against the run's mean bias, and the unit's bias wander "
+    "(bias_wander_m_s2, bias_wander_corr_time_s) averaged over the run is its own line, so the "
+    "bias U is that of the unit's long-run bias"
+)
 STATIC_METHOD = "linearisation of the generalised least-squares fit (analytic derivative)"
 
 
@@ -65,6 +70,8 @@ class TypeBSettings:
     daq_offset_u: float
     temp_coeff_bias_u_m_s2_per_k: float
     temp_coeff_scale_u_rel_per_k: float
+    bias_wander_m_s2: float = 0.0
+    bias_wander_corr_time_s: float = 200.0
 
     @classmethod
     def of(cls, settings: Any) -> TypeBSettings:
@@ -249,5 +256,7 @@ def _dynamic_budget(
         daq=(tb.daq_gain_u_rel, tb.daq_offset_u) if unit in ANALOG_UNITS else None,
         temp_coeff=(tb.temp_coeff_bias_u_m_s2_per_k, tb.temp_coeff_scale_u_rel_per_k),
     )  # fmt: skip
-    budget = dynamic_budget(rec, terms, b, K, cov, inputs)
-    return CertificateBudget(budget, unit, tuple(skipped), DYNAMIC_TYPE_A_BASIS, DYNAMIC_METHOD)
+    wander = (tb.bias_wander_m_s2, tb.bias_wander_corr_time_s) if tb.bias_wander_m_s2 > 0 else None
+    budget = dynamic_budget(rec, terms, b, K, cov, inputs, wander=wander)
+    basis = DYNAMIC_TYPE_A_BASIS if wander is None else DYNAMIC_TYPE_A_BASIS + DYNAMIC_WANDER_BASIS
+    return CertificateBudget(budget, unit, tuple(skipped), basis, DYNAMIC_METHOD)

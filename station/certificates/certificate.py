@@ -221,7 +221,7 @@ def certificate_content(
             inp.limits_note,
         ),
         "traceability": traceability,
-        "statements": [ONLY_ITEM, *bias_statements(inp.calibration), NOT_REPRODUCED],
+        "statements": [ONLY_ITEM, *bias_statements(inp.calibration, inp.budget), NOT_REPRODUCED],
         "authorized_by": lab.authorized_by,
         "authorization": "Authorised for issue by the person named above; the SHA-256 of this content "
         "identifies the authorised version.",

@@ -17,6 +17,7 @@ from typing import Any
 
 from bench.fitted_model import FittedModel, GCheckSummary
 from bench.limit_check import LimitCheck
+from bench.uncertainty.dynamic import WANDER_GROUP
 from station.certificates.budget import CertificateBudget
 from station.certificates.conformity import G_CHECK_U_BASIS, g_check_u
 from station.certificates.datasheet_units import datasheet_results
@@ -53,10 +54,13 @@ def results_section(fit: FittedModel, budget: CertificateBudget | None) -> dict[
     return results
 
 
-def bias_statements(fit: FittedModel) -> list[str]:
+def bias_statements(fit: FittedModel, budget: CertificateBudget | None = None) -> list[str]:
     """The certificate's statements about which bias its bias U describes: :data:`RUN_MEAN_BIAS`
-    where the fit's ``bias_reference`` is ``"run_mean"``; none where it is the unit's long-run
-    bias or not stated."""
+    where the fit's ``bias_reference`` is ``"run_mean"`` and the budget has no line for the
+    unit's bias wander over the run (``bench.uncertainty.dynamic.WANDER_GROUP``); none where
+    the U is the unit's long-run bias's or the reference is not stated."""
+    if budget is not None and any(i.group == WANDER_GROUP for i in budget.budget.inputs):
+        return []
     return [RUN_MEAN_BIAS] if fit.bias_reference == "run_mean" else []
 
 

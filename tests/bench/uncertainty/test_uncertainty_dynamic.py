@@ -12,7 +12,14 @@ import pytest
 from bench.calibration.dynamic import DynamicCalibrationResult, calibrate_dynamic
 from bench.kinematics import attitude, rot
 from bench.recording import Recording
-from bench.uncertainty.dynamic import TILT_ABSORBED, DynamicInput, dynamic_budget, dynamic_inputs
+from bench.uncertainty.dynamic import (
+    TILT_ABSORBED,
+    WANDER_GROUP,
+    DynamicInput,
+    dynamic_budget,
+    dynamic_inputs,
+    run_mean_factor,
+)
 from tests.support.dynamic_sim import oscillation
 
 DEFAULTS: dict[str, Any] = {
@@ -104,3 +111,41 @@ def test_levelling_inputs_tilt_the_whole_table_when_the_fit_does_not(fitted: Any
     # T Rot(u_1, θ_1)…Rot(u_k, θ_k) M = Rot(T u_1, θ_1)…Rot(T u_k, θ_k) T M at every sample
     expected = np.einsum("ab,nbc->nac", T, attitude(geo.axis_vectors, q, geo.mount_matrix))
     np.testing.assert_allclose(attitude(new.axis_vectors, q, new.mount_matrix), expected, atol=1e-12)
+
+
+@pytest.mark.parametrize(("span_s", "tc_s"), [(167.0, 200.0), (600.0, 200.0), (6000.0, 50.0), (20.0, 2000.0)])
+def test_run_mean_factor_is_the_variance_of_a_gauss_markov_time_average(span_s: float, tc_s: float) -> None:
+    """r(T)² against the double integral (1/T²) ∫∫ e^(−|t−s|/T_c) dt ds by the midpoint rule
+    (4000 points: relative error < 1e-4 here), and the limits 2T_c/T (T ≫ T_c) and 1 (T ≪ T_c)."""
+    n = 4000
+    t = (np.arange(n) + 0.5) * span_s / n
+    numeric = float(np.mean(np.exp(-np.abs(t[:, None] - t[None, :]) / tc_s)))
+    r = run_mean_factor(span_s, tc_s)
+    assert r**2 == pytest.approx(numeric, rel=2e-3)
+    if span_s > 50 * tc_s:
+        assert r**2 == pytest.approx(2 * tc_s / span_s, rel=0.05)
+    if span_s < 0.02 * tc_s:
+        assert r**2 == pytest.approx(1.0, abs=0.01)
+
+
+def test_wander_line_replaces_the_bias_type_a_by_the_run_mean_and_adds_the_wander(
+    fitted: tuple[Recording, DynamicCalibrationResult, list[DynamicInput], list[str]],
+) -> None:
+    """With the unit's wander: the bias's Type A is the fit's sigma against the run's mean,
+    a line per sensor axis carries |K_ij| r(T) σ_w, and K's lines are as without it."""
+    rec, fit, _, _ = fitted
+    assert fit.fit is not None
+    level, tc = 4e-4, 200.0
+    plain = dynamic_budget(rec, fit.fit.spec.terms, fit.bias, fit.K, _cov(fit), [])
+    withw = dynamic_budget(rec, fit.fit.spec.terms, fit.bias, fit.K, _cov(fit), [], wander=(level, tc))
+    r = run_mean_factor(float(rec.t_s[-1] - rec.t_s[0]), tc)
+    for i in range(3):
+        q = withw.quantities[i]
+        type_a = next(c for c in q.contributions if c.group == "Type A")
+        assert type_a.u == pytest.approx(fit.fit.bias_sigma_run_mean[i], rel=1e-9)
+        lines = [c for c in q.contributions if c.group == WANDER_GROUP]
+        assert [c.contribution for c in lines] == pytest.approx(np.abs(fit.K[i]) * r * level, rel=1e-9)
+        expected = math.sqrt(fit.fit.bias_sigma_run_mean[i] ** 2 + float(np.sum((fit.K[i] * r * level) ** 2)))
+        assert q.u_c == pytest.approx(expected, rel=1e-9)
+    for j in range(3, 12):
+        assert withw.quantities[j].u_c == pytest.approx(plain.quantities[j].u_c, rel=1e-9)

@@ -11,11 +11,12 @@ import pytest
 from bench.calibration.analysis import Analysis, analyse
 from bench.fitted_model import FittedModel
 from bench.recording import Recording
+from bench.uncertainty.dynamic import WANDER_GROUP
 from station.certificates.budget import CertificateBudget, TypeBSettings, certificate_budget
 from station.certificates.certificate import certificate_content
 from station.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from station.certificates.rounding import round_expanded
-from station.certificates.statements import DYNAMIC_COVERAGE_STATEMENT
+from station.certificates.statements import DYNAMIC_COVERAGE_STATEMENT, RUN_MEAN_BIAS
 from station.settings import Settings
 from tests.support.dynamic_sim import oscillation
 
@@ -71,6 +72,9 @@ def test_dynamic_certificate_has_a_budget(recorded: tuple[Analysis, dict[str, An
         u, [2 * budget["quantities"][n]["u_c"] for n in ("b_x", "b_y", "b_z")], rtol=0.03
     )
     assert np.all(u > 2 * np.array(cal["bias_sigma"]))  # the DAQ gain (1e-5 × 1.5 V) adds to Type A
+    # the station's stated unit wander: a line per sensor axis, so the bias U is the long-run bias's
+    assert WANDER_GROUP in groups and any(ln["group"] == WANDER_GROUP for ln in b_x["contributions"])
+    assert RUN_MEAN_BIAS not in c["statements"]
 
 
 def test_dynamic_budget_without_type_b_is_two_sigma(recorded: tuple[Analysis, dict[str, Any]]) -> None:
@@ -78,6 +82,9 @@ def test_dynamic_budget_without_type_b_is_two_sigma(recorded: tuple[Analysis, di
     rec = analysis.recording
     res = _content(rec, cal, certificate_budget(analysis, FittedModel.from_contract(cal), ZERO))["results"]
     assert res["bias"]["k"] == 2.0 and res["scale_matrix"]["k"] == 2.0
+    # no stated wander: the fit's own bias sigma, and the certificate says which bias it is
+    content = _content(rec, cal, certificate_budget(analysis, FittedModel.from_contract(cal), ZERO))
+    assert (RUN_MEAN_BIAS in content["statements"]) == (cal["bias_reference"] == "run_mean")
     for name, sig in (("bias", "bias_sigma"), ("scale_matrix", "scale_matrix_sigma")):
         expected = [
             round_expanded(v, s)[1] for v, s in zip(np.ravel(cal[name]), np.ravel(cal[sig]), strict=True)

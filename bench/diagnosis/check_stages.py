@@ -22,7 +22,7 @@ def prune_redundant(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tupl
     assert st.model is not None
     notes: dict[str, str] = {}
     model = st.model.copy()
-    dropped = prune_catalogue(ev, model, list(st.pool), st.selection_fixed, notes, th)
+    dropped = prune_catalogue(ev, model, list(st.pool), st.fixed, notes, th)
     if not dropped:
         return replace(st, model=model), notes
     out, again = resumed(st, dropped)
@@ -38,11 +38,11 @@ def out_of_sample_referee(ev: StaticEvidence, st: WindowState, th: Thresholds) -
     assert st.model is not None
     notes: dict[str, str] = {}
     model = st.model.copy()
-    refused = [e for e in referee(ev, model, st.selection_fixed, notes, th) if not e.startswith(EFFECT + ":")]
+    refused = [e for e in referee(ev, model, st.fixed, notes, th) if not e.startswith(EFFECT + ":")]
     if not refused:
         return replace(st, model=model), notes
     out, again = resumed(st, refused)
     fresh = {**again, **{k: v for k, v in notes.items() if k in refused}}
     assert out.model is not None
-    referee(ev, out.model, out.selection_fixed, fresh, th)
+    referee(ev, out.model, out.fixed, fresh, th)
     return out, fresh

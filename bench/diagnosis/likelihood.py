@@ -15,6 +15,7 @@ from bench.estimation.slow_noise import (
     fit_noise,
     gls,
     window_covariance,
+    without_excess,
     without_pose,
 )
 
@@ -27,5 +28,6 @@ __all__ = [
     "fit_noise",
     "gls",
     "window_covariance",
+    "without_excess",
     "without_pose",
 ]

@@ -88,20 +88,23 @@ def fit_model(
     cap: SlowNoiseCap | None = None,
     own: bool = False,
     th: Thresholds = THRESHOLDS,
+    excess: FloatArray | None = None,
 ) -> tuple[NoiseParams, GlsFit, FloatArray]:
     """REML noise and GLS fit of a model, the columns evaluated at K0 (then at the fitted K).
 
     ``cap`` is the recording's slow-noise bound (``wander_cap``), built here at
     ``th.cap_alpha`` if not given.
     The slow noise has one level scaled by the channels' gains, or with ``own`` one level
-    per channel.
+    per channel. Each channel's own excess ε_c² (``likelihood.NoiseParams.excess_var``) is
+    re-estimated where ``init`` holds one as a free parameter, or on the channels where
+    ``excess`` (3,) (channel units², the start) is positive.
     """
     cap = SlowNoiseCap(ev, th.cap_alpha) if cap is None else cap
     K = K0
     noise: NoiseParams | None = init
     fit: GlsFit | None = None
     z = ev.y.reshape(-1)
-    for _ in range(iterations):
+    for it in range(iterations):
         X = design(ev, K, cands)
         J = pose_response(ev, K)
         noise, fit = fit_noise(
@@ -116,6 +119,7 @@ def fit_model(
             channel_gain=None if own else np.sqrt(np.median(np.diagonal(ev.V, axis1=1, axis2=2), axis=0)),
             tau2_cap=cap,
             near_init=True,
+            excess_start=excess if it == 0 else None,
         )
         K = scale_matrix(fit)
     assert noise is not None and fit is not None

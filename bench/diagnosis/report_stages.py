@@ -13,6 +13,7 @@ from bench.diagnosis.effects.settling import settling_duration, settling_test
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.excess_referee import flag_instead
 from bench.diagnosis.hysteresis import with_last_move
+from bench.diagnosis.likelihood import without_excess
 from bench.diagnosis.model_state import fit_model, scale_matrix
 from bench.diagnosis.pipeline import Notes
 from bench.diagnosis.refit import model_sequence
@@ -34,7 +35,13 @@ def within_window(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[
         # the report reads the model under ``fixed`` alone: its noise again without the carried excess
         assert model.noise is not None and model.fit is not None
         noise, fit, _ = fit_model(
-            ev, model.candidates, model.pose, scale_matrix(model.fit), st.fixed, model.noise, th=th
+            ev,
+            model.candidates,
+            model.pose,
+            scale_matrix(model.fit),
+            st.fixed,
+            without_excess(model.noise),
+            th=th,
         )
         model = replace(model.copy(), noise=noise, fit=fit)
     ev_final, model = refit_within_window(ev, model, st.lib_terms, st.fixed, th)

@@ -86,6 +86,7 @@ def select(
     simplicity: dict[str, int] | None = None,
     excluded: Collection[str] = (),
     th: Thresholds = THRESHOLDS,
+    excess: FloatArray | None = None,
 ) -> Selection:
     """Run the greedy selection.
 
@@ -106,6 +107,9 @@ def select(
     :param simplicity: library label -> degree, for ties (``column_step.structured_step``).
     :param excluded: effects that are not candidates (withdrawn by a check before).
     :param th: the diagnosis's knobs (``thresholds``).
+    :param excess: (3,) each channel's own excess ε_c² to hold in the noise (channel units²),
+        a variance component re-estimated by REML with the other noise terms at every step
+        (``model_state.fit_model``) on the channels where it is positive (the start), or ``None``.
     :returns: the selection: its model, its path and, per candidate label, why it was not
         admitted when it could not be told from the model (``"indistinguishable"`` notes).
     """
@@ -114,7 +118,7 @@ def select(
     X0 = first_order_design(ev.f_m_s2)
     K = np.asarray(np.linalg.lstsq(X0, ev.y.reshape(-1), rcond=None)[0][3:12], dtype=float).reshape(3, 3)
     cap = SlowNoiseCap(ev, th.cap_alpha)
-    state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2, cap=cap)
+    state.noise, state.fit, K = fit_model(ev, [], False, K, fixed, iterations=2, cap=cap, excess=excess)
     lib = library or []
 
     def in_pool(st: ModelState) -> list[Candidate]:

@@ -24,11 +24,12 @@ def forward_selection(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tu
         ev,
         list(st.pool),
         pose_allowed=st.pose_ok,
-        fixed=st.selection_fixed,
+        fixed=st.fixed,
         library=library,
         excluded=st.excluded,
         simplicity={t.label: t.degree for t in st.lib_terms.values()},
         th=th,
+        excess=st.carried,
     )
     return replace(st, selection=sel, model=sel.model), sel.notes
 
@@ -50,8 +51,9 @@ def resumed(st: WindowState, out: list[str]) -> tuple[WindowState, dict[str, str
 def rerun(
     ev: StaticEvidence, st: WindowState, out: list[str], carried: FloatArray, th: Thresholds
 ) -> tuple[WindowState, dict[str, str]]:
-    """As ``resumed``, but the selection run again from its start under the noise with the
-    excess ``carried`` (every step's noise changes, not only those after the claim)."""
+    """As ``resumed``, but the selection run again from its start with each channel's own excess
+    ``carried`` (3,) in its noise, re-estimated at every step (every step's noise changes, not
+    only those after the claim)."""
     assert st.selection is not None
     stale = st.selection.notes
     kept = {k: v for k, v in st.notes.items() if stale.get(k) != v}

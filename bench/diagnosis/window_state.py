@@ -28,9 +28,10 @@ class WindowState:
     :param pose_ok: the pose error (a variance component) may be tried; :param settle_ok: the
         settling test (a window test) may run.
     :param fixed: (m, 3, 3) fixed extra covariance per window (orientation-free), or ``None``.
-    :param carried: (m, 3, 3) each channel's own excess ε̂_c² that won a head to head
-        (``excess_head_to_head``), added to ``fixed`` in the selection's noise only (the report
-        reads the final model under ``fixed``), or ``None``.
+    :param carried: (3,) each channel's own excess ε̂_c² that won a head to head
+        (``excess_head_to_head``; channel units², zero on a channel that did not win), held in
+        the selection's noise as a variance component re-estimated with the other noise terms
+        (the report reads the final model without it), or ``None``.
     :param selection: the forward selection with its path (``selection.Selection``), resumed
         when a check takes a catalogue effect out; :param model: the selected model after the
         checks; :param excluded: catalogue effects no longer candidates (dropped as redundant or
@@ -69,14 +70,6 @@ class WindowState:
     def noted(self, notes: Notes) -> WindowState:
         """The state with ``notes`` added (a label's later note replaces an earlier one)."""
         return replace(self, notes={**self.notes, **notes}) if notes else self
-
-    @property
-    def selection_fixed(self) -> FloatArray | None:
-        """(m, 3, 3) the fixed covariance per window the selection and its checks read: ``fixed``
-        and the excess carried from the head to heads."""
-        if self.carried is None:
-            return self.fixed
-        return self.carried if self.fixed is None else self.fixed + self.carried
 
     @property
     def scale(self) -> FloatArray:

@@ -4,7 +4,7 @@ Used by the calibration (``static_fit``) and the diagnosis (``bench.diagnosis.li
 
 Observation vector z = y.reshape(-1) (3m,), window-major. Covariance (channel units²):
 
-    C = blockdiag_w(V_w + F + σ_p² J_w J_wᵀ) + Σ_i τ_i² (P ⊗ e_i e_iᵀ),
+    C = blockdiag_w(V_w + F + σ_p² J_w J_wᵀ + Σ_i ε_i² e_i e_iᵀ) + Σ_i τ_i² (P ⊗ e_i e_iᵀ),
     P_ww' = exp(−|t_w − t_w'| / T_c)   (P = I for T_c = 0)
 
 - V_w: the window mean's covariance from its own samples (batch means; ``window_noise``);
@@ -12,6 +12,9 @@ Observation vector z = y.reshape(-1) (3m,), window-major. Covariance (channel un
   correlation time T_c; T_c = 0: independent from window to window);
 - σ_p²: variance of a random pose error per window (two angles, rad²), J_w (3, 2) the
   response of the window mean to those angles (``pose_error``);
+- ε_i²: an optional excess of channel i alone, independent from window to window (a misfit
+  on one channel that the diagnosis holds as noise, ``bench.diagnosis.head_to_head_stage``);
+  estimated by REML only on the channels asked for;
 - F: an optional fixed extra (e.g. free orientation in an orientation-free diagnosis).
 
 Every evaluation is O(m) (``window_covariance``: the wander as a Markov state, Woodbury
@@ -25,7 +28,7 @@ REML log-likelihoods (Harville, JASA 72 (1977) 320, eq. 4.3) are
     −2 ℓ_ML   = χ² + ln|C| + n ln 2π,
     −2 ℓ_REML = χ² + ln|C| + ln|Xᵀ C⁻¹ X| + (n − p) ln 2π.
 
-The noise parameters (τ², T_c, σ_p²) are estimated by maximising ℓ_REML, which, unlike
+The noise parameters (τ², T_c, σ_p², ε²) are estimated by maximising ℓ_REML, which, unlike
 ℓ_ML, is not biased low by the p fitted parameters (with 36 observations and 12–20
 parameters the difference is large).
 """
@@ -64,17 +67,23 @@ class NoiseParams:
     :param tau2: (3,) slow-noise variance per channel (channel units²).
     :param corr_time_s: its correlation time T_c (s); 0 = independent between windows.
     :param pose_var_rad2: random pose-error variance per angle (rad²); 0 = none.
+    :param excess_var: (3,) ε_i², each channel's own excess from window to window (channel
+        units²), or ``None`` (none).
+    :param excess_channels: the channels whose ε_i² is a free parameter (``fit_noise``
+        re-estimates them when this is its ``init``).
     """
 
     tau2: FloatArray
     corr_time_s: float = 0.0
     pose_var_rad2: float = 0.0
     n_tau: int = 3
+    excess_var: FloatArray | None = None
+    excess_channels: tuple[int, ...] = ()
 
     @property
     def n_free(self) -> int:
         """Number of estimated noise parameters counted in the BIC."""
-        return self.n_tau + (1 if self.corr_time_s > 0 else 0)
+        return self.n_tau + (1 if self.corr_time_s > 0 else 0) + len(self.excess_channels)
 
 
 @dataclass(frozen=True)
@@ -122,6 +131,9 @@ def window_covariance(
         if J_pose is None:
             raise ValueError("a pose-error variance needs the pose response J_pose")
         blocks = blocks + noise.pose_var_rad2 * np.einsum("wik,wjk->wij", J_pose, J_pose)
+    if noise.excess_var is not None:
+        for i in range(3):
+            blocks[:, i, i] += noise.excess_var[i]
     return WindowCovariance(
         blocks=blocks,
         tau2=np.asarray(noise.tau2, dtype=float),
@@ -240,6 +252,7 @@ def fit_noise(
     corr_times_s: Sequence[float] | None = None,
     refine_corr_time: bool = False,
     near_init: bool = False,
+    excess_start: FloatArray | None = None,
 ) -> tuple[NoiseParams, GlsFit]:
     """REML estimate of the noise parameters for design X; returns them and the GLS fit under them.
 
@@ -256,7 +269,9 @@ def fit_noise(
     tried, the tightest, bounds τ² there). With ``near_init`` (``init`` is the estimate of a
     model a column away, as in a selection) the searches at each T_c of the grid are local:
     each line bracketed from the start (``warm_search``); otherwise scipy's bounded Powell
-    searches each line whole (:func:`_powell`).
+    searches each line whole (:func:`_powell`). Each channel's own excess ε_i² is re-estimated
+    on the channels ``excess_start`` (3,) names (> 0 there; its value is the start), or else on
+    ``init.excess_channels`` from ``init``'s values; none elsewhere.
     """
     scale = float(np.median(np.diagonal(V, axis1=1, axis2=2)))
     span = float(np.ptp(mid_s)) if mid_s.shape[0] > 1 else 0.0
@@ -268,7 +283,20 @@ def fit_noise(
         g_scale = scale / jn if jn > 0 else 1.0
     n_tau = 3 if channel_gain is None else 1
     shape = np.ones(3) if channel_gain is None else channel_gain**2 / np.mean(channel_gain**2)
-    n_par = n_tau + (1 if estimate_pose else 0)
+    if excess_start is not None:
+        chans = tuple(int(i) for i in np.flatnonzero(np.asarray(excess_start) > 0))
+        e_start = np.asarray(excess_start, dtype=float)[list(chans)]
+    elif init is not None and init.excess_channels:
+        chans = init.excess_channels
+        e_start = np.zeros(len(chans)) if init.excess_var is None else init.excess_var[list(chans)]
+    else:
+        chans, e_start = (), np.zeros(0)
+    n_ex = len(chans)
+    # log ε² relative to the window noise; an excess at zero starts where a cold search does
+    u_ex = np.where(e_start > 0, np.log(np.maximum(e_start, 1e-300) / scale), -2.0)
+    u_ex = np.clip(u_ex, _LOG_FLOOR, 12.0)
+    n_base = n_tau + (1 if estimate_pose else 0)
+    n_par = n_base + n_ex
 
     def unpack(u: FloatArray, tc: float) -> NoiseParams:
         tau2 = scale * np.exp(u[:n_tau]) * shape
@@ -276,12 +304,20 @@ def fit_noise(
         pv = 0.0
         if estimate_pose:
             pv = 0.0 if u[n_tau] <= _LOG_FLOOR + 1e-6 else g_scale * float(np.exp(u[n_tau]))
-        return NoiseParams(tau2=tau2, corr_time_s=tc, pose_var_rad2=pv, n_tau=n_tau)
+        if not chans:
+            return NoiseParams(tau2=tau2, corr_time_s=tc, pose_var_rad2=pv, n_tau=n_tau)
+        ex = np.zeros(3)
+        for k, c in enumerate(chans):
+            a = float(u[n_base + k])
+            ex[c] = 0.0 if a <= _LOG_FLOOR + 1e-6 else scale * float(np.exp(a))
+        return NoiseParams(
+            tau2=tau2, corr_time_s=tc, pose_var_rad2=pv, n_tau=n_tau, excess_var=ex, excess_channels=chans
+        )
 
     inv: FloatArray | None = None
     logdet_b: float | None = None
     fixed_xz: FixedQuadratic | None = None
-    if not estimate_pose:  # the windows' own blocks do not change: invert them once
+    if not estimate_pose and not chans:  # the windows' own blocks do not change: invert them once
         try:
             wc0 = window_covariance(V, mid_s, NoiseParams(tau2=np.zeros(3)), J_pose, fixed)
             inv, logdet_b = invert_blocks(wc0.blocks)
@@ -306,7 +342,8 @@ def fit_noise(
         corr_times_s = [frac * span for frac in fracs]
     for tc in corr_times_s:
         if init is None:
-            starts = [np.full(n_par, -2.0), np.full(n_par, _LOG_FLOOR)]
+            starts = [np.full(n_base, -2.0), np.full(n_base, _LOG_FLOOR)]
+            starts = [np.append(u, u_ex) for u in starts]
         else:
             t_init = init.tau2 / shape if n_tau == 3 else np.array([np.mean(init.tau2 / shape)])
             u_init = np.log(np.maximum(t_init, scale * np.exp(_LOG_FLOOR)) / scale)
@@ -315,7 +352,7 @@ def fit_noise(
             if estimate_pose:
                 pv = init.pose_var_rad2 if init.pose_var_rad2 > 0 else g_scale * np.exp(-2.0)
                 u_init = np.append(u_init, np.log(pv / g_scale))
-            starts = [np.clip(u_init, _LOG_FLOOR, 12.0)]
+            starts = [np.append(np.clip(u_init, _LOG_FLOOR, 12.0), u_ex)]
         upper = np.full(n_par, 12.0)
         cap = tau2_cap(tc) if tau2_cap is not None else None
         if cap is not None:
@@ -354,6 +391,10 @@ def fit_noise(
         u0 = np.log(np.maximum(t_best, scale * np.exp(_LOG_FLOOR)) / scale)
         if estimate_pose:
             u0 = np.append(u0, np.log(max(noise.pose_var_rad2, g_scale * np.exp(_LOG_FLOOR)) / g_scale))
+        if chans:
+            assert noise.excess_var is not None
+            ex_best = noise.excess_var[list(chans)]
+            u0 = np.append(u0, np.log(np.maximum(ex_best, scale * np.exp(_LOG_FLOOR)) / scale))
         u0 = np.append(np.clip(u0, _LOG_FLOOR, 12.0), math.log(noise.corr_time_s))
         cap_lo = tau2_cap(tcs[0] / 2.0) if tau2_cap is not None else None
         up = np.full(n_par, 12.0)
@@ -377,3 +418,8 @@ def fit_noise(
 def without_pose(noise: NoiseParams) -> NoiseParams:
     """The same noise with the random pose error removed."""
     return replace(noise, pose_var_rad2=0.0)
+
+
+def without_excess(noise: NoiseParams) -> NoiseParams:
+    """The same noise without the channels' own excess (none, and none to estimate)."""
+    return replace(noise, excess_var=None, excess_channels=())

@@ -334,3 +334,19 @@ def test_an_effect_taken_out_stays_out_when_a_later_check_resumes_from_an_earlie
     st, _ = resumed(st, ["first"])
     assert st.excluded == {"first", "second"}
     assert st.model is not None and not st.model.candidates
+
+
+def test_a_claim_entering_after_a_carried_excess_takes_over_what_it_held() -> None:
+    """A true quadratic on z (5e-4/g, 8.5 sigma at ±z) and no excess in the data, with an excess
+    of (5 sigma)² on z carried into the selection (``selection.select(excess=...)``): REML
+    re-estimates it as the quadratic enters, so the quadratic is admitted and the excess left
+    is below sigma², its sampling error on 18 windows (truth 0)."""
+    for seed in (2, 4):
+        ev = _evidence(seed, _quadratic_z(5e-4))
+        st, _ = screen_catalogue(ev, WindowState(), THRESHOLDS)
+        model = select(
+            ev, list(st.pool), pose_allowed=False, excess=np.array([0.0, 0.0, 25 * SIGMA**2])
+        ).model
+        assert [c.label for c in model.candidates] == ["nonlinearity_quadratic[z]"], seed
+        assert model.noise is not None and model.noise.excess_var is not None
+        assert model.noise.excess_var[2] < SIGMA**2, seed

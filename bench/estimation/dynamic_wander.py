@@ -16,7 +16,7 @@ Here the wander is estimated from the block means, with the design that absorbs 
 
 z_b (3,) the block mean of the residuals, X_b (3, p) the block mean of the Jacobian, n_b its
 samples, σ_c the fit's residual standard deviation. τ_c² and T_c come from REML
-(``slow_noise.fit_noise``: Harville 1977; the T_c grid of ``static_wander``), and the
+(``noise_reml.fit_noise``: Harville 1977; the T_c grid of ``static_wander``), and the
 correlated wander is kept when it beats independent block excesses by the same gate as the
 static fit (2Δℓ > 3.84); otherwise the independent excess (T_c = 0) is used, an estimated
 extra variance per block. The WLS estimate's error from the wander is, to first order,
@@ -42,7 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from bench.estimation.slow_noise import NoiseParams, correlation, fit_noise
+from bench.estimation.noise_reml import fit_noise
+from bench.estimation.slow_noise import NoiseParams, correlation
 from bench.estimation.static_wander import correlation_time_grid
 
 FloatArray = npt.NDArray[np.float64]

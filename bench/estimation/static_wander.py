@@ -16,7 +16,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import chi2 as chi2_dist
 
-from bench.estimation.slow_noise import NoiseParams, fit_noise
+from bench.estimation.noise_reml import fit_noise
+from bench.estimation.slow_noise import NoiseParams
 from bench.estimation.static_design import design_rows
 from bench.estimation.window_noise import t_factor
 

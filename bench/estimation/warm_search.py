@@ -1,7 +1,7 @@
 """Bounded minimisation started where the minimum is expected: bracketed line searches in
 Powell's conjugate directions.
 
-The REML searches of ``slow_noise.fit_noise`` minimise −ℓ_REML over log-variances in a box,
+The REML searches of ``noise_reml.fit_noise`` minimise −ℓ_REML over log-variances in a box,
 mostly from a warm start (the parent model's estimate when a selection adds or removes one
 column). A line search over the whole feasible segment (scipy's bounded Powell: a Brent
 search of [−30, 12] to 10⁻³ on every line, ~25 evaluations, and a second sweep to confirm)

@@ -1,10 +1,11 @@
-"""A channel's own excess ε_c² as a REML variance component of ``slow_noise.fit_noise``."""
+"""A channel's own excess ε_c² as a REML variance component of ``noise_reml.fit_noise``."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from bench.estimation.slow_noise import NoiseParams, fit_noise, without_excess
+from bench.estimation.noise_reml import fit_noise
+from bench.estimation.slow_noise import NoiseParams, without_excess
 
 SIGMA = 1e-5
 M = 200

@@ -1,4 +1,4 @@
-"""Warm-started REML searches (``warm_search``, ``slow_noise.fit_noise``) against independent
+"""Warm-started REML searches (``warm_search``, ``noise_reml.fit_noise``) against independent
 maximisations: known minima of analytic functions, and ℓ_REML of the dense covariance
 maximised over a fine grid and polished by scipy from the grid's best point."""
 
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize, minimize_scalar
 
-from bench.estimation.slow_noise import NoiseParams, covariance, fit_noise, gls
+from bench.estimation.noise_reml import fit_noise
+from bench.estimation.slow_noise import NoiseParams, covariance, gls
 from bench.estimation.warm_search import line_minimum, warm_minimum
 
 FLOOR, TOP = -30.0, 12.0

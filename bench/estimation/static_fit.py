@@ -20,7 +20,8 @@ Parameter order of ``StaticFit.cov`` (12, 12), SI/channel units:
     [b_x, b_y, b_z, K_xx, K_xy, K_xz, K_yx, K_yy, K_yz, K_zx, K_zy, K_zz]
 
 Cov(θ) = (Σ_w H_wᵀ S_w⁻¹ H_w)⁻¹. For white noise and no pose error the estimator reaches the
-Cramér-Rao bound σ²/L · (XᵀX)⁻¹ per channel (research-peers.md §4).
+Cramér-Rao bound σ²/L · (XᵀX)⁻¹ per channel (the linear Gaussian model: Kay, Fundamentals
+of Statistical Signal Processing I (1993), Theorem 4.1).
 
 The parameter order, the rows H_w and the identifiability check are in ``static_design``;
 the slow wander correlated between windows in ``static_wander``.

@@ -25,7 +25,7 @@ uniform information any motion can give, since |f| = g fixes the trace of E[f f�
 
     σ(b) ≥ N/√T,   σ(K_ij) ≥ √3·N/(g·√T)
 
-(research-peers.md §4 gives the same for an isotropic pose set; Panahandeh et al., IPIN 2010).
+(the same holds for an isotropic set of static poses; Panahandeh et al., IPIN 2010).
 """
 
 from __future__ import annotations

@@ -72,7 +72,7 @@ def test_imucal_session_in_m_s2_has_before_and_after(imucal_dir) -> None:
     assert res.g_before.std_m_s2 == pytest.approx(0.589, rel=0.01)
     assert res.g_after.std_m_s2 < 1e-4  # 3.8e-5 m/s²
     assert np.all(np.abs(res.g_after.error_m_s2) < 1e-3)
-    assert res.residual_rms == pytest.approx(0.0173, rel=0.02)  # research-peers §6: 13 mm/s² class misfit
+    assert res.residual_rms == pytest.approx(0.0173, rel=0.02)  # the labels' misfit
 
 
 def test_xsens_scalar_calibration(real_dir) -> None:

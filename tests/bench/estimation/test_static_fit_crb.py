@@ -12,7 +12,7 @@ from tests.support.static_sim import G_LOCAL, random_truth
 
 
 def _balanced_12() -> np.ndarray:
-    """±x, ±y, ±z and three ± pairs of diagonals: Σ f = 0 (research-peers §4 setting)."""
+    """±x, ±y, ±z and three ± pairs of diagonals: Σ f = 0 (a balanced, isotropic pose set)."""
     d = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1], [1, -1, 0], [0, 1, -1]], dtype=float)
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     return G_LOCAL * np.vstack([d, -d])
@@ -39,7 +39,7 @@ def test_white_noise_scatter_reaches_the_cramer_rao_bound() -> None:
     for i in range(3):
         c = np.sqrt(np.diag(np.linalg.inv(info / sigma[i] ** 2)))
         crb[i], crb[3 + 3 * i : 6 + 3 * i] = c[0], c[1:]
-    # closed form for a balanced set: sd(b_i) = σ_i / √(N L) (research-peers §4)
+    # closed form for a balanced set: sd(b_i) = σ_i / √(N L) (the linear model's Cramér-Rao bound)
     np.testing.assert_allclose(crb[:3], sigma / np.sqrt(m * L), rtol=1e-12)
     ratio = mc_std / crb
     assert np.all(np.abs(ratio - 1.0) < 0.10), f"MC/CRB ratios {np.round(ratio, 3)}"

@@ -43,7 +43,8 @@ def test_window_mean_covariance_is_the_kernel_integrated_over_the_windows() -> N
 
 
 def test_white_noise_icosahedron_reaches_the_isotropic_formula() -> None:
-    # research-peers §4: known isotropic poses, white noise: sd(M_ij) = √3 σ_mean / (g √N), sd(b) = σ_mean/√N
+    # linear-model Cramér-Rao bound, isotropic poses, white noise:
+    # sd(M_ij) = √3 σ_mean / (g √N), sd(b) = σ_mean/√N
     g, sigma_mean = 9.8, 1e-3
     f = g * icosahedron_up_directions()
     u = predicted_uncertainty(f, sigma_mean**2 * np.eye(12))

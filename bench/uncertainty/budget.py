@@ -64,6 +64,11 @@ RULE = (
 )
 
 
+WANDER_GROUP = "bias wander over the run"
+"""Budget group of the unit's bias wander averaged over the run (``bench.uncertainty.dynamic``):
+what one run's bias differs by from the unit's long-run bias."""
+
+
 @dataclass(frozen=True)
 class TypeBInput:
     """One input quantity X of the measurement model, and how it moves the fit's design.

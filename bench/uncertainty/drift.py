@@ -20,6 +20,9 @@ which includes the run's mean of the slow bias wander (bias instability); no sin
 can separate it, so neither fit's σ contains it, yet it differs between two runs of an
 unchanged unit. Without it an ADXL-class unit (40 µg wander, 200 s correlation time) was
 flagged in 13 % of unchanged pairs at a stated 3.2 % (tests/station/drift/test_drift_false_alarm.py).
+A moving certificate's budget may carry that wander as its own line
+(:data:`~bench.uncertainty.budget.WANDER_GROUP`); on the same bench u_cert leaves it out, since
+u_rep already counts both runs' share (on another bench U/k keeps it: a little wide).
 A unit is flagged when any coefficient exceeds its limit.
 """
 
@@ -32,6 +35,7 @@ import numpy as np
 
 from bench.estimation.static_design import PARAMETER_NAMES
 from bench.fitted_model import FittedModel
+from bench.uncertainty.budget import WANDER_GROUP
 
 BENCH_COMMON_GROUPS = ("table angle", "base levelling", "local gravity", "DAQ gain", "DAQ offset")
 """Budget groups (prefixes of ``TypeBInput.group``) whose errors are the same in every run on one
@@ -46,7 +50,8 @@ def reference_uncertainty(cert: dict[str, Any], name: str, *, same_bench: bool) 
     """u_cert of ``"bias"`` (3,) or ``"scale_matrix"`` (3, 3) in the drift test, and its basis.
 
     Same bench with a budget: sqrt of the sum of squares of the budget's lines outside
-    :data:`BENCH_COMMON_GROUPS` (Type A, temperature coefficients); otherwise U/k.
+    :data:`BENCH_COMMON_GROUPS` (Type A, temperature coefficients) and outside the unit's bias
+    wander over the run (in u_rep); otherwise U/k.
 
     :raises ValueError: the budget lacks one of the quantity's parameters.
     """
@@ -63,7 +68,11 @@ def reference_uncertainty(cert: dict[str, Any], name: str, *, same_bench: bool) 
         if p not in budget["quantities"]:
             raise ValueError(f"certificate budget has no {p!r}")
         lines = budget["quantities"][p]["contributions"]
-        kept = [float(c["contribution"]) for c in lines if not _bench_common(str(c["group"]))]
+        kept = [
+            float(c["contribution"])
+            for c in lines
+            if not _bench_common(str(c["group"])) and str(c["group"]) != WANDER_GROUP
+        ]
         u.append(math.sqrt(sum(x**2 for x in kept)))
     basis = (
         "budget lines not common to both runs (Type A, temperature); same bench: "

@@ -53,7 +53,7 @@ from bench.calibration.dynamic import calibrate_dynamic
 from bench.kinematics import rot
 from bench.recording import Recording
 from bench.recording.model import TableAxis
-from bench.uncertainty.budget import Budget, TypeBInput, combine
+from bench.uncertainty.budget import WANDER_GROUP, Budget, TypeBInput, combine
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -61,7 +61,6 @@ TYPE_A_NAME = "Type A: sample noise and its correlation (fit's sandwich covarian
 TYPE_A_RUN_MEAN_NAME = (
     "Type A: sample noise and its correlation (fit's sandwich covariance; bias against the run's mean)"
 )
-WANDER_GROUP = "bias wander over the run"
 METHOD = "refit by central differences (calibrate_dynamic on the changed recording)"
 TILT_ABSORBED = (
     "base levelling: the dynamic fit estimates the table tilt (table_tilt), so its uncertainty "

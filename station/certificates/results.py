@@ -17,7 +17,7 @@ from typing import Any
 
 from bench.fitted_model import FittedModel, GCheckSummary
 from bench.limit_check import LimitCheck
-from bench.uncertainty.dynamic import WANDER_GROUP
+from bench.uncertainty.budget import WANDER_GROUP
 from station.certificates.budget import CertificateBudget
 from station.certificates.conformity import G_CHECK_U_BASIS, g_check_u
 from station.certificates.datasheet_units import datasheet_results

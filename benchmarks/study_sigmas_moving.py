@@ -9,7 +9,11 @@ Three kinds of moving recording, simulated by ``drivers/sim`` for the ADXL325-li
   a 10 s dwell per rate window, about 12 minutes, 100 Hz);
 - ``oscillation``: the two-axis oscillation, 600 s (10.5 minutes, 100 Hz);
 - ``tumble``: the planner's every-sample design for 3 minutes of table time
-  (``best_within(..., fit="every-sample")``: the planned-static tumble, moves included, 50 Hz).
+  (``best_within(..., fit="every-sample")``: the planned-static tumble, moves included, 50 Hz);
+- ``tumble-independent``: the same design on the independent simulator of
+  ``benchmarks.planning_independent_sim`` (its own kinematics, quintic moves, exact AR(1)
+  wander; a unit with K = I + 2e-3 N(0, 1), m/s² output; case ``clean`` only: that simulator
+  has no temperature or pose errors).
 
 Cases: ``clean``; ``realistic``: a zero-g temperature coefficient of 0.2 mg/°C (1 σ per
 channel, seeded) under the simulator's default lab course (2 °C self-heating over 10 min,
@@ -48,6 +52,7 @@ from bench.procedures.rate import DEFAULT_POSES_DEG, DEFAULT_RATES_DEG_S
 from bench.procedures.steps import MoveTo, Procedure
 from bench.recording import Recording
 from bench.uncertainty.dynamic import dynamic_budget, dynamic_inputs, wander_inputs
+from benchmarks.planning_independent_sim import Motion, noise_series, quintic_state
 from drivers.sim.offline import (
     DEFAULT_AXES,
     SimulatedRun,
@@ -58,7 +63,7 @@ from drivers.sim.offline import (
 from drivers.sim.physics import REFERENCE_TEMP_C, SensorPhysics
 from drivers.sim.sensor_truth import G0_M_S2, SensorTruth
 
-KINDS = ("rate", "oscillation", "tumble")
+KINDS = ("rate", "oscillation", "tumble", "tumble-independent")
 CASES = ("clean", "realistic")
 TEMPCO_M_S2_PER_C = 0.2e-3 * G0_M_S2
 POSE_RAD = math.radians(1.0 / 60.0)
@@ -124,8 +129,43 @@ def truth_for(kind: str, case: str, seed: int) -> SensorTruth:
     return tr.with_effects(effects)
 
 
+def simulate_independent(seed: int) -> SimulatedRun:
+    """The planned tumble on the independent simulator (module docstring), packaged as a run:
+    encoders are the commanded angles, the temperature constant, the wander kept apart."""
+    proc, fs = tumble_procedure(), TUMBLE_FS_HZ
+    motion = Motion(proc, fs)
+    ang, _, _ = quintic_state(proc, fs)
+    n = len(ang)
+    rng = np.random.default_rng([seed, 0x1D])
+    K = np.eye(3) + 2e-3 * rng.standard_normal((3, 3))
+    b = 0.05 * rng.standard_normal(3)
+    white = noise_series(UnitNoise(250e-6 * G0_M_S2, 0.0, 200.0), n, fs, rng)
+    wander = noise_series(UnitNoise(1e-30, WANDER[0], WANDER[1]), n, fs, rng)
+    y = b + (motion.force(np.zeros(3), np.zeros(2)) + wander + white) @ K.T
+    truth = SensorTruth(bias=b, K=K, channel_unit="m/s2", noise=SensorTruth.typical("m/s2").noise)
+    return SimulatedRun(
+        t_s=np.arange(n) / fs,
+        raw=y,
+        encoder_deg=(ang + 180.0) % 360.0 - 180.0,
+        temp_c=np.full(n, 25.0),
+        segments=(),
+        truth=truth,
+        procedure="planned-static",
+        sample_rate_hz=fs,
+        axis_vectors=DEFAULT_AXES,
+        mount=np.eye(3),
+        g_local_m_s2=G0_M_S2,
+        profile=None,  # type: ignore[arg-type]  # the fit reads the encoders, not the profile
+        bias_wander_m_s2=wander,
+    )
+
+
 def simulate(kind: str, case: str, seed: int) -> SimulatedRun:
     """One recording of the study's unit (module docstring)."""
+    if kind == "tumble-independent":
+        if case != "clean":
+            raise ValueError("the independent simulator has the clean case only")
+        return simulate_independent(seed)
     ph = SensorPhysics(truth_for(kind, case, seed), DEFAULT_AXES, seed=3000 + seed)
     if kind == "rate":
         return simulate_rate_steps(

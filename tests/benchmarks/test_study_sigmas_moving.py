@@ -27,9 +27,10 @@ def test_planned_tumble_bias_budget_covers_the_long_run_bias_sampled() -> None:
 
 @pytest.mark.slow
 @pytest.mark.timeout(3600)
-@pytest.mark.parametrize("kind", ["rate", "oscillation", "tumble"])
+@pytest.mark.parametrize("kind", ["rate", "oscillation", "tumble", "tumble-independent"])
 def test_moving_bias_budget_and_k_sigmas_over_seeds(kind: str) -> None:
-    """24 seeds per kind (72 bias values, 216 K values): long-run bias RMS z with the budget's
+    """24 seeds per kind, the independent simulator's tumble included (72 bias values, 216 K
+    values): long-run bias RMS z with the budget's
     bias lines 0.7–1.35, K 0.75–1.3, no |z| above 5."""
     out = [z_scores(kind, "clean", seed) for seed in range(100, 124)]
     s = summary(out)

@@ -18,6 +18,8 @@ import numpy as np
 from api.simulated_recording import to_recording
 from bench.calibration.diagnose import diagnose_recording
 from bench.diagnosis import Diagnosis
+from bench.diagnosis.thresholds import Thresholds
+from bench.estimation.spectral_lines import FALSE_ALARM as LINE_FALSE_ALARM
 from bench.recording import Recording
 from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg
 from drivers.sim.physics import SensorPhysics, SensorTruth, TemperatureModel
@@ -26,6 +28,15 @@ N_WINDOWS = 12
 CYCLING_TEMPERATURE = TemperatureModel(warmup_rise_c=0.0, cycle_amplitude_c=1.5, cycle_period_s=150.0)
 """A sensor whose temperature cycles (±1.5 °C, 150 s) with no warm-up, so temperature and
 time are not collinear over the ~450 s of windows (a thermal chamber, not the lab default)."""
+
+
+def clean_finding_rate(th: Thresholds) -> float:
+    """Nominal share of clean static recordings with a finding or a discovered term: the union
+    (Bonferroni) bound of the levels of the stages that can claim on one, the first selection
+    step's ``false_alarm`` (the library's ``library_share`` of it included; a clean selection
+    stops there), the settling test's ``settling_share``·``false_alarm`` and the line finder's
+    ``spectral_lines.FALSE_ALARM``: 0.01 + 0.001 + 0.001 = 0.012 at the defaults."""
+    return th.false_alarm * (1.0 + th.settling_share) + LINE_FALSE_ALARM
 
 
 def static_recording(

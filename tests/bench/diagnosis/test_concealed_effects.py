@@ -4,7 +4,7 @@ Scenarios and measured detection limits: ``benchmarks/diagnose_cases.py`` (the f
 more recordings per cell: ``python -m benchmarks.study_diagnose_detection``, docs/diagnose.md).
 At 10x its limit each effect must be found and its parameter recovered within 3 of its own
 sigmas; at 3x it must be found in at least the stated share of recordings. On 100 clean
-recordings at most two may report anything (2 %).
+recordings the count with a finding stays within a binomial margin of the design's nominal rate.
 """
 
 from __future__ import annotations
@@ -12,9 +12,11 @@ from __future__ import annotations
 import math
 
 import pytest
+from scipy.stats import binom
 
 from bench.calibration.diagnose import diagnose_recording
-from tests.support.diagnose_cases import CASES, run_case, static_recording
+from bench.diagnosis.thresholds import Thresholds
+from tests.support.diagnose_cases import CASES, clean_finding_rate, run_case, static_recording
 
 TEN_X = ["nonlinearity_quadratic", "scale_asymmetry", "cross_coupling", "temperature_bias", "bias_drift",
          "table_tilt", "pose_error", "encoder_offset", "settling"]  # fmt: skip
@@ -48,13 +50,19 @@ def test_effect_at_three_times_its_limit_is_found_mostly(effect: str) -> None:
 
 @pytest.mark.slow
 def test_false_finding_rate_on_a_hundred_clean_recordings() -> None:
-    """At most 2 % of clean recordings report anything (measured: 3 of 250, 1.2 %, docs/diagnose.md)."""
+    """Clean recordings with any finding stay within the design's rate: nominal p0 =
+    ``clean_finding_rate`` (tests/support/diagnose_cases.py: 0.01 + 0.001 + 0.001 = 0.012 at
+    the defaults), n = 100, and the count may reach the 99.9 % point of Bin(n, p0) (6 at the
+    defaults), a margin over the nominal rate rather than the rate measured (3 of 250, 1.2 %,
+    docs/diagnose.md). Power: at a true rate of 8 % it fails with probability 0.70."""
+    n = 100
+    bound = binom.ppf(0.999, n, clean_finding_rate(Thresholds()))
     false = {}
-    for seed in range(1000, 1100):
+    for seed in range(1000, 1000 + n):
         effects = [f.effect for f in diagnose_recording(static_recording({}, seed=seed)).findings]
         if effects:
             false[seed] = effects
-    assert len(false) <= 2, false
+    assert len(false) <= bound, (bound, false)
 
 
 def test_drift_on_the_lab_default_is_reported_as_confounded_with_warm_up_temperature() -> None:

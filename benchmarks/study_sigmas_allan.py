@@ -7,7 +7,8 @@ the 5-term fit (and N also by the slope reading):
   first-order Gauss–Markov bias (level σ_gm, correlation time T_c: not one of the five
   IEEE 952 power laws), rate random walk K;
 * ``sim``: the same noise from calbench's simulator (``drivers.sim.noise.NoiseStream``);
-* ``powerlaw``: white N, flicker B and rate random walk K only, so the terms have a truth.
+* ``powerlaw``: white N, flicker B and rate random walk K only, so the terms have a truth;
+* ``whiterw``: white N and rate random walk K alone (no Gauss–Markov bias, no flicker).
   Flicker is a sum of first-order Gauss–Markov processes with correlation times half an
   octave apart, each of variance c: Σ 4cT_j/(1 + (2πfT_j)²) → (c/ln r)/f for spacing r
   (Keshner, Proc. IEEE 70, 1982), so h₋₁ = c/ln r and B² = π·h₋₁ (IEEE 952 Table C.2) —
@@ -19,12 +20,17 @@ Measures per term:
   two recordings of one sensor make; 1 when the sigmas are honest, whatever their spread
   from recording to recording;
 * ``spread``: sd of the estimates / median stated sigma;
-* ``truth_z`` (``powerlaw`` only): RMS of (estimate − truth) / sigma.
+* ``truth_z`` (``powerlaw``, ``whiterw``; N and K also on ``gm`` and ``sim``, whose N and K are
+  the injected ones): RMS of (estimate − truth) / sigma, and ``truth_2s`` the share within 2σ;
+* the Gauss–Markov term: ``GM_admitted`` the share of curves whose fit admits it (the
+  false-admission rate on ``powerlaw`` and ``whiterw``), and on ``gm`` and ``sim`` among those
+  admitted ``GM_level_truth_z`` / ``GM_tc_truth_z`` (T_c's z in ln T_c, its sigma linearised)
+  and the shares within 2σ, and the pair z of σ_gm and ln T_c.
 
 Also the line finder on the ``gm`` records with a 0.5 Hz and a 23.4 Hz line added: how often
 both are found, and the same ratios after their removal.
 
-    python -m benchmarks.study_sigmas_allan [seeds] [seconds[,seconds…]] [gm|sim|powerlaw|lines|real]
+    python -m benchmarks.study_sigmas_allan [seeds] [seconds[,…]] [gm|sim|powerlaw|whiterw|lines|real][,…]
 """
 
 from __future__ import annotations
@@ -47,7 +53,8 @@ N_WHITE, K_RRW = 1e-3, 2e-5
 GM_LEVEL, GM_TC_S = 3e-4, 30.0
 B_FLICKER = 2e-4
 TERMS = ("N_fit", "B_fit", "K_fit", "N_slope")
-SENSORS = ("gm", "sim", "powerlaw")
+SENSORS = ("gm", "sim", "powerlaw", "whiterw")
+GM_SENSORS = ("gm", "sim")
 
 
 def _gauss_markov(rng: np.random.Generator, n: int, level: float, tc_s: float) -> np.ndarray:
@@ -75,6 +82,7 @@ def record(seed: int, n: int, lines: bool, sensor: str = "gm") -> np.ndarray:
     a = math.exp(-1.0 / (FS_HZ * GM_TC_S))
     gm = lfilter([1.0], [1.0, -a], rng.normal(size=(n, 3)) * GM_LEVEL * math.sqrt(1 - a * a), axis=0)
     y = N_WHITE * math.sqrt(FS_HZ) * rng.normal(size=(n, 3)) + (gm if sensor == "gm" else 0.0)
+    # gm is drawn on every sensor, so a seed's white and random walk are the same on each
     y += np.cumsum(K_RRW / math.sqrt(FS_HZ) * rng.normal(size=(n, 3)), axis=0)
     if sensor == "powerlaw":
         y += _flicker(rng, n)
@@ -108,7 +116,8 @@ def pair_z_rms(values: npt.ArrayLike, sigmas: npt.ArrayLike) -> float:
 
 
 def estimates(seeds: int, seconds: float, lines: bool = False, sensor: str = "gm") -> tuple[np.ndarray, int]:
-    """((seeds·3, 8) [value, sigma] of N, B, K (fit) and N (slope) per channel, line successes)."""
+    """((seeds·3, 12) [value, sigma] of N, B, K (fit), N (slope), σ_gm and T_c (fit) per channel,
+    line successes)."""
     n = int(seconds * FS_HZ)
     rows, found = [], 0
     for seed in range(seeds):
@@ -123,6 +132,8 @@ def estimates(seeds: int, seconds: float, lines: bool = False, sensor: str = "gm
                 [
                     f.white_n, f.white_n_sigma, f.bias_instability_b, f.bias_instability_b_sigma,
                     f.rate_random_walk_k, f.rate_random_walk_k_sigma, s.white_n, s.white_n_sigma,
+                    f.gauss_markov_level, f.gauss_markov_level_sigma, f.gauss_markov_tc_s,
+                    f.gauss_markov_tc_s_sigma,
                 ]
             )  # fmt: skip
     return np.array(rows), found
@@ -135,13 +146,30 @@ def study(
     line detection rate when ``lines``."""
     a, found = estimates(seeds, seconds, lines, sensor)
     truth = {"N_fit": N_WHITE, "B_fit": B_FLICKER, "K_fit": K_RRW, "N_slope": N_WHITE}
+    if sensor == "whiterw":
+        truth["B_fit"] = 0.0
     out: dict[str, float] = {}
     for k, name in enumerate(TERMS):
         v, s = a[:, 2 * k], a[:, 2 * k + 1]
         out[f"{name}_pair_z"] = pair_z_rms(v, s)
         out[f"{name}_spread"] = float(v.std(ddof=1) / np.median(s))
-        if sensor == "powerlaw":
-            out[f"{name}_truth_z"] = float(np.sqrt(np.mean(((v - truth[name]) / s) ** 2)))
+        if sensor in ("powerlaw", "whiterw") or (sensor in GM_SENSORS and name != "B_fit"):
+            z = (v - truth[name]) / s
+            out[f"{name}_truth_z"] = float(np.sqrt(np.mean(z**2)))
+            out[f"{name}_truth_2s"] = float(np.mean(np.abs(z) <= 2.0))
+    level, level_s, tc, tc_s = a[:, 8], a[:, 9], a[:, 10], a[:, 11]
+    admitted = level > 0.0
+    out["GM_admitted"] = float(np.mean(admitted))
+    if sensor in GM_SENSORS and admitted.sum() > 1:
+        z_level = (level[admitted] - GM_LEVEL) / level_s[admitted]
+        z_tc = np.log(tc[admitted] / GM_TC_S) / (tc_s[admitted] / tc[admitted])
+        out["GM_level_truth_z"] = float(np.sqrt(np.mean(z_level**2)))
+        out["GM_level_truth_2s"] = float(np.mean(np.abs(z_level) <= 2.0))
+        out["GM_tc_truth_z"] = float(np.sqrt(np.mean(z_tc**2)))
+        out["GM_tc_truth_2s"] = float(np.mean(np.abs(z_tc) <= 2.0))
+        out["GM_level_pair_z"] = pair_z_rms(level[admitted], level_s[admitted])
+        out["GM_tc_pair_z"] = pair_z_rms(np.log(tc[admitted]), tc_s[admitted] / tc[admitted])
+        out["GM_tc_median_s"] = float(np.median(tc[admitted]))
     if lines:
         out["lines_found_rate"] = found / seeds
     return out
@@ -188,14 +216,15 @@ def _show(label: str, res: dict[str, float]) -> str:
 if __name__ == "__main__":
     s = int(sys.argv[1]) if len(sys.argv) > 1 else 8
     lengths = [float(x) for x in sys.argv[2].split(",")] if len(sys.argv) > 2 else [3000.0]
-    kind = sys.argv[3] if len(sys.argv) > 3 else "gm"
-    if kind == "real":
+    kinds = sys.argv[3].split(",") if len(sys.argv) > 3 else ["gm"]
+    if kinds == ["real"]:
         for parts in (2, 4):
             print(_show(f"Xsens rest in {parts} parts:", real_split(REAL_DATA, parts)))
         sys.exit(0)
     for sec in lengths:
-        if kind == "lines":
-            print(_show(f"{sec:g} s, gm, no lines:", study(s, sec)))
-            print(_show(f"{sec:g} s, gm, with lines:", study(s, sec, lines=True)))
-        else:
-            print(_show(f"{sec:g} s, {kind}:", study(s, sec, sensor=kind)))
+        for kind in kinds:
+            if kind == "lines":
+                print(_show(f"{sec:g} s, gm, no lines:", study(s, sec)))
+                print(_show(f"{sec:g} s, gm, with lines:", study(s, sec, lines=True)))
+            else:
+                print(_show(f"{sec:g} s, {kind}:", study(s, sec, sensor=kind)), flush=True)

@@ -34,7 +34,10 @@ from bench.estimation.spectral_lines import SpectralLine, find_lines, remove_lin
 from bench.recording import Recording, read_recording
 
 CHANNELS = ("ax", "ay", "az")
-NOISE_MODEL = "sigma^2(tau) = 3 Q^2/tau^2 + N^2/tau + (0.664 B)^2 + K^2 tau/3 + R^2 tau^2/2 (IEEE 952 C)"
+NOISE_MODEL = (
+    "sigma^2(tau) = 3 Q^2/tau^2 + N^2/tau + (0.664 B)^2 + K^2 tau/3 + R^2 tau^2/2"
+    " + 2 s_gm^2 T_c/tau [1 - T_c/(2 tau) (3 - 4 exp(-tau/T_c) + exp(-2 tau/T_c))] (IEEE 952 C)"
+)
 MAX_GAP_FACTOR = 1.5
 """A step between time stamps longer than this many sample periods is a gap."""
 
@@ -92,6 +95,8 @@ def noise_units(u: str) -> dict[str, str]:
         "bias_instability_b": u,
         "rate_random_walk_k": f"{u}/sqrt(s)",
         "rate_ramp_r": f"{u}/s",
+        "gauss_markov_level": u,
+        "gauss_markov_tc_s": "s",
     }
 
 
@@ -211,6 +216,8 @@ def format_human(
         "rate_random_walk_k": "K rate random walk",
         "quantization_q": "Q quantisation",
         "rate_ramp_r": "R rate ramp",
+        "gauss_markov_level": "s_gm Gauss-Markov bias",
+        "gauss_markov_tc_s": "T_c its correlation time",
     }
     for key, label in names.items():
         vals = "".join(f"{_pm(getattr(f, key), getattr(f, key + '_sigma')):>24}" for f in fits)

@@ -14,6 +14,8 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
+from bench.estimation.gauss_markov_allan import gm_spectrum
+
 FloatArray = npt.NDArray[np.float64]
 
 
@@ -24,7 +26,7 @@ def spectrum_coefficients(p: npt.ArrayLike) -> FloatArray:
     IEEE 952 Table C.2: h₀ = 2N², h₋₁ = B²/π, h₋₂ = K²/(2π²); white phase noise h₂ = 4π²Q²·τ0·2
     (its Allan variance 3 f_h h₂/(4π²τ²) = 3Q²/τ² with f_h = 1/(2τ0)).
     """
-    q2, n2, b2, k2, _ = np.asarray(p, dtype=float)
+    q2, n2, b2, k2, _ = np.asarray(p, dtype=float)[:5]
     return np.asarray(
         np.array([0.0, 2.0 * n2, b2 / math.pi, k2 / (2.0 * math.pi**2)])
         + np.array([8.0 * math.pi**2 * q2, 0.0, 0.0, 0.0]),
@@ -32,8 +34,13 @@ def spectrum_coefficients(p: npt.ArrayLike) -> FloatArray:
     )
 
 
-def allan_correlation(taus_s: FloatArray, p: npt.ArrayLike, tau0_s: float) -> FloatArray:
+def allan_correlation(
+    taus_s: FloatArray, p: npt.ArrayLike, tau0_s: float, tc_s: float = math.nan
+) -> FloatArray:
     """(m, m) correlation of overlapping Allan variance estimates at taus_s under the model p.
+
+    p: [Q², N², B², K², R²] (5,) or with a Gauss–Markov variance σ_gm² (6,), whose
+    correlation time tc_s (s) then adds its Lorentzian (:func:`gm_spectrum`) to S_y.
 
     For a Gaussian process the overlapping estimate is a quadratic form of the second
     differences d_a; for a record long against the τ involved,
@@ -50,6 +57,9 @@ def allan_correlation(taus_s: FloatArray, p: npt.ArrayLike, tau0_s: float) -> Fl
     h = spectrum_coefficients(p)
     f, df, W = _allan_transfer(t.tobytes(), float(tau0_s))
     S = h[0] * f**2 + h[1] + h[2] / f + h[3] / f**2
+    pv = np.asarray(p, dtype=float)
+    if pv.size > 5 and pv[5] > 0.0 and math.isfinite(tc_s):
+        S = S + gm_spectrum(f, float(pv[5]), tc_s)
     wts = df * S**2
     G = np.einsum("af,bf->ab", W * wts, W)  # einsum: no BLAS threads for a small product
     d = np.sqrt(np.maximum(np.diag(G), np.finfo(float).tiny))

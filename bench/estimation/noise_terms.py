@@ -11,6 +11,10 @@ The standard noise model adds independent power-law processes; their Allan varia
     K  rate random walk                    (u/√s), read at τ = 3 s on the +1/2 line
     R  rate ramp (drift)                   (u/s)
 
+and, where the curve needs it, a first-order Gauss–Markov bias of level σ_gm (u) and
+correlation time T_c (s), σ_gm²·g(τ; T_c) (:mod:`bench.estimation.gauss_markov_allan`): the
+hump near T_c that a wandering bias makes and no power law follows.
+
 :func:`fit_noise_model` fits the five squared coefficients p = [Q², N², B², K², R²] ≥ 0 by
 non-negative generalised least squares on σ̂². The covariance of the σ̂² vector is
 C = D·R·D: D = σ²(τ)·√(2/edf) (a χ² variable with edf degrees of freedom, SP1065 §5.3) and
@@ -38,7 +42,8 @@ by up to 17 %.
 
 Which terms: N, B and K are always in the model, and their sigmas come from the normal
 matrix of all three, also one the non-negativity bound set to 0 (it still trades with the
-others). Quantisation Q and rate ramp R enter only where the curve needs them
+others). Quantisation Q, rate ramp R and the Gauss–Markov term enter only where the curve
+needs them
 (:func:`select_terms`): backward elimination, a term leaving when that raises χ² by less
 than :data:`SELECT_DELTA_CHI2`, the 1 % point of the ½χ²₀ + ½χ²₁ law of a likelihood ratio
 for a parameter on its bound (Self & Liang, JASA 82, 1987). That law needs the model to
@@ -47,6 +52,9 @@ upper limit from the full model. Counting the trade with a Q or R held at 0 by t
 made every sigma too wide on short records, where the estimates cannot follow that trade
 (they stay on the bound): between recordings of one sensor pair z 0.47-0.73 at 600 s, also
 for a sensor of pure power laws (docs/noise-model.md); with the selection 0.78-1.02.
+The Gauss–Markov T_c is profiled (the T_c of least χ², :func:`~bench.estimation.noise_gls.fit_terms`)
+in every fit that holds the term, the test's included; its sigma, and its trade with the
+other terms, from the fit's design with the column ∂σ²/∂ln T_c added (linearised).
 
 :func:`slope_method` is the graphical reading of Annex C: N from the points on the −1/2
 line (read at τ = 1 s), K from the points on the +1/2 line (read at τ = 3 s), B from the
@@ -73,18 +81,21 @@ from bench.estimation.allan_covariance import (
 )
 from bench.estimation.noise_gls import BI_FACTOR as BI_FACTOR
 from bench.estimation.noise_gls import (
+    GM,
     MISFIT_LEVEL,
     allowance,
+    fit_terms,
     floor_for_unit_chi2,
     gls,
     select_terms,
+    tc_range_s,
     term_variances,
 )
 from bench.estimation.noise_gls import basis as basis
 
 FloatArray = npt.NDArray[np.float64]
 
-TERMS = ("quantization", "white", "bias_instability", "rate_random_walk", "rate_ramp")
+TERMS = ("quantization", "white", "bias_instability", "rate_random_walk", "rate_ramp", "gauss_markov")
 """Term names, in the order of :func:`basis`."""
 
 DOMINANT_SHARE = 0.8
@@ -114,17 +125,23 @@ class NoiseTerms:
     tau_min_fit_s: float = math.nan
     model_floor_rel: float = math.nan
     model_floor_corr_octaves: float = math.nan
+    gauss_markov_level: float = math.nan
+    """σ_gm (u): standard deviation of the Gauss–Markov bias; 0 when the curve does not need it."""
+    gauss_markov_tc_s: float = math.nan
+    """T_c (s): its correlation time; NaN when the term is 0 or not estimated."""
+    gauss_markov_level_sigma: float = math.nan
+    gauss_markov_tc_s_sigma: float = math.nan
 
     @property
     def coefficients(self) -> FloatArray:
-        """(5,) [Q, N, B, K, R], NaN read as 0."""
-        return np.asarray(
-            np.nan_to_num(np.array([getattr(self, name) for name in _FIELDS]), nan=0.0), dtype=float
-        )
+        """(6,) [Q, N, B, K, R, σ_gm], NaN read as 0."""
+        names = (*_FIELDS, "gauss_markov_level")
+        return np.asarray(np.nan_to_num(np.array([getattr(self, n) for n in names]), nan=0.0), dtype=float)
 
     def model_adev(self, taus_s: npt.ArrayLike) -> FloatArray:
         """Allan deviation of the model at τ (s), shape of taus_s."""
-        return np.sqrt(basis(np.atleast_1d(taus_s)) @ self.coefficients**2).reshape(np.shape(taus_s))
+        b = basis(np.atleast_1d(taus_s), self.gauss_markov_tc_s)
+        return np.sqrt(b @ self.coefficients**2).reshape(np.shape(taus_s))
 
     def as_dict(self) -> dict[str, float | str]:
         """Plain dict (for JSON): term values, ``*_sigma``, ``chi2_dof``, ``method``."""
@@ -137,10 +154,19 @@ class NoiseTerms:
         out["tau_min_fit_s"] = float(self.tau_min_fit_s)
         out["model_floor_rel"] = float(self.model_floor_rel)
         out["model_floor_corr_octaves"] = float(self.model_floor_corr_octaves)
+        for name in ("gauss_markov_level", "gauss_markov_tc_s"):
+            out[name] = float(getattr(self, name))
+            out[f"{name}_sigma"] = float(getattr(self, f"{name}_sigma"))
         return out
 
 
 _FIELDS = ("quantization_q", "white_n", "bias_instability_b", "rate_random_walk_k", "rate_ramp_r")
+_GM_FIELDS = (
+    "gauss_markov_level",
+    "gauss_markov_tc_s",
+    "gauss_markov_level_sigma",
+    "gauss_markov_tc_s_sigma",
+)
 
 
 def _terms(
@@ -151,8 +177,9 @@ def _terms(
     tau_min_fit_s: float,
     model_floor_rel: float = math.nan,
     model_floor_corr_octaves: float = math.nan,
+    gauss_markov: tuple[float, float, float, float] = (math.nan,) * 4,
 ) -> NoiseTerms:
-    """NoiseTerms from [Q, N, B, K, R] values and sigmas."""
+    """NoiseTerms from [Q, N, B, K, R] values and sigmas, and (σ_gm, T_c, their sigmas)."""
     kwargs = dict(zip(_FIELDS, values, strict=True))
     kwargs.update({f"{name}_sigma": s for name, s in zip(_FIELDS, sigmas, strict=True)})
     kw: dict[str, float] = {
@@ -160,6 +187,7 @@ def _terms(
         "model_floor_rel": model_floor_rel,
         "model_floor_corr_octaves": model_floor_corr_octaves,
     }
+    kw.update(zip(_GM_FIELDS, gauss_markov, strict=True))
     return NoiseTerms(**kwargs, chi2_dof=chi2_dof, method=method, **kw)
 
 
@@ -224,30 +252,34 @@ def fit_noise_model_curve(
     active = sorted(TERMS.index(name) for name in terms)
     start = first_fit_index(s2)
     t, s2, nu = t[start:], s2[start:], nu[start:]
+    lo_tc, hi_tc = tc_range_s(t)
+    if GM in active and lo_tc > hi_tc:  # no room for a hump: the term is not estimated (NaN)
+        active.remove(GM)
     if t.size < len(active) + 1:
         rising = f" (the curve rises from τ0 to τ = {t[0]:.3g} s: is the stretch static?)" if start else ""
         raise ValueError(f"{t.size} Allan points{rising} cannot determine {len(active)} noise terms")
     tau0 = float(t.min()) if tau0_s is None else float(tau0_s)
-    full = gls(t, s2, nu, basis(t)[:, active], active, tau0, 0.0, n_iterations)
+    full = fit_terms(t, s2, nu, active, tau0, n_iterations)
     bound_var = term_variances(full, max(1.0, full.chi2 / full.dof))
     # the bounded likelihood-ratio test needs the model to hold: where χ² rejects it, all terms stay
     holds = full.chi2 <= stats.chi2.ppf(MISFIT_LEVEL, full.dof)
     chosen = select_terms(t, s2, nu, active, tau0, n_iterations, full) if select and holds else active
-    A = basis(t)[:, chosen]
-    fit = full if chosen == active else gls(t, s2, nu, A, chosen, tau0, 0.0, n_iterations)
+    fit = full if chosen == active else fit_terms(t, s2, nu, chosen, tau0, n_iterations)
+    tc = fit.tc_s  # the allowance's fits keep the Gauss–Markov T_c of the fit without it
+    A = basis(t, tc)[:, chosen]
     chi2_dof = fit.chi2 / fit.dof
     floor = 0.0 if floor_rel is None else float(floor_rel)
     octaves = 0.0 if floor_octaves is None else float(floor_octaves)
     level = floor  # the allowance of the values' fit: independent between τ
     if floor_rel is None and fit.chi2 > stats.chi2.ppf(MISFIT_LEVEL, fit.dof):
         if floor_octaves is None:
-            floor, octaves, level = allowance(t, s2, nu, A, chosen, tau0, n_iterations)
+            floor, octaves, level = allowance(t, s2, nu, A, chosen, tau0, n_iterations, tc)
         else:
-            level = floor_for_unit_chi2(t, s2, nu, A, chosen, tau0, n_iterations, 0.0)
+            level = floor_for_unit_chi2(t, s2, nu, A, chosen, tau0, n_iterations, 0.0, tc)
             floor = (
                 level
                 if octaves == 0.0
-                else floor_for_unit_chi2(t, s2, nu, A, chosen, tau0, n_iterations, octaves)
+                else floor_for_unit_chi2(t, s2, nu, A, chosen, tau0, n_iterations, octaves, tc)
             )
     var_p = term_variances(fit, max(1.0, chi2_dof))
     if floor > 0.0:
@@ -255,19 +287,27 @@ def fit_noise_model_curve(
         # short-τ points from deciding every term. Their sigmas: the sandwich with the
         # allowance at its likelihood's correlation length (a misfit is smooth in τ), never
         # below the fit without allowance scaled by its χ²/dof (Birge ratio).
-        fit = gls(t, s2, nu, A, chosen, tau0, level, n_iterations)
+        fit = gls(t, s2, nu, A, chosen, tau0, level, n_iterations, 0.0, tc)
         fl = 2.0 * floor * fit.model
         honest = fit.stat_cov + allowance_correlation(t, octaves) * fl[:, None] * fl[None, :]
-        var_p = np.maximum(term_variances(fit, max(1.0, fit.chi2 / fit.dof), honest), var_p)
-    values = [math.nan] * 5
-    sigmas = [math.nan] * 5
+        new = term_variances(fit, max(1.0, fit.chi2 / fit.dof), honest)
+        # (k,) per term, and ln T_c's variance last where this fit has the Gauss–Markov term > 0
+        n_terms = len(chosen)
+        head = np.maximum(new[:n_terms], var_p[:n_terms])
+        tail = new[n_terms:] if var_p.size == n_terms else np.maximum(new[n_terms:], var_p[n_terms:])
+        var_p = np.concatenate([head, tail])  # tail: [] where the values' fit has no T_c
+    values = [math.nan] * 6
+    sigmas = [math.nan] * 6
     for k, idx in enumerate(active):
         # a term the selection left out: 0 and its one-sigma upper limit from the full model
         values[idx], sigmas[idx] = _root_with_sigma(0.0, float(bound_var[k]))
     for k, idx in enumerate(chosen):
         values[idx], sigmas[idx] = _root_with_sigma(float(fit.p[k]), float(var_p[k]))
+    gm = (values[GM], math.nan, sigmas[GM], math.nan)
+    if fit.dtc is not None:  # the term is in and > 0: T_c and its sigma (linearised in ln T_c)
+        gm = (values[GM], tc, sigmas[GM], tc * math.sqrt(max(float(var_p[-1]), 0.0)))
     corr_octaves = octaves if floor > 0.0 else math.nan
-    return _terms(values, sigmas, chi2_dof, "wls-5term", float(t[0]), floor, corr_octaves)
+    return _terms(values[:5], sigmas[:5], chi2_dof, "wls-5term", float(t[0]), floor, corr_octaves, gm)
 
 
 def fit_noise_model(result: AllanResult, terms: tuple[str, ...] = TERMS) -> tuple[NoiseTerms, ...]:
@@ -326,10 +366,10 @@ def slope_method_curve(taus_s: npt.ArrayLike, adev: npt.ArrayLike, edf: npt.Arra
     nu = np.maximum(np.asarray(edf, dtype=float), 1.0)
     # the allowance level for independent points; _line_reading makes it common to the line
     fit = fit_noise_model_curve(t, dev, nu, floor_octaves=0.0)
-    parts = basis(t) * fit.coefficients**2
+    parts = basis(t, fit.gauss_markov_tc_s) * fit.coefficients**2
     share = parts / np.maximum(parts.sum(axis=1, keepdims=True), np.finfo(float).tiny)
     usable = np.arange(t.size) >= first_fit_index(dev)
-    corr = allan_correlation(t, fit.coefficients**2, float(t.min()))
+    corr = allan_correlation(t, fit.coefficients**2, float(t.min()), fit.gauss_markov_tc_s)
     floor = fit.model_floor_rel if math.isfinite(fit.model_floor_rel) else 0.0
     line = (t, dev, nu)
     n, n_sigma = _line_reading(*line, -0.5, 1.0, usable & (share[:, 1] >= DOMINANT_SHARE), corr, floor)

@@ -20,6 +20,7 @@ from bench.estimation.allan_covariance import allan_correlation, allowance_corre
 from bench.estimation.noise_gls import gls, term_variances
 from bench.estimation.noise_terms import (
     BI_FACTOR,
+    TERMS,
     basis,
     first_fit_index,
     fit_noise_model,
@@ -38,7 +39,7 @@ def test_exact_model_curve_returns_its_coefficients() -> None:
     """A noise-free curve of the model itself is fitted exactly."""
     Q, N, B, K, R = 2e-5, 1e-3, 2e-4, 3e-5, 1e-7
     taus = np.logspace(-2, 4, 40)
-    adev = np.sqrt(basis(taus) @ np.array([Q, N, B, K, R]) ** 2)
+    adev = np.sqrt(basis(taus) @ np.array([Q, N, B, K, R, 0.0]) ** 2)
     fit = fit_noise_model_curve(taus, adev, np.full(taus.size, 1e4))
     got = [fit.quantization_q, fit.white_n, fit.bias_instability_b, fit.rate_random_walk_k, fit.rate_ramp_r]
     np.testing.assert_allclose(got, [Q, N, B, K, R], rtol=1e-6)
@@ -132,11 +133,11 @@ def test_sandwich_with_the_fits_own_covariance_is_its_normal_matrix() -> None:
     """H⁻¹AsᵀL⁻¹·C·L⁻ᵀAsH⁻¹ with C = L·Lᵀ (the fit's covariance) reduces to H⁻¹ = (AsᵀAs)⁻¹."""
     taus = np.asarray(0.01 * 2.0 ** np.arange(14), dtype=np.float64)
     rng = np.random.default_rng(3)
-    s2: npt.NDArray[np.float64] = (basis(taus) @ np.array([0.0, 1e-3, 2e-4, 2e-5, 0.0]) ** 2) * (
+    s2: npt.NDArray[np.float64] = (basis(taus)[:, :5] @ np.array([0.0, 1e-3, 2e-4, 2e-5, 0.0]) ** 2) * (
         1 + 0.01 * rng.normal(size=14)
     )
     nu = np.asarray(3e5 * 0.01 / taus, dtype=np.float64)
-    fit = gls(taus, s2, nu, basis(taus), [0, 1, 2, 3, 4], 0.01, 0.02, 3)
+    fit = gls(taus, s2, nu, basis(taus)[:, :5], [0, 1, 2, 3, 4], 0.01, 0.02, 3)
     np.testing.assert_allclose(term_variances(fit, 1.0, fit.L @ fit.L.T), term_variances(fit, 1.0), rtol=1e-6)
 
 
@@ -152,10 +153,11 @@ def test_correlated_misfit_widens_the_white_sigma() -> None:
     tc, q = 0.3, (1e-3) ** 2  # Allan variance of a Gauss–Markov process (IEEE 952 C.6)
     x = taus / tc
     gm = q / x**2 * (2 * x - 3 + 4 * np.exp(-x) - np.exp(-2 * x))
-    adev = np.sqrt(basis(taus) @ np.array([0.0, 1e-3, 0.0, 2e-5, 0.0]) ** 2 + gm)
+    adev = np.sqrt(basis(taus)[:, :5] @ np.array([0.0, 1e-3, 0.0, 2e-5, 0.0]) ** 2 + gm)
     edf = 7e5 * 0.01 / taus
-    free = fit_noise_model_curve(taus, adev, edf, tau0_s=0.01)
-    independent = fit_noise_model_curve(taus, adev, edf, tau0_s=0.01, floor_octaves=0.0)
+    power_laws = TERMS[:5]  # without the Gauss–Markov term, which describes this curve exactly
+    free = fit_noise_model_curve(taus, adev, edf, power_laws, tau0_s=0.01)
+    independent = fit_noise_model_curve(taus, adev, edf, power_laws, tau0_s=0.01, floor_octaves=0.0)
     assert free.model_floor_rel > 0 and free.model_floor_corr_octaves > 0
     assert free.white_n == independent.white_n
     assert abs(independent.white_n - 1e-3) > 4.0 * independent.white_n_sigma
@@ -192,7 +194,7 @@ def test_quantisation_and_ramp_enter_only_where_the_curve_needs_them() -> None:
     while the same fit with selection off still counts them in N's sigma (wider)."""
     taus = np.asarray(0.01 * 2.0 ** np.arange(16), dtype=np.float64)
     rng = np.random.default_rng(5)
-    truth = basis(taus) @ np.array([0.0, 1e-3, 0.0, 2e-5, 0.0]) ** 2
+    truth = basis(taus)[:, :5] @ np.array([0.0, 1e-3, 0.0, 2e-5, 0.0]) ** 2
     nu = np.asarray(7.2e5 * 0.01 / taus + 2.0, dtype=np.float64)
     adev = np.sqrt(truth * rng.chisquare(nu) / nu)
     sel = fit_noise_model_curve(taus, adev, nu, tau0_s=0.01)

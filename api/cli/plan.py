@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -98,7 +100,9 @@ def _line(e: Evaluation) -> str:
 def noise_from_recording(path: Path, window_s: list[float] | None) -> UnitNoise:
     """The unit's noise from a recording's static stretch (selected as ``calbench allan`` does):
     the IEEE 952 terms of each channel, the largest of each term over the channels, the floor's τ
-    where the worst channel's fitted curve is lowest (:func:`~bench.planning.noise.from_allan_terms`).
+    where the worst channel's fitted curve is lowest (:func:`~bench.planning.noise.from_allan_terms`);
+    a Gauss–Markov term the fit admitted, where its level exceeds that floor's wander, is the
+    wander itself with its T_c.
 
     :raises BadInput: no such file, a channel unit other than m/s² or g, too short a stretch.
     """
@@ -121,12 +125,17 @@ def noise_from_recording(path: Path, window_s: list[float] | None) -> UnitNoise:
     worst = max(fits, key=lambda f: f.bias_instability_b)
     taus = np.geomspace(float(r.taus_s[0]), float(r.taus_s[-1]), 200)
     floor_tau = float(taus[int(np.argmin(worst.model_adev(taus)))])
-    return from_allan_terms(
+    noise = from_allan_terms(
         max(f.white_n for f in fits),
         max(f.bias_instability_b for f in fits),
         max(f.rate_random_walk_k for f in fits),
         floor_tau,
     )
+    # a Gauss–Markov term the fit admitted is the planner's wander itself (level and T_c)
+    gm = max(fits, key=lambda f: f.gauss_markov_level if f.gauss_markov_level > 0 else -1.0)
+    if gm.gauss_markov_level > noise.wander_m_s2 and math.isfinite(gm.gauss_markov_tc_s):
+        noise = replace(noise, wander_m_s2=gm.gauss_markov_level, wander_tau_s=gm.gauss_markov_tc_s)
+    return noise
 
 
 def run(args: argparse.Namespace) -> int:

@@ -16,7 +16,7 @@ from tests.support.noise import rate_random_walk, white
 def exact_curve(coeffs: list[tuple[float, float, float, float, float]], fs_hz: float = 100.0) -> AllanResult:
     """A noise-free AllanResult of the model with [Q, N, B, K, R] per channel, octave τ to ~2.9 h."""
     taus = 2.0 ** np.arange(21) / fs_hz
-    adev = np.stack([np.sqrt(basis(taus) @ np.array(c) ** 2) for c in coeffs], axis=1)
+    adev = np.stack([np.sqrt(basis(taus) @ np.array([*c, 0.0]) ** 2) for c in coeffs], axis=1)
     edf = np.full(adev.shape, 1e4)
     return AllanResult(
         taus_s=taus,

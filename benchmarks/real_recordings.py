@@ -342,9 +342,8 @@ def imu_utils(data: Path) -> None:
     )
     print(
         "| sensor | axis | N ours ± σ | N theirs | z_N | B ours ± σ | B theirs | z_B | K ours ± σ | K theirs "
-        "| z_K | σ(1 s)/acc_n | floor/acc_w | χ²/dof ours | N slope ± σ | z(N − N slope) |\n"
-        + "|---" * 16
-        + "|"
+        "| z_K | σ(1 s)/acc_n | floor/acc_w | χ²/dof ours | N slope ± σ | z(N − N slope) "
+        "| σ_gm ± σ | T_c (s) ± σ |\n" + "|---" * 18 + "|"
     )
     zs: list[float] = []
     for sensor, rs in rows.items():
@@ -379,7 +378,9 @@ def imu_utils(data: Path) -> None:
             z_sl = (ours.white_n - sl.white_n) / float(np.hypot(ours.white_n_sigma, sl.white_n_sigma))
             print(
                 f"| {sensor} | {axis} | {' | '.join(cells)} | {r1:.3f} | {rf:.3f} | {ours.chi2_dof:.3g} "
-                f"| {sl.white_n:.3g} ± {sl.white_n_sigma:.2g} | {z_sl:+.2f} |"
+                f"| {sl.white_n:.3g} ± {sl.white_n_sigma:.2g} | {z_sl:+.2f} "
+                f"| {ours.gauss_markov_level:.3g} ± {ours.gauss_markov_level_sigma:.2g} "
+                f"| {ours.gauss_markov_tc_s:.3g} ± {ours.gauss_markov_tc_s_sigma:.2g} |"
             )
     za = np.abs(np.array(zs))
     print(

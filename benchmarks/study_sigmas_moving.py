@@ -47,12 +47,12 @@ from api.simulated_recording import to_recording
 from bench.calibration.dynamic import calibrate_dynamic
 from bench.planning.noise import UnitNoise
 from bench.planning.search import best_within
-from bench.procedures.preview import TableLimits
 from bench.procedures.rate import DEFAULT_POSES_DEG, DEFAULT_RATES_DEG_S
 from bench.procedures.steps import MoveTo, Procedure
 from bench.recording import Recording
 from bench.uncertainty.dynamic import dynamic_budget, dynamic_inputs, wander_inputs
 from benchmarks.planning_independent_sim import Motion, noise_series, quintic_state
+from benchmarks.study_planning_dynamic import SIM_LIMITS
 from drivers.sim.offline import (
     DEFAULT_AXES,
     SimulatedRun,
@@ -71,14 +71,6 @@ RATE_DWELL_S = 10.0
 OSCILLATION_S = 600.0
 TUMBLE_S = 180.0
 TUMBLE_FS_HZ = 50.0
-SIM_LIMITS = TableLimits(
-    pos_lo_deg=(-180.0, -180.0, -180.0),
-    pos_hi_deg=(180.0, 180.0, 180.0),
-    max_rate_deg_s=(200.0, 200.0, 200.0),
-    max_acc_deg_s2=(200.0, 200.0, 200.0),
-    continuous=(True, False, True),
-)
-"""The limits the tumble is planned for and simulated at (200°/s, 200°/s²)."""
 TYPE_B = {
     "angle_u_rad": math.radians(0.001),
     "tilt_u_rad": 1e-5,

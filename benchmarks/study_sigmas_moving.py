@@ -189,10 +189,14 @@ def truths(run: SimulatedRun) -> tuple[np.ndarray, np.ndarray]:
     return long_run + tr.K @ run.bias_wander_m_s2.mean(axis=0), long_run
 
 
-def budget_u(rec: Recording, bias: np.ndarray, K: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+def budget_u(
+    rec: Recording, bias: np.ndarray, K: np.ndarray, sigma: np.ndarray, bias_sigma_run_mean: np.ndarray
+) -> np.ndarray:
     """(12,) the certificate budget's u_c of [b, vec K] (``bench.uncertainty.dynamic``)."""
     inputs, _ = dynamic_inputs(rec, (), bias, K, **TYPE_B)  # type: ignore[arg-type]
-    budget = dynamic_budget(rec, (), bias, K, np.diag(sigma**2), inputs, wander=WANDER)
+    budget = dynamic_budget(
+        rec, (), bias, K, np.diag(sigma**2), inputs, wander=WANDER, bias_sigma_run_mean=bias_sigma_run_mean
+    )
     return np.array([q.u_c for q in budget.quantities])
 
 
@@ -220,7 +224,7 @@ def z_scores(kind: str, case: str, seed: int, with_budget: bool = False) -> dict
     out["bias_long_core"] = (res.bias - long_run) / u_core
     if with_budget:
         sigma = np.concatenate([res.bias_sigma, res.K_sigma.ravel()])
-        u = budget_u(rec, res.bias, res.K, sigma)
+        u = budget_u(rec, res.bias, res.K, sigma, res.fit.bias_sigma_run_mean)
         out["K_budget"] = dk / u[3:]
         out["bias_run_budget"] = (res.bias - run_mean) / u[:3]
         out["bias_long_budget"] = (res.bias - long_run) / u[:3]

@@ -73,11 +73,14 @@ class StaticDesign:
     correlated_windows: bool
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MovingDesign:
-    """The design of a moving-table fit: the model terms beyond b and K (``ModelSpec.terms``)."""
+    """The design of a moving-table fit: the model terms beyond b and K (``ModelSpec.terms``),
+    and the fit's bias sigma against the run's mean bias (3,) channel units
+    (``DynamicFit.bias_sigma_run_mean``), the bias's Type A beside a stated wander."""
 
     terms: tuple[str, ...]
+    bias_sigma_run_mean: FloatArray
 
 
 BudgetDesign = StaticDesign | MovingDesign
@@ -218,8 +221,8 @@ def _design(rec: Recording, fit: CalibrationResult) -> BudgetDesign | str:
     if fit.kind is FitKind.MOVING:
         from bench.calibration.dynamic import DynamicCalibrationResult
 
-        assert isinstance(fit, DynamicCalibrationResult)
-        return MovingDesign(fit.model_terms)
+        assert isinstance(fit, DynamicCalibrationResult) and fit.fit is not None
+        return MovingDesign(fit.model_terms, fit.fit.bias_sigma_run_mean)
     if fit.kind is not FitKind.STATIC or any(w.f_m_s2 is None for w in fit.windows):
         return f"the {fit.kind.value} fit has no known specific force per window"
     f = np.array([w.f_m_s2 for w in fit.windows], dtype=float)

@@ -261,6 +261,7 @@ def dynamic_budget(
     cov_type_a: FloatArray,
     inputs: list[DynamicInput],
     wander: tuple[float, float] | None = None,
+    bias_sigma_run_mean: FloatArray | None = None,
 ) -> Budget:
     """The budget of b and K of a dynamic fit (values ``bias``, ``K``; Type A ``cov_type_a`` (12, 12)).
 
@@ -268,6 +269,8 @@ def dynamic_budget(
         fit's sigma against the run's mean and the wander's average over the run its own line
         (module docstring), so the bias U is the long-run bias's; ``None``: the fit's sigma as
         it is (``bias_reference`` says which bias it describes).
+    :param bias_sigma_run_mean: (3,) the fit's bias sigma against the run's mean
+        (``DynamicFit.bias_sigma_run_mean``, channel units); required with ``wander``.
     :raises ValueError: a refit fails (the recording's message), or a non-finite covariance.
     """
     C = np.asarray(cov_type_a, dtype=float)
@@ -280,12 +283,12 @@ def dynamic_budget(
     type_b = [d.input for d in inputs]
     if wander is None:
         return combine(theta, C, type_b, sens, METHOD, TYPE_A_NAME)
-    fit = calibrate_dynamic(rec, terms=terms, cross_check=False).fit
-    assert fit is not None  # calibrate_dynamic always returns its batch fit
+    if bias_sigma_run_mean is None:
+        raise ValueError("the unit's bias wander needs the fit's bias sigma against the run's mean")
     C = C.copy()
     C[:3, :] = 0.0
     C[:, :3] = 0.0
-    C[:3, :3] = np.diag(fit.bias_sigma_run_mean**2)
+    C[:3, :3] = np.diag(np.asarray(bias_sigma_run_mean, dtype=float).reshape(3) ** 2)
     span_s = float(rec.t_s[-1] - rec.t_s[0])
     w_inputs, w_sens = wander_inputs(span_s, K, wander)
     return combine(theta, C, [*type_b, *w_inputs], np.vstack([sens, w_sens]), METHOD, TYPE_A_RUN_MEAN_NAME)

@@ -202,7 +202,7 @@ def certificate_budget(analysis: Analysis, stored: FittedModel, tb: TypeBSetting
     design = budget_design(analysis)
     rec = analysis.recording
     if isinstance(design, MovingDesign):
-        return _dynamic_budget(rec, design.terms, stored.channel_unit, tb, b, K, np.diag(sigma**2))
+        return _dynamic_budget(rec, design, stored.channel_unit, tb, b, K, np.diag(sigma**2))
     f, V, inputs, skipped = budget_inputs(design, rec.sidecar.g_local_m_s2, stored, tb)
     if design.correlated_windows:
         budget = uncertainty_budget(f, b, K, np.diag(sigma**2), inputs, window_cov=V)
@@ -242,7 +242,7 @@ def _values(stored: FittedModel) -> tuple[str | float, ...]:
 
 def _dynamic_budget(
     rec: Recording,
-    terms: tuple[str, ...],
+    design: MovingDesign,
     unit: str,
     tb: TypeBSettings,
     b: np.ndarray,
@@ -250,13 +250,15 @@ def _dynamic_budget(
     cov: np.ndarray,
 ) -> CertificateBudget:
     inputs, skipped = dynamic_inputs(
-        rec, terms, b, K,
+        rec, design.terms, b, K,
         angle_u_rad=math.radians(tb.table_angle_u_deg), tilt_u_rad=tb.base_tilt_u_rad,
         g_local_u_m_s2=tb.g_local_u_m_s2,
         daq=(tb.daq_gain_u_rel, tb.daq_offset_u) if unit in ANALOG_UNITS else None,
         temp_coeff=(tb.temp_coeff_bias_u_m_s2_per_k, tb.temp_coeff_scale_u_rel_per_k),
     )  # fmt: skip
     wander = (tb.bias_wander_m_s2, tb.bias_wander_corr_time_s) if tb.bias_wander_m_s2 > 0 else None
-    budget = dynamic_budget(rec, terms, b, K, cov, inputs, wander=wander)
+    budget = dynamic_budget(
+        rec, design.terms, b, K, cov, inputs, wander=wander, bias_sigma_run_mean=design.bias_sigma_run_mean
+    )
     basis = DYNAMIC_TYPE_A_BASIS if wander is None else DYNAMIC_TYPE_A_BASIS + DYNAMIC_WANDER_BASIS
     return CertificateBudget(budget, unit, tuple(skipped), basis, DYNAMIC_METHOD)

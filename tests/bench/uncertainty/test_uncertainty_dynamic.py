@@ -137,7 +137,10 @@ def test_wander_line_replaces_the_bias_type_a_by_the_run_mean_and_adds_the_wande
     assert fit.fit is not None
     level, tc = 4e-4, 200.0
     plain = dynamic_budget(rec, fit.fit.spec.terms, fit.bias, fit.K, _cov(fit), [])
-    withw = dynamic_budget(rec, fit.fit.spec.terms, fit.bias, fit.K, _cov(fit), [], wander=(level, tc))
+    withw = dynamic_budget(
+        rec, fit.fit.spec.terms, fit.bias, fit.K, _cov(fit), [],
+        wander=(level, tc), bias_sigma_run_mean=fit.fit.bias_sigma_run_mean,
+    )  # fmt: skip
     r = run_mean_factor(float(rec.t_s[-1] - rec.t_s[0]), tc)
     for i in range(3):
         q = withw.quantities[i]

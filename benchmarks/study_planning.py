@@ -34,6 +34,7 @@ from bench.planning.noise import UnitNoise
 from bench.planning.search import Evaluation, Targets, best_within, evaluate, plan
 from bench.procedures import build_procedure, preview
 from bench.procedures.steps import MoveTo, Procedure
+from bench.recording import Recording
 from drivers.sim.noise import NoiseSpec
 from drivers.sim.offline import DEFAULT_AXES, simulate_static
 from drivers.sim.physics import SensorPhysics, SensorTruth
@@ -48,12 +49,12 @@ UNITS = {
 }
 
 
-def simulate_k_errors(
-    proc: Procedure, noise: UnitNoise, seed: int, effects: bool, every_sample: bool = False
-) -> np.ndarray:
-    """(3, 3) K error of the window fit (``every_sample``: the dynamic batch fit of every sample,
-    moves included, bias and K only, and with ``effects`` the lever arm and the table tilt
-    declared beside them) on one simulated run of ``proc`` (dimensionless)."""
+def simulate_recording(
+    proc: Procedure, noise: UnitNoise, seed: int, effects: bool
+) -> tuple[Recording, SensorTruth]:
+    """One simulated run of ``proc`` on calbench's simulator (trapezoidal moves at 200°/s and
+    200°/s², ``FS_HZ``) for a typical unit of seed ``seed`` with ``noise``, and with ``effects``
+    a base tilt (3′ rms) and a lever arm r = (3, −2, 1) cm; returns the recording and the truth."""
     typ = SensorTruth.typical("m/s2", seed=seed)
     spec = NoiseSpec(
         white_m_s2_rt_hz=noise.white_m_s2_rt_hz,
@@ -75,7 +76,17 @@ def simulate_k_errors(
     run = simulate_static(
         poses, dwell, ph, FS_HZ, move_rate_deg_s=200.0, move_accel_deg_s2=200.0, lead_s=settle
     )
-    rec = to_recording(run, serial="SN-PLAN")
+    return to_recording(run, serial="SN-PLAN"), truth
+
+
+def simulate_k_errors(
+    proc: Procedure, noise: UnitNoise, seed: int, effects: bool, every_sample: bool = False
+) -> np.ndarray:
+    """(3, 3) K error of the window fit (``every_sample``: the dynamic batch fit of every sample,
+    moves included, bias and K only, and with ``effects`` the lever arm and the table tilt
+    declared beside them) on one simulated run of ``proc`` (:func:`simulate_recording`;
+    dimensionless)."""
+    rec, truth = simulate_recording(proc, noise, seed, effects)
     if every_sample:
         dyn = calibrate_dynamic(rec, terms=("lever_arm", "table_tilt") if effects else (), cross_check=False)
         return np.asarray(dyn.K - truth.K, dtype=float)

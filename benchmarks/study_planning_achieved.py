@@ -8,7 +8,7 @@ a short run with a slow bias wander rests on few effective blocks, so one run's 
 around the prediction. This study measures that scatter, per group, for the design
 ``GET /api/plan`` gives the simulated bench's unit (ADXL325-like: 250 µg/√Hz white, 40 µg
 Gauss-Markov wander with 200 s correlation; scale target 400 ppm within 3 min; the every-sample
-fit), run on calbench's simulator (``study_planning.simulate_static`` physics) over many seeds.
+fit), run on calbench's simulator (``study_planning.simulate_recording``) over many seeds.
 
 It prints the quantiles of achieved / predicted per group and the band that
 ``tests/api/test_plan_route.py`` asserts on its one run through the service.
@@ -23,17 +23,12 @@ import sys
 
 import numpy as np
 
-from api.simulated_recording import to_recording
 from bench.calibration.dynamic import calibrate_dynamic
 from bench.planning.noise import UnitNoise
 from bench.planning.report import plan_parameters, predicted_and_achieved
 from bench.planning.search import Evaluation, Targets, plan
-from bench.procedures.steps import MoveTo
 from bench.sequencer.control import SequencerConfig
-from benchmarks.study_planning import FS_HZ
-from drivers.sim.noise import NoiseSpec
-from drivers.sim.offline import DEFAULT_AXES, simulate_static
-from drivers.sim.physics import SensorPhysics, SensorTruth
+from benchmarks.study_planning import simulate_recording
 
 NOISE = UnitNoise.from_ug(250.0, 40.0, 200.0)
 """The simulated bench's unit (the service test plans for it)."""
@@ -61,27 +56,8 @@ def planned_design() -> Evaluation:
 
 def achieved_ratios(e: Evaluation, seed: int) -> dict[str, float]:
     """achieved / predicted per group on one simulated run of ``e``'s procedure (seed ``seed``)."""
-    spec = NoiseSpec(
-        white_m_s2_rt_hz=NOISE.white_m_s2_rt_hz,
-        bias_instability_m_s2=NOISE.wander_m_s2,
-        bias_instability_tau_s=NOISE.wander_tau_s,
-        random_walk_m_s2_s_rt_hz=NOISE.random_walk_m_s2_rt_s,
-    )
-    truth = SensorTruth.typical("m/s2", seed=seed).with_noise(spec)
-    proc = e.procedure
-    poses = np.array([s.angles_deg for s in proc.steps if isinstance(s, MoveTo)])
-    settle = float(proc.parameters["settle_s"])  # type: ignore[arg-type]
-    dwell = float(proc.parameters["dwell_s"])  # type: ignore[arg-type]
-    run = simulate_static(
-        poses,
-        dwell,
-        SensorPhysics(truth, DEFAULT_AXES, seed=5000 + seed),
-        FS_HZ,
-        move_rate_deg_s=200.0,
-        move_accel_deg_s2=200.0,
-        lead_s=settle,
-    )
-    fit = calibrate_dynamic(to_recording(run, serial="SN-PLAN"), cross_check=False)
+    rec, _ = simulate_recording(e.procedure, NOISE, seed, effects=False)
+    fit = calibrate_dynamic(rec, cross_check=False)  # the model the service's fit selects
     pa = predicted_and_achieved(plan_parameters(e), fit.K, fit.K_sigma, fit.bias_sigma)
     out: dict[str, float] = {}
     for g in GROUPS:

@@ -28,6 +28,18 @@ BROWSER = [
 """The marks of every browser test module: the marker, and a skip where chromium is missing."""
 
 
+def start_form(browser: Any, base: str, token: str) -> tuple[Any, list[str]]:
+    """A new page on the dashboard at ``base`` signed in with ``token``, once its start form is
+    ready, and the list its uncaught page errors are appended to."""
+    page = browser.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.add_init_script(f"localStorage.setItem('calbench.token', '{token}')")
+    page.goto(f"{base}/")
+    page.wait_for_selector("#start-run:not([disabled])")
+    return page, errors
+
+
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
     """A headless chromium for the module's tests."""

@@ -9,7 +9,7 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.browser.conftest import BROWSER
+from tests.browser.conftest import BROWSER, start_form
 from tests.browser.live_server import live_service
 from tests.support.service_helpers import OP, OPERATOR, service_settings
 
@@ -30,12 +30,7 @@ def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
 
 def test_the_form_warns_before_a_run_of_a_model_without_limits(browser: Any, service: str) -> None:
-    page = browser.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
-    page.goto(f"{service}/")
-    page.wait_for_selector("#start-run:not([disabled])")
+    page, errors = start_form(browser, service, OPERATOR)
     warning = page.locator("#start-warning")
     page.fill("#start-serial", "SN-335")
     page.locator("#start-serial").dispatch_event("change")
@@ -48,12 +43,7 @@ def test_the_form_warns_before_a_run_of_a_model_without_limits(browser: Any, ser
 
 
 def test_the_plan_button_plans_and_the_start_sends_the_plan(browser: Any, service: str) -> None:
-    page = browser.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
-    page.goto(f"{service}/")
-    page.wait_for_selector("#start-run:not([disabled])")
+    page, errors = start_form(browser, service, OPERATOR)
     page.locator("#start-plan summary").click()
     page.fill("#plan-scale", "80")
     page.fill("#plan-mis", "")

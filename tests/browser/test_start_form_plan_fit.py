@@ -11,7 +11,7 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.browser.conftest import BROWSER
+from tests.browser.conftest import BROWSER, start_form
 from tests.browser.live_server import live_service
 from tests.support.service_helpers import OP, OPERATOR, service_settings
 
@@ -32,12 +32,7 @@ def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
 
 def _form(browser: Any, base: str) -> tuple[Any, list[str]]:
-    page = browser.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.add_init_script(f"localStorage.setItem('calbench.token', '{OPERATOR}')")
-    page.goto(f"{base}/")
-    page.wait_for_selector("#start-run:not([disabled])")
+    page, errors = start_form(browser, base, OPERATOR)
     page.locator("#start-plan summary").click()
     return page, errors
 

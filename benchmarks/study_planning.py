@@ -30,8 +30,9 @@ import numpy as np
 from api.simulated_recording import to_recording
 from bench.calibration import calibrate_recording
 from bench.calibration.dynamic import calibrate_dynamic
+from bench.planning.evaluation import Evaluation, Targets, evaluate
 from bench.planning.noise import UnitNoise
-from bench.planning.search import Evaluation, Targets, best_within, evaluate, plan
+from bench.planning.search import best_within, plan
 from bench.procedures import build_procedure, preview
 from bench.procedures.steps import MoveTo, Procedure
 from bench.recording import Recording

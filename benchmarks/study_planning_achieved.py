@@ -24,9 +24,10 @@ import sys
 import numpy as np
 
 from bench.calibration.dynamic import calibrate_dynamic
+from bench.planning.evaluation import Evaluation, Targets
 from bench.planning.noise import UnitNoise
 from bench.planning.report import plan_parameters, predicted_and_achieved
-from bench.planning.search import Evaluation, Targets, plan
+from bench.planning.search import plan
 from bench.sequencer.control import SequencerConfig
 from benchmarks.study_planning import simulate_recording
 

@@ -38,8 +38,9 @@ import sys
 
 import numpy as np
 
+from bench.planning.evaluation import Evaluation, Targets, evaluate
 from bench.planning.noise import UnitNoise
-from bench.planning.search import Evaluation, Targets, best_within, evaluate, plan
+from bench.planning.search import best_within, plan
 from bench.procedures import build_procedure
 from bench.procedures.preview import TableLimits
 from benchmarks.planning_independent_sim import k_error

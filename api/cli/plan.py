@@ -22,9 +22,10 @@ from typing import Any
 import numpy as np
 
 from api.cli import BadInput, decimal_arg
+from bench.planning.evaluation import Evaluation, Targets, evaluate
 from bench.planning.noise import G0_M_S2, UnitNoise, from_allan_terms
 from bench.planning.report import evaluation_dict, plan_dict
-from bench.planning.search import Evaluation, Targets, describe_sigmas, evaluate, plan
+from bench.planning.search import describe_sigmas, plan
 from bench.procedures import build_procedure
 
 

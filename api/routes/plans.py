@@ -7,9 +7,10 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, HTTPException, Query, status
 
 from api.deps import SettingsDep, ViewerDep
+from bench.planning.evaluation import Fit, Targets
 from bench.planning.noise import G0_M_S2, UnitNoise
 from bench.planning.report import plan_dict
-from bench.planning.search import Fit, Targets, plan
+from bench.planning.search import plan
 from bench.sequencer.control import SequencerConfig
 
 router = APIRouter(prefix="/api", tags=["procedures"])

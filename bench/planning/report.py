@@ -8,8 +8,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from bench.planning.evaluation import Evaluation
 from bench.planning.noise import G0_M_S2
-from bench.planning.search import Evaluation, Plan
+from bench.planning.search import Plan
 from bench.planning.trajectory import NUISANCE_NAMES
 
 

@@ -8,7 +8,7 @@ sensor sits at the table's centre, so its specific force is gravity seen in the 
 
     f(t) = R(t)ᵀ·[0, 0, g],   R = Rz(outer)·Rx(middle)·Rz(inner)  (base from sensor),
 
-(m/s², the default geometry of ``bench.planning.search.rotation_deg``). The centripetal and
+(m/s², the default geometry of ``bench.planning.evaluation.rotation_deg``). The centripetal and
 tangential terms of an off-centre sensor and a tilted base are nuisance parameters of the fit
 (:func:`nuisance_response`): a lever arm r (table frame, m) adds B(t)·r with B = Rᵀ([ω̇]× + [ω]×²)R
 (ω, ω̇ of the innermost frame in base coordinates, ``bench.kinematics``; the axis rates and

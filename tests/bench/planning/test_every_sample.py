@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.planning.evaluation import rotation_deg
 from bench.planning.every_sample import every_sample_uncertainty
 from bench.planning.information import predicted_uncertainty
 from bench.planning.noise import UnitNoise
-from bench.planning.search import best_within, rotation_deg
+from bench.planning.search import best_within
 from bench.planning.trajectory import angle_trajectory, nuisance_response, rotations, specific_force
 from bench.procedures.planned import planned_static
 from bench.procedures.preview import preview

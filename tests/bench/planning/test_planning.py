@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 import api.cli
+from bench.planning.evaluation import WINDOW_TILT_NOTE, Targets, evaluate
 from bench.planning.information import predicted_uncertainty, time_for_k, white_bound_k
 from bench.planning.noise import G0_M_S2, UnitNoise, window_mean_covariance
-from bench.planning.search import WINDOW_TILT_NOTE, Targets, evaluate, plan
+from bench.planning.search import plan
 from bench.procedures import build_procedure, preview
 from bench.procedures.planned import EXECUTION_ORDER, planned_static, planned_tumble, visit_order
 from bench.procedures.static import icosahedron_up_directions

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bench.planning.evaluation import evaluate
 from bench.planning.noise import UnitNoise
-from bench.planning.search import evaluate
 from bench.procedures.planned import planned_static
 from benchmarks.study_planning import simulate_k_errors
 
@@ -29,7 +29,7 @@ def test_every_sample_prediction_matches_the_dynamic_fit_on_the_simulator() -> N
     """8 seeds of a 3 s × 2-pass planned tumble fitted by every sample, ADXL325-like noise, the
     prediction made on the simulator's move limits: z spread within 0.7–1.4 (the study measures
     0.81–1.15 over 10 seeds per design; the sampling band of 72 values from 8 seeds is about ±0.2)."""
-    from bench.planning.search import evaluate as ev
+    from bench.planning.evaluation import evaluate as ev
     from bench.procedures.planned import planned_tumble
     from benchmarks.study_planning_dynamic import SIM_LIMITS
 

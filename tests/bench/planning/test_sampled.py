@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bench.planning.evaluation import EVERY_SAMPLE_FS_HZ, Targets, evaluate
 from bench.planning.information import white_bound_bias, white_bound_k
 from bench.planning.noise import UnitNoise
 from bench.planning.sampled import SampledTrajectory
-from bench.planning.search import EVERY_SAMPLE_FS_HZ, Targets, cannot_meet, evaluate
+from bench.planning.search import cannot_meet
 from bench.procedures.planned import planned_static, planned_tumble
 
 G = 9.80665

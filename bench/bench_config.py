@@ -23,6 +23,10 @@ Format (TOML; a ``.json`` file holds the same keys)::
     [[table.axes]]                # outermost first, 1 to 3 axes
     name = "outer"
     axis = [0, 0, 1]              # unit vector in the parent frame at zero angles
+    [table.limits]                # optional: rates, accelerations, travel, settling per axis
+    max_rate_deg_s = [300.0]      # (bench.bench_table_limits; without it: DEFAULT_TABLE_LIMITS)
+    max_acc_deg_s2 = [200.0]
+    continuous = [true]
 
     [gravity]
     g_local_m_s2 = 9.81535
@@ -37,7 +41,8 @@ Format (TOML; a ``.json`` file holds the same keys)::
 
 Validation is strict: an unknown key, a missing one, a wrong type, a non-unit axis, a mount
 that is not a rotation, g outside 9.76–9.84 m/s², a channel map that is not a permutation
-of the stream's three channels: :class:`BenchConfigError` naming the file and the key.
+of the stream's three channels, a table limit that is absurd or not finite
+(:mod:`bench.bench_table_limits`): :class:`BenchConfigError` naming the file and the key.
 """
 
 from __future__ import annotations
@@ -53,6 +58,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.bench_table_limits import parse_table_limits
+from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits
 from bench.recording.model import TableAxis, TableGeometry
 from drivers.base import Daq, SampleBlock
 
@@ -94,6 +101,7 @@ class BenchConfig:
 
     :param channel_map: DAQ stream channel (0–2) of the sensor's x, y and z outputs.
     :param sha256: SHA-256 of the file's bytes; :param path: where it was read.
+    :param limits: the file's ``[table.limits]``; ``None``: the file states none.
     """
 
     name: str
@@ -110,6 +118,12 @@ class BenchConfig:
     channel_map: tuple[int, int, int]
     sha256: str
     path: str
+    limits: TableLimits | None = None
+
+    def table_limits(self) -> TableLimits:
+        """The limits this bench's table runs with: the file's ``[table.limits]``, else
+        :data:`~bench.procedures.preview.DEFAULT_TABLE_LIMITS` (docs/bench-config.md)."""
+        return self.limits if self.limits is not None else DEFAULT_TABLE_LIMITS
 
     @property
     def simulated(self) -> bool:
@@ -224,7 +238,7 @@ def _parse(doc: dict[str, Any], path: Path, sha256: str) -> BenchConfig:
         raise top.fail("version", f"must be an integer >= 1, got {version!r}")
     description = top.text("description", "")
 
-    table = top.table("table", {"url", "axes", "mount_rotation", "lever_arm_m"})
+    table = top.table("table", {"url", "axes", "mount_rotation", "lever_arm_m", "limits"})
     table_url = table.text("url")
     axes_raw = table.get("axes")
     if not isinstance(axes_raw, list) or not 1 <= len(axes_raw) <= 3:
@@ -252,6 +266,13 @@ def _parse(doc: dict[str, Any], path: Path, sha256: str) -> BenchConfig:
     arm = _vector(table.get("lever_arm_m", [0.0, 0.0, 0.0]), table, "lever_arm_m")
     if max(abs(c) for c in arm) > 1.0:
         raise table.fail("lever_arm_m", f"must be within 1 m of the innermost axis, got {list(arm)} m")
+    limits = None
+    if "limits" in table.doc:
+        limits = parse_table_limits(
+            table.doc["limits"],
+            len(axes),
+            lambda k, m: BenchConfigError(path, table.key(f"limits.{k}" if k else "limits"), m),
+        )
 
     grav = top.table("gravity", {"g_local_m_s2", "u_m_s2", "source"})
     g = grav.number("g_local_m_s2")
@@ -309,6 +330,7 @@ def _parse(doc: dict[str, Any], path: Path, sha256: str) -> BenchConfig:
         channel_map=(chans[0], chans[1], chans[2]),
         sha256=sha256,
         path=str(path),
+        limits=limits,
     )
 
 

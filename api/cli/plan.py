@@ -2,7 +2,8 @@
 
 Designs the procedure (``planned-static``, fitted by the static window fit, or
 ``planned-tumble``, the same tumble fitted by the every-sample fit; ``--fit``) that reaches the
-target expanded uncertainties (k = 2) in the least table time on the table's limits,
+target expanded uncertainties (k = 2) in the least table time on the table's limits (the bench
+file's ``[table.limits]``: ``--bench-file`` or ``CALBENCH_BENCH_FILE``, else the simulated bench's),
 for the unit's noise (µg/√Hz white, µg Gauss-Markov wander with its correlation time, µg/√s
 random walk), and states its predicted U per group, the total table time (moves and settling
 included) and the white-noise bound of any motion for that time (docs/planning.md).
@@ -22,11 +23,13 @@ from typing import Any
 import numpy as np
 
 from api.cli import BadInput, decimal_arg
+from api.cli.run import add_bench_file_argument, settings_for
 from bench.planning.evaluation import Evaluation, Targets, evaluate
 from bench.planning.noise import G0_M_S2, UnitNoise, from_allan_terms
 from bench.planning.report import evaluation_dict, plan_dict
 from bench.planning.search import describe_sigmas, plan
 from bench.procedures import build_procedure
+from station.execution.devices import table_limits
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -70,7 +73,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="URAD",
         help="target misalignment U, k=2 (µrad)",
     )
-    parser.add_argument("--settle-s", type=decimal_arg, default=2.0, help="settling after each move (s)")
+    parser.add_argument(
+        "--settle-s",
+        type=decimal_arg,
+        default=None,
+        help="settling after each move (s; default the bench file's table.limits.settle_s, else 2)",
+    )
     parser.add_argument(
         "--no-tilt", action="store_true", help="do not carry the base tilt as a nuisance parameter"
     )
@@ -87,6 +95,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--dwell", type=decimal_arg, default=None, help="dwell of --compare (s)")
     parser.add_argument("--json", action="store_true", help="print the machine-readable result")
+    add_bench_file_argument(parser)
 
 
 def _line(e: Evaluation) -> str:
@@ -155,14 +164,19 @@ def run(args: argparse.Namespace) -> int:
         )
         if args.max_minutes <= 0:
             raise ValueError(f"--max-minutes must be > 0, got {args.max_minutes}")
+        limits = table_limits(settings_for(args))
         compare = None
         if args.compare is not None:
             compare = evaluate(
-                build_procedure(args.compare, dwell_s=args.dwell), noise, with_tilt=not args.no_tilt
+                build_procedure(args.compare, dwell_s=args.dwell),
+                noise,
+                limits=limits,
+                with_tilt=not args.no_tilt,
             )
         result = plan(
             noise,
             targets,
+            limits=limits,
             settle_s=args.settle_s,
             with_tilt=not args.no_tilt,
             max_duration_s=args.max_minutes * 60,

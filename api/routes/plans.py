@@ -11,7 +11,7 @@ from bench.planning.evaluation import Fit, Targets
 from bench.planning.noise import G0_M_S2, UnitNoise
 from bench.planning.report import plan_dict
 from bench.planning.search import plan
-from bench.sequencer.control import SequencerConfig
+from station.execution.devices import table_limits
 
 router = APIRouter(prefix="/api", tags=["procedures"])
 
@@ -29,14 +29,15 @@ def plan_procedure(
     bias_ug: Annotated[float | None, Query(gt=0, le=1e7)] = None,
     scale_ppm: Annotated[float | None, Query(gt=0, le=1e6)] = None,
     misalignment_urad: Annotated[float | None, Query(gt=0, le=1e6)] = None,
-    settle_s: Annotated[float, Query(ge=0, le=60)] = 2.0,
+    settle_s: Annotated[float | None, Query(ge=0, le=60)] = None,
     max_minutes: Annotated[float, Query(gt=0, le=MAX_PLAN_MINUTES)] = 60.0,
     fit: Annotated[Literal["window", "every-sample", "best"], Query()] = "window",
 ) -> dict[str, Any]:
     """The shortest planned design on this bench's table limits whose fit meets the targets (U at
     k = 2: bias µg, scale ppm, misalignment µrad) for the unit's noise (µg/√Hz white, µg wander
     with its correlation time, µg/√s random walk), its predicted U, table time and the white-noise
-    bound of any motion (docs/planning.md). ``plan`` is ``null`` and
+    bound of any motion (docs/planning.md). The table's limits and, without ``settle_s``, its
+    settling are the bench file's (``[table.limits]``, docs/bench-config.md). ``plan`` is ``null`` and
     ``problems`` says why when no design within ``max_minutes`` meets them; start the design with
     ``POST /api/runs`` (the plan's ``start``). ``fit``: ``window`` plans ``planned-static`` (the
     static window fit, the default), ``every-sample`` plans ``planned-tumble`` (the every-sample
@@ -48,7 +49,7 @@ def plan_procedure(
             None if scale_ppm is None else scale_ppm * 1e-6,
             None if misalignment_urad is None else misalignment_urad * 1e-6,
         )
-        limits = SequencerConfig(temp_band_c=settings.temp_band_c).limits
+        limits = table_limits(settings)
         fits: tuple[Fit, ...] = ("window", "every-sample") if fit == "best" else (fit,)
         result = plan(
             noise, targets, limits=limits, settle_s=settle_s, max_duration_s=max_minutes * 60, fits=fits

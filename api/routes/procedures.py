@@ -14,8 +14,8 @@ from bench.estimation.dynamic_model import TERM_ORDER
 from bench.procedures import Admitted, Preview, Refusal, RefusalKind, build_procedure, check_procedure
 from bench.procedures.observability import plan_observability
 from bench.procedures.preview import provisional_dwell
-from bench.sequencer.control import SequencerConfig
 from station.certificates.conformity import unit_warnings
+from station.execution.devices import table_limits
 
 router = APIRouter(prefix="/api/procedures", tags=["procedures"])
 
@@ -37,7 +37,7 @@ def procedure_preview(
     wall clock (bench seconds / ``sim_speed``). With ``unit_serial``, ``warnings`` says what the
     operator should know about that unit before starting (e.g. its model has no limits)."""
     dwell = dwell_s if dwell_s is not None else settings.run_dwell_s
-    checked = check_procedure(name, SequencerConfig(temp_band_c=settings.temp_band_c).limits, dwell_s=dwell)
+    checked = check_procedure(name, table_limits(settings), dwell_s=dwell)
     pv = preview_or_refuse(checked)
     warnings: list[str] = []
     if unit_serial is not None:

@@ -42,6 +42,17 @@ FAMILY = {"window": planned_static, "every-sample": planned_tumble}
 
 DWELL_GRID_S = (2.0, 3.0, 5.0, 8.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0)
 """Dwell per visit tried by :func:`plan` (s)."""
+DEFAULT_SETTLE_S = 2.0
+"""Settling after each move planned on a table whose limits state none (s): the procedures' own."""
+
+
+def settle_for(limits: TableLimits, settle_s: float | None) -> float:
+    """The settling planned after each move (s): ``settle_s`` when given (the preview refuses
+    one shorter than the table's), else the table's (``limits.settle_s``), else
+    :data:`DEFAULT_SETTLE_S`."""
+    if settle_s is not None:
+        return settle_s
+    return limits.settle_s if limits.settle_s > 0 else DEFAULT_SETTLE_S
 
 
 @dataclass(frozen=True)
@@ -63,15 +74,16 @@ def plan(
     targets: Targets,
     *,
     limits: TableLimits = DEFAULT_TABLE_LIMITS,
-    settle_s: float = 2.0,
+    settle_s: float | None = None,
     g_m_s2: float = 9.80665,
     with_tilt: bool = True,
     max_duration_s: float = 2 * 3600.0,
     fits: tuple[Fit, ...] = ("window",),
 ) -> Plan:
     """The shortest planned-static design that meets ``targets`` under any of ``fits`` (module
-    docstring); the chosen :class:`Evaluation` names its fit."""
-    chosen = [_plan_one(noise, targets, limits, settle_s, g_m_s2, with_tilt, max_duration_s, f) for f in fits]
+    docstring); the chosen :class:`Evaluation` names its fit. ``settle_s``: :func:`settle_for`."""
+    settle = settle_for(limits, settle_s)
+    chosen = [_plan_one(noise, targets, limits, settle, g_m_s2, with_tilt, max_duration_s, f) for f in fits]
     met = [p for p in chosen if p.best is not None]
     if met:
         return min(met, key=lambda p: p.best.duration_s if p.best is not None else math.inf)
@@ -88,6 +100,10 @@ def _plan_one(
     max_duration_s: float,
     fit: Fit,
 ) -> Plan:
+    runs = preview(FAMILY[fit](dwell_s=DWELL_GRID_S[0], repeats=1, settle_s=settle_s), limits)
+    if runs.problems:  # a pose beyond an axis's travel, a settling shorter than the table's
+        name = FAMILY[fit].__name__.replace("_", "-")
+        return Plan(None, None, tuple(f"{name} does not fit this table: {p}" for p in runs.problems))
     best: Evaluation | None = None
     longest: Evaluation | None = None
     sampled: dict[float, SampledTrajectory] = {}  # per dwell, the longest design's samples
@@ -206,7 +222,7 @@ def best_within(
     duration_s: float,
     *,
     limits: TableLimits = DEFAULT_TABLE_LIMITS,
-    settle_s: float = 2.0,
+    settle_s: float | None = None,
     g_m_s2: float = 9.80665,
     with_tilt: bool = True,
     fit: Fit = "window",
@@ -216,8 +232,11 @@ def best_within(
 
     For each dwell of :data:`DWELL_GRID_S` the most passes that fit are taken.
 
+    ``settle_s``: :func:`settle_for`.
+
     :raises ValueError: not even one pass of the shortest dwell fits.
     """
+    settle_s = settle_for(limits, settle_s)
     best: Evaluation | None = None
     for dwell in DWELL_GRID_S:
         one = FAMILY[fit](dwell_s=dwell, repeats=1, settle_s=settle_s)

@@ -44,6 +44,8 @@ class TableLimits:
     :param max_rate_deg_s: rate limit (deg/s).
     :param max_acc_deg_s2: acceleration limit (deg/s²).
     :param continuous: the axis has a slip ring and may turn without end.
+    :param settle_s: the table's ring-down after it reports in position (s): a move's settling
+        allowance (``MoveTo.settle_s``) may not be shorter; 0: not stated.
     """
 
     pos_lo_deg: tuple[float, ...]
@@ -51,6 +53,7 @@ class TableLimits:
     max_rate_deg_s: tuple[float, ...]
     max_acc_deg_s2: tuple[float, ...]
     continuous: tuple[bool, ...]
+    settle_s: float = 0.0
 
     @property
     def n_axes(self) -> int:
@@ -65,7 +68,8 @@ DEFAULT_TABLE_LIMITS = TableLimits(
     max_acc_deg_s2=(200.0, 200.0, 200.0),
     continuous=(True, False, True),
 )
-"""A three-axis table with slip rings on the outer and inner axes."""
+"""A three-axis table with slip rings on the outer and inner axes, no settling stated: the limits
+of a bench whose file has no ``[table.limits]`` (docs/bench-config.md)."""
 
 
 @dataclass(frozen=True)
@@ -177,6 +181,11 @@ def preview(
                 )
                 for ax in range(n)
             )
+            if step.settle_s < limits.settle_s:
+                problems.append(
+                    f"step {i} (MoveTo {step.label}): settling {step.settle_s:g} s is shorter than "
+                    f"the table's {limits.settle_s:g} s"
+                )
             t += step.settle_s
             pos = list(step.angles_deg)
             poses.append(tuple(pos))

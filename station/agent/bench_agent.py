@@ -42,7 +42,6 @@ from sqlalchemy.orm import Session, sessionmaker
 from bench.bench_config import BenchConfig
 from bench.procedures import PROCEDURES, ProcedureRefused, Refusal, RefusalKind, check_procedure
 from bench.records import RunRecord, utc_now
-from bench.sequencer.control import SequencerConfig
 from db.engine import make_session_factory
 from db.migrate import open_database
 from db.models import AGENT, Run, RunState
@@ -78,7 +77,7 @@ def runnable_procedures(settings: Settings, config: BenchConfig) -> list[str]:
     procedure needs and a preview the sequencer's table limits accept.
 
     :raises ProcedureRefused: a procedure refuses the settings' ``run_dwell_s``."""
-    limits = SequencerConfig(temp_band_c=settings.temp_band_c).limits
+    limits = config.table_limits()
     out = []
     for name in sorted(PROCEDURES):
         checked = check_procedure(name, limits, dwell_s=settings.run_dwell_s)

@@ -11,6 +11,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from bench.bench_config import SIM_BENCH_FILE, BenchConfig, apply_to_daq, load_bench_config
+from bench.procedures import DEFAULT_TABLE_LIMITS, TableLimits
 from bench.recording.model import Sidecar
 from bench.sequencer.faults import resumable_fault
 from drivers.daq_registers import LINK_MAX_SAMPLES_S
@@ -85,6 +86,22 @@ def bench_config_for(settings: Settings, sim: bool) -> BenchConfig:
         f"table {settings.table_url!r} is a real bench: its geometry, local g and DAQ channels come from a "
         "bench file (CALBENCH_BENCH_FILE or --bench-file; format in docs/bench-config.md)"
     )
+
+
+def table_limits(settings: Settings, sim: bool | None = None) -> TableLimits:
+    """The limits of the table that runs — the one place every check of a procedure takes them
+    from (start, queue, preview, resume, the sequencer's move deadlines, the agent, the planner):
+    the bench file's ``[table.limits]`` (:func:`bench_config_for`), else
+    :data:`~bench.procedures.DEFAULT_TABLE_LIMITS`; the default too for a real table without a
+    bench file, which no run starts on (:func:`bench_config_for` refuses it there).
+
+    :param sim: a simulated bench (``--sim``); default ``settings.sim``.
+    :raises BenchConfigError: the bench file is unreadable or invalid (file and key named).
+    """
+    sim = settings.sim if sim is None else sim
+    if settings.bench_file is None and not sim and not settings.table_url.lower().startswith("sim:"):
+        return DEFAULT_TABLE_LIMITS
+    return bench_config_for(settings, sim).table_limits()
 
 
 def _sim_geometry(config: BenchConfig) -> dict[str, Any]:

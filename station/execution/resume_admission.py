@@ -17,9 +17,9 @@ from typing import Any
 
 from bench.procedures import Admitted, ProcedureRefused, Refusal, TableLimits
 from bench.procedures.resume_check import check_resume, stored_parameters
-from bench.sequencer.control import SequencerConfig
 from db.models import Run
 from db.models import run_params as rp
+from station.execution.devices import table_limits
 from station.settings import Settings
 
 
@@ -30,11 +30,6 @@ class ResumeRefused(ProcedureRefused):
     def __init__(self, refusal: Refusal, run_id: str) -> None:
         super().__init__(refusal)
         self.run_id = run_id
-
-
-def table_limits(settings: Settings) -> TableLimits:
-    """The table limits this bench runs with (what a fresh run is admitted against too)."""
-    return SequencerConfig(temp_band_c=settings.temp_band_c).limits
 
 
 def stored_request(run: Run) -> dict[str, Any]:
@@ -61,15 +56,17 @@ def admit_stored(
     return checked
 
 
-def admit_resume(settings: Settings, run: Run) -> Admitted:
+def admit_resume(settings: Settings, run: Run, sim: bool | None = None) -> Admitted:
     """The check of a stored run before it is claimed: its procedure from the window after its
-    last complete one, against this bench's limits (:func:`admit_stored`).
+    last complete one, against this bench's limits (:func:`admit_stored`,
+    :func:`~station.execution.devices.table_limits`; ``sim``: a simulated bench, default
+    ``settings.sim``).
 
     :raises ResumeRefused: why it cannot continue here (the run is left as it was).
     """
     last = run.last_complete_window
     next_window = 0 if last is None else last + 1
-    return admit_stored(run.id, run.procedure, stored_request(run), next_window, table_limits(settings))
+    return admit_stored(run.id, run.procedure, stored_request(run), next_window, table_limits(settings, sim))
 
 
 def request_keywords(run_id: str, procedure: str, stored: dict[str, Any]) -> dict[str, Any]:

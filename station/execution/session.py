@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from bench.bench_config import apply_to_daq
+from bench.bench_config import BenchConfig, apply_to_daq
 from bench.dwell_policy import fixed_dwell
 from bench.limits import LimitsChoice, UnitLimits
 from bench.procedures import admit_procedure, preview
@@ -47,8 +47,9 @@ from station.execution.verdict import finish_observers, limits_for, run_record
 from station.settings import Settings
 
 
-def _config(settings: Settings) -> SequencerConfig:
-    return SequencerConfig(temp_band_c=settings.temp_band_c)
+def _config(settings: Settings, bench_config: BenchConfig) -> SequencerConfig:
+    """The sequencer's configuration on the bench of ``bench_config`` (its table's limits)."""
+    return SequencerConfig(limits=bench_config.table_limits(), temp_band_c=settings.temp_band_c)
 
 
 def start_run(
@@ -82,7 +83,8 @@ def start_run(
         :func:`limits_for` the unit's registered model; ``None``: no limits, a completed fit gets
         no verdict (no statement of conformity).
 
-    :param config: sequencer deadlines and policies; default from the settings.
+    :param config: sequencer deadlines and policies; default from the settings, with the bench
+        file's table limits.
     :param devices: devices already open (the caller keeps them and closes them); default:
         opened here from ``sim`` / the settings and closed at the end.
 
@@ -93,16 +95,15 @@ def start_run(
     :raises ValueError: unknown procedure, a limit violation in the preview, bad dwell, a
         bench file that is missing (real bench), invalid or not the opened devices' bench.
     """
-    admitted = admit_procedure(
-        procedure_name, (config or _config(settings)).limits, dwell_s=dwell_s, parameters=procedure_kw
-    )
+    bench_config = bench_config_for(settings, sim or (devices is not None and devices.sim is not None))
+    config = config or _config(settings, bench_config)
+    admitted = admit_procedure(procedure_name, config.limits, dwell_s=dwell_s, parameters=procedure_kw)
     proc, pv = admitted.procedure, admitted.preview
     dwell: DwellChoice | None = fixed_dwell(dwell_s) if dwell_s is not None else None
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)
     run_id = run_id or new_run_id(unit_serial)
     csv_path = settings.recordings_dir / f"run-{run_id}.csv"
-    bench_config = bench_config_for(settings, sim or (devices is not None and devices.sim is not None))
     meta: dict[str, Any] = {
         "run_id": run_id,
         "procedure": procedure_name,
@@ -192,7 +193,7 @@ def start_run(
             start,
             obs,
             control,
-            (config or _config(settings)),
+            config,
             dwell,
         )
         return execute_resumable(seq, csv_path, obs, choice, settings)
@@ -259,7 +260,7 @@ def resume_run(
             if run is None:
                 raise ValueError(f"run {run_id!r} not found in {settings.effective_database_url}")
             if run.state is DbRunState.INTERRUPTED:  # another state: the claim below says so
-                admit_resume(settings, run)  # before the claim: a refused run is left as it was
+                admit_resume(settings, run, sim)  # before the claim: a refused run is left as it was
             try:
                 point = claim_for_resume(
                     s,
@@ -363,7 +364,8 @@ def continue_run(
     stored_parameters = stored.get("parameters", params.get(rp.PARAMETERS, {}))
     if not isinstance(stored_parameters, dict):
         raise ValueError(f"{csv_path}: the stored procedure parameters are not a JSON object")
-    config = _config(settings)
+    bench_config = bench_config_for(settings, sim)
+    config = _config(settings, bench_config)
     admitted = admit_stored(
         run_id, procedure_name, dict(stored_parameters), point.next_window_index, config.limits
     )
@@ -372,7 +374,6 @@ def continue_run(
     dwell = DwellChoice(**dwell_dict) if isinstance(dwell_dict, dict) else None
     sim_meta = stored.get("sim") or params.get(rp.SIM)
     seed = int(sim_meta.get("seed", 0)) if isinstance(sim_meta, dict) else 0
-    bench_config = bench_config_for(settings, sim)
     started_with = stored.get("bench_config")
     if isinstance(started_with, dict) and started_with.get("sha256") != bench_config.sha256:
         raise ValueError(

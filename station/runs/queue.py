@@ -23,7 +23,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from bench.procedures import admit_procedure
 from bench.records import new_run_id, utc_now
-from bench.sequencer.control import RunControl, SequencerConfig
+from bench.sequencer.control import RunControl
 from db.models import ACTIVE_STATES, FINAL_STATES, SYSTEM, Run, Unit
 from db.models.run_params import BENCH, PARAMETERS
 from db.process import process_alive
@@ -39,6 +39,7 @@ from db.repo.queue import (
 )
 from db.repo.recovery import DEFAULT_STALE_AFTER_S, mark_interrupted_runs
 from db.repo.units import get_or_create_bench, get_or_create_unit, get_unit_by_serial
+from station.execution.devices import table_limits
 from station.runs import resume as service_resume
 from station.runs.live import LiveRun, RunKind
 from station.runs.resume import NotResumable
@@ -148,7 +149,7 @@ class RunQueue:
             :func:`~bench.procedures.check_procedure`).
         """
         dwell_s = dwell_s if dwell_s is not None else self.settings.run_dwell_s
-        limits = SequencerConfig(temp_band_c=self.settings.temp_band_c).limits
+        limits = table_limits(self.settings)
         admit_procedure(procedure, limits, dwell_s=dwell_s, parameters=parameters)
         now = self.clock()
         run_id = new_run_id(unit_serial, now)

@@ -31,7 +31,7 @@ from bench.procedures import admit_procedure
 from bench.records import RunRecord, new_run_id, utc_now
 from bench.run_observer import RunObserver
 from bench.run_state import Outcome, RunState
-from bench.sequencer.control import RunControl, SequencerConfig
+from bench.sequencer.control import RunControl
 from bench.sequencer.faults import resumable_fault
 from db.models import RunState as DbRunState
 from db.observer import finish_record
@@ -41,6 +41,7 @@ from db.repo.runs import finish_run, set_certificate_error, set_final_event
 from db.repo.units import get_unit_by_serial
 from drivers.factory import simulated_unit
 from station.execution import fault_retry
+from station.execution.devices import table_limits
 from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed, RetryPolicy, interrupted_by_fault
 from station.execution.session import start_run
 from station.runs import resume as service_resume
@@ -146,7 +147,7 @@ class BenchRunner:
         :raises BenchBusy: another run holds the bench.
         """
         dwell_s = dwell_s if dwell_s is not None else self.settings.run_dwell_s
-        limits = SequencerConfig(temp_band_c=self.settings.temp_band_c).limits
+        limits = table_limits(self.settings)
         admit_procedure(procedure, limits, dwell_s=dwell_s, parameters=parameters)
         age = self.age_days(unit_serial)
         with self._lock:

@@ -2,41 +2,30 @@
 bench agent lives through it: said once, retried calmly, said when it clears.
 
 While the disk (or the database's file system) is full every poll of the agent fails the same
-way (``ENOSPC``, SQLite's ``database or disk is full``: :func:`is_disk_full`).
+way (``ENOSPC``, SQLite's ``database or disk is full``: :func:`is_disk_full`, which
+:mod:`bench.sequencer.faults` decides, the run's own faults included).
 :class:`DiskFullWatch` turns that into one log line when it starts, at most one every
 :data:`DISK_FULL_LOG_INTERVAL_S` while it lasts (with the number of failed polls)
 and one when a poll succeeds again — no traceback. Meanwhile the agent polls less often: the
 wait doubles from the normal poll period up to :data:`MAX_WAIT_S`. A run recording at that
-moment is not lost: its writer's ``ENOSPC`` is a device fault, the run is left ``interrupted``
-at its last durable chunk and resumed (:mod:`station.execution.fault_retry`).
+moment is not lost: its writer's ``ENOSPC``, or the database refusing its writes on the full
+disk, is a device fault, the run is left ``interrupted`` at its last durable chunk and resumed
+(:mod:`station.execution.fault_retry`).
 """
 
 from __future__ import annotations
 
-import errno
 import logging
 import math
 import time
 from collections.abc import Callable
 
+from bench.sequencer.faults import is_disk_full
+
+__all__ = ["DISK_FULL_LOG_INTERVAL_S", "MAX_WAIT_S", "DiskFullWatch", "is_disk_full"]
+
 DISK_FULL_LOG_INTERVAL_S = 60.0
 """A full disk is logged at most once per this interval (s), not at every refused write."""
-
-
-def is_disk_full(exc: BaseException) -> bool:
-    """``exc`` says the disk (or the database's file system) is full: ``ENOSPC`` / ``EDQUOT``, or
-    SQLite's ``database or disk is full`` (SQLITE_FULL), PostgreSQL's ``could not extend file``."""
-    for e in (exc, getattr(exc, "orig", None), exc.__cause__, exc.__context__):
-        if isinstance(e, OSError) and e.errno in (errno.ENOSPC, errno.EDQUOT):
-            return True
-        text = str(e).lower() if e is not None else ""
-        if (
-            "database or disk is full" in text
-            or "no space left on device" in text
-            or "could not extend file" in text
-        ):
-            return True
-    return False
 
 
 MAX_WAIT_S = 5.0

@@ -4,11 +4,12 @@ An operator abort ends as ABORTED (``aborted at <where>: <reason>``); a driver f
 deadline, a DAQ stall, a recording write refused, an observer's failure or a rejected value
 (:data:`RUN_FAULTS`) as ERROR naming where it happened (``<where>: <type>: <message>``). A
 fault a lab's bench recovers from (:func:`bench.sequencer.faults.resumable_fault`) — a device
-that stops answering (stall, reset), a lost link, a garbled reply, a recording write refused
-(disk full) — marks the ERROR *resumable*: the caller leaves the run interrupted and resumes
-it from its last durable window (:mod:`station.execution.fault_retry`); a fault the device
-reports itself (an axis fault, a Modbus exception), a limit, a rejected window or a database
-refusal does not. In every case, and on success, the table is then made safe
+that stops answering (stall, reset), a lost link, a garbled reply, a recording or database
+write refused because the disk is full — marks the ERROR *resumable*: the caller leaves the
+run interrupted and resumes it from its last durable window
+(:mod:`station.execution.fault_retry`); a fault the device reports itself (an axis fault, a
+Modbus exception), a limit, a rejected window or another database refusal does not. In every
+case, and on success, the table is then made safe
 (:func:`bench.sequencer.safety.make_safe`); what failed there is added to the error line and
 ends a run whose every step was done as ERROR, resumable only when every fault met making it
 safe is one the bench recovers from. :class:`Acquisition` is what the sequencer leaves behind.

@@ -33,8 +33,8 @@ MAX_RATE_DEG_S = 36000.0
 """Highest rate limit accepted (deg/s, 100 turns per second): beyond it a value is a typo."""
 MAX_ACC_DEG_S2 = 1.0e6
 """Highest acceleration limit accepted (deg/s²)."""
-MAX_TRAVEL_DEG = 360.0
-"""Travel limits lie within ± this (deg; angles are commanded within ±180)."""
+MAX_TRAVEL_DEG = 180.0
+"""Travel limits lie within ± this (deg): angles are commanded, and read back, within ±180."""
 MAX_SETTLE_S = 600.0
 """Longest settling accepted (s)."""
 

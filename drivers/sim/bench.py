@@ -16,7 +16,7 @@ run can conceal any effect of the catalogue from the bench.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +26,7 @@ from drivers.sim.clock import SimClock
 from drivers.sim.daq_engine import DaqEngine
 from drivers.sim.modbus_server import DaqServer
 from drivers.sim.physics import SensorPhysics, SensorTruth, TemperatureModel
+from drivers.sim.table_axis import AxisLimits
 from drivers.sim.table_controller import TableController
 from drivers.sim.table_server import TableServer
 
@@ -70,6 +71,9 @@ class SimBench:
         host at a high simulation speed sees what it would see at speed 1: a DAQ buffer of
         about a minute of simulated time, or more.
     :param table_latency_s: wall seconds the table takes to answer a command.
+    :param axis_limits: each axis's :class:`~drivers.sim.table_axis.AxisLimits` (or its keywords),
+        outermost first: a bench file's table (``station.execution.devices``); ``None``: the
+        defaults on every axis.
     """
 
     def __init__(
@@ -87,6 +91,7 @@ class SimBench:
         ring_capacity: int | None = None,
         table_latency_s: float = 0.0,
         buffer_wall_s: float = 10.0,
+        axis_limits: Sequence[AxisLimits | Mapping[str, float]] | None = None,
     ) -> None:
         axes_arr = np.atleast_2d(np.asarray(axes, dtype=float))
         if axes_arr.ndim != 2 or axes_arr.shape[1] != 3 or not 1 <= axes_arr.shape[0] <= 3:
@@ -112,7 +117,13 @@ class SimBench:
         self.geometry = BenchGeometry(axes_arr, self.physics.mount.copy(), arm)
         history_s = max(60.0, buffer_wall_s * float(speed))
         self.controller = TableController(
-            self.clock, n_axes=axes_arr.shape[0], seed=seed, history_s=history_s
+            self.clock,
+            n_axes=axes_arr.shape[0],
+            limits=None
+            if axis_limits is None
+            else [a if isinstance(a, AxisLimits) else AxisLimits(**a) for a in axis_limits],
+            seed=seed,
+            history_s=history_s,
         )
         if ring_capacity is None:
             ring_capacity = max(1, min(0xFFFF, int(0.8 * history_s * sample_rate_hz)))

@@ -105,12 +105,33 @@ def table_limits(settings: Settings, sim: bool | None = None) -> TableLimits:
 
 
 def _sim_geometry(config: BenchConfig) -> dict[str, Any]:
-    return {
+    geometry: dict[str, Any] = {
         "axes": [list(a.axis) for a in config.axes],
         "mount": np.array(config.mount_rotation, dtype=float),
         "lever_arm_m": config.lever_arm_m,
         "g_local_m_s2": config.gravity.g_local_m_s2,
     }
+    if config.limits is not None:
+        geometry["axis_limits"] = sim_axis_limits(config.limits)
+    return geometry
+
+
+def sim_axis_limits(limits: TableLimits) -> list[dict[str, float]]:
+    """The simulated controller's limits of a bench file's table (``AxisLimits`` keywords per
+    axis): its rates and accelerations; a continuous axis unlimited (±180°), another its travel
+    within the controller's ±180°. The controller's own in-position time stays its default."""
+    out = []
+    for i in range(limits.n_axes):
+        lo, hi = (-180.0, 180.0) if limits.continuous[i] else (limits.pos_lo_deg[i], limits.pos_hi_deg[i])
+        out.append(
+            {
+                "rate_deg_s": limits.max_rate_deg_s[i],
+                "acc_deg_s2": limits.max_acc_deg_s2[i],
+                "pos_lo_deg": max(lo, -180.0),
+                "pos_hi_deg": min(hi, 180.0),
+            }
+        )
+    return out
 
 
 def open_devices(

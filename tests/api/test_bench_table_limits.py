@@ -134,3 +134,13 @@ def test_the_plan_settles_as_long_as_the_file_says(
     out = json.loads(capsys.readouterr().out)
     assert out["plan"] is None
     assert any("settling 1 s is shorter than the table's 3.5 s" in p for p in out["problems"]), out
+
+
+def test_the_agent_offers_only_what_the_file_s_table_can_run(slow: TestClient) -> None:
+    from station.agent.bench_agent import runnable_procedures
+
+    settings = service_settings(slow.tmp)  # type: ignore[attr-defined]
+    on_slow = runnable_procedures(settings, load_bench_config(slow_bench(slow.tmp)))  # type: ignore[attr-defined]
+    on_default = runnable_procedures(settings, load_bench_config(SIM_BENCH_FILE))
+    assert "rate-1axis" in on_default and "rate-1axis" not in on_slow  # 200 deg/s > 120 deg/s
+    assert "static-12" in on_slow

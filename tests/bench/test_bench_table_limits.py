@@ -86,9 +86,9 @@ def test_a_file_without_limits_runs_with_the_documented_defaults(tmp_path: Path)
         ),
         (
             "travel_deg = [[-180, 180], [-95, 95]]",
-            "travel_deg = [[-1e4, 180], [-95, 95]]",
+            "travel_deg = [[-200, 180], [-95, 95]]",
             "travel_deg[0]",
-            "[-360",
+            "[-180, 180]",
         ),
         ("settle_s = 1.5", "settle_s = -1", "settle_s", "[0, 600]"),
         ("settle_s = 1.5", "settle_s = nan", "settle_s", "finite"),

@@ -51,6 +51,24 @@ def test_the_simulated_bench_is_built_to_the_file(tmp_path: Path) -> None:
         assert devices.table.n_axes == 3
 
 
+def test_the_simulated_table_has_the_file_s_limits(tmp_path: Path) -> None:
+    """The file's rates, accelerations and travel reach the simulated controller: the driver
+    reads them back over the table protocol (``:LIMIT:ABSOLUTE?``)."""
+    limits = """[table.limits]
+max_rate_deg_s = [120.0, 45.0, 90.0]
+max_acc_deg_s2 = [15.0, 30.0, 60.0]
+continuous = [true, false, true]
+travel_deg = [[-180, 180], [-100, 110], [-180, 180]]
+"""
+    path = tmp_path / "slow.toml"
+    path.write_text(SIM_BENCH_FILE.read_text(encoding="utf-8").replace("[gravity]", limits + "[gravity]"))
+    settings = settings_for(tmp_path).model_copy(update={"bench_file": path, "sim_process": False})
+    with open_devices(settings, True, SIM_SPEED, 3) as devices:
+        read = [devices.table.limits(a) for a in (1, 2, 3)]
+    assert [(x.rate_deg_s, x.acc_deg_s2) for x in read] == [(120.0, 15.0), (45.0, 30.0), (90.0, 60.0)]
+    assert [(x.pos_lo_deg, x.pos_hi_deg) for x in read] == [(-180.0, 180.0), (-100.0, 110.0), (-180.0, 180.0)]
+
+
 def test_a_real_table_without_a_bench_file_is_refused(tmp_path: Path) -> None:
     settings = settings_for(tmp_path).model_copy(update={"table_url": "socket://10.0.0.5:4001"})
     with pytest.raises(ValueError, match="CALBENCH_BENCH_FILE or --bench-file"):

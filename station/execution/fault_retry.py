@@ -19,10 +19,11 @@ once the bench is fixed.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as dt
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import sqlalchemy as sa
@@ -78,6 +79,22 @@ class NeverStarted:
 
     run_id: str
     error: str
+
+
+@contextlib.contextmanager
+def disk_full_is_a_try(run_id: str, what: str) -> Iterator[None]:
+    """Within it, a write refused because the disk is full (:func:`is_disk_full`: the database
+    on a disk still full when the resume claims the run) raises :class:`ResumeFailed` — a try
+    of the policy, the run left as it was — instead of ending the tries."""
+    try:
+        yield
+    except ResumeFailed:
+        raise
+    except Exception as exc:
+        if not is_disk_full(exc):
+            raise
+        first = str(getattr(exc, "orig", None) or exc).splitlines()[0][:200]
+        raise ResumeFailed(f"run {run_id}: {what}: the disk is full ({first})", run_id) from exc
 
 
 def interrupted_by_fault(record: RunRecord | NeverStarted) -> bool:

@@ -40,7 +40,7 @@ from db.repo.runs import create_run
 from db.repo.units import get_or_create_bench, get_or_create_unit
 from drivers.factory import BenchDevices, SimulatedTruth
 from station.execution.devices import bench_config_for, bench_sidecar, open_devices
-from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed
+from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed, disk_full_is_a_try
 from station.execution.not_answering import StartRequest, bench_urls, interrupt_if_not_answering
 from station.execution.resume_admission import admit_resume, admit_stored, request_keywords
 from station.execution.verdict import finish_observers, limits_for, run_record
@@ -254,7 +254,7 @@ def resume_run(
     engine = open_database(settings.effective_database_url)
     sessions = make_session_factory(engine)
     try:
-        with sessions.begin() as s:
+        with disk_full_is_a_try(run_id, "the database refused its claim"), sessions.begin() as s:
             mark_interrupted_runs(s, socket.gethostname())
             run = s.get(Run, run_id)
             if run is None:

@@ -1,7 +1,8 @@
 """A real full disk holding both the SQLite database and the recordings (a tmpfs of a few MB,
 filled mid-run): the run is left ``interrupted`` as a device fault — not ERROR — whether SQLite
 or the recording meets the full disk first; once the disk is cleared (while the run's end is
-retried) it resumes and completes, and the database and the recording agree on every window,
+retried) it resumes and completes (a resume tried while the disk is still full is a failed
+try, the run left as it was), and the database and the recording agree on every window,
 chunk, row and byte. Needs root to mount the tmpfs; skipped otherwise."""
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from bench.records import RunStart, WindowRecord
 from bench.run_observer import NullObserver
 from bench.run_state import RunState
 from station.execution import verdict
-from station.execution.fault_retry import FAULT_PREFIX
+from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed
 from station.execution.session import resume_run, start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for
 
@@ -69,12 +70,15 @@ class FillDisk(NullObserver):
         self.csv = Path(start.recording_path)
 
     def on_window(self, run_id: str, window: WindowRecord) -> None:
-        if window.index != self.at or self.filled:
-            return
+        if window.index == self.at and not self.filled:
+            self.fill(self.room)
+
+    def fill(self, room_for_recording: bool) -> None:
+        """Truncate the write-ahead log, reserve room for the recording if asked, fill the rest."""
         with sqlite3.connect(self.disk / "calbench.db") as conn:
             busy, _, _ = conn.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchone()
         assert busy == 0 and (self.disk / "calbench.db-wal").stat().st_size == 0
-        if self.room:
+        if room_for_recording:
             assert self.csv is not None
             fd = os.open(self.csv, os.O_WRONLY)
             try:
@@ -139,6 +143,13 @@ def test_a_full_disk_under_the_database_and_the_recording_interrupts_and_resumes
     assert csv.stat().st_size >= end  # nothing the database holds is missing from the file
 
     monkeypatch.undo()
+    # a resume tried while the disk is still full is a failed try (calbench run tries again
+    # after its wait), the run left interrupted, not a crash
+    fill.fill(room_for_recording=False)
+    with pytest.raises(ResumeFailed, match="the database refused its claim: the disk is full"):
+        resume_run(settings, record.run_id, sim=True, sim_speed=SIM_SPEED)
+    assert durable(db)[:2] == (state, last)
+    fill.filler.unlink()
     resumed = resume_run(settings, record.run_id, sim=True, sim_speed=SIM_SPEED)
     assert resumed.state is RunState.COMPLETED, resumed.error
     state, last, rows, end = durable(db)

@@ -71,6 +71,7 @@ def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
         assert qu is not None
         peak = _peak_rate_rad_s(qu, t)
     known = known_f is not None
+    run_temp = None if rec.temp_c is None else _filled(t, rec.temp_c)
     f = known_f if known_f is not None else _scalar_force(rec, y, V, g)
     return StaticEvidence(
         y=y,
@@ -91,7 +92,23 @@ def _evidence(rec: Recording, wins: list[StaticWindow]) -> StaticEvidence:
         window_t_s=tuple(t[w.slice] for w in wins),
         last_move_sign=None if qu is None else last_move_sign(qu, t, [w.start for w in wins]),
         encoder_resolution_deg=None if table is None or q_rad is None else table.encoder_resolution_deg,
+        run_t_s=None if run_temp is None else t,
+        run_temp_c=run_temp,
+        window_bounds=None
+        if run_temp is None
+        else np.array([[w.start, w.stop] for w in wins], dtype=np.int64),
     )
+
+
+def _filled(t_s: np.ndarray, temp_c: np.ndarray) -> np.ndarray | None:
+    """(n,) the temperature column with its gaps (NaN) filled linearly in time, or ``None``
+    where fewer than two samples carry a temperature."""
+    ok = np.isfinite(temp_c)
+    if np.count_nonzero(ok) < 2:
+        return None
+    if np.all(ok):
+        return np.asarray(temp_c, dtype=float)
+    return np.asarray(np.interp(t_s, t_s[ok], temp_c[ok]), dtype=float)
 
 
 PEAK_RATE_CHUNK = 1 << 16

@@ -31,6 +31,7 @@ from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.greedy import Trial, admits
 from bench.diagnosis.likelihood import GlsFit, NoiseParams, window_covariance
 from bench.diagnosis.model_state import ModelState, design, fit_model, lr_fixed, whitened_lr
+from bench.diagnosis.profiled import resolve
 from bench.diagnosis.refit import residual_dof
 from bench.diagnosis.thresholds import THRESHOLDS, Thresholds
 from bench.diagnosis.wander_cap import SlowNoiseCap
@@ -79,7 +80,13 @@ def structured_step(
     wander_notes = notes if wander_notes is None else wander_notes
     n = ev.n_obs
     X = design(ev, K, state.candidates)
-    tried = [c for c in pool if c not in state.candidates]
+    tried = [c for c in pool if not state.holds(c)]
+    tried = [
+        r
+        for c in tried
+        if (r := c if c.family is None else resolve(ev, c, X, state.noise, K, fixed, alpha, notes, th))
+        is not None
+    ]
     if not tried:
         return None
     cols = [c.columns(ev, K) for c in tried]
@@ -127,14 +134,14 @@ def structured_step(
     null_own: tuple[NoiseParams, GlsFit, FloatArray] | None = None
     for lr_now, cand in ranked[: th.shortlist]:
         q = len(cand.names)
-        gate = q * float(f_dist.ppf(1.0 - alpha, q, residual_dof(ev, X.shape[1] + q)))
+        gate = gate_of(cand, alpha, residual_dof(ev, X.shape[1] + q))
         if lr_now < prescreen * gate:
             continue
         model1 = fit_model(ev, [*state.candidates, cand], state.pose, K, fixed, state.noise, cap=cap)
         noise1, _fit1, K1 = model1
         X1 = design(ev, K1, [*state.candidates, cand])
         lr = lr_fixed(ev, X1[:, : X.shape[1]], X1, noise1, K1, fixed)
-        gate = q * float(f_dist.ppf(1.0 - alpha, q, residual_dof(ev, X1.shape[1])))
+        gate = gate_of(cand, alpha, residual_dof(ev, X1.shape[1]))
         term = cand.names[0] if cand.effect.startswith(LIB) else ""
         wander_like = cand.effect in WANDER_LIKE or (follows_time(term) and not pose_modulated(term))
         if term and follows_time(term) and pose_modulated(term) and lr > gate:
@@ -142,7 +149,7 @@ def structured_step(
             lr_mod, b = modulated_lr(
                 ev, X1[:, : X.shape[1]], X1[:, X.shape[1] :], cand.channels[0], C1, th.relative_leverage_min
             )
-            gate_mod = q * float(f_dist.ppf(1.0 - alpha, q, residual_dof(ev, X1.shape[1] + b)))
+            gate_mod = gate_of(cand, alpha, residual_dof(ev, X1.shape[1] + b))
             if lr_mod <= gate_mod:
                 wander_notes[cand.label] = modulated_note(cand.label, lr, lr_mod, gate_mod)
                 continue
@@ -158,7 +165,7 @@ def structured_step(
             if lr_wander <= gate:
                 wander_notes[cand.label] = wander_note(cand.effect, lr, lr_wander, gate, null_own[0])
             lr = min(lr, lr_wander)
-        dbic = -lr + q * math.log(n)
+        dbic = -lr + (q + cand.extra_params) * math.log(n)
         if admits(Trial(cand, lr, gate, dbic)):
             admissible.append((dbic, cand, lr, model1))
     if not admissible:
@@ -191,6 +198,13 @@ def structured_step(
         ]
         best = min(alike, key=lambda a: tried.index(a[1]))
     return best
+
+
+def gate_of(cand: Candidate, alpha: float, dof: int) -> float:
+    """q·F_{1−α/tries}(q, dof): a candidate's gate at the step's α, shared over the effective
+    number of values its search tried (``Candidate.tries``, 1 for fixed columns)."""
+    q = len(cand.names)
+    return q * float(f_dist.ppf(1.0 - alpha / cand.tries, q, dof))
 
 
 def same_signature(

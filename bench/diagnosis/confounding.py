@@ -42,7 +42,10 @@ def confounded(
     for c in chosen:
         sc = sig(c)
         for d in pool:
-            if d.effect == c.effect or d in chosen:
+            if d.effect == c.effect or d in chosen or d.family is not None:
+                # a family (a lag's τ still free) has no one signature; where it was resolved
+                # its fixed candidate is what the model holds, and at τ → 0 it is the effect it
+                # reduces to, which the selection already weighed (``profiled.resolve``)
                 continue
             cos = float(np.max(np.abs(sc.T @ sig(d))))
             if cos > th.confound_cosine:
@@ -92,7 +95,7 @@ def discovery(
         if cos > th.confound_cosine:
             alike.append((cos, other.term))
     for c in pool:
-        if t.channel not in c.channels:
+        if t.channel not in c.channels or c.family is not None:
             continue
         a = c.columns(ev, K)
         a = a - Q @ (Q.T @ a)

@@ -47,6 +47,13 @@ class StaticEvidence:
     :param encoder_resolution_deg: the step in which the encoders read (deg; the sidecar's
         ``table.encoder_resolution_deg``), or ``None``: the readings taken as exact
         (``pose_quantisation``).
+    :param run_t_s: (n,) time of every sample of the recording (s, the clock of ``mid_s``), with
+        ``run_temp_c``, or ``None``.
+    :param run_temp_c: (n,) sensor temperature of every sample, between the windows too (°C;
+        gaps filled by linear interpolation), or ``None``: the history a thermal lag needs
+        (``effects.thermal_lag``).
+    :param window_bounds: (m, 2) each window's first sample and one past its last in the run's
+        columns, with ``run_t_s``, or ``None``.
     """
 
     y: FloatArray
@@ -67,6 +74,9 @@ class StaticEvidence:
     window_t_s: tuple[FloatArray, ...] | None = None
     last_move_sign: FloatArray | None = None
     encoder_resolution_deg: float | None = None
+    run_t_s: FloatArray | None = None
+    run_temp_c: FloatArray | None = None
+    window_bounds: npt.NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         m = self.y.shape[0] if self.y.ndim == 2 else -1
@@ -90,6 +100,13 @@ class StaticEvidence:
             per = getattr(self, name)
             if per is not None and len(per) != m:
                 raise ValueError(f"evidence: {name} has {len(per)} windows, expected {m}")
+        if self.run_temp_c is not None:
+            n = self.run_temp_c.shape
+            wb = self.window_bounds
+            if self.run_t_s is None or self.run_t_s.shape != n or not np.all(np.isfinite(self.run_temp_c)):
+                raise ValueError("evidence: run_temp_c needs run_t_s of its shape and finite values")
+            if wb is None or wb.shape != (m, 2) or np.any(wb[:, 1] <= wb[:, 0]) or np.any(wb[:, 1] > n[0]):
+                raise ValueError(f"evidence: window_bounds needs ({m}, 2) non-empty ranges within the run")
         step = self.encoder_resolution_deg
         if step is not None and not (np.isfinite(step) and step > 0):
             raise ValueError(f"evidence: encoder_resolution_deg must be > 0, got {step!r}")

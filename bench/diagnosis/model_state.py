@@ -53,6 +53,12 @@ class ModelState:
     swapped: set[str] = field(default_factory=set)
     excluded: frozenset[str] = frozenset()
 
+    def holds(self, cand: Candidate) -> bool:
+        """Whether ``cand`` is in the model (a family: a candidate it was resolved into, same label)."""
+        if cand.family is not None:
+            return any(c.label == cand.label for c in self.candidates)
+        return cand in self.candidates
+
     def copy(self) -> ModelState:
         """A copy whose lists and sets can change without changing this state."""
         return replace(
@@ -169,4 +175,5 @@ def bic(ev: StaticEvidence, state: ModelState) -> float:
     """BIC −2 ℓ_ML + k ln n of the model: k its coefficients, free noise parameters and the pose variance."""
     assert state.fit is not None and state.noise is not None
     k = state.fit.theta.size + state.noise.n_free + (1 if state.pose else 0)
+    k += sum(c.extra_params for c in state.candidates)
     return -2.0 * state.fit.loglik_ml + k * math.log(ev.n_obs)

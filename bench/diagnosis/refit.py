@@ -85,7 +85,7 @@ def evaluate(
         resid = resid - np.einsum("wik,wk->wi", J, angles).reshape(-1)
     base = window_covariance(ev.V, ev.mid_s, without_pose(nz), J, fixed)
     sigma = np.sqrt(base.diagonal()).reshape(-1, 3)
-    k = p + nz.n_free + (1 if pose else 0)
+    k = p + nz.n_free + (1 if pose else 0) + sum(c.extra_params for c in cands)
     bic = -2.0 * fit.loglik_ml + k * math.log(n)
     effects = tuple(dict.fromkeys([c.effect for c in cands] + (["pose_error"] if pose else [])))
     return ModelFit(

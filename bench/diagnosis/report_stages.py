@@ -16,6 +16,7 @@ from bench.diagnosis.hysteresis import with_last_move
 from bench.diagnosis.likelihood import without_excess
 from bench.diagnosis.model_state import fit_model, scale_matrix
 from bench.diagnosis.pipeline import Notes
+from bench.diagnosis.profiled import reprofiled
 from bench.diagnosis.refit import model_sequence
 from bench.diagnosis.result import Finding
 from bench.diagnosis.summaries import summary
@@ -51,12 +52,20 @@ def within_window(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[
 def refit_sequence(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:
     """Model sequence (``refit.model_sequence``). Rule: the first-order model, then each chosen
     effect added in the order it entered, all under the final model's noise, so each effect's
-    BIC change and residual are read against the same covariance."""
+    BIC change and residual are read against the same covariance; a profiled parameter (a
+    thermal lag's τ) is profiled again under the model's noise and the noise re-estimated with
+    it, ``th.profile_passes`` times, first (``profiled.reprofiled``)."""
     assert st.model is not None and st.model.noise is not None and st.ev_final is not None
     m, noise = st.model, st.model.noise
     order = tuple(dict.fromkeys(s.effect for s in m.steps))
+    if any(c.resolved_from is not None for c in m.candidates):
+        fit = m.fit
+        for _ in range(th.profile_passes):
+            cands = reprofiled(st.ev_final, m.candidates, noise, st.scale, st.fixed, th)
+            noise, fit, _ = fit_model(st.ev_final, cands, m.pose, st.scale, st.fixed, noise, th=th)
+            m = replace(m, candidates=cands, noise=noise, fit=fit)
     seq = model_sequence(st.ev_final, list(order), m.candidates, m.pose, noise, st.scale, st.fixed)
-    return replace(st, order=order, seq=tuple(seq)), {}
+    return replace(st, order=order, seq=tuple(seq), model=m), {}
 
 
 def bench_lines(ev: StaticEvidence, st: WindowState, th: Thresholds) -> tuple[WindowState, Notes]:

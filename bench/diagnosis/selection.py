@@ -58,8 +58,11 @@ class Selection:
 
     @property
     def notes(self) -> dict[str, str]:
-        """Per candidate label, why it was not admitted (the steps of the path, in order)."""
-        return self.path.noted
+        """Per candidate label, why it was not admitted (the steps of the path, in order). A
+        family's note (its search unresolved at a step, ``profiled.resolve``) is dropped once a
+        later step admitted it: the model's candidate then says what the search found."""
+        held = {c.label for c in self.path.last.candidates if c.extra_params}
+        return {k: v for k, v in self.path.noted.items() if k not in held}
 
     def without(self, effects: Collection[str]) -> Selection:
         """The selection resumed from the step before the first of ``effects`` entered, with
@@ -128,7 +131,7 @@ def select(
     def n_catalogue(st: ModelState) -> int:
         # the catalogue's candidates still to try, plus the pose error while it is not in
         pose_left = 1 if pose_allowed and not st.pose else 0
-        return sum(1 for c in in_pool(st) if c not in st.candidates) + pose_left
+        return sum(1 for c in in_pool(st) if not st.holds(c)) + pose_left
 
     def admit(
         st: ModelState, step: tuple[float, Candidate, float, tuple[NoiseParams, GlsFit, FloatArray]]
@@ -150,7 +153,7 @@ def select(
 
     def beyond(st: ModelState, notes: dict[str, str]) -> ModelState | None:
         now = beside(st)
-        n_lib = sum(1 for c in now if c not in st.candidates)
+        n_lib = sum(1 for c in now if not st.holds(c))
         step = structured_step(
             ev, now, st, scale_matrix_of(st), fixed, th.library_share * step_alpha(th.false_alarm, n_lib), {},
             prescreen=th.prescreen, simplicity=simplicity, cap=cap, wander_notes=notes, th=th,

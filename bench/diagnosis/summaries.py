@@ -43,6 +43,17 @@ def summary(
         t, s = np.asarray(params["tc_m_s2_per_c"]), np.asarray(sigma["tc_m_s2_per_c"])
         parts = [f"{_AX[i]} channel {t[i]:.2e} ± {s[i]:.1e} m/s²/°C" for i in _channels(t)]
         return "bias follows the sensor temperature: " + "; ".join(parts)
+    if effect == "thermal_lag":
+        t, s = np.asarray(params["tc_m_s2_per_c"]), np.asarray(sigma["tc_m_s2_per_c"])
+        tau, st = np.asarray(params["tau_s"]), np.asarray(sigma["tau_s"])
+        parts = [
+            f"{_AX[i]} channel {t[i]:.2e} ± {s[i]:.1e} m/s²/°C "
+            f"through a lag of τ = {tau[i]:.3g} ± {st[i]:.2g} s"
+            for i in _channels(t)
+        ]
+        return "bias follows the sensing element's temperature, which lags the thermometer: " + "; ".join(
+            parts
+        )
     if effect == "bias_drift":
         d, s = np.asarray(params["drift_m_s2_per_s"]), np.asarray(sigma["drift_m_s2_per_s"])
         parts = [

@@ -75,6 +75,20 @@ class Thresholds:
     min_temperature_span_c: float = 0.05
     """Temperature must vary by more than this over the windows (°C) to say anything about a
     temperature coefficient (below it the channel's own resolution makes the span)."""
+    lag_tau_min_s: float = 1.0
+    """Shortest thermal-lag time constant searched (s); the longest is the run's span. Below a
+    second the lag moves each window mean by the temperature's change over that second: on the
+    catalogue's cycling-temperature run the lag's columns from 0.01 s to 1 s trace a curve of
+    length 0.02 rad beyond the model (Davies' L), one column, the plain coefficient (τ → 0)."""
+    profile_passes: int = 2
+    """Passes of a profiled parameter (a thermal lag's τ) profiled again under the final model's
+    noise and the noise re-estimated with it before the model is reported: the selection
+    profiled it under the noise of its step, whose slow wander still held part of the misfit."""
+    lag_grid_ratio: float = 1.25
+    """Ratio of neighbouring time constants on the thermal lag's search grid: neighbouring
+    columns then agree to |cos| > 0.99 beyond the model (0.994 on the catalogue's
+    cycling-temperature run), so the grid's best is within about 1 % in χ² of the continuous
+    maximum (``profiled.resolve`` refines it by a parabola in ln τ)."""
 
     # --- within-window settling ----------------------------------------------------------
     settling_share: float = 0.1

@@ -49,7 +49,7 @@ from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import NoiseParams, gls
 from bench.estimation.window_covariance import WindowCovariance
 
-WANDER_LIKE = ("bias_drift", "temperature_bias")
+WANDER_LIKE = ("bias_drift", "temperature_bias", "thermal_lag")
 """Catalogue effects whose signature a slow bias wander can imitate (a trend in time, or in a temperature
 that follows time). With such an effect in the model, REML can let the wander collapse to
 nothing (a 12-window run holds one or two correlation times of wander, whose trend the
@@ -67,9 +67,11 @@ def wander_note(effect: str, lr: float, lr_wander: float, gate: float, noise: No
     """Why a wander-like effect was not admitted although it fits (``select``)."""
     tau = ", ".join(f"{np.sqrt(t):.2g}" for t in noise.tau2)
     corr = "" if noise.corr_time_s <= 0 else f", correlation time {noise.corr_time_s:.0f} s"
-    what = {"bias_drift": "a drift", "temperature_bias": "a temperature coefficient"}.get(
-        effect, "a term in time or temperature"
-    )
+    what = {
+        "bias_drift": "a drift",
+        "temperature_bias": "a temperature coefficient",
+        "thermal_lag": "a temperature coefficient through a thermal lag",
+    }.get(effect, "a term in time or temperature")
     return (
         f"{what} fits (likelihood ratio {lr:.1f} with the wander it leaves), but the slow wander the "
         f"recording shows without it (sigma = [{tau}] channel units{corr}) makes such a trend too "

@@ -16,6 +16,7 @@ from bench.diagnosis.effects.motion import LEVER_ARM, LOWPASS, PROOF_MASS, TIME_
 from bench.diagnosis.effects.sensor import ASYMMETRY, CROSS_COUPLING, DRIFT, NONLINEARITY, TEMPERATURE
 from bench.diagnosis.effects.settling import SETTLING
 from bench.diagnosis.effects.table_axes import TABLE_AXIS_ERROR
+from bench.diagnosis.effects.thermal_lag import THERMAL_LAG
 
 CATALOGUE: tuple[Effect, ...] = (
     LEVER_ARM,
@@ -34,7 +35,7 @@ CATALOGUE: tuple[Effect, ...] = (
 )
 """Every effect of the contract's table, in its order."""
 
-BENCH_EFFECTS: tuple[Effect, ...] = (TABLE_AXIS_ERROR, LAST_MOVE)
+BENCH_EFFECTS: tuple[Effect, ...] = (TABLE_AXIS_ERROR, LAST_MOVE, THERMAL_LAG)
 """Effects of the bench beyond the contract's first table (docs/diagnose.md, "Bench physics
 beyond the catalogue"), searched beside it."""
 

@@ -51,6 +51,14 @@ class Candidate:
     :param columns: (evidence, K (3, 3)) -> (3m, q) design columns.
     :param names: q names of the coefficients, for messages.
     :param to_parameters: (θ (q,), cov (q, q), K) -> ({name: value}, {name: sigma}) in contract form.
+    :param extra_params: parameters found by a search rather than fitted as columns (a profiled
+        time constant): charged in the BIC beside the q columns.
+    :param tries: the effective number of independent candidates the search behind it tried
+        (``profiled.resolve``, Davies' bound): its gate is at α / tries; 1 for fixed columns.
+    :param family: a one-parameter family whose parameter is still to be profiled (the
+        selection resolves it into a fixed candidate first), or ``None``.
+    :param resolved_from: the family a fixed candidate was resolved from (profiled again under
+        the final noise before the model is reported, ``profiled.reprofiled``), or ``None``.
     """
 
     effect: str
@@ -59,6 +67,33 @@ class Candidate:
     columns: Callable[[StaticEvidence, FloatArray], FloatArray]
     names: tuple[str, ...]
     to_parameters: Callable[[FloatArray, FloatArray, FloatArray], tuple[dict[str, Any], dict[str, Any]]]
+    extra_params: int = 0
+    tries: float = 1.0
+    family: Family | None = None
+    resolved_from: Family | None = None
+
+
+@dataclass(frozen=True)
+class Family:
+    """A candidate with one column a(v) that depends on a parameter v not linear in the model
+    (a time constant): profiled on ``grid`` by the selection (``profiled.resolve``).
+
+    :param grid: (G,) values of v searched, ascending.
+    :param column: (evidence, K, v) -> (3m, 1) the column at v.
+    :param null_column: (evidence, K) -> (3m, 1) the column at the value where the family
+        reduces to the effect ``reduces_to`` (a lag of 0: the plain temperature coefficient).
+    :param at: (v̂, inflation, v_per_coef) -> the fixed candidate at v̂; ``inflation`` is the
+        ratio of the coefficient's variance with v free to its variance at v̂ held, and
+        ``v_per_coef`` is σ_v·|c| / σ_c (v held), both from the joint information at v̂, so
+        that the fitted candidate reports σ_c and σ_v = σ_c(v held)·v_per_coef / |c|.
+    :param reduces_to: the effect id the family reduces to at ``null_column``.
+    """
+
+    grid: tuple[float, ...]
+    column: Callable[[StaticEvidence, FloatArray, float], FloatArray]
+    null_column: Callable[[StaticEvidence, FloatArray], FloatArray]
+    at: Callable[[float, float, float], Candidate]
+    reduces_to: str
 
 
 class Effect(Protocol):

@@ -7,11 +7,11 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, HTTPException, Query, status
 
 from api.deps import SettingsDep, ViewerDep
+from api.routes.procedures import bench_table_limits
 from bench.planning.evaluation import Fit, Targets
 from bench.planning.noise import G0_M_S2, UnitNoise
 from bench.planning.report import plan_dict
 from bench.planning.search import plan
-from station.execution.devices import table_limits
 
 router = APIRouter(prefix="/api", tags=["procedures"])
 
@@ -42,6 +42,7 @@ def plan_procedure(
     ``POST /api/runs`` (the plan's ``start``). ``fit``: ``window`` plans ``planned-static`` (the
     static window fit, the default), ``every-sample`` plans ``planned-tumble`` (the every-sample
     fit, moves included), ``best`` the shorter of the two, as ``calbench plan --fit`` does."""
+    limits = bench_table_limits(settings)
     try:
         noise = UnitNoise.from_ug(white_ug_rt_hz, wander_ug, wander_tau_s, random_walk_ug_rt_s)
         targets = Targets(
@@ -49,7 +50,6 @@ def plan_procedure(
             None if scale_ppm is None else scale_ppm * 1e-6,
             None if misalignment_urad is None else misalignment_urad * 1e-6,
         )
-        limits = table_limits(settings)
         fits: tuple[Fit, ...] = ("window", "every-sample") if fit == "best" else (fit,)
         result = plan(
             noise, targets, limits=limits, settle_s=settle_s, max_duration_s=max_minutes * 60, fits=fits

@@ -10,14 +10,40 @@ from fastapi import APIRouter, HTTPException, Query, status
 
 from api.deps import SessionDep, SettingsDep, ViewerDep
 from api.schemas import SERIAL_PATTERN, ProcedurePreviewOut
+from bench.bench_config import BenchConfigError
 from bench.estimation.dynamic_model import TERM_ORDER
-from bench.procedures import Admitted, Preview, Refusal, RefusalKind, build_procedure, check_procedure
+from bench.procedures import (
+    Admitted,
+    Preview,
+    Refusal,
+    RefusalKind,
+    TableLimits,
+    build_procedure,
+    check_procedure,
+)
 from bench.procedures.observability import plan_observability
 from bench.procedures.preview import provisional_dwell
 from station.certificates.conformity import unit_warnings
 from station.execution.devices import table_limits
+from station.settings import Settings
 
 router = APIRouter(prefix="/api/procedures", tags=["procedures"])
+
+
+def bench_table_limits(settings: Settings) -> TableLimits:
+    """The table's limits for a viewer's question (:func:`~station.execution.devices.table_limits`).
+
+    :raises HTTPException: 503 when the bench file became invalid since the service started,
+        naming the key but not the server's path (the service's log has the whole line).
+    """
+    try:
+        return table_limits(settings)
+    except BenchConfigError as exc:
+        raise HTTPException(
+            status.HTTP_503_SERVICE_UNAVAILABLE,
+            f"the bench file is invalid ({exc.key or 'the file'}): procedures cannot be checked "
+            "against the table until it is fixed",
+        ) from None
 
 
 @router.get(
@@ -37,7 +63,7 @@ def procedure_preview(
     wall clock (bench seconds / ``sim_speed``). With ``unit_serial``, ``warnings`` says what the
     operator should know about that unit before starting (e.g. its model has no limits)."""
     dwell = dwell_s if dwell_s is not None else settings.run_dwell_s
-    checked = check_procedure(name, table_limits(settings), dwell_s=dwell)
+    checked = check_procedure(name, bench_table_limits(settings), dwell_s=dwell)
     pv = preview_or_refuse(checked)
     warnings: list[str] = []
     if unit_serial is not None:

@@ -144,3 +144,18 @@ def test_the_agent_offers_only_what_the_file_s_table_can_run(slow: TestClient) -
     on_default = runnable_procedures(settings, load_bench_config(SIM_BENCH_FILE))
     assert "rate-1axis" in on_default and "rate-1axis" not in on_slow  # 200 deg/s > 120 deg/s
     assert "static-12" in on_slow
+
+
+def test_a_bench_file_broken_after_the_start_answers_viewers_503_without_its_path(tmp_path: Path) -> None:
+    path = slow_bench(tmp_path)
+    with TestClient(
+        create_app(service_settings(tmp_path, bench_file=path, agent="external"), start_scheduler=False)
+    ) as client:
+        path.write_text(path.read_text().replace("max_rate_deg_s = [120.0,", "max_rate_deg_s = [nan,"))
+        for r in (
+            client.get("/api/procedures/static-12/preview", headers=VIEW),
+            client.get("/api/plan", params=PLAN, headers=VIEW),
+        ):
+            assert r.status_code == 503, r.text
+            detail = r.json()["detail"]
+            assert "table.limits.max_rate_deg_s[0]" in detail and str(tmp_path) not in detail

@@ -50,7 +50,8 @@ from bench.planning.search import best_within
 from bench.procedures.rate import DEFAULT_POSES_DEG, DEFAULT_RATES_DEG_S
 from bench.procedures.steps import MoveTo, Procedure
 from bench.recording import Recording
-from bench.uncertainty.dynamic import dynamic_budget, dynamic_inputs, wander_inputs
+from bench.uncertainty.dynamic import dynamic_budget, dynamic_inputs
+from bench.uncertainty.wander import wander_inputs
 from benchmarks.planning_independent_sim import Motion, noise_series, quintic_state
 from benchmarks.study_planning_dynamic import SIM_LIMITS
 from drivers.sim.offline import (

@@ -19,7 +19,15 @@ The bias truth of the temperature cases is the bias at the windows' mean tempera
 
 Per case: RMS of the K z-scores against the truth (9 per seed), of the bias against the
 run's mean and the long-run bias (and against the long-run bias over the fits whose
-``bias_reference`` is ``long_run`` alone), the largest |z| of K.
+``bias_reference`` is ``long_run`` alone), the largest |z| of K; and the bias with the
+certificate budget's bias lines that need no Type B input (``_core``): the fit's sigma against
+the run's mean (``bias_sigma_run_mean``) and the unit's stated wander (40 µg / 200 s, the
+simulated unit's own) averaged over the windows' span (``bench.uncertainty.wander``), with the
+largest |z| of the long-run bias and the p90/p10 ratio of the stated bias sigmas; and
+(``_cert``) with the certificate budget's u_c of bias and K (``station.certificates.budget``)
+with every Type B input at zero but the stated wander: its Type A line (the fit's estimator with
+the excess estimated without bias, ``bench.uncertainty.type_a``) and the wander's lines
+(``_cert_no_wander``: the same budget without the wander, as static budgets were before).
 
     python -m benchmarks.study_sigmas_static ORDER DWELL_S SEEDS [RANDOM_WALK] [CASE]
 
@@ -37,16 +45,25 @@ import numpy as np
 
 from api.simulated_recording import to_recording
 from bench.calibration import calibrate_recording
+from bench.calibration.analysis import analyse
 from bench.procedures.static import icosahedron_up_directions, pose_for_up, static_12_poses_deg
+from bench.uncertainty.wander import wander_inputs
 from drivers.sim.offline import DEFAULT_AXES, SimulatedRun, simulate_static
 from drivers.sim.physics import REFERENCE_TEMP_C, SensorPhysics
 from drivers.sim.sensor_truth import G0_M_S2, SensorTruth
+from station.certificates.budget import TypeBSettings, certificate_budget
 
 CASES = ("clean", "temperature", "pose", "motion", "all")
 ARCMIN_RAD = math.radians(1.0 / 60.0)
 TEMPCO_M_S2_PER_C = 0.2e-3 * G0_M_S2
 POSE_RAD = 3.0 * ARCMIN_RAD
 NUDGE_RAD = 3.0 * ARCMIN_RAD
+WANDER = (40e-6 * G0_M_S2, 200.0)
+"""The unit's bias wander as the station states it (``bias_wander_m_s2``, ``bias_wander_corr_time_s``)."""
+WANDER_ONLY = TypeBSettings(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, *WANDER)
+"""Certificate budget settings: no Type B input but the unit's stated wander."""
+NO_INPUT = TypeBSettings(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+"""The same without the wander (the static budget before it had the wander's lines)."""
 
 
 def poses(order: str) -> np.ndarray:
@@ -115,9 +132,26 @@ def z_scores(
     run = simulate_static(poses(order), dwell_s, SensorPhysics(tr, DEFAULT_AXES, seed=2000 + seed), 100.0)
     if case in ("motion", "all"):
         run = nudge(run, seed)
-    res = calibrate_recording(to_recording(run, serial="SN-STUDY"))
+    rec = to_recording(run, serial="SN-STUDY")
+    res = calibrate_recording(rec)
     thermal = temperature_offset(run)
+    analysis = analyse(rec)
+    cert = certificate_budget(analysis, analysis.fitted_model(), WANDER_ONLY)
+    u_cert = np.array([q.u_c for q in cert.budget.quantities])
+    before = certificate_budget(analysis, analysis.fitted_model(), NO_INPUT)
+    u_before = np.array([q.u_c for q in before.budget.quantities[:3]])
+    assert res.bias_sigma_run_mean is not None
+    span_s = max(w.end_s for w in res.windows) - min(w.start_s for w in res.windows)
+    _, w_sens = wander_inputs(span_s, res.K, WANDER)
+    u_core = np.sqrt(res.bias_sigma_run_mean**2 + np.sum((w_sens[:, :3] * WANDER[0]) ** 2, axis=0))
     return {
+        "K_cert": ((res.K - tr.K).ravel() / u_cert[3:]),
+        "bias_long_cert": (res.bias - tr.bias - thermal) / u_cert[:3],
+        "bias_long_cert_no_wander": (res.bias - tr.bias - thermal) / u_before,
+        "bias_run_core": (res.bias - run.bias_seen() - thermal) / u_core,
+        "bias_long_core": (res.bias - tr.bias - thermal) / u_core,
+        "sigma_fit": res.bias_sigma / np.diag(tr.K),
+        "sigma_core": u_core / np.diag(tr.K),
         "K": ((res.K - tr.K) / res.K_sigma).ravel(),
         "bias_run": (res.bias - run.bias_seen() - thermal) / res.bias_sigma,
         "bias_long": (res.bias - tr.bias - thermal) / res.bias_sigma,
@@ -134,7 +168,21 @@ def study(
     out = [z_scores(order, dwell_s, s, random_walk, case) for s in range(seeds)]
     rms = {
         k: float(np.sqrt(np.mean(np.concatenate([o[k] for o in out]) ** 2)))
-        for k in ("K", "bias_run", "bias_long")
+        for k in (
+            "K",
+            "bias_run",
+            "bias_long",
+            "bias_run_core",
+            "bias_long_core",
+            "K_cert",
+            "bias_long_cert",
+            "bias_long_cert_no_wander",
+        )
+    }
+    spread = {
+        f"sigma_p90_p10_{k}": float(np.percentile(s, 90) / np.percentile(s, 10))
+        for k in ("sigma_fit", "sigma_core")
+        for s in [np.concatenate([o[k] for o in out])]
     }
     labelled = [o["bias_long"] for o in out if o["long_run"][0]]
     return {
@@ -144,6 +192,10 @@ def study(
             float(np.sqrt(np.mean(np.concatenate(labelled) ** 2))) if labelled else float("nan")
         ),
         "max_abs_z_K": float(max(np.max(np.abs(o["K"])) for o in out)),
+        "max_abs_z_bias_long": float(max(np.max(np.abs(o["bias_long"])) for o in out)),
+        "max_abs_z_bias_long_core": float(max(np.max(np.abs(o["bias_long_core"])) for o in out)),
+        "max_abs_z_bias_long_cert": float(max(np.max(np.abs(o["bias_long_cert"])) for o in out)),
+        **spread,
         "share_long_run": float(np.mean([o["long_run"][0] for o in out])),
     }
 

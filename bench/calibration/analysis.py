@@ -62,6 +62,10 @@ class StaticDesign:
     :param y_mean: (m, 3) the window means the fit used (channel units).
     :param correlated_windows: the fit modelled a slow wander shared by the windows
         (``bias_reference == "long_run"``), not an independent excess per window.
+    :param bias_sigma_run_mean: (3,) the fit's bias sigma against the run's mean bias
+        (``StaticFit.bias_sigma_run_mean``, channel units), the bias's Type A beside a stated wander.
+    :param span_s: from the first window's first sample to the last window's last (s): the
+        span over which the bias is the run's mean.
     """
 
     f_m_s2: FloatArray
@@ -71,6 +75,8 @@ class StaticDesign:
     temp_c: FloatArray | None
     y_mean: FloatArray
     correlated_windows: bool
+    bias_sigma_run_mean: FloatArray
+    span_s: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -236,4 +242,6 @@ def _design(rec: Recording, fit: CalibrationResult) -> BudgetDesign | str:
     if rec.temp_c is not None:
         t = np.array([float(np.mean(rec.temp_c[w.start : w.stop])) for w in wins])
         temps = t if np.all(np.isfinite(t)) else None
-    return StaticDesign(f, S, angles, table, temps, y, fit.bias_reference == "long_run")
+    run_mean = fit.bias_sigma if fit.bias_sigma_run_mean is None else fit.bias_sigma_run_mean
+    span_s = max(w.end_s for w in fit.windows) - min(w.start_s for w in fit.windows)
+    return StaticDesign(f, S, angles, table, temps, y, fit.bias_reference == "long_run", run_mean, span_s)

@@ -79,6 +79,9 @@ class CalibrationResult:
     :param bias_reference: what ``bias_sigma`` describes: ``"long_run"`` when a wander shared
         by the windows (or the blocks of a moving run) is in the covariance, so the sigma
         covers the unit's long-run bias; ``"run_mean"`` when it covers only the run's mean bias.
+    :param bias_sigma_run_mean: (3,) a known-orientation static fit's bias sigma against the
+        run's mean bias (``StaticFit.bias_sigma_run_mean``), the Type A line beside a stated
+        unit wander; ``None`` for the other fits (a moving fit carries its own in ``fit``).
     """
 
     unit_serial: str
@@ -102,6 +105,7 @@ class CalibrationResult:
     unused_windows: tuple[UnusedWindow, ...] = ()
     warnings: tuple[str, ...] = ()
     bias_reference: BiasReference = "run_mean"
+    bias_sigma_run_mean: FloatArray | None = None
 
     @property
     def zero_redundancy(self) -> bool:

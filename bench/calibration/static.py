@@ -71,13 +71,14 @@ def calibrate_static(
     f = known_specific_force(rec, wins)
     mid_s = np.array([(rec.t_s[w.start] + rec.t_s[w.stop - 1]) / 2 for w in wins])
     reference: BiasReference
+    run_mean_sigma = None
     if f is not None:
         fit = fit_static(f, y, V, mid_s=mid_s)
         bias, K, cov = fit.bias, fit.K, fit.cov
         bias_sigma, K_sigma = fit.bias_sigma, fit.K_sigma
         resid, norm_resid = fit.residuals, fit.normalized_residuals
         chi2, dof, model, kind = fit.chi2, fit.dof, fit.noise_model, FitKind.STATIC
-        reference = fit.bias_reference
+        reference, run_mean_sigma = fit.bias_reference, fit.bias_sigma_run_mean
         n_obs, n_params, what = 3 * len(wins), 12, "window-mean components (3 per window)"
     else:
         sf = fit_scalar(y, V, g)
@@ -150,4 +151,5 @@ def calibrate_static(
         unused_windows=chosen.unused,
         warnings=tuple(warnings),
         bias_reference=reference,
+        bias_sigma_run_mean=run_mean_sigma,
     )

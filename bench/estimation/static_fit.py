@@ -37,7 +37,7 @@ import numpy.typing as npt
 from bench.estimation.dynamic_batch import BiasReference
 from bench.estimation.slow_noise import gls, window_covariance
 from bench.estimation.static_design import check_design, design_rows
-from bench.estimation.static_wander import fit_slow_wander
+from bench.estimation.static_wander import fit_slow_wander, run_mean_bias_cov
 from bench.estimation.window_noise import (
     known_share,
     own_channel_variance,
@@ -81,6 +81,11 @@ class StaticFit:
         in the covariance (its GLS counts the wander's average over the session), else
         ``"run_mean"`` (independent window errors: on a 12-window tumble with a 40 µg / 200 s
         wander the error against the long-run bias is 1.7–2.0× the sigma, docs/noise-model.md).
+    :param bias_sigma_run_mean: (3,) the bias sigma against the run's mean bias (the truth plus
+        the wander's mean over the windows), channel units: with the correlated wander its mean
+        over the windows taken out (``static_wander.run_mean_bias_cov``); with independent
+        window errors the fit's bias sigma (that model has no shared wander, its run mean is
+        confounded with b), as is ``bias_sigma``. ``None``: not formed.
     """
 
     bias: FloatArray
@@ -93,6 +98,7 @@ class StaticFit:
     excess_var: FloatArray
     noise_model: str
     bias_reference: BiasReference = "run_mean"
+    bias_sigma_run_mean: FloatArray | None = None
 
     @property
     def params(self) -> FloatArray:
@@ -273,10 +279,13 @@ def fit_static(
         if mid.shape != (m,) or not np.all(np.isfinite(mid)):
             raise ValueError(f"window times must be finite (m,) = ({m},), got shape {mid.shape}")
         slow = fit_slow_wander(f, y, V, theta[3:].reshape(3, 3), mid, own_gated, pose_t)
+    run_mean_var = None
     if slow is not None:
         wc = window_covariance(V, mid, slow.noise, slow.J, slow.nugget)
         g_fit = gls(H.reshape(3 * m, 12), y.reshape(-1), wc)
         theta, C = g_fit.theta, g_fit.cov
+        cov_run = run_mean_bias_cov(H.reshape(3 * m, 12), C, wc.factor().solve, slow.noise, mid)
+        run_mean_var = np.clip(np.diag(cov_run), 0.0, None)
         excess = wc.blocks - V + slow.noise.tau2[None, :, None] * np.eye(3)[None]
         S = V + excess
     resid = y - np.einsum("wai,i->wa", H, theta)
@@ -317,4 +326,5 @@ def fit_static(
         excess_var=excess_var,
         noise_model=model,
         bias_reference="long_run" if slow is not None else "run_mean",
+        bias_sigma_run_mean=np.sqrt(np.diag(C)[:3] if run_mean_var is None else run_mean_var),
     )

@@ -10,6 +10,7 @@ time T_c and the pose scatter, and keeps it only when it beats independent windo
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,3 +113,58 @@ def fit_slow_wander(
         pose_var_rad2=n1.pose_var_rad2 * t_factor(3 * (m - 4)),
     )
     return SlowWander(noise=noise, lr=float(lr), J=J, nugget=nugget)
+
+
+def _exp_row_sums(mid_s: FloatArray, corr_time_s: float) -> FloatArray:
+    """(m,) P 1 for P_ww' = exp(−|t_w − t_w'| / T_c), in O(m): with the times sorted and
+    ρ_w = exp(−(t_w − t_{w−1}) / T_c), the sums from the left F_w = 1 + ρ_w F_{w−1} and from the
+    right G_w = 1 + ρ_{w+1} G_{w+1} give (P 1)_w = F_w + G_w − 1."""
+    order = np.argsort(mid_s, kind="stable")
+    t = np.asarray(mid_s, dtype=float)[order]
+    rho = np.exp(-np.diff(t) / corr_time_s)
+    m = t.shape[0]
+    left, right = np.ones(m), np.ones(m)
+    for w in range(1, m):
+        left[w] += rho[w - 1] * left[w - 1]
+    for w in range(m - 2, -1, -1):
+        right[w] += rho[w] * right[w + 1]
+    out = np.empty(m)
+    out[order] = left + right - 1.0
+    return out
+
+
+def run_mean_bias_cov(
+    H: FloatArray,
+    cov: FloatArray,
+    solve: Callable[[FloatArray], FloatArray],
+    noise: NoiseParams,
+    mid_s: FloatArray,
+) -> FloatArray:
+    """(3, 3) covariance of the GLS bias against the run's mean bias b + s̄ (channel units²).
+
+    The GLS estimate θ̂ = A z, A = C Hᵀ Σ⁻¹ (C = (Hᵀ Σ⁻¹ H)⁻¹ the fit's covariance, Σ the
+    windows' covariance with the wander s_c(t_w) of each channel c, τ_c² P, P_ww' =
+    exp(−|t_w − t_w'| / T_c)), has Cov(θ̂ − θ) = C: the error against the unit's long-run
+    bias. Against the run's mean bias b_c + s̄_c, s̄_c = (1/m) Σ_w s_c(t_w), the bias error
+    is A_b e − L s with L the mean over the windows, and (Cov(e, s) = Cov(s) = the wander part)
+
+        C_run = C_bb − A_b Σ_s Lᵀ − L Σ_s A_bᵀ + L Σ_s Lᵀ,
+        (Σ_s Lᵀ)_(w,c'),c = [c = c'] τ_c² (P 1)_w / m,   L Σ_s Lᵀ = diag(τ_c² 1ᵀ P 1 / m²),
+
+    the form of ``dynamic_wander``'s ``cov_run_mean`` for window means (Papoulis & Pillai,
+    4th ed., §9-5: the variance of a sample mean of a correlated process).
+
+    :param H: (3m, 12) design rows, window-major. :param cov: (12, 12) C.
+    :param solve: Y ↦ Σ⁻¹ Y for Y (3m, q) (``CovarianceFactor.solve``).
+    :param noise: the wander (τ² (3,) channel units², T_c s > 0). :param mid_s: (m,) window times (s).
+    """
+    m = mid_s.shape[0]
+    tau2 = np.asarray(noise.tau2, dtype=float)
+    A_b = cov[:3] @ solve(H).T  # (3, 3m)
+    s_lt = np.zeros((3 * m, 3))
+    p1 = _exp_row_sums(mid_s, noise.corr_time_s)
+    for c in range(3):
+        s_lt[c::3, c] = tau2[c] * p1 / m
+    cross = A_b @ s_lt
+    out = cov[:3, :3] - cross - cross.T + np.diag(tau2 * float(np.sum(p1)) / m**2)
+    return np.asarray(0.5 * (out + out.T), dtype=float)

@@ -255,12 +255,17 @@ def uncertainty_budget(
     window_cov: FloatArray | None = None,
     method: str = "analytic",
     type_a_dof: FloatArray | None = None,
+    known: tuple[Sequence[TypeBInput], FloatArray] | None = None,
+    type_a_name: str = TYPE_A_NAME,
 ) -> Budget:
     """The budget of the 12 parameters of a static fit.
 
     :param cov_type_a: (12, 12) the fit's covariance (``StaticFit.cov``), the Type A part.
     :param type_a_dof: (12,) degrees of freedom of each Type A variance (``type_a.TypeA.dof``);
         ``None``: ∞.
+    :param known: inputs whose sensitivities (n, 12) are known already, not a move of the design
+        (the unit's bias wander over the run, ``bench.uncertainty.wander``); listed after ``inputs``.
+    :param type_a_name: the Type A line's name.
     :returns: :class:`Budget`; each quantity lists the Type A line first, then every input.
     :raises ValueError: see :func:`sensitivities`; a non-finite or wrongly shaped covariance.
     """
@@ -271,7 +276,11 @@ def uncertainty_budget(
         )
     sens = sensitivities(f_m_s2, bias, K, inputs, window_cov=window_cov, method=method)
     theta = np.concatenate([np.asarray(bias, dtype=float).reshape(3), np.asarray(K, dtype=float).ravel()])
-    return combine(theta, C, inputs, sens, method, type_a_dof=type_a_dof)
+    all_inputs = list(inputs)
+    if known is not None:
+        all_inputs += list(known[0])
+        sens = np.vstack([sens, np.asarray(known[1], dtype=float).reshape(len(known[0]), 12)])
+    return combine(theta, C, all_inputs, sens, method, type_a_name, type_a_dof)
 
 
 def combine(

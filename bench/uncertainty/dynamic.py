@@ -26,17 +26,9 @@ covariance of b and K. The budget is then combined exactly as the static one
 (``bench.uncertainty.budget.combine``).
 
 The bias a certificate carries is the unit's long-run bias; one run sees it plus the average
-over the run of its slow wander, which a run shorter than a few correlation times cannot
-measure itself. Given the unit's wander (Gauss–Markov, level σ_w m/s² per sensor axis,
-correlation time T_c), the bias gets its own line per sensor axis j, with u = σ_w and
-
-    ∂b_i/∂X_j = K_ij · r(T),   r(T)² = 2 (T_c/T) [1 − (T_c/T)(1 − e^(−T/T_c))],
-
-r(T)² σ_w² the variance of the time average over T of a stationary process with autocovariance
-σ_w² e^(−|τ|/T_c) (Papoulis & Pillai, *Probability, Random Variables and Stochastic
-Processes*, 4th ed., §9-5, the variance of a time average), T the fitted span; the bias's
-Type A line is then the fit's sigma against the run's mean bias
-(``DynamicFit.bias_sigma_run_mean``), so the run's own wander estimate is not counted twice.
+over the run of its slow wander. Given the unit's wander, the bias's Type A line is the fit's
+sigma against the run's mean bias (``DynamicFit.bias_sigma_run_mean``) and the wander's
+average over the fitted span is its own line per sensor axis (``bench.uncertainty.wander``).
 """
 
 from __future__ import annotations
@@ -53,7 +45,8 @@ from bench.calibration.dynamic import calibrate_dynamic
 from bench.kinematics import rot
 from bench.recording import Recording
 from bench.recording.model import TableAxis
-from bench.uncertainty.budget import WANDER_GROUP, Budget, TypeBInput, combine
+from bench.uncertainty.budget import Budget, TypeBInput, combine
+from bench.uncertainty.wander import with_wander
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -220,39 +213,6 @@ def refit_sensitivities(rec: Recording, terms: tuple[str, ...], inputs: list[Dyn
     return out
 
 
-def run_mean_factor(span_s: float, corr_time_s: float) -> float:
-    """r(T) of the module docstring: the standard deviation of a unit-level Gauss–Markov
-    process's average over ``span_s`` (s) about its long-run mean; ``corr_time_s`` T_c (s)."""
-    if not (span_s > 0 and corr_time_s > 0):
-        raise ValueError(f"span_s and corr_time_s must be > 0, got {span_s!r}, {corr_time_s!r}")
-    x = corr_time_s / span_s
-    return math.sqrt(2.0 * x * (1.0 - x * -math.expm1(-1.0 / x)))
-
-
-def wander_inputs(
-    span_s: float, K: FloatArray, wander: tuple[float, float]
-) -> tuple[list[TypeBInput], FloatArray]:
-    """The bias's wander lines (module docstring): three inputs (one per sensor axis) and their
-    sensitivities (3, 12) (bias rows only). ``wander`` = (σ_w m/s², T_c s) of the unit."""
-    level, tc = wander
-    if not (math.isfinite(level) and level >= 0):
-        raise ValueError(f"bias wander level must be finite and >= 0 m/s2, got {level!r}")
-    r = run_mean_factor(span_s, tc)
-    Km = np.asarray(K, dtype=float).reshape(3, 3)
-    basis = (
-        f"unit's bias wander (Gauss-Markov, level {level:.3g} m/s2, correlation time {tc:g} s): "
-        f"its average over the {span_s:.0f} s run about the long-run bias, r = {r:.3g}"
-    )
-    inputs = [
-        TypeBInput(f"bias wander over the run, sensor axis {letter}", level, "m/s2", group=WANDER_GROUP,
-                   channel=j, basis=basis)
-        for j, letter in enumerate(_LETTERS)
-    ]  # fmt: skip
-    sens = np.zeros((3, 12))
-    sens[:, :3] = Km.T * r  # row j: ∂b_i/∂X_j = K_ij r
-    return inputs, sens
-
-
 def dynamic_budget(
     rec: Recording,
     terms: tuple[str, ...],
@@ -285,10 +245,6 @@ def dynamic_budget(
         return combine(theta, C, type_b, sens, METHOD, TYPE_A_NAME)
     if bias_sigma_run_mean is None:
         raise ValueError("the unit's bias wander needs the fit's bias sigma against the run's mean")
-    C = C.copy()
-    C[:3, :] = 0.0
-    C[:, :3] = 0.0
-    C[:3, :3] = np.diag(np.asarray(bias_sigma_run_mean, dtype=float).reshape(3) ** 2)
     span_s = float(rec.t_s[-1] - rec.t_s[0])
-    w_inputs, w_sens = wander_inputs(span_s, K, wander)
+    C, w_inputs, w_sens = with_wander(C, bias_sigma_run_mean, span_s, K, wander)
     return combine(theta, C, [*type_b, *w_inputs], np.vstack([sens, w_sens]), METHOD, TYPE_A_RUN_MEAN_NAME)

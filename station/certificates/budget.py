@@ -9,7 +9,10 @@ Type A standard uncertainties are the stored fit's (:class:`bench.fitted_model.F
 for a static fit with an independent excess per window each σ times the factor that puts the
 excess in the amount the data support, with the Type B inputs' expected share out of it
 (``bench.uncertainty.type_a``, with its degrees of freedom; a fit with a slow wander shared by
-the windows keeps its σ and says so).
+the windows keeps its σ and says so). With the unit's bias wander stated
+(``bias_wander_m_s2`` > 0) the bias's Type A line of both kinds is the fit's sigma against the
+run's mean and the wander averaged over the run is its own line per sensor axis
+(``bench.uncertainty.wander``), so the bias U is the unit's long-run bias's.
 A moving fit's sensitivities are refits of the changed recording (``bench.uncertainty.dynamic``),
 minutes of CPU: :func:`analysis_budget` forms a budget once per analysis and Type B settings,
 before any database transaction opens. Inputs that do not apply are listed under ``not_evaluated``
@@ -28,11 +31,12 @@ from bench.calibration.analysis import Analysis, MovingDesign, StaticDesign, bud
 from bench.estimation.static_design import PARAMETER_NAMES
 from bench.fitted_model import FittedModel
 from bench.recording import Recording
-from bench.uncertainty.budget import RULE, Budget, TypeBInput, uncertainty_budget
+from bench.uncertainty.budget import RULE, TYPE_A_NAME, Budget, TypeBInput, uncertainty_budget
 from bench.uncertainty.dynamic import METHOD as DYNAMIC_METHOD
 from bench.uncertainty.dynamic import dynamic_budget, dynamic_inputs
 from bench.uncertainty.inputs import daq_inputs, gravity_input, table_inputs, temperature_inputs
 from bench.uncertainty.type_a import type_a_without_type_b
+from bench.uncertainty.wander import with_wander
 
 ANALOG_UNITS = ("V", "mV")
 """Channel units measured through the DAQ (its gain and offset apply)."""
@@ -51,10 +55,13 @@ DYNAMIC_TYPE_A_BASIS = (
     "the dynamic fit's covariance: Newey–West sandwich over blocks of the samples, never below "
     "the white-noise bound; ν = ∞ (many blocks)"
 )
-DYNAMIC_WANDER_BASIS = (
+WANDER_BASIS = (
     "; the bias's Type A is its sigma against the run's mean bias, and the unit's bias wander "
     "(bias_wander_m_s2, bias_wander_corr_time_s) averaged over the run is its own line, so the "
     "bias U is that of the unit's long-run bias"
+)
+STATIC_TYPE_A_RUN_MEAN_NAME = (
+    "Type A: window noise and between-window scatter (fit covariance; bias against the run's mean)"
 )
 STATIC_METHOD = "linearisation of the generalised least-squares fit (analytic derivative)"
 
@@ -204,18 +211,52 @@ def certificate_budget(analysis: Analysis, stored: FittedModel, tb: TypeBSetting
     if isinstance(design, MovingDesign):
         return _dynamic_budget(rec, design, stored.channel_unit, tb, b, K, np.diag(sigma**2))
     f, V, inputs, skipped = budget_inputs(design, rec.sidecar.g_local_m_s2, stored, tb)
+    wander = (tb.bias_wander_m_s2, tb.bias_wander_corr_time_s) if tb.bias_wander_m_s2 > 0 else None
     if design.correlated_windows:
-        budget = uncertainty_budget(f, b, K, np.diag(sigma**2), inputs, window_cov=V)
-        return CertificateBudget(budget, stored.channel_unit, tuple(skipped), CORRELATED_TYPE_A_BASIS)
+        cov_a, known, name = _static_wander(np.diag(sigma**2), design.bias_sigma_run_mean, design, K, wander)
+        budget = uncertainty_budget(f, b, K, cov_a, inputs, window_cov=V, known=known, type_a_name=name)
+        basis = CORRELATED_TYPE_A_BASIS + ("" if wander is None else WANDER_BASIS)
+        return CertificateBudget(budget, stored.channel_unit, tuple(skipped), basis)
     type_a = type_a_without_type_b(f, design.y_mean, V, K, inputs)
-    cov_a = np.diag((sigma * type_a.ratio()) ** 2)
-    budget = uncertainty_budget(f, b, K, cov_a, inputs, window_cov=type_a.weights_cov, type_a_dof=type_a.dof)
-    basis = f"{TYPE_A_BASIS}; excess model: {type_a.model}"
+    sigma_a = sigma * type_a.ratio()
+    # independent window errors: the Type A line's bias sigma is already against the run's mean
+    cov_a, known, name = _static_wander(np.diag(sigma_a**2), sigma_a[:3], design, K, wander)
+    budget = uncertainty_budget(
+        f,
+        b,
+        K,
+        cov_a,
+        inputs,
+        window_cov=type_a.weights_cov,
+        type_a_dof=type_a.dof,
+        known=known,
+        type_a_name=name,
+    )
+    basis = f"{TYPE_A_BASIS}; excess model: {type_a.model}" + ("" if wander is None else WANDER_BASIS)
     if type_a.below_zero:
         basis += "; estimated below zero (no excess shown): " + ", ".join(type_a.below_zero)
     if type_a.floored:
         basis += "; held at half the within-window variance: " + ", ".join(type_a.floored)
     return CertificateBudget(budget, stored.channel_unit, tuple(skipped), basis)
+
+
+def _static_wander(
+    cov_a: np.ndarray,
+    bias_sigma_run_mean: np.ndarray,
+    design: StaticDesign,
+    K: np.ndarray,
+    wander: tuple[float, float] | None,
+) -> tuple[np.ndarray, tuple[list[TypeBInput], np.ndarray] | None, str]:
+    """The static Type A covariance, the wander's lines and the Type A line's name
+    (``bench.uncertainty.wander``): unchanged without a stated wander; with independent window
+    errors the bias's Type A is already against the run's mean (``bias_sigma_run_mean`` is the
+    line's own bias sigma) and only the lines are added."""
+    if wander is None:
+        return cov_a, None, TYPE_A_NAME
+    C, w_inputs, w_sens = with_wander(cov_a, bias_sigma_run_mean, design.span_s, K, wander)
+    # independent window errors: the line is the same as without the wander, and so its name
+    name = STATIC_TYPE_A_RUN_MEAN_NAME if design.correlated_windows else TYPE_A_NAME
+    return C, (w_inputs, w_sens), name
 
 
 def analysis_budget(
@@ -260,5 +301,5 @@ def _dynamic_budget(
     budget = dynamic_budget(
         rec, design.terms, b, K, cov, inputs, wander=wander, bias_sigma_run_mean=design.bias_sigma_run_mean
     )
-    basis = DYNAMIC_TYPE_A_BASIS if wander is None else DYNAMIC_TYPE_A_BASIS + DYNAMIC_WANDER_BASIS
+    basis = DYNAMIC_TYPE_A_BASIS if wander is None else DYNAMIC_TYPE_A_BASIS + WANDER_BASIS
     return CertificateBudget(budget, unit, tuple(skipped), basis, DYNAMIC_METHOD)

@@ -57,7 +57,7 @@ def results_section(fit: FittedModel, budget: CertificateBudget | None) -> dict[
 def bias_statements(fit: FittedModel, budget: CertificateBudget | None = None) -> list[str]:
     """The certificate's statements about which bias its bias U describes: :data:`RUN_MEAN_BIAS`
     where the fit's ``bias_reference`` is ``"run_mean"`` and the budget has no line for the
-    unit's bias wander over the run (``bench.uncertainty.dynamic.WANDER_GROUP``); none where
+    unit's bias wander over the run (``bench.uncertainty.budget.WANDER_GROUP``); none where
     the U is the unit's long-run bias's or the reference is not stated."""
     if budget is not None and any(i.group == WANDER_GROUP for i in budget.budget.inputs):
         return []

@@ -12,14 +12,9 @@ import pytest
 from bench.calibration.dynamic import DynamicCalibrationResult, calibrate_dynamic
 from bench.kinematics import attitude, rot
 from bench.recording import Recording
-from bench.uncertainty.dynamic import (
-    TILT_ABSORBED,
-    WANDER_GROUP,
-    DynamicInput,
-    dynamic_budget,
-    dynamic_inputs,
-    run_mean_factor,
-)
+from bench.uncertainty.budget import WANDER_GROUP
+from bench.uncertainty.dynamic import TILT_ABSORBED, DynamicInput, dynamic_budget, dynamic_inputs
+from bench.uncertainty.wander import run_mean_factor
 from tests.support.dynamic_sim import oscillation
 
 DEFAULTS: dict[str, Any] = {

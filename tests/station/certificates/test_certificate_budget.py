@@ -15,12 +15,13 @@ import numpy as np
 import pytest
 from scipy.stats import t as student_t
 
-from api.simulated_recording import write_simulated
+from api.simulated_recording import to_recording, write_simulated
 from bench.calibration import calibrate_recording
 from bench.calibration.analysis import StaticDesign, analyse, budget_design
 from bench.estimation.static_fit import fit_static
 from bench.fitted_model import FittedModel
 from bench.recording import Recording, read_recording
+from benchmarks.study_sigmas_static import poses, truth_for
 from db.repo.certificates import canonical_sha256
 from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg
 from drivers.sim.physics import SensorPhysics, SensorTruth
@@ -28,7 +29,9 @@ from station.certificates.budget import CertificateBudget, TypeBSettings, certif
 from station.certificates.certificate import certificate_content
 from station.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
 from station.certificates.pdf import render_pdf
+from station.certificates.results import bias_statements
 from station.certificates.rounding import round_expanded
+from station.certificates.statements import RUN_MEAN_BIAS
 from station.settings import Settings
 
 G = 9.81535
@@ -199,3 +202,62 @@ def test_type_a_line_counts_each_type_b_input_once(recorded: tuple[Recording, di
     assert np.all(line <= line0 * (1 + 1e-9)) and np.sum(line < line0 * 0.999) >= 6, line / line0
     assert np.all(line >= math.sqrt(0.5) * noise_only * (1 - 1e-9)), line / noise_only
     assert "estimated below zero" in basis and "excess model" in basis
+
+
+def _wander_r(span_s: float, tc_s: float) -> float:
+    """r(T) by the double integral (1/T²) ∫∫ exp(−|t − t'| / T_c) dt dt' on a fine grid."""
+    t = (np.arange(4000) + 0.5) * span_s / 4000
+    return math.sqrt(float(np.mean(np.exp(-np.abs(t[:, None] - t[None, :]) / tc_s))))
+
+
+def test_a_stated_wander_adds_its_run_mean_line_to_the_static_bias_and_leaves_k_alone(
+    recorded: tuple[Recording, dict[str, Any]],
+) -> None:
+    """Independent window errors: the fit's bias sigma is already the run mean's (a shift common
+    to the windows is b), so the Type A line stays and the unit's wander averaged over the
+    windows' span is added per sensor axis, |K_ij| r(T) σ_w; K's budget is the same as without
+    the wander, and the certificate no longer says its bias U is the run's mean."""
+    rec, cal = recorded
+    analysis, stored = analyse(rec), FittedModel.from_contract(cal)
+    level, tc = 3.9e-4, 200.0
+    plain = certificate_budget(analysis, stored, ZERO)
+    stated = certificate_budget(analysis, stored, dataclasses.replace(ZERO, bias_wander_m_s2=level))
+    span = max(w.end_s for w in analysis.fit.windows) - min(w.start_s for w in analysis.fit.windows)
+    r = _wander_r(span, tc)
+    K = np.array(cal["scale_matrix"])
+    for i, (q0, q) in enumerate(zip(plain.budget.quantities[:3], stated.budget.quantities[:3], strict=True)):
+        lines = [c for c in q.contributions if c.group == "bias wander over the run"]
+        assert [c.channel for c in lines] == [0, 1, 2]
+        np.testing.assert_allclose([c.contribution for c in lines], np.abs(K[i]) * r * level, rtol=1e-6)
+        assert q.contributions[0].contribution == pytest.approx(q0.contributions[0].contribution, rel=1e-12)
+        assert q.u_c**2 == pytest.approx(q0.u_c**2 + sum(c.contribution**2 for c in lines), rel=1e-12)
+    for q0, q in zip(plain.budget.quantities[3:], stated.budget.quantities[3:], strict=True):
+        assert (q.u_c, q.k) == pytest.approx((q0.u_c, q0.k), rel=1e-12)
+    assert "long-run bias" in stated.type_a_basis and "long-run" not in plain.type_a_basis
+    assert stored.bias_reference == "run_mean"
+    assert bias_statements(stored, plain) == [RUN_MEAN_BIAS] and bias_statements(stored, stated) == []
+
+
+def test_a_fit_with_the_shared_wander_states_its_bias_against_the_run_mean_beside_the_stated_wander() -> None:
+    """A 12.7-minute static-12 run whose temperature drift the fit takes as a wander shared by the
+    windows (``bias_reference = "long_run"``): with a stated wander the bias's Type A line is the
+    fit's sigma against the run's mean (its own wander's mean over the windows out, below the
+    fit's sigma), the stated wander's lines are added, K's budget is unchanged."""
+    tr = truth_for("temperature", 0, 0.0)
+    run = simulate_static(poses("bench"), 55.0, SensorPhysics(tr, DEFAULT_AXES, seed=2000), 100.0)
+    analysis = analyse(to_recording(run, serial="SN-W"))
+    stored = analysis.fitted_model()
+    design = budget_design(analysis)
+    assert isinstance(design, StaticDesign) and design.correlated_windows
+    plain = certificate_budget(analysis, stored, ZERO)
+    stated = certificate_budget(analysis, stored, dataclasses.replace(ZERO, bias_wander_m_s2=3.9e-4))
+    line = np.array([q.contributions[0].contribution for q in stated.budget.quantities[:3]])
+    np.testing.assert_allclose(line, design.bias_sigma_run_mean, rtol=1e-12)
+    assert np.all(line < 0.5 * np.asarray(stored.bias_sigma)), line / np.asarray(stored.bias_sigma)
+    assert all(
+        sum(c.group == "bias wander over the run" for c in q.contributions) == 3
+        for q in stated.budget.quantities[:3]
+    )
+    for q0, q in zip(plain.budget.quantities[3:], stated.budget.quantities[3:], strict=True):
+        assert (q.u_c, q.k) == pytest.approx((q0.u_c, q0.k), rel=1e-12)
+    assert "run's mean" in stated.budget.quantities[0].contributions[0].name

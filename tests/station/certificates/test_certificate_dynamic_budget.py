@@ -11,7 +11,7 @@ import pytest
 from bench.calibration.analysis import Analysis, analyse
 from bench.fitted_model import FittedModel
 from bench.recording import Recording
-from bench.uncertainty.dynamic import WANDER_GROUP
+from bench.uncertainty.budget import WANDER_GROUP
 from station.certificates.budget import CertificateBudget, TypeBSettings, certificate_budget
 from station.certificates.certificate import certificate_content
 from station.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts

@@ -1,18 +1,19 @@
 """Mutation fuzzer of the CLI: mutants of one valid recording, each through ``calibrate`` and ``diagnose``.
 
-``python -m benchmarks.fuzz_cli [N_MUTANTS] [SEED] [--moving]`` (``make fuzz``) writes a small static-12
-recording with ``calbench simulate``, makes N_MUTANTS (default 800) mutants of its CSV and
-sidecar (number spellings Python's ``float()`` reads but a recording must not, huge and
-non-finite numbers, huge fields, deep nesting, deleted/duplicated/swapped rows, truncation,
-byte flips, wrong types and units, offsets of the table angles, rates that disagree with the
-time column, text with NUL and bidi controls, a missing sidecar...) and runs both commands on
-each with ``--json``. ``--moving`` fuzzes a rate-1axis recording (50 Hz) instead, with the
-faults a real table and DAQ have among its mutants (:func:`mutate_moving`: spikes, clipping,
-rounded and lagging encoders, a channel scaled or its sign flipped), and a warning counts only
-when it is in the JSON's ``warnings``. Every outcome is classified:
+``python -m benchmarks.fuzz_cli [N_MUTANTS] [SEED] [--moving] [--progress] [--deadline-s=S]``
+(``make fuzz``) writes a small static-12 recording with ``calbench simulate``, makes N_MUTANTS
+(default 800) mutants of its CSV and sidecar (number spellings Python's ``float()`` reads but a
+recording must not, huge and non-finite numbers, huge fields, deep nesting,
+deleted/duplicated/swapped rows, truncation, byte flips, wrong types and units, offsets of the table
+angles, rates that disagree with the time column, text with NUL and bidi controls, a missing
+sidecar...) and runs both commands on each with ``--json``. ``--moving`` fuzzes a rate-1axis
+recording (50 Hz) instead, with the faults a real table and DAQ have among its mutants
+(:func:`mutate_moving`: spikes, clipping, rounded and lagging encoders, a channel scaled or its sign
+flipped), and a warning counts only when it is in the JSON's ``warnings``. Every outcome is
+classified:
 
 - ``traceback``: an exception escaped ``calbench``'s ``main`` (a bug);
-- ``hang``: no answer within the time limit (a bug);
+- ``hang``: no answer within the time limit (a bug): :data:`TIMEOUT_S` of CPU time;
 - ``exit2 multi-line``: bad input reported on more than one stderr line (a bug);
 - ``silent``: exit 0, but the calibration moved beyond its own uncertainty (any bias or K
   element by more than 5 σ, σ the larger of the two runs') while neither the residual grew
@@ -35,6 +36,7 @@ import contextlib
 import io
 import json
 import multiprocessing as mp
+import os
 import random
 import sys
 import tempfile
@@ -49,6 +51,11 @@ from typing import Any
 import numpy as np
 
 TIMEOUT_S = 120.0
+"""A command that used more CPU time than this (s, the worker's user + system time) hangs."""
+WALL_LIMIT_S = 1800.0
+"""...or that has not answered after this wall time (s): on a shared machine the wall time of a
+command is mostly the other users' (at a load of 20 on 2 cores, 8x its CPU time), so the limit is
+on CPU time, with the wall time only as a backstop (and the limit where /proc is missing)."""
 EQUIVALENT = "innermost axis: the recording of a sensor mounted turned by that angle"
 """An offset of the innermost axis's encoder is a rotation of the sensor about that axis: the same
 data as a valid recording of a differently mounted sensor, whose right answer is a turned K."""
@@ -389,6 +396,9 @@ class Worker:
     """A process running ``api.cli.main`` on request, restarted after a hang."""
 
     def __init__(self) -> None:
+        # one BLAS thread: the commands' matrices are small, and on a shared machine a BLAS
+        # thread pool spends CPU time waiting (docs/benchmarks.md), which the limit would count
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
         self._start()
 
     def _start(self) -> None:
@@ -397,13 +407,28 @@ class Worker:
         self.proc = ctx.Process(target=_worker, args=(child,), daemon=True)
         self.proc.start()
 
+    def cpu_s(self) -> float | None:
+        """The worker's CPU time so far (s, user + system, every thread), ``None`` without /proc."""
+        try:
+            fields = Path(f"/proc/{self.proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            return None
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
     def run(self, argv: list[str], timeout_s: float = TIMEOUT_S) -> tuple[Any, str, str]:
+        """(exit code or "traceback"/"hang", stdout, stderr) of ``calbench argv``; a hang is more
+        than ``timeout_s`` of CPU time (:data:`TIMEOUT_S`) or :data:`WALL_LIMIT_S` of wall time."""
+        cpu0, t0 = self.cpu_s(), time.perf_counter()
         self.conn.send(argv)
-        if not self.conn.poll(timeout_s):
-            self.proc.kill()
-            self.proc.join()
-            self._start()
-            return "hang", "", ""
+        while not self.conn.poll(1.0):
+            cpu = self.cpu_s()
+            wall = time.perf_counter() - t0
+            used = wall if cpu is None or cpu0 is None else cpu - cpu0
+            if used > timeout_s or wall > WALL_LIMIT_S:
+                self.proc.kill()
+                self.proc.join()
+                self._start()
+                return "hang", "", f"{used:.0f} s of CPU, {wall:.0f} s of wall time"
         try:
             return self.conn.recv()  # type: ignore[no-any-return]
         except EOFError:  # the worker died (a crash is a traceback too)
@@ -476,12 +501,20 @@ def classify(
 
 
 def run(
-    n_mutants: int = 800, seed: int = 13, log: Callable[[str], None] = print, moving: bool = False
+    n_mutants: int = 800,
+    seed: int = 13,
+    log: Callable[[str], None] = print,
+    moving: bool = False,
+    progress: bool = False,
+    deadline_s: float | None = None,
 ) -> Counter[str]:
     """Fuzz both commands with ``n_mutants`` mutants; returns the count of each class.
 
     :param moving: mutants of a rate-1axis recording (:func:`mutate_moving`), judged by the
-        JSON's ``warnings``; else of a static-12 one."""
+        JSON's ``warnings``; else of a static-12 one.
+    :param progress: log each mutant's classes and the commands' wall times as it finishes.
+    :param deadline_s: stop after the mutant that passes this wall time (s) and report the
+        mutants done (the same mutants as a full run's first ones: the draws do not depend on it)."""
     rng = random.Random(seed)
     worker = Worker()
     counts: Counter[str] = Counter()
@@ -503,6 +536,7 @@ def run(
             base = json.loads(out)
             assert base["warnings"] == [], base["warnings"]
             t0 = time.perf_counter()
+            done = 0
             for i in range(n_mutants):
                 path = Path(d) / f"m{i:04d}.csv"
                 if moving and rng.random() < 0.85:
@@ -520,12 +554,15 @@ def run(
                 path.write_bytes(text.encode("utf-8", "surrogateescape"))
                 if side_text is not None:
                     path.with_suffix(".json").write_text(side_text, encoding="utf-8")
+                classes = []
                 for cmd in ("calibrate", "diagnose"):
+                    t_cmd = time.perf_counter()
                     c, o, e = worker.run([cmd, "--json", str(path)])
                     cls, detail = classify(
                         cmd, c, o, e, base, equivalent=EQUIVALENT in desc, json_warnings=moving
                     )
                     counts[cls] += 1
+                    classes.append(f"{cmd} {cls} ({time.perf_counter() - t_cmd:.0f} s)")
                     if moving and cmd == "calibrate":
                         kinds[f"{label}: {cls}"] += 1
                     if cls == "moved, equivalent":
@@ -534,11 +571,17 @@ def run(
                         log(f"  BUG {cls}: mutant {i} ({desc}) {cmd}: {detail}")
                 path.unlink()
                 path.with_suffix(".json").unlink(missing_ok=True)
+                done += 1
+                if progress:
+                    log(f"  mutant {i} ({label}): {', '.join(classes)}")
+                if deadline_s is not None and time.perf_counter() - t0 > deadline_s:
+                    break
             elapsed = time.perf_counter() - t0
     finally:
         worker.close()
     what = "moving (rate-1axis)" if moving else "static-12"
-    log(f"{n_mutants} {what} mutants x 2 commands in {elapsed:.0f} s (seed {seed}):")
+    stopped = f" (stopped at the {deadline_s:.0f} s limit; {n_mutants} asked)" if done < n_mutants else ""
+    log(f"{done} {what} mutants x 2 commands in {elapsed:.0f} s (seed {seed}){stopped}:")
     for cls, n in sorted(counts.items()):
         log(f"  {cls:<18}{n:>6}")
     if kinds:
@@ -554,10 +597,12 @@ BUGS = ("traceback", "hang", "exit2 multi-line", "silent")
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     moving = "--moving" in args
-    args = [a for a in args if a != "--moving"]
+    progress = "--progress" in args
+    deadline_s = next((float(a.split("=", 1)[1]) for a in args if a.startswith("--deadline-s=")), None)
+    args = [a for a in args if not a.startswith("--")]
     n = int(args[0]) if args else 800
     seed = int(args[1]) if len(args) > 1 else 13
-    counts = run(n, seed, moving=moving)
+    counts = run(n, seed, moving=moving, progress=progress, deadline_s=deadline_s)
     bugs = sum(n for cls, n in counts.items() if cls in BUGS or cls.startswith("exit "))
     print(f"bugs: {bugs}")
     return 1 if bugs else 0

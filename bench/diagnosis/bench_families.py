@@ -254,7 +254,7 @@ def moving_head_to_head(
     *,
     baseline: DynamicFit,
     n_params: int,
-    rerun: Callable[[FloatArray], Diagnosis],
+    rerun: Callable[[FloatArray, frozenset[str]], Diagnosis | None],
 ) -> Diagnosis | None:
     """Where a family is left in the final residual (``search``) or in the catalogue's (the
     discovered terms added back: library terms can take a family whole), the head to head of
@@ -263,7 +263,8 @@ def moving_head_to_head(
     :param library: (n, 3) the discovered terms' contribution (channel units) or ``None``.
     :param baseline: the first-order fit; :param n_params: the claimed model's parameters
         beyond bias and K (catalogue terms' and discovered terms').
-    :param rerun: samples -> their diagnosis without the head to head.
+    :param rerun: (samples, the catalogue terms the alternative may claim) -> their diagnosis
+        without the head to head, or ``None`` once it cannot win (``family_referee.head_to_head``).
     """
     fam = search.families
     if fam.empty and (

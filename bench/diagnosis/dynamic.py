@@ -97,16 +97,22 @@ def head_to_head_against(alone: Moving) -> Stage[MovingEvidence, MovingState]:
         final residual or in the catalogue's (the discovered terms added back), the families of
         the first-order residual are taken out of the samples and the diagnosis runs again
         without this stage; when its claims are only the families' nuisance and its BIC is lower
-        than the claim's with the families, it replaces this diagnosis (the claim is withdrawn)."""
+        than the claim's with the families, it replaces this diagnosis (the claim is withdrawn).
+        The run again stops at its catalogue selection when that holds another term: the library's
+        cut then keeps either those steps or a discovered term, and the alternative cannot win."""
         claim, fams = st.claimed, st.families
         assert fams is not None
         n_library = len(claim.library.included)
         if not claim.k + n_library:
             return st, {}
 
-        def rerun(y: FloatArray) -> Diagnosis:
+        def rerun(y: FloatArray, allowed: frozenset[str]) -> Diagnosis | None:
+            def claims_more(s: MovingState) -> bool:
+                return s.selection is not None and any(t not in allowed for t in s.selection.chosen)
+
             alt = replace(ev, y=y)
-            return moving_report(alt, alone.run(alt, MovingState(), th)[0], th)
+            out, _ = alone.run(alt, MovingState(), th, until=claims_more)
+            return None if claims_more(out) else moving_report(alt, out, th)
 
         final = claim.fits[-1]
         won = moving_head_to_head(

@@ -67,6 +67,13 @@ def _alt_theta(alt: Diagnosis, lever: FloatArray) -> tuple[ModelSpec, FloatArray
     return spec, theta
 
 
+def cannot_win(alt: Diagnosis, allowed: frozenset[str]) -> bool:
+    """Whether the alternative claims more than the families' nuisance: a catalogue term not in
+    ``allowed`` or a discovered term (then the first model stands, whatever the BIC)."""
+    claims = any(f.effect in CATALOGUE_IDS and f.effect not in allowed for f in alt.findings)
+    return claims or bool(alt.discovered)
+
+
 def head_to_head(
     m: MotionData,
     y: FloatArray,
@@ -75,7 +82,7 @@ def head_to_head(
     baseline: DynamicFit,
     full_left: FloatArray,
     k_full: int,
-    rerun: Callable[[FloatArray], Diagnosis],
+    rerun: Callable[[FloatArray, frozenset[str]], Diagnosis | None],
     th: Thresholds = THRESHOLDS,
 ) -> tuple[Diagnosis, Families, FloatArray, str] | None:
     """The alternative diagnosis, its families, its residual and a note, when it beats the full model.
@@ -83,7 +90,9 @@ def head_to_head(
     :param baseline: the first-order fit (bias and K only).
     :param full_left: (n_used, 3) the full model's residual less its families (used samples).
     :param k_full: parameters of the full model beyond bias and K (families included).
-    :param rerun: samples -> the diagnosis of them without this head to head.
+    :param rerun: (samples, the catalogue terms the alternative may claim) -> the diagnosis of
+        them without this head to head, or ``None`` once it is known to claim another catalogue
+        term or a discovered one (it cannot win: :func:`cannot_win`).
     """
     ok = np.asarray(m.valid, dtype=bool)
     model0, _ = predict(baseline.theta, m, baseline.spec, g_m_s2, lever)
@@ -95,9 +104,9 @@ def head_to_head(
     if fam.empty:
         return None
     y_alt = y - fam.signal(m.angles_rad, kf0, m.t_s)
-    alt = rerun(y_alt)
-    allowed = {DRIFT_NUISANCE} if fam.drift is not None else set()
-    if any(f.effect in CATALOGUE_IDS and f.effect not in allowed for f in alt.findings) or alt.discovered:
+    allowed = frozenset({DRIFT_NUISANCE} if fam.drift is not None else ())
+    alt = rerun(y_alt, allowed)
+    if alt is None or cannot_win(alt, allowed):
         return None
     spec, theta = _alt_theta(alt, lever)
     pred, _ = predict(theta, m, spec, g_m_s2, lever)

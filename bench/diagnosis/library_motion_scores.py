@@ -28,7 +28,7 @@ smooth), the scores every sample, in chunks of ``Thresholds.motion_chunk_samples
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -40,6 +40,10 @@ from bench.estimation.dynamic_model import ModelSpec, predict
 from bench.estimation.motion_data import MotionData
 
 FloatArray = np.ndarray
+KEEP_VALUES_BYTES = 1 << 27
+"""The monomials' values a search keeps between its steps (bytes): the whole recording's up to
+this size (a 50 Hz rate-1axis: 14 600 samples x 1 068 monomials, 125 MB), the first chunks' beyond it; the
+others are formed again at each step, as they all were before (docs/benchmarks.md)."""
 SLOW_TRENDS = ("t", "temp")
 """Slow trends a bias wander can make over one run: their powers up to the third on each
 channel span what a term must not mostly be (``library_motion``, "slow")."""
@@ -119,11 +123,28 @@ class Design:
     blk: np.ndarray
     nb: int
     slow_names: tuple[str, ...] = ()
+    kept: dict[int, FloatArray] = field(default_factory=dict, compare=False, repr=False)
+    asked: set[int] = field(default_factory=set, compare=False, repr=False)
 
     def values(self, base: BaseColumns, rows: np.ndarray) -> FloatArray:
         """(len(rows), M) scaled monomials at ``rows`` from the (n, n_bases + 1) base matrix."""
         b = base[rows]
         return np.asarray(b[:, self.index[0]] * b[:, self.index[1]] * b[:, self.index[2]] / self.scale)
+
+    def chunk_values(self, base: BaseColumns, start: int, rows: np.ndarray) -> FloatArray:
+        """:meth:`values` at the chunk of the used samples that begins at ``start`` (``rows``:
+        ``idx[start:start + chunk]``). A search asks for the same chunks at every step (only the
+        residual they are summed against changes): from a chunk's second asking on, it is kept
+        while the kept chunks stay within :data:`KEEP_VALUES_BYTES` (a search that stops at its
+        first step, a clean recording's, keeps nothing)."""
+        got = self.kept.get(start)
+        if got is not None and got.shape[0] == rows.size:
+            return got
+        X = self.values(base, rows)
+        if start in self.asked and sum(v.nbytes for v in self.kept.values()) + X.nbytes <= KEEP_VALUES_BYTES:
+            self.kept[start] = X
+        self.asked.add(start)
+        return X
 
 
 @dataclass(frozen=True)
@@ -247,7 +268,7 @@ def scores(
         assert J is not None
         J = np.concatenate([J, lib_columns(aug, vals, sel)], axis=2)
         e = y_adj[sel] - raw
-        X = des.values(base, sel)
+        X = des.chunk_values(base, a, sel)
         b = blk[sel]
         starts = np.concatenate([[0], np.flatnonzero(np.diff(b)) + 1])
         ub = b[starts]

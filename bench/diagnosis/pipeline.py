@@ -61,13 +61,23 @@ class Pipeline(Generic[E, S]):
     name: str
     stages: tuple[Stage[E, S], ...]
 
-    def run(self, evidence: E, state: S, thresholds: Thresholds = THRESHOLDS) -> tuple[S, Trace]:
-        """Every stage in order; each one's notes are added to the state it returns."""
+    def run(
+        self,
+        evidence: E,
+        state: S,
+        thresholds: Thresholds = THRESHOLDS,
+        *,
+        until: Callable[[S], bool] | None = None,
+    ) -> tuple[S, Trace]:
+        """Every stage in order; each one's notes are added to the state it returns. ``until``:
+        stop after the first stage whose state it holds for (the trace then ends there)."""
         trace: list[tuple[str, Notes]] = []
         for stage in self.stages:
             state, notes = stage(evidence, state, thresholds)
             state = state.noted(notes)
             trace.append((stage.__name__, dict(notes)))
+            if until is not None and until(state):
+                break
         return state, Trace(tuple(trace))
 
     @property

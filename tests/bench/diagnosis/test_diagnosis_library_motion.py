@@ -25,7 +25,7 @@ from bench.calibration.windows import moving_samples
 from bench.diagnosis.bench_families import FINDING_PARAMETERS
 from bench.diagnosis.dynamic import select_terms
 from bench.diagnosis.library_motion import candidate_terms, force_rate, motion_bases, sensor_rates
-from bench.diagnosis.library_motion_scores import satterthwaite_dof
+from bench.diagnosis.library_motion_scores import BaseColumns, Design, satterthwaite_dof
 from bench.estimation.dynamic_model import specific_force
 from bench.kinematics import angular_velocity, attitude
 from bench.recording import Recording, read_recording
@@ -99,6 +99,26 @@ def test_library_leaves_out_the_model_the_static_catalogue_and_slow_trends() -> 
     assert "f_y^2[ax]" in labels  # another axis's square is not the catalogue's
     assert "abs(f_x)^2[ax]" not in labels and "abs(f_x)*abs(f_x)[ax]" not in labels
     assert {"w_x", "dw_y", "fdot_z", "t"} <= set(vals)
+
+
+def test_a_designs_chunk_values_are_its_products_kept_from_the_second_asking() -> None:
+    """The monomials x_a·x_b·x_c / scale at a chunk's rows, worked out here from the bases; kept
+    (the same array returned) only once the chunk is asked for again."""
+    rng = np.random.default_rng(3)
+    cols = tuple(rng.normal(size=50) for _ in range(2))
+    index = np.array([[0, 0, 1], [2, 1, 1], [2, 2, 2]])  # x0, x0*x1, x1^2 (2 is the ones column)
+    scale = np.array([2.0, 4.0, 8.0])
+    d = Design(index, ("x0", "x0*x1", "x1^2"), np.arange(50), 1, np.arange(50), np.zeros((50, 3)),
+               scale, np.eye(3), np.zeros(50, dtype=np.int64), 1)  # fmt: skip
+    base = BaseColumns(cols)
+    rows = np.arange(10, 30)
+    want = np.column_stack([cols[0][rows] / 2, cols[0][rows] * cols[1][rows] / 4, cols[1][rows] ** 2 / 8])
+    first = d.chunk_values(base, 10, rows)
+    np.testing.assert_allclose(first, want, rtol=1e-15)
+    assert not d.kept  # a search that stops at its first step keeps nothing
+    second = d.chunk_values(base, 10, rows)
+    np.testing.assert_array_equal(second, want)
+    assert d.chunk_values(base, 10, rows) is second
 
 
 def test_satterthwaite_dof_of_a_two_lag_bartlett_variance() -> None:

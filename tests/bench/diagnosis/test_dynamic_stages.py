@@ -3,6 +3,8 @@ truth is known (``tests/support/diagnose_dynamic_cases.py``)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from bench.calibration.windows import moving_samples
@@ -18,6 +20,7 @@ from bench.diagnosis.moving_stages import (
     motion_selection,
     screen_motion,
 )
+from bench.diagnosis.pipeline import Pipeline
 from bench.diagnosis.thresholds import THRESHOLDS
 from bench.estimation.dynamic_model import TERM_ORDER
 from tests.support.diagnose_dynamic_cases import DYNAMIC_CASES, moving_recording
@@ -120,3 +123,26 @@ def test_moving_pipelines_share_the_screen_the_selection_and_the_report() -> Non
     assert pipeline_for(library=True, head_to_head=False) is MOVING_ALONE
     for stage in MOVING.stages + MOVING_NO_LIBRARY.stages:
         assert stage.__doc__ is not None and "Rule:" in stage.__doc__, stage.__name__
+
+
+def test_a_run_stops_after_the_first_stage_its_condition_holds_for() -> None:
+    """``Pipeline.run(until=...)`` (the head to head's run again stops at a selection that cannot
+    win): the stages after that one do not run, and the trace ends with it."""
+    ran: list[str] = []
+
+    def stage(name: str, pool: tuple[str, ...]):
+        def f(ev: object, st: MovingState, th: object) -> tuple[MovingState, dict[str, str]]:
+            ran.append(name)
+            return replace(st, pool=pool), {name: "ran"}
+
+        f.__name__ = name
+        return f
+
+    stages = (stage("a", ()), stage("b", ("time_skew",)), stage("c", ("lever_arm",)))
+    pipe = Pipeline("toy", stages)
+    st, trace = pipe.run(None, MovingState(), THRESHOLDS, until=lambda s: bool(s.pool))
+    assert ran == ["a", "b"] and trace.names == ("a", "b") and st.pool == ("time_skew",)
+    assert st.notes == {"a": "ran", "b": "ran"}
+    ran.clear()
+    st, trace = pipe.run(None, MovingState(), THRESHOLDS)
+    assert ran == ["a", "b", "c"] and st.pool == ("lever_arm",)

@@ -20,7 +20,6 @@ target is passed over unevaluated (:func:`cannot_meet`). None of this changes th
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 
@@ -36,6 +35,7 @@ from bench.planning.noise import UnitNoise
 from bench.planning.sampled import SampledTrajectory
 from bench.procedures.planned import MAX_WINDOWS, planned_static, planned_tumble
 from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits, preview
+from bench.procedures.steps import Procedure
 
 FAMILY = {"window": planned_static, "every-sample": planned_tumble}
 """The procedure each fit family plans: planned-static (window fit), planned-tumble (every sample)."""
@@ -90,6 +90,117 @@ def plan(
     return min(chosen, key=lambda p: p.closest.predicted.k_rms if p.closest is not None else math.inf)
 
 
+@dataclass
+class _Family:
+    """One fit family's designs (``FAMILY[fit]`` with ``dwell_s`` and ``repeats``) for one unit and
+    table: each built, walked and evaluated at most once.
+
+    :ivar sampled: per dwell, the every-sample trajectory of its longest design, whose first
+        samples the shorter designs take (``bench.planning.sampled``).
+    """
+
+    noise: UnitNoise
+    limits: TableLimits
+    settle_s: float
+    g_m_s2: float
+    with_tilt: bool
+    fit: Fit
+    sampled: dict[float, SampledTrajectory] = field(default_factory=dict)
+    evaluated: dict[tuple[float, int], Evaluation] = field(default_factory=dict)
+
+    def procedure(self, dwell_s: float, repeats: int) -> Procedure:
+        """The design of ``repeats`` passes of ``dwell_s`` s per visit."""
+        return FAMILY[self.fit](dwell_s=dwell_s, repeats=repeats, settle_s=self.settle_s)
+
+    def duration_s(self, dwell_s: float, repeats: int) -> float:
+        """The design's table time on the limits, moves and settling included (s)."""
+        return preview(self.procedure(dwell_s, repeats), self.limits).duration_s
+
+    def evaluate(self, dwell_s: float, repeats: int) -> Evaluation:
+        """The design's prediction (:func:`~bench.planning.evaluation.evaluate`), on the first
+        samples of the dwell's longest design when it has been sampled."""
+        key = (dwell_s, repeats)
+        if key not in self.evaluated:
+            self.evaluated[key] = evaluate(
+                self.procedure(dwell_s, repeats),
+                self.noise,
+                limits=self.limits,
+                g_m_s2=self.g_m_s2,
+                with_tilt=self.with_tilt,
+                fit=self.fit,
+                sampled=self.sampled.get(dwell_s),
+            )
+        return self.evaluated[key]
+
+    def sample_longest(self, dwell_s: float, repeats: int) -> None:
+        """Sample the every-sample trajectory of the dwell's longest design (``repeats`` passes)."""
+        proc = self.procedure(dwell_s, repeats)
+        self.sampled[dwell_s] = SampledTrajectory.sample(proc, EVERY_SAMPLE_FS_HZ, self.limits, self.g_m_s2)
+
+    def out_of_reach(self, targets: Targets, dwell_s: float, repeats: int) -> bool:
+        """The every-sample design cannot meet ``targets``: the white-noise bound of its samples'
+        span already misses one (the prediction is never below it: :func:`cannot_meet`)."""
+        s = self.sampled.get(dwell_s)
+        if self.fit != "every-sample" or s is None:
+            return False
+        n_steps = len(self.procedure(dwell_s, repeats).steps)
+        return cannot_meet(targets, self.noise, int(s.step_ends[n_steps - 1]) / s.fs_hz, self.g_m_s2)
+
+
+def _passes_within(designs: _Family, dwell_s: float, max_duration_s: float) -> int:
+    """The most passes of ``dwell_s`` whose table time the cap allows, at least one and at most
+    :data:`MAX_WINDOWS` / 12 (taken as passes × one pass's time)."""
+    per_pass = designs.duration_s(dwell_s, 1)
+    return max(1, min(MAX_WINDOWS // 12, int(max_duration_s // per_pass)))
+
+
+def _passes_shorter_than(designs: _Family, dwell_s: float, hi: int, duration_s: float) -> int | None:
+    """The most passes, at most ``hi``, whose design is shorter than ``duration_s``; ``None`` when
+    one pass is not (bisection: the table time grows with the passes)."""
+    if designs.duration_s(dwell_s, 1) >= duration_s:
+        return None
+    if designs.duration_s(dwell_s, hi) < duration_s:
+        return hi
+    lo, top = 1, hi  # invariant: lo passes are shorter than duration_s, top are not
+    while top - lo > 1:
+        mid = (lo + top) // 2
+        if designs.duration_s(dwell_s, mid) < duration_s:
+            lo = mid
+        else:
+            top = mid
+    return lo
+
+
+def _fewest_passes(
+    designs: _Family, targets: Targets, dwell_s: float, hi: int
+) -> tuple[Evaluation | None, Evaluation | None]:
+    """(the design of the fewest passes, at most ``hi``, that meets ``targets``, or ``None``; the
+    ``hi``-pass design when one pass does not meet them, else ``None``).
+
+    Bisection over the passes: the covariance only shrinks with more of them.
+    """
+    one = designs.evaluate(dwell_s, 1)
+    if targets.met_by(one.predicted):
+        return one, None
+    if designs.fit == "every-sample" and hi > 1:
+        designs.sample_longest(dwell_s, hi)
+    top = designs.evaluate(dwell_s, hi)
+    if not targets.met_by(top.predicted):
+        return None, top
+    met, lo = top, 1  # invariant: `met` (hi passes) meets, lo passes do not
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if designs.out_of_reach(targets, dwell_s, mid):
+            lo = mid
+            continue
+        e = designs.evaluate(dwell_s, mid)
+        if targets.met_by(e.predicted):
+            hi, met = mid, e
+        else:
+            lo = mid
+    return met, top
+
+
 def _plan_one(
     noise: UnitNoise,
     targets: Targets,
@@ -100,92 +211,46 @@ def _plan_one(
     max_duration_s: float,
     fit: Fit,
 ) -> Plan:
+    """The shortest design of one fit family that meets ``targets`` (module docstring)."""
     runs = preview(FAMILY[fit](dwell_s=DWELL_GRID_S[0], repeats=1, settle_s=settle_s), limits)
     if runs.problems:  # a pose beyond an axis's travel, a settling shorter than the table's
         name = FAMILY[fit].__name__.replace("_", "-")
         return Plan(None, None, tuple(f"{name} does not fit this table: {p}" for p in runs.problems))
+    designs = _Family(noise, limits, settle_s, g_m_s2, with_tilt, fit)
     best: Evaluation | None = None
-    longest: Evaluation | None = None
-    sampled: dict[float, SampledTrajectory] = {}  # per dwell, the longest design's samples
-
-    @functools.cache
-    def ev(dwell: float, reps: int) -> Evaluation:  # the search asks for some designs twice
-        return evaluate(
-            FAMILY[fit](dwell_s=dwell, repeats=reps, settle_s=settle_s),
-            noise,
-            limits=limits,
-            g_m_s2=g_m_s2,
-            with_tilt=with_tilt,
-            fit=fit,
-            sampled=sampled.get(dwell),
-        )
-
-    def out_of_reach(dwell: float, reps: int) -> bool:
-        """The every-sample design cannot meet the targets: the white-noise bound of its samples'
-        span already misses one (the prediction is never below it: :func:`cannot_meet`)."""
-        s = sampled.get(dwell)
-        if fit != "every-sample" or s is None:
-            return False
-        n_steps = len(FAMILY[fit](dwell_s=dwell, repeats=reps, settle_s=settle_s).steps)
-        return cannot_meet(targets, noise, int(s.step_ends[n_steps - 1]) / s.fs_hz, g_m_s2)
-
-    def duration(dwell: float, reps: int) -> float:
-        return preview(FAMILY[fit](dwell_s=dwell, repeats=reps, settle_s=settle_s), limits).duration_s
-
+    longest: Evaluation | None = None  # while none meets: the dwells' longest designs' best
     for dwell in DWELL_GRID_S:
-        per_pass = duration(dwell, 1)
-        hi = max(1, min(MAX_WINDOWS // 12, int(max_duration_s // per_pass)))
+        hi = _passes_within(designs, dwell, max_duration_s)
         if best is not None:
-            # only a design shorter than the best so far can take its place: at most `hi` passes
-            # that are shorter; none when one pass is not (the covariance only shrinks with passes,
-            # so the bisection below finds the same fewest passes within this range)
-            if per_pass >= best.duration_s:
+            # only a design shorter than the best so far can take its place
+            shorter = _passes_shorter_than(designs, dwell, hi, best.duration_s)
+            if shorter is None:
                 continue
-            lo_d = 1  # invariant: lo_d passes are shorter than the best, hi + 1 are not (or hi is the cap)
-            if duration(dwell, hi) >= best.duration_s:
-                top_d = hi
-                while top_d - lo_d > 1:
-                    mid = (lo_d + top_d) // 2
-                    if duration(dwell, mid) < best.duration_s:
-                        lo_d = mid
-                    else:
-                        top_d = mid
-                hi = lo_d
-        one = ev(dwell, 1)
-        if fit == "every-sample" and hi > 1 and not targets.met_by(one.predicted):
-            longest_proc = FAMILY[fit](dwell_s=dwell, repeats=hi, settle_s=settle_s)
-            sampled[dwell] = SampledTrajectory.sample(longest_proc, EVERY_SAMPLE_FS_HZ, limits, g_m_s2)
-        if targets.met_by(one.predicted):
-            lo_ok = one
-        else:
-            top = ev(dwell, hi)
-            if best is None and (longest is None or top.predicted.k_rms < longest.predicted.k_rms):
-                longest = top
-            if not targets.met_by(top.predicted):
-                continue
-            lo_ok, lo = top, 1  # invariant: reps=hi meets, reps=lo does not
-            while hi - lo > 1:
-                mid = (lo + hi) // 2
-                if out_of_reach(dwell, mid):
-                    lo = mid
-                    continue
-                e = ev(dwell, mid)
-                if targets.met_by(e.predicted):
-                    hi, lo_ok = mid, e
-                else:
-                    lo = mid
-        if best is None or lo_ok.duration_s < best.duration_s:
-            best = lo_ok
+            hi = shorter
+        met, top = _fewest_passes(designs, targets, dwell, hi)
+        if (
+            best is None
+            and top is not None
+            and (longest is None or top.predicted.k_rms < longest.predicted.k_rms)
+        ):
+            longest = top
+        if met is not None and (best is None or met.duration_s < best.duration_s):
+            best = met
     if best is not None:
         return Plan(best, None)
-    problems = [
+    return _none_meets(longest, max_duration_s)
+
+
+def _none_meets(closest: Evaluation | None, max_duration_s: float) -> Plan:
+    """The plan when no design meets the targets: the closest design and why."""
+    problem = (
         "no planned design within "
         f"{max_duration_s / 60:.0f} min meets the targets; the best reaches "
-        + describe_sigmas(longest.predicted)
-        if longest is not None
+        + describe_sigmas(closest.predicted)
+        if closest is not None
         else "no design could be evaluated"
-    ]
-    return Plan(None, longest, tuple(problems))
+    )
+    return Plan(None, closest, (problem,))
 
 
 BOUND_MARGIN = 1e-6

@@ -4,6 +4,8 @@ model terms its motion determines."""
 from __future__ import annotations
 
 import functools
+import json
+import math
 from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query, status
@@ -56,21 +58,33 @@ def procedure_preview(
     session: SessionDep,
     dwell_s: Annotated[float | None, Query(gt=0, le=86400)] = None,
     unit_serial: Annotated[str | None, Query(pattern=SERIAL_PATTERN)] = None,
+    parameters: Annotated[
+        str | None,
+        Query(
+            max_length=1000,
+            description="the procedure's own parameters as a JSON object of numbers, as POST /api/runs "
+            'takes them (e.g. {"repeats": 3, "settle_s": 2} of planned-static, as GET /api/plan gives '
+            "them); default: the procedure's defaults",
+            examples=['{"repeats": 3, "settle_s": 2.0}'],
+        ),
+    ] = None,
 ) -> ProcedurePreviewOut:
     """The procedure walked against the table's limits with the dwell a run started now would
     use (``dwell_s``, else the service's ``run_dwell_s``, else a provisional one that the run's
-    noise window replaces): the duration on the bench clock and, on a simulated bench, on the
-    wall clock (bench seconds / ``sim_speed``). With ``unit_serial``, ``warnings`` says what the
-    operator should know about that unit before starting (e.g. its model has no limits)."""
+    noise window replaces) and its ``parameters``: every pose, the duration on the bench clock
+    and, on a simulated bench, on the wall clock (bench seconds / ``sim_speed``). With
+    ``unit_serial``, ``warnings`` says what the operator should know about that unit before
+    starting (e.g. its model has no limits)."""
     dwell = dwell_s if dwell_s is not None else settings.run_dwell_s
-    checked = check_procedure(name, bench_table_limits(settings), dwell_s=dwell)
+    params = procedure_parameters(parameters)
+    checked = check_procedure(name, bench_table_limits(settings), dwell_s=dwell, parameters=params)
     pv = preview_or_refuse(checked)
     warnings: list[str] = []
     if unit_serial is not None:
         with session.begin():
             warnings = unit_warnings(session, settings, unit_serial)
     speed = settings.sim_speed if settings.sim and settings.sim_speed > 0 else 1.0
-    observable, not_observable = observability(name, dwell)
+    observable, not_observable = observability(name, dwell, tuple(sorted(params.items())))
     return ProcedurePreviewOut(
         procedure=name,
         duration_s=pv.duration_s,
@@ -92,6 +106,33 @@ def procedure_preview(
     )
 
 
+MAX_PARAMETERS = 8
+"""Most parameters a preview takes (as ``POST /api/runs``)."""
+
+
+def procedure_parameters(text: str | None) -> dict[str, float]:
+    """The ``parameters`` query: a JSON object of at most :data:`MAX_PARAMETERS` finite numbers
+    by name. :raises HTTPException: 422 anything else."""
+    if text is None:
+        return {}
+    out: dict[str, float] | None = None
+    try:
+        value = json.loads(text)
+        numbers = isinstance(value, dict) and all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in value.values()
+        )
+        if numbers and len(value) <= MAX_PARAMETERS:
+            out = {str(k): float(v) for k, v in value.items()}  # OverflowError: an integer past float
+    except (ValueError, OverflowError, RecursionError):
+        out = None
+    if out is None or not all(math.isfinite(v) for v in out.values()):
+        raise HTTPException(
+            status.HTTP_422_UNPROCESSABLE_CONTENT,
+            f"parameters: expected a JSON object of at most {MAX_PARAMETERS} numbers by name",
+        )
+    return out
+
+
 def preview_or_refuse(checked: Admitted | Refusal) -> Preview:
     """The preview of a checked procedure, also one the table limits refuse (the answer lists
     its problems). :raises HTTPException: 404 an unknown procedure, 422 a parameter or value
@@ -110,11 +151,14 @@ OBSERVABILITY_RATE_HZ = 10.0
 
 
 @functools.lru_cache(maxsize=64)
-def observability(name: str, dwell_s: float | None) -> tuple[list[str], dict[str, str]]:
-    """The model terms procedure ``name`` with ``dwell_s`` determines, and why the others are not
-    worth fitting (:func:`bench.procedures.observability.plan_observability`, computed once per
-    procedure and dwell: seconds for a long moving-table procedure)."""
-    proc = build_procedure(name, dwell_s=dwell_s)
+def observability(
+    name: str, dwell_s: float | None, parameters: tuple[tuple[str, float], ...] = ()
+) -> tuple[list[str], dict[str, str]]:
+    """The model terms procedure ``name`` with ``dwell_s`` and ``parameters`` (name, value)
+    determines, and why the others are not worth fitting
+    (:func:`bench.procedures.observability.plan_observability`, computed once per procedure, dwell
+    and parameters: seconds for a long moving-table procedure)."""
+    proc = build_procedure(name, dwell_s=dwell_s, **dict(parameters))
     dwell = dwell_s if dwell_s is not None else provisional_dwell(proc)[0]
     _, why = plan_observability(proc, sample_rate_hz=OBSERVABILITY_RATE_HZ, dwell_s=dwell)
     terms = ("bias", "scale_matrix", *TERM_ORDER)

@@ -47,16 +47,21 @@ function startForm(session) {
   const observable = h("p", { class: "note", id: "start-observability" }, "");
   const warn = h("p", { class: "note warning", id: "start-warning", role: "alert" }, "");
   const button = h("button", { type: "submit", id: "start-run" }, "Start run");
+  let planned = null; // the plan's start body (plan_form.js) while the form uses it
   const showPreview = async () => {
     try {
       const q = new URLSearchParams();
       if (serial.value.trim() && serial.checkValidity()) q.set("unit_serial", serial.value.trim());
       if (dwell.value && dwell.checkValidity()) q.set("dwell_s", dwell.value);
+      // a plan's design is previewed with its parameters (all its passes), as Start run will send them
+      const plan = planned && proc.value === planned.procedure && Number(dwell.value) === planned.dwell_s ? planned : null;
+      if (plan) q.set("parameters", JSON.stringify(plan.parameters));
       const p = await getJson(`/api/procedures/${encodeURIComponent(proc.value)}/preview?${q}`);
       warn.textContent = (p.warnings || []).map((w) => `Unit ${serial.value.trim()}: ${w}.`).join(" ");
       const dwellText = p.dwell_s == null ? "dwell decided by a noise window at the start (estimate assumes a provisional one)" : `dwell ${p.dwell_s} s per pose (${p.dwell_source})`;
       const mins = (s) => (s >= 90 ? `${Math.round(s / 60)} min` : `${Math.round(s)} s`);
-      pv.textContent = `${p.n_poses} poses, ${p.n_windows} windows, ${dwellText}; about ${mins(p.wall_duration_s)}`
+      const passes = plan && plan.parameters.repeats ? ` (the plan's ${plan.parameters.repeats} passes)` : "";
+      pv.textContent = `${p.n_poses} poses${passes}, ${p.n_windows} windows, ${dwellText}; about ${mins(p.wall_duration_s)}`
         + (Math.abs(p.wall_duration_s - p.duration_s) > 1 ? ` (${mins(p.duration_s)} on the bench clock)` : "")
         + (p.problems.length ? ` · cannot run: ${p.problems.join("; ")}` : "");
       const deg = (a) => `(${a.map((x) => `${+x.toFixed(1)}°`).join(", ")})`;
@@ -81,13 +86,13 @@ function startForm(session) {
     loadBenches();
   }
   // the planner (plan_form.js): its start body is what Start run sends while the procedure and dwell are the plan's
-  let planned = null;
   const { box: planBox, button: planButton, detach } = planForm((start) => {
     planned = start;
-    if (!start) return;
-    proc.value = start.procedure;
-    dwell.value = String(start.dwell_s);
-    showPreview();
+    if (start) {
+      proc.value = start.procedure;
+      dwell.value = String(start.dwell_s);
+    }
+    showPreview(); // with the plan's parameters, or without them once the plan is gone
   });
   const keepPlan = () => {
     if (!planned) return;

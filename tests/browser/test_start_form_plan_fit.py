@@ -105,3 +105,35 @@ def test_targets_out_of_reach_show_the_problems_and_a_refused_plan_the_message(
     expect(out).to_contain_text("white_ug_rt_hz")
     assert errors == []
     page.close()
+
+
+def test_the_preview_of_a_plan_shows_every_pass_it_will_run(browser: Any, service: str) -> None:
+    page, errors = _form(browser, service)
+    page.fill("#plan-white", "250")
+    page.fill("#plan-scale", "40")
+    page.fill("#plan-mis", "40")
+    page.fill("#plan-minutes", "20")
+    page.select_option("#plan-fit", "window")
+    params = {**NOISE, "scale_ppm": 40, "misalignment_urad": 40, "max_minutes": 20, "fit": "window"}
+    plan = httpx.get(f"{service}/api/plan", params=params, headers=OP, timeout=120).json()
+    start = plan["start"]
+    repeats = int(start["parameters"]["repeats"])
+    assert repeats > 1, plan  # a design of several passes, so one pass would show fewer poses
+    with page.expect_request(
+        lambda r: "/api/procedures/planned-static/preview" in r.url and "parameters" in r.url
+    ):
+        page.click("#plan-run")
+    preview = page.locator("#start-preview")
+    expect(preview).to_contain_text(
+        f"{12 * repeats} poses (the plan's {repeats} passes), {12 * repeats} windows"
+    )
+    # the plan's table time on the bench clock (the simulated bench runs SIM_SPEED times faster)
+    expect(preview).to_contain_text(f"({round(plan['plan']['duration_s'] / 60)} min on the bench clock)")
+    assert len(page.locator("#start-poses").inner_text().split(" · ")) == 12 * repeats
+    page.fill(
+        "#start-dwell", str(start["dwell_s"] + 1)
+    )  # the plan detached: its procedure's default, one pass
+    page.locator("#start-dwell").dispatch_event("change")
+    expect(preview).to_contain_text("12 poses, 12 windows")
+    assert errors == []
+    page.close()

@@ -147,6 +147,19 @@ def white_bound_bias(white_m_s2_rt_hz: float, duration_s: float) -> float:
     return white_m_s2_rt_hz / math.sqrt(duration_s)
 
 
+def wander_bound_bias(wander_m_s2: float, wander_tau_s: float, span_s: float) -> float:
+    """σ(b_i) ≥ B·√(2T_c / (T + 2T_c)) (m/s²) for any design within ``span_s`` = T seconds: the
+    best linear unbiased estimate of a constant observed for T s in a Gauss-Markov wander of
+    standard deviation B and correlation time T_c (the continuous limit of the AR(1) mean,
+    σ²(1+ρ)/(n(1−ρ)+2ρ) with ρ = e^{−Δ/T_c}, which is never below it since x ≥ 2·tanh(x/2)).
+    Window means, samples and other parameters beside the bias are linear functions of that
+    record, and white noise or a random walk on top only add variance, so no fit does better:
+    the bias is wander-limited whatever the motion. 0 without a wander."""
+    if wander_m_s2 <= 0:
+        return 0.0
+    return wander_m_s2 * math.sqrt(2.0 * wander_tau_s / (span_s + 2.0 * wander_tau_s))
+
+
 def time_for_k(white_m_s2_rt_hz: float, sigma_k: float, g_m_s2: float) -> float:
     """The shortest table time (s) at which the white-noise bound reaches σ(K_ij) = ``sigma_k``."""
     return 3.0 * (white_m_s2_rt_hz / (g_m_s2 * sigma_k)) ** 2

@@ -14,8 +14,12 @@ Cost (docs/benchmarks.md): once a design meets the targets, a later dwell is sea
 the passes that are shorter than it (none when one pass is not), and one pass that meets is the
 dwell's answer without evaluating the longest design. For the every-sample fit the longest
 design's trajectory is sampled once per dwell and the shorter designs take its first samples
-(``bench.planning.sampled``), and a design whose sampled span's white-noise bound already misses a
-target is passed over unevaluated (:func:`cannot_meet`). None of this changes the chosen design.
+(``bench.planning.sampled``). A design whose closed-form floor (``bench.planning.floors``: the
+white-noise bound of any motion over the time its fit weighs, the wander-limited bias bound
+over its span) already misses a target is passed over unevaluated, and with it the dwell's
+designs of fewer passes; when no design meets the targets, the closest (the least RMS σ(K_ij)
+of every dwell's longest design) evaluates a dwell only while its floor is below the closest
+found so far (:func:`_closest`). None of this changes the chosen or the closest design.
 """
 
 from __future__ import annotations
@@ -30,12 +34,15 @@ from bench.planning.evaluation import (
     Targets,
     evaluate,
 )
-from bench.planning.information import PredictedUncertainty, white_bound_bias, white_bound_k
+from bench.planning.every_sample import BLOCK_S
+from bench.planning.floors import Floor, floor
+from bench.planning.information import PredictedUncertainty
 from bench.planning.noise import UnitNoise
 from bench.planning.sampled import SampledTrajectory
 from bench.procedures.planned import MAX_WINDOWS, planned_static, planned_tumble
-from bench.procedures.preview import DEFAULT_TABLE_LIMITS, TableLimits, preview
-from bench.procedures.steps import Procedure
+from bench.procedures.preview import DEFAULT_TABLE_LIMITS, Preview, TableLimits, preview
+from bench.procedures.steps import Dwell, MoveTo, Procedure
+from bench.records import WindowKind
 
 FAMILY = {"window": planned_static, "every-sample": planned_tumble}
 """The procedure each fit family plans: planned-static (window fit), planned-tumble (every sample)."""
@@ -91,7 +98,7 @@ def plan(
 
 
 @dataclass
-class _Family:
+class Designs:
     """One fit family's designs (``FAMILY[fit]`` with ``dwell_s`` and ``repeats``) for one unit and
     table: each built, walked and evaluated at most once.
 
@@ -107,14 +114,22 @@ class _Family:
     fit: Fit
     sampled: dict[float, SampledTrajectory] = field(default_factory=dict)
     evaluated: dict[tuple[float, int], Evaluation] = field(default_factory=dict)
+    walked: dict[tuple[float, int], Preview] = field(default_factory=dict)
 
     def procedure(self, dwell_s: float, repeats: int) -> Procedure:
         """The design of ``repeats`` passes of ``dwell_s`` s per visit."""
         return FAMILY[self.fit](dwell_s=dwell_s, repeats=repeats, settle_s=self.settle_s)
 
+    def walk(self, dwell_s: float, repeats: int) -> Preview:
+        """The design walked on the limits (:func:`~bench.procedures.preview.preview`)."""
+        key = (dwell_s, repeats)
+        if key not in self.walked:
+            self.walked[key] = preview(self.procedure(dwell_s, repeats), self.limits)
+        return self.walked[key]
+
     def duration_s(self, dwell_s: float, repeats: int) -> float:
         """The design's table time on the limits, moves and settling included (s)."""
-        return preview(self.procedure(dwell_s, repeats), self.limits).duration_s
+        return self.walk(dwell_s, repeats).duration_s
 
     def evaluate(self, dwell_s: float, repeats: int) -> Evaluation:
         """The design's prediction (:func:`~bench.planning.evaluation.evaluate`), on the first
@@ -137,24 +152,46 @@ class _Family:
         proc = self.procedure(dwell_s, repeats)
         self.sampled[dwell_s] = SampledTrajectory.sample(proc, EVERY_SAMPLE_FS_HZ, self.limits, self.g_m_s2)
 
-    def out_of_reach(self, targets: Targets, dwell_s: float, repeats: int) -> bool:
-        """The every-sample design cannot meet ``targets``: the white-noise bound of its samples'
-        span already misses one (the prediction is never below it: :func:`cannot_meet`)."""
+    def longest(self, dwell_s: float, repeats: int) -> Evaluation:
+        """The prediction of the dwell's longest design (``repeats`` passes), on its own samples."""
+        if self.fit == "every-sample" and repeats > 1 and dwell_s not in self.sampled:
+            self.sample_longest(dwell_s, repeats)
+        return self.evaluate(dwell_s, repeats)
+
+    def floor(self, dwell_s: float, repeats: int) -> Floor:
+        """What the design's prediction cannot go below (:func:`floor`), from its walk alone:
+        the window fit weighs its static windows' time; the every-sample fit its samples' span,
+        taken from the dwell's samples when they are there, else at most the table time and half
+        a sample per move, settling and dwell (each is sampled to the nearest sample)."""
+        pv = self.walk(dwell_s, repeats)
+        if self.fit == "window":
+            info_s = sum(w.duration_s for w in pv.windows if w.kind == WindowKind.STATIC)
+            return floor(self.noise, info_s, pv.duration_s, self.g_m_s2)
         s = self.sampled.get(dwell_s)
-        if self.fit != "every-sample" or s is None:
-            return False
-        n_steps = len(self.procedure(dwell_s, repeats).steps)
-        return cannot_meet(targets, self.noise, int(s.step_ends[n_steps - 1]) / s.fs_hz, self.g_m_s2)
+        proc = self.procedure(dwell_s, repeats)
+        if s is not None and s.begins(proc):
+            span_s = int(s.step_ends[len(proc.steps) - 1]) / s.fs_hz
+        else:
+            pieces = sum(
+                2 if isinstance(x, MoveTo) else 1 for x in proc.steps if isinstance(x, MoveTo | Dwell)
+            )
+            span_s = pv.duration_s + 0.5 * pieces / EVERY_SAMPLE_FS_HZ
+        return floor(self.noise, span_s, span_s + BLOCK_S, self.g_m_s2)
+
+    def cannot_meet(self, targets: Targets, dwell_s: float, repeats: int) -> bool:
+        """No prediction of the design, nor of one with fewer passes, meets ``targets``: its
+        :meth:`floor` already misses one (the floors only rise as the passes fall)."""
+        return self.floor(dwell_s, repeats).misses(targets)
 
 
-def _passes_within(designs: _Family, dwell_s: float, max_duration_s: float) -> int:
+def _passes_within(designs: Designs, dwell_s: float, max_duration_s: float) -> int:
     """The most passes of ``dwell_s`` whose table time the cap allows, at least one and at most
     :data:`MAX_WINDOWS` / 12 (taken as passes × one pass's time)."""
     per_pass = designs.duration_s(dwell_s, 1)
     return max(1, min(MAX_WINDOWS // 12, int(max_duration_s // per_pass)))
 
 
-def _passes_shorter_than(designs: _Family, dwell_s: float, hi: int, duration_s: float) -> int | None:
+def _passes_shorter_than(designs: Designs, dwell_s: float, hi: int, duration_s: float) -> int | None:
     """The most passes, at most ``hi``, whose design is shorter than ``duration_s``; ``None`` when
     one pass is not (bisection: the table time grows with the passes)."""
     if designs.duration_s(dwell_s, 1) >= duration_s:
@@ -172,25 +209,28 @@ def _passes_shorter_than(designs: _Family, dwell_s: float, hi: int, duration_s: 
 
 
 def _fewest_passes(
-    designs: _Family, targets: Targets, dwell_s: float, hi: int
+    designs: Designs, targets: Targets, dwell_s: float, hi: int
 ) -> tuple[Evaluation | None, Evaluation | None]:
     """(the design of the fewest passes, at most ``hi``, that meets ``targets``, or ``None``; the
-    ``hi``-pass design when one pass does not meet them, else ``None``).
+    ``hi``-pass design when one pass does not meet them, else ``None``). ``(None, None)``: the
+    ``hi``-pass design's floor misses a target, so no design of the dwell meets them (none is
+    evaluated but one pass, and that only when its floor does not miss).
 
     Bisection over the passes: the covariance only shrinks with more of them.
     """
-    one = designs.evaluate(dwell_s, 1)
-    if targets.met_by(one.predicted):
-        return one, None
-    if designs.fit == "every-sample" and hi > 1:
-        designs.sample_longest(dwell_s, hi)
-    top = designs.evaluate(dwell_s, hi)
+    if not designs.cannot_meet(targets, dwell_s, 1):
+        one = designs.evaluate(dwell_s, 1)
+        if targets.met_by(one.predicted):
+            return one, None
+    if designs.cannot_meet(targets, dwell_s, hi):  # nor can any with fewer passes
+        return None, None
+    top = designs.longest(dwell_s, hi)
     if not targets.met_by(top.predicted):
         return None, top
     met, lo = top, 1  # invariant: `met` (hi passes) meets, lo passes do not
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if designs.out_of_reach(targets, dwell_s, mid):
+        if designs.cannot_meet(targets, dwell_s, mid):
             lo = mid
             continue
         e = designs.evaluate(dwell_s, mid)
@@ -216,9 +256,9 @@ def _plan_one(
     if runs.problems:  # a pose beyond an axis's travel, a settling shorter than the table's
         name = FAMILY[fit].__name__.replace("_", "-")
         return Plan(None, None, tuple(f"{name} does not fit this table: {p}" for p in runs.problems))
-    designs = _Family(noise, limits, settle_s, g_m_s2, with_tilt, fit)
+    designs = Designs(noise, limits, settle_s, g_m_s2, with_tilt, fit)
     best: Evaluation | None = None
-    longest: Evaluation | None = None  # while none meets: the dwells' longest designs' best
+    longest: list[tuple[float, int, Evaluation | None]] = []  # while none meets: each dwell's longest
     for dwell in DWELL_GRID_S:
         hi = _passes_within(designs, dwell, max_duration_s)
         if best is not None:
@@ -228,17 +268,13 @@ def _plan_one(
                 continue
             hi = shorter
         met, top = _fewest_passes(designs, targets, dwell, hi)
-        if (
-            best is None
-            and top is not None
-            and (longest is None or top.predicted.k_rms < longest.predicted.k_rms)
-        ):
-            longest = top
+        if best is None and met is None:  # top None: not evaluated, none of the dwell can meet
+            longest.append((dwell, hi, top))
         if met is not None and (best is None or met.duration_s < best.duration_s):
             best = met
     if best is not None:
         return Plan(best, None)
-    return _none_meets(longest, max_duration_s)
+    return _none_meets(_closest(designs, longest), max_duration_s)
 
 
 def _none_meets(closest: Evaluation | None, max_duration_s: float) -> Plan:
@@ -253,24 +289,27 @@ def _none_meets(closest: Evaluation | None, max_duration_s: float) -> Plan:
     return Plan(None, closest, (problem,))
 
 
-BOUND_MARGIN = 1e-6
-"""Relative margin by which the white-noise bound must miss a target before a design is passed
-over unevaluated (rounding never decides it)."""
+def _closest(designs: Designs, longest: list[tuple[float, int, Evaluation | None]]) -> Evaluation | None:
+    """Of each dwell's longest design ((dwell, passes, its prediction or ``None`` when not yet
+    evaluated), in :data:`DWELL_GRID_S` order), the one of least RMS σ(K_ij), the first on a tie.
 
-
-def cannot_meet(targets: Targets, noise: UnitNoise, span_s: float, g_m_s2: float) -> bool:
-    """Whether no every-sample prediction over ``span_s`` seconds of samples can meet ``targets``.
-
-    The prediction's covariance A⁻¹BA⁻¹ is at least its white part N²f_s·A⁻¹ (the slow part of
-    B is a sum over a positive kernel), and [A⁻¹]_jj ≥ 1/A_jj; with A_jj = Σ_t f_j(t)² and
-    Σ_j Σ_t f_j² = n·g² (|f| = g), the least-covered direction j gives σ(K_ij) ≥ √3·N/(g·√T)
-    for every channel i (so both the largest scale and the largest misalignment σ are at least
-    that), and σ(b_i) ≥ N/√T, T = n/f_s: the bound of any motion (``information``).
+    A design not yet evaluated is evaluated only while its :meth:`Designs.floor` is not above
+    the least found so far (the floor's ``k`` bounds the RMS from below), in order of the floors:
+    the same design as evaluating them all.
     """
-    k = white_bound_k(noise.white_m_s2_rt_hz, span_s, g_m_s2) * (1.0 - BOUND_MARGIN)
-    b = white_bound_bias(noise.white_m_s2_rt_hz, span_s) * (1.0 - BOUND_MARGIN)
-    pairs = ((targets.bias_m_s2, b), (targets.scale, k), (targets.misalignment_rad, k))
-    return any(t is not None and 2.0 * s > t for t, s in pairs)
+    chosen: tuple[float, int, Evaluation] | None = None
+    for i, (_, _, e) in enumerate(longest):
+        if e is not None and (chosen is None or (e.predicted.k_rms, i) < chosen[:2]):
+            chosen = (e.predicted.k_rms, i, e)
+    pending = sorted((designs.floor(d, r).k, i) for i, (d, r, e) in enumerate(longest) if e is None)
+    for k_floor, i in pending:
+        if chosen is not None and k_floor > chosen[0]:
+            break
+        dwell, reps, _ = longest[i]
+        e = designs.longest(dwell, reps)
+        if chosen is None or (e.predicted.k_rms, i) < chosen[:2]:
+            chosen = (e.predicted.k_rms, i, e)
+    return None if chosen is None else chosen[2]
 
 
 def describe_sigmas(u: PredictedUncertainty) -> str:

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from bench.planning.evaluation import EVERY_SAMPLE_FS_HZ, Targets, evaluate
-from bench.planning.information import white_bound_bias, white_bound_k
+from bench.planning.floors import cannot_meet
+from bench.planning.information import wander_bound_bias, white_bound_bias, white_bound_k
 from bench.planning.noise import UnitNoise
 from bench.planning.sampled import SampledTrajectory
-from bench.planning.search import cannot_meet
 from bench.procedures.planned import planned_static, planned_tumble
 
 G = 9.80665
@@ -44,7 +44,11 @@ def test_no_every_sample_prediction_is_below_the_bound_that_skips_designs(dwell_
     e = evaluate(proc, noise, fit="every-sample")
     span_s = len(SampledTrajectory.sample(proc, EVERY_SAMPLE_FS_HZ).t_s) / EVERY_SAMPLE_FS_HZ
     k = white_bound_k(noise.white_m_s2_rt_hz, span_s, G)
-    b = white_bound_bias(noise.white_m_s2_rt_hz, span_s)
+    # the bias: the white bound, or the wander's over the 1-s blocks of slow noise, the larger
+    b = max(
+        white_bound_bias(noise.white_m_s2_rt_hz, span_s),
+        wander_bound_bias(noise.wander_m_s2, noise.wander_tau_s, span_s + 1.0),
+    )
     assert min(e.predicted.scale, e.predicted.misalignment) >= k and e.predicted.bias >= b
     for group, bound in (("scale", k), ("misalignment_rad", k), ("bias_m_s2", b)):
         assert cannot_meet(Targets(**{group: 2 * bound * 0.99}), noise, span_s, G)

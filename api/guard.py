@@ -1,4 +1,4 @@
-"""What every request passes before a route sees it, and how every error leaves.
+"""What every request passes before a route sees it.
 
 :class:`RequestGuard` (pure ASGI, outermost) refuses, before one byte of a body is read:
 
@@ -11,10 +11,10 @@
   ``POST /api/links``. So an unauthenticated client can make the service neither read
   nor store anything. The route still checks its own role.
 
-- a client (by address) that presented :data:`MAX_AUTH_FAILURES` unknown tokens or bad links
-  (answers 401) within :data:`AUTH_FAILURE_WINDOW_S`: every request of it that carries a
-  credential is answered 429 with ``Retry-After`` until the oldest of those failures is that
-  old (:class:`FailedAuthLimiter`), so secrets cannot be guessed at the rate the service answers;
+- a client (by address) that presented too many unknown tokens or bad links (answers 401)
+  within a while: every request of it that carries a credential is answered 429 with
+  ``Retry-After`` (:class:`api.failed_auth.FailedAuthLimiter`), so secrets cannot be guessed
+  at the rate the service answers;
 - a body that stalls: no part of it for :data:`BODY_READ_TIMEOUT_S` (408; a slow client cannot
   hold a worker with a request it never finishes);
 
@@ -25,36 +25,23 @@ a Content-Security-Policy that allows scripts and
 connections only from the service itself and no framing, ``X-Frame-Options: DENY``,
 ``nosniff`` and no referrer.
 
-:func:`install_error_handlers` makes every error a JSON 4xx: a validation error whose input
-was ``NaN``/``Infinity`` (which JSON cannot carry) is serialised with those as text, and a
-database data error (a value the database cannot store, e.g. a NUL byte on PostgreSQL, an
-integer out of range) is a 422 instead of a 500.
+How an error a route raises leaves is :mod:`api.error_handlers`; credentials are kept out of
+the access log by :mod:`api.log_redaction`.
 """
 
 from __future__ import annotations
 
-import collections
 import json
-import logging
 import math
-import re
-import threading
-import time
 from collections.abc import Awaitable, Callable, MutableMapping
 from typing import Any
 
 import anyio
 import anyio.to_thread
-from fastapi import FastAPI, Request
-from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
-from sqlalchemy.exc import DataError, OperationalError
 
 from api.auth import AuthError, Role
+from api.failed_auth import FailedAuthLimiter
 from bench.inputs import InputError, loads_json
-from station.disk_full import DISK_FULL_LOG_INTERVAL_S, is_disk_full
-
-log = logging.getLogger(__name__)
 
 Scope = MutableMapping[str, Any]
 Message = MutableMapping[str, Any]
@@ -88,12 +75,6 @@ SECURITY_HEADERS: dict[str, str] = {
     "x-content-type-options": "nosniff",
     "referrer-policy": "no-referrer",
 }
-
-
-MAX_AUTH_FAILURES = 20
-"""Failed authentications (401) of one client within :data:`AUTH_FAILURE_WINDOW_S` before its
-requests with a credential are answered 429."""
-AUTH_FAILURE_WINDOW_S = 60.0
 BODY_READ_TIMEOUT_S = 30.0
 """Longest wait for the next part of a request body (s)."""
 
@@ -104,47 +85,6 @@ class _TooLarge(Exception):
 
 class _Stalled(Exception):
     pass
-
-
-class FailedAuthLimiter:
-    """Failed authentications per client address in a sliding window (thread-safe).
-
-    :param limit: failures allowed within ``window_s``; :param clock: monotonic time (s), for tests.
-    """
-
-    def __init__(
-        self,
-        limit: int = MAX_AUTH_FAILURES,
-        window_s: float = AUTH_FAILURE_WINDOW_S,
-        clock: Callable[[], float] = time.monotonic,
-    ) -> None:
-        self.limit, self.window_s, self._clock = limit, window_s, clock
-        self._failures: dict[str, collections.deque[float]] = {}
-        self._lock = threading.Lock()
-
-    def _recent(self, client: str, now: float) -> collections.deque[float]:
-        q = self._failures.setdefault(client, collections.deque())
-        while q and now - q[0] > self.window_s:
-            q.popleft()
-        return q
-
-    def failed(self, client: str) -> None:
-        """Count one failed authentication of ``client``."""
-        with self._lock:
-            now = self._clock()
-            self._recent(client, now).append(now)
-            if len(self._failures) > 10_000:  # forget clients with no recent failure
-                for key in [k for k, q in self._failures.items() if not q or now - q[-1] > self.window_s]:
-                    del self._failures[key]
-
-    def retry_after_s(self, client: str) -> float | None:
-        """Seconds until ``client`` may try again, or ``None`` when it is under the limit."""
-        with self._lock:
-            now = self._clock()
-            q = self._recent(client, now)
-            if len(q) < self.limit:
-                return None
-            return max(1.0, self.window_s - (now - q[0]))
 
 
 def _is_json(scope: Scope) -> bool:
@@ -367,98 +307,3 @@ def _presents_credential(scope: Scope) -> bool:
     if any(k.lower() == b"authorization" for k, _ in scope.get("headers", [])):
         return True
     return b"link=" in scope.get("query_string", b"")
-
-
-_SECRET_QUERY = re.compile(r"((?:^|[?&])(?:access_token|link|token)=)[^&#\s]*", re.IGNORECASE)
-
-
-def redact_url(url: str) -> str:
-    """``url`` with the values of ``access_token``, ``link`` and ``token`` query parameters replaced
-    by ``REDACTED``."""
-    return _SECRET_QUERY.sub(r"\1REDACTED", url)
-
-
-class RedactSecrets(logging.Filter):
-    """Access-log filter: a credential in a URL's query (a signed link, or a token a client put
-    there although it is not accepted) never reaches the log. Install it on ``uvicorn.access``."""
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        if isinstance(record.args, tuple):
-            record.args = tuple(redact_url(a) if isinstance(a, str) else a for a in record.args)
-        elif isinstance(record.msg, str):
-            record.msg = redact_url(record.msg)
-        return True
-
-
-def install_log_redaction(logger_name: str = "uvicorn.access") -> None:
-    """Add :class:`RedactSecrets` to the access logger (once)."""
-    logger = logging.getLogger(logger_name)
-    if not any(isinstance(f, RedactSecrets) for f in logger.filters):
-        logger.addFilter(RedactSecrets())
-
-
-def json_safe(value: Any) -> Any:
-    """``value`` with every non-finite float replaced by its text (``"nan"``, ``"inf"``) and bytes
-    decoded, recursively, so that strict JSON can carry it."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return repr(value)
-    if isinstance(value, dict):
-        return {str(k): json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [json_safe(v) for v in value]
-    if isinstance(value, bytes):
-        return value.decode("utf-8", "replace")
-    if value is None or isinstance(value, str | int | float | bool):
-        return value
-    return str(value)
-
-
-async def _validation_error(request: Request, exc: Exception) -> JSONResponse:
-    assert isinstance(exc, RequestValidationError)
-    return JSONResponse(status_code=422, content={"detail": json_safe(list(exc.errors()))})
-
-
-async def _data_error(request: Request, exc: Exception) -> JSONResponse:
-    orig = getattr(exc, "orig", None)
-    reason = str(orig if orig is not None else exc).splitlines()[0][:200]
-    log.info("database refused a value on %s %s: %s", request.method, request.url.path, reason)
-    return JSONResponse(status_code=422, content={"detail": f"a value the database cannot store: {reason}"})
-
-
-_disk_full_logged = [-math.inf]
-
-
-async def _operational_error(request: Request, exc: Exception) -> JSONResponse:
-    if not is_disk_full(exc):
-        raise exc
-    return _disk_full(request, exc)
-
-
-async def _os_error(request: Request, exc: Exception) -> JSONResponse:
-    if not is_disk_full(exc):
-        raise exc
-    return _disk_full(request, exc)
-
-
-def _disk_full(request: Request, exc: Exception) -> JSONResponse:
-    now = time.monotonic()
-    if now - _disk_full_logged[0] >= DISK_FULL_LOG_INTERVAL_S:
-        _disk_full_logged[0] = now
-        reason = str(getattr(exc, "orig", None) or exc).splitlines()[0][:200]
-        log.error("disk full: %s %s refused (%s); further refusals are not logged for %g s",
-                  request.method, request.url.path, reason, DISK_FULL_LOG_INTERVAL_S)  # fmt: skip
-    return JSONResponse(
-        status_code=507,
-        content={
-            "detail": "the server's disk is full: nothing was stored; free space and send the request again"
-        },
-    )
-
-
-def install_error_handlers(app: FastAPI) -> None:
-    """Validation errors serialised without non-finite numbers; database data errors as 422; a
-    write refused because the disk is full as 507 with a clear message, logged once a minute."""
-    app.add_exception_handler(RequestValidationError, _validation_error)
-    app.add_exception_handler(DataError, _data_error)
-    app.add_exception_handler(OperationalError, _operational_error)
-    app.add_exception_handler(OSError, _os_error)

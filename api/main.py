@@ -45,7 +45,9 @@ from api.auth import Authenticator, Role, parse_token_names, parse_tokens
 from api.db_revision import DatabaseRevision
 from api.deps import Services
 from api.doc_cache import DocumentCache, DocumentStore
-from api.guard import RequestGuard, install_error_handlers, install_log_redaction
+from api.error_handlers import install_error_handlers
+from api.guard import RequestGuard
+from api.log_redaction import install_log_redaction
 from api.routes import api_router
 from api.runs.events import SnapshotCache
 from api.runs.wakeup import RunWakeups

@@ -21,7 +21,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pydantic import BaseModel, ValidationError
 
-from api.guard import json_safe
+from api.error_handlers import json_safe
 from api.main import create_app
 from api.schemas import DriftRequest, LinkRequest, RunCreate, TokenCreate, UnitRegistration
 from bench.inputs import check_text

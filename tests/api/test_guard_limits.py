@@ -11,8 +11,9 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
+import api.error_handlers
 import api.guard
-from api.guard import MAX_AUTH_FAILURES, FailedAuthLimiter
+from api.failed_auth import MAX_AUTH_FAILURES, FailedAuthLimiter
 from api.main import create_app
 from tests.support.service_helpers import OP, VIEW, service_settings
 
@@ -95,8 +96,8 @@ def test_a_write_while_the_disk_is_full_is_507_and_logged_once(
         raise OperationalError("INSERT INTO unit", {}, sqlite3.OperationalError("database or disk is full"))
 
     monkeypatch.setattr("api.routes.units.get_or_create_unit", full)
-    monkeypatch.setattr(api.guard, "_disk_full_logged", [float("-inf")])
-    with caplog.at_level("ERROR", logger="api.guard"):
+    monkeypatch.setattr(api.error_handlers, "_disk_full_logged", [float("-inf")])
+    with caplog.at_level("ERROR", logger="api.error_handlers"):
         for _ in range(5):
             r = client.put("/api/units/SN-FULL", json={"customer_name": "Acme"}, headers=OP)
             assert r.status_code == 507 and "disk is full" in r.json()["detail"]

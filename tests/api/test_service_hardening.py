@@ -18,7 +18,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from api.auth import LinkSigner, Principal, Role
-from api.guard import MAX_JSON_BODY_BYTES, RedactSecrets
+from api.guard import MAX_JSON_BODY_BYTES
+from api.log_redaction import RedactSecrets
 from api.main import create_app
 from api.startup_check import ConfigError, check_configuration
 from tests.support.service_helpers import OP, OPERATOR, VIEW, service_settings, signed_link

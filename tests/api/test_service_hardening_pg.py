@@ -10,7 +10,7 @@ import sqlalchemy as sa
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from api.guard import install_error_handlers
+from api.error_handlers import install_error_handlers
 from api.main import create_app
 from tests.support.service_helpers import OP, VIEW, service_settings
 

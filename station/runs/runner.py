@@ -8,7 +8,8 @@ continues it from its next window in the same way (:mod:`station.runs.resume`);
 :meth:`~BenchRunner.pause` and :meth:`~BenchRunner.continue_run` hold and release the live
 run. A second start while a run holds the bench raises :class:`BenchBusy` (HTTP 409).
 :meth:`~BenchRunner.shutdown` leaves the live run ``interrupted`` (table safe, recording
-closed), not aborted, so it is resumed after a restart.
+closed), not aborted, so it is resumed after a restart. How the worker's run ends in the
+database, whatever ended it, is :mod:`station.runs.run_end`.
 
 The simulated unit behind a serial is :func:`drivers.factory.simulated_unit` (seed CRC-32 of the
 serial, aged ``age_days``), its age counted from the unit's first registration on the runner's
@@ -32,19 +33,15 @@ from bench.records import RunRecord, new_run_id, utc_now
 from bench.run_observer import RunObserver
 from bench.run_state import Outcome, RunState
 from bench.sequencer.control import RunControl
-from bench.sequencer.faults import resumable_fault
-from db.models import RunState as DbRunState
-from db.observer import finish_record
 from db.repo.queue import enter_finishing
-from db.repo.recovery import mark_interrupted_runs, mark_run_interrupted
-from db.repo.runs import finish_run, set_certificate_error, set_final_event
+from db.repo.recovery import mark_interrupted_runs
 from db.repo.units import get_unit_by_serial
 from drivers.factory import simulated_unit
-from station.execution import fault_retry
 from station.execution.devices import table_limits
 from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed, RetryPolicy, interrupted_by_fault
 from station.execution.session import start_run
 from station.runs import resume as service_resume
+from station.runs import run_end
 from station.runs.analysis_eta import AnalysisPace, analysis_entry, analysis_pace
 from station.runs.hub import TERMINAL_EVENT, ProgressHub
 from station.runs.live import DbLiveObserver, HubObserver, LiveRun, RunKind, ServiceParamsObserver
@@ -286,12 +283,6 @@ class BenchRunner:
             defer_final_state=True,
         )
 
-    def _schedule_resume(self, live: LiveRun, fault: str, windows: int) -> None:
-        """Store the run's next automatic resume (the agent queues it when due)."""
-        live.extra["auto_resume"] = fault_retry.schedule_logged(
-            self.sessions, live.id, fault, windows, self.retry
-        )
-
     def _analysis_pace(self, procedure: str) -> AnalysisPace | None:
         """This bench's analysis pace for ``procedure`` (``None``: none analysed yet, or the
         database did not answer: the run goes on without the estimate)."""
@@ -320,7 +311,9 @@ class BenchRunner:
             live.error = record.error
             if interrupted_by_fault(record):  # table safe, recording closed: resumed automatically
                 interrupted = True
-                self._schedule_resume(live, record.error or FAULT_PREFIX, len(record.windows))
+                run_end.schedule_resume(
+                    self.sessions, live, record.error or FAULT_PREFIX, len(record.windows), self.retry
+                )
             elif live.shutdown and record.outcome is Outcome.ABORTED:
                 with self.sessions.begin() as s:
                     interrupted = service_resume.interrupt_shutdown_abort(s, live.id)
@@ -329,93 +322,34 @@ class BenchRunner:
         except ResumeFailed as exc:  # the devices did not open: put back interrupted, tried again
             live.error, interrupted = str(exc), True
             claimed = live.extra.get("claimed")
-            self._schedule_resume(live, str(exc), claimed.point.next_window_index if claimed else 0)
+            windows = claimed.point.next_window_index if claimed else 0
+            run_end.schedule_resume(self.sessions, live, str(exc), windows, self.retry)
         except Exception as exc:  # the worker must report, not die silently
             log.exception("run %s failed in the service", live.id)
             live.error = f"{type(exc).__name__}: {exc}"
             if live.resumed and record is None:  # claimed but not continued: resumable again
-                interrupted = self._release_claim(live)
+                interrupted = run_end.release_claim(self.sessions, live)
                 if interrupted:
-                    self._after_failed_resume(live, exc)
+                    run_end.after_failed_resume(self.sessions, live, exc, self.retry)
             elif record is None:  # a claimed run must not stay live without an owner at work
-                self._end_in_error(live)
+                run_end.store_error(self.sessions, live)
         finally:
             if record is not None and not interrupted:
-                self._finalise(live, record)
-            live.state = RunState.INTERRUPTED if interrupted else _final_state(record)
+                run_end.store_final_state(self.sessions, live, record)
+            live.state = RunState.INTERRUPTED if interrupted else run_end.final_state(record)
             live.progress = 1.0 if live.state is RunState.COMPLETED else live.progress
             if live.state is RunState.COMPLETED and live.analysing_since is not None:
                 wall_s = time.monotonic() - live.analysing_since
                 live.extra.update(analysis_entry(wall_s))
-            hidden = ("dwell_s", "claimed", "procedure_kw")
-            finished = {
-                "state": live.state.value,
-                "outcome": record.outcome.value if record and record.outcome else None,
-                "conformity_note": record.conformity_note if record and record.conformity_note else None,
-                "error": live.error,
-                **{k: v for k, v in live.extra.items() if k not in hidden},
-            }
+            finished = run_end.terminal_event(live, record)
             self.hub.publish(live.id, TERMINAL_EVENT, finished)
-            self._store_finished(live, finished)
+            run_end.store_final_event(self.sessions, live, finished)
             with self._lock:
                 self._recent[live.id] = live
                 if len(self._recent) > 50:
                     self._recent.pop(next(iter(self._recent)))
                 self._current = None
             live.done.set()
-
-    def _finalise(self, live: LiveRun, record: RunRecord) -> None:
-        """Store the final state of a run whose verdict was left live for the finisher (which
-        normally stores it with the certificate); a finisher that failed leaves its error."""
-        if not record.state.is_final:
-            return
-        try:
-            with self.sessions.begin() as s:
-                if finish_record(s, record) and live.error and live.error != record.error:
-                    set_certificate_error(s, live.id, f"results not stored: {live.error}")
-        except Exception:
-            log.exception("run %s: could not store its final state", live.id)
-
-    def _end_in_error(self, live: LiveRun) -> None:
-        try:
-            with self.sessions.begin() as s:
-                finish_run(s, live.id, DbRunState.ERROR, outcome="ERROR", error=live.error)
-        except Exception:
-            log.exception("run %s: could not store its error", live.id)
-
-    def _store_finished(self, live: LiveRun, finished: dict[str, object]) -> None:
-        """The run's last event (``Run.final_event``: state, outcome, error, certificate number or
-        drift result): API processes end their event streams with it (the results and
-        certificate are stored by then)."""
-        try:
-            with self.sessions.begin() as s:
-                set_final_event(s, live.id, finished)
-        except Exception:
-            log.exception("run %s: could not store its final event", live.id)
-
-    def _after_failed_resume(self, live: LiveRun, exc: Exception) -> None:
-        """A resume that failed before it recorded is a try of the retry policy: after a fault
-        the bench recovers from (a full disk, a link) the next try is scheduled after its wait,
-        counted; after any other error the automatic tries end, the run's error saying why (an
-        operator resumes it on request). Never the same due try again at the next poll."""
-        claimed = live.extra.get("claimed")
-        windows = claimed.point.next_window_index if claimed else 0
-        if resumable_fault(exc):
-            self._schedule_resume(live, f"{FAULT_PREFIX}resume failed: {live.error}", windows)
-            return
-        try:
-            with self.sessions.begin() as s:
-                fault_retry.give_up(s, live.id, f"the resume failed: {live.error}")
-        except Exception:
-            log.exception("run %s: could not end its automatic resumes", live.id)
-
-    def _release_claim(self, live: LiveRun) -> bool:
-        try:
-            with self.sessions.begin() as s:
-                return mark_run_interrupted(s, live.id, f"resume failed: {live.error}")
-        except Exception:
-            log.exception("run %s: could not mark it interrupted again", live.id)
-            return False
 
     def wait_idle(self, timeout_s: float) -> bool:
         """Wait until no run holds the bench; False on timeout."""
@@ -438,11 +372,3 @@ class BenchRunner:
                 timeout_s,
             )
         return live.id
-
-
-def _final_state(record: RunRecord | None) -> RunState:
-    """The record's final state (a completed fit no limits judged has no outcome); ERROR when
-    there is no record or it is not final."""
-    if record is None or not record.state.is_final:
-        return RunState.ERROR
-    return record.state

@@ -23,8 +23,8 @@ from api.cli.run import (
 from bench.records import RunRecord
 from bench.sequencer.control import RunControl
 from station.execution.bench_lock import HELD_EXIT
+from station.execution.continuation import resume_run
 from station.execution.fault_retry import run_resuming
-from station.execution.session import resume_run
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -33,8 +33,9 @@ from bench.run_observer import NullObserver
 from bench.run_state import RunState
 from bench.sequencer.control import RunControl
 from station.execution.bench_lock import HELD_EXIT, BenchHeld, BenchLock
+from station.execution.continuation import resume_run
 from station.execution.fault_retry import NeverStarted, run_resuming
-from station.execution.session import resume_run, start_run
+from station.execution.session import start_run
 from station.settings import Settings
 
 INTERRUPTED_EXIT = 4

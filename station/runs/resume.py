@@ -33,8 +33,8 @@ from db.repo.queue import ClaimedRun
 from db.repo.recovery import ResumePoint, claim_for_resume
 from db.types import utc_now
 from drivers.factory import SimulatedTruth
+from station.execution.continuation import continue_run
 from station.execution.resume_admission import admit_resume
-from station.execution.session import continue_run
 from station.runs.live import RunKind
 from station.settings import Settings
 

@@ -25,8 +25,9 @@ from bench.records import RunStart, WindowRecord
 from bench.run_observer import NullObserver
 from bench.run_state import RunState
 from station.execution import verdict
+from station.execution.continuation import resume_run
 from station.execution.fault_retry import FAULT_PREFIX, ResumeFailed
-from station.execution.session import resume_run, start_run
+from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]

@@ -26,9 +26,10 @@ from bench.run_state import Outcome, RunState
 from bench.sequencer.control import RunControl, SequencerConfig
 from drivers.base import AxisMode
 from drivers.factory import BenchDevices, open_bench
+from station.execution.continuation import resume_run
 from station.execution.devices import sim_url
 from station.execution.fault_retry import RetryPolicy, run_resuming
-from station.execution.session import resume_run, start_run
+from station.execution.session import start_run
 from tests.e2e.helpers import SIM_SPEED, settings_for
 
 pytestmark = pytest.mark.slow

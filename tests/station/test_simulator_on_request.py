@@ -29,6 +29,7 @@ ENTRY_POINTS = (
     "station.runs.runner",
     "station.runs.resume",
     "station.execution.session",
+    "station.execution.continuation",
     "station.execution.devices",
     "station.analysis_worker",
     "station.drift",

@@ -10,7 +10,7 @@ import pytest
 from bench.recording.model import Sidecar, TableAxis, TableGeometry
 from bench.run_recorder import RunRecorder
 from db.repo.recovery import ResumePoint
-from station.execution.session import continue_run
+from station.execution.continuation import continue_run
 from station.settings import Settings
 
 

@@ -21,10 +21,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from bench.fit_kind import DYNAMIC_BATCH, FitKind, stated_kind
+
 FloatArray = npt.NDArray[np.float64]
 
-DYNAMIC_BATCH = "dynamic-batch"
-"""The contract's ``method`` of a moving-table (sample-by-sample) fit."""
+__all__ = ["DYNAMIC_BATCH", "ContractError", "FittedModel", "GCheckSummary", "NominalReference"]
+
 BIAS_REFERENCES = ("run_mean", "long_run")
 """The values of the contract's ``bias_reference`` (``bench.estimation.dynamic_batch.BiasReference``)."""
 
@@ -103,9 +105,14 @@ class FittedModel:
     bias_reference: str | None = None
 
     @property
+    def kind(self) -> FitKind:
+        """The kind of fit its ``method`` and ``terms`` state (:func:`bench.fit_kind.stated_kind`)."""
+        return stated_kind(self.method, self.terms)
+
+    @property
     def is_dynamic_batch(self) -> bool:
         """The fit is the moving-table (sample-by-sample) fit."""
-        return self.method == DYNAMIC_BATCH
+        return self.kind is FitKind.MOVING
 
     @classmethod
     def from_contract(cls, contract: object, where: str = "calibration") -> FittedModel:

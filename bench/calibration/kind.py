@@ -1,5 +1,6 @@
 """The kind of fit a recording gets, chosen once (:func:`bench.calibration.calibrate_recording`)
 and carried by the fit (``CalibrationResult.kind``) to everything that reads it.
+:class:`FitKind` is :class:`bench.fit_kind.FitKind` (with how a stored fit states its kind).
 
 * :attr:`FitKind.MOVING`: the table turns while the DAQ samples (:func:`is_moving`): the
   sample-by-sample dynamic fit (``bench.calibration.dynamic``), p = 12 + extra terms;
@@ -15,37 +16,18 @@ only for a moving recording).
 
 from __future__ import annotations
 
-from enum import StrEnum
-
 import numpy as np
 
 from bench.calibration.windows import MAX_TABLE_MOTION_RAD
+from bench.fit_kind import FitKind
 from bench.recording import Recording
+
+__all__ = ["CANDIDATE_TERMS", "MOVING_PROCEDURES", "FitKind", "is_moving"]
 
 MOVING_PROCEDURES = ("rate-1axis", "oscillation-2axis", "planned-tumble")
 """Procedures whose table moves while it records."""
 CANDIDATE_TERMS = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", "table_tilt", "time_skew")
 """The moving fit's terms beyond bias and K (``calbench calibrate --terms``)."""
-
-
-class FitKind(StrEnum):
-    """Which fit a recording gets (module docstring)."""
-
-    STATIC = "static"
-    ORIENTATION_FREE = "scalar"
-    MOVING = "dynamic"
-
-    @property
-    def text(self) -> str:
-        """The fit in words, as ``calbench calibrate`` states it."""
-        return _TEXT[self]
-
-
-_TEXT = {
-    FitKind.STATIC: "known orientations, bias + full K",
-    FitKind.ORIENTATION_FREE: "orientation-free |f| = g, K as L (K up to rotation)",
-    FitKind.MOVING: "moving table, dynamic model over every sample",
-}
 
 
 def is_moving(rec: Recording) -> bool:

@@ -18,6 +18,7 @@ from bench.estimation.dynamic_batch import BiasReference
 from bench.estimation.g_check import GCheck
 from bench.estimation.scalar_fit import PARAMETER_NAMES as SCALAR_NAMES
 from bench.estimation.static_design import PARAMETER_NAMES as STATIC_NAMES
+from bench.fit_kind import ORIENTATION_FREE_TERMS
 from bench.fitted_model import FittedModel, GCheckSummary
 
 FloatArray = npt.NDArray[np.float64]
@@ -116,7 +117,7 @@ class CalibrationResult:
     def terms(self) -> list[str]:
         """Model terms fitted, as listed in the contract."""
         if self.kind is FitKind.ORIENTATION_FREE:
-            return ["bias", "scale_matrix_lower_triangular"]
+            return list(ORIENTATION_FREE_TERMS)
         return ["bias", "scale_matrix"]
 
     @property

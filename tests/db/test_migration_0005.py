@@ -75,6 +75,8 @@ CONTRACT: dict[str, Any] = {
 }
 BEFORE = {"mean_m_s2": 9.79, "std_m_s2": 0.01, "max_abs_dev_m_s2": 0.02}
 DYNAMIC = {**CONTRACT, "procedure": "rate-1axis", "method": "dynamic-batch", "extra": {"time_skew_s": 1e-4}}
+SCALAR = {**CONTRACT, "procedure": "hand-held", "terms": ["bias", "scale_matrix_lower_triangular"], "dof": 3}
+"""An orientation-free fit's object: its terms say so (docs/cli-contract.md), it has no method."""
 COV = np.diag(np.arange(1.0, 13.0)) * 1e-8
 NAMES = [f"p{i}" for i in range(12)]
 GAPS: list[dict[str, Any]] = [
@@ -169,9 +171,22 @@ CASES = {
             "certificate_error": REFUSED,
         },
     ),
-    # a fit stored before its row existed: it gets one (a moving fit: dynamic)
+    # a fit stored before its row existed: it gets one of the kind its object states, for each kind
     "R-ORPHAN": Case(
         "completed", {**SETUP, "calibration": DYNAMIC, "sample_gaps": []}, fits=(("dynamic", DYNAMIC),)
+    ),
+    "R-ORPHAN-SCALAR": Case(
+        "completed", {**SETUP, "calibration": SCALAR, "sample_gaps": []}, fits=(("scalar", SCALAR),)
+    ),
+    "R-ORPHAN-STATIC": Case(
+        "completed", {**SETUP, "calibration": CONTRACT, "sample_gaps": []}, fits=(("static", CONTRACT),)
+    ),
+    # a moving fit stored twice, as the service wrote it
+    "R-MOVING": Case(
+        "completed",
+        {**SETUP, "calibration": DYNAMIC, "sample_gaps": []},
+        rows=({"kind": "dynamic", "contract": DYNAMIC, "param_names": NAMES, "covariance": COV},),
+        fits=(("dynamic", DYNAMIC),),
     ),
     # the copy in params was changed (g_check.before added), the row was not: both kept
     "R-DIFF": Case(

@@ -15,10 +15,11 @@
 
 The fit was stored twice (``params["calibration"]`` and a ``fit_model`` row, written
 together). A run whose ``params["calibration"]`` equals its newest row's contract just drops
-the copy; one without a row (a database written before the row existed) gets one (kind
-``dynamic`` for a ``dynamic-batch`` contract, else ``static``; no covariance); one whose copy
-differs from the row (a change written to one only) gets a new newest row with the copy's
-contract and the row's kind, covariance and names, so neither is lost and the run shows
+the copy; one without a row (a database written before the row existed) gets one (of the kind
+the object states, :func:`bench.fit_kind.contract_kind`: ``dynamic`` for a ``dynamic-batch``
+method, ``scalar`` for the orientation-free fit's terms, else ``static``; no covariance); one
+whose copy differs from the row (a change written to one only) gets a new newest row with the
+copy's contract and the row's kind, covariance and names, so neither is lost and the run shows
 what it showed.
 
 A value of the wrong shape for its home (a ``calibration`` or ``diagnosis`` that is not an
@@ -45,6 +46,7 @@ import sqlalchemy as sa
 from alembic import op
 
 import db.types
+from bench.fit_kind import contract_kind
 
 revision: str = "0005"
 down_revision: str | None = "0004"
@@ -68,7 +70,6 @@ GAP_FIELDS: dict[str, tuple[type | tuple[type, ...], bool, int | None]] = {
 """``bench.records.GapRecord`` as of this revision (frozen here): field -> (types, nullable,
 max length), in the record's order."""
 GAP_DEFAULTS = {"window_label": "", "daq_epoch": 0}
-DYNAMIC_BATCH = "dynamic-batch"
 
 
 def _columns() -> tuple[sa.Column[Any], ...]:
@@ -161,10 +162,6 @@ def _moved(params: dict[str, Any]) -> tuple[dict[str, Any], Any, list[dict[str, 
     return values, calibration, [r for r in rows if r is not None] if rows is not None else None, rest
 
 
-def _kind(contract: dict[str, Any]) -> str:
-    return "dynamic" if contract.get("method") == DYNAMIC_BATCH else "static"
-
-
 def _store_fit(conn: sa.Connection, run_id: str, contract: dict[str, Any]) -> None:
     """Make ``contract`` the run's newest fit row's contract without losing a row's."""
     newest = conn.execute(
@@ -175,7 +172,7 @@ def _store_fit(conn: sa.Connection, run_id: str, contract: dict[str, Any]) -> No
     row: dict[str, Any] = {
         "run_id": run_id,
         "contract": contract,
-        "kind": _kind(contract),
+        "kind": contract_kind(contract).value,
         "param_names": [],
         "covariance": None,
     }

@@ -3,6 +3,8 @@ differences is taken out, per channel, and the bound still covers the true level
 
 from __future__ import annotations
 
+from decimal import Decimal, localcontext
+
 import numpy as np
 from scipy.stats import binom
 from scipy.stats import chi2 as chi2_dist
@@ -52,3 +54,22 @@ def test_bound_covers_the_true_level_at_its_confidence() -> None:
     assert below <= binom.ppf(0.999, reps, alpha)
     assert below >= binom.ppf(0.001, reps, alpha)  # not trivially loose
     assert np.median(ratios) < 0.95
+
+
+def test_factor_at_long_correlation_times_matches_exact_arithmetic() -> None:
+    """g(h, T) against its closed form evaluated in 80-digit decimal arithmetic, from halves a
+    millionth of T (a day's recording with T_c of a few spans: in double precision the closed
+    form's cancellation there exceeds g and once made it negative) to halves far longer than T."""
+
+    def exact(x: float) -> float:
+        with localcontext() as ctx:
+            ctx.prec = 80
+            d = Decimal(repr(x))
+            return float(2 * (2 * d - 3 + 4 * (-d).exp() - (-2 * d).exp()) / (d * d))
+
+    x = np.array([1e-9, 1e-7, 1e-6, 1e-5, 9.9e-4, 1e-3, 0.01, 0.1, 0.5, 1.0, 3.0, 50.0, 1e4])
+    g = half_difference_factor(x * 2.0e5, 2.0e5)
+    want = np.array([exact(float(v)) for v in x * 2.0e5 / 2.0e5])
+    assert np.all(g > 0)
+    np.testing.assert_allclose(g, want, rtol=1e-7)
+    np.testing.assert_allclose(g[x < 1e-3], want[x < 1e-3], rtol=1e-13)

@@ -53,6 +53,7 @@ from bench.diagnosis.effects.base import FloatArray
 from bench.diagnosis.evidence import StaticEvidence
 from bench.diagnosis.likelihood import NoiseParams, gls, window_covariance
 from bench.diagnosis.wander_cap import SlowNoiseCap
+from bench.estimation.warm_search import memoised
 from bench.estimation.window_covariance import WindowCovariance, invert_blocks
 
 
@@ -170,7 +171,7 @@ class ExcessModel:
     def fit_shared(self, X: FloatArray, z: FloatArray) -> tuple[float, FloatArray]:
         """(−ℓ_REML, x̂) of H0: λ and κ re-estimated."""
         return _powell(
-            lambda x: self.neg_reml(X, z, x, None),
+            memoised(lambda x: self.neg_reml(X, z, x, None)),
             [(self.u_hi - 4.0, self.LOG_NONE), (self.LOG_NONE, 0.0)],
             [(self.LOG_NONE, self.u_hi), (self.LOG_NONE, 12.0)],
         )
@@ -182,7 +183,7 @@ class ExcessModel:
         (starts: it with no excess, and the misfit moved to channel i alone)."""
         starts = [(x0[0], x0[1], self.LOG_NONE), (x0[0] - 4.0, x0[1] - 4.0, 0.0)]
         return _powell(
-            lambda x: self.neg_reml(X, z, x, channel),
+            memoised(lambda x: self.neg_reml(X, z, x, channel)),
             starts,
             [(self.LOG_NONE, self.u_hi), (self.LOG_NONE, 12.0), (self.LOG_NONE, 12.0)],
         )

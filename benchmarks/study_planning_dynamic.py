@@ -141,6 +141,24 @@ def nuisance_rows(name: str, noise: UnitNoise, n_seeds: int, lengths: tuple[floa
         )
 
 
+def independent_rows(name: str, noise: UnitNoise, n_seeds: int, lengths: tuple[float, ...]) -> None:
+    """The independent simulator's columns of :func:`nuisance_rows` alone: the same designs and
+    seeds (row i of :data:`LENGTHS_MIN` takes seeds 700 + 50·i), calbench's simulator not run."""
+    print(f"== {name}: {noise.describe()}; 3 arcmin tilt + 3 cm lever arm, fitted as terms; {n_seeds} seeds")
+    print("length  design           pred     indep  ach/pred  ach/bound  z")
+    for minutes in lengths:
+        i = LENGTHS_MIN.index(minutes)
+        e = best_within(noise, minutes * 60, limits=SIM_LIMITS, fit="every-sample")
+        ierr, iz = independent(e, noise, n_seeds, 700 + 50 * i, effects=True)
+        par = e.procedure.parameters
+        p = e.predicted.k_rms
+        print(
+            f"{minutes:5.1f}  {par['dwell_s']:4.1f} s x{par['repeats']:>3}  {1e6 * p:7.2f}"
+            f"  {1e6 * ierr:8.2f}  {ierr / p:8.2f}  {ierr / e.bound_k:9.2f}  {iz:4.2f}",
+            flush=True,
+        )
+
+
 def main(n_seeds: int, quick: bool, effects: bool = False) -> None:
     lengths = (1.5, 6.0, 24.0) if quick else LENGTHS_MIN
     if effects:

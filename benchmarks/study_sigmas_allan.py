@@ -160,6 +160,8 @@ def study(
     level, level_s, tc, tc_s = a[:, 8], a[:, 9], a[:, 10], a[:, 11]
     admitted = level > 0.0
     out["GM_admitted"] = float(np.mean(admitted))
+    out["GM_admitted_of"] = float(admitted.size)
+    out["GM_admitted_n"] = float(admitted.sum())
     if sensor in GM_SENSORS and admitted.sum() > 1:
         z_level = (level[admitted] - GM_LEVEL) / level_s[admitted]
         z_tc = np.log(tc[admitted] / GM_TC_S) / (tc_s[admitted] / tc[admitted])

@@ -5,7 +5,8 @@
 model's spectrum and an optional model allowance; :func:`allowance`: that allowance's level
 and correlation length; :func:`term_variances`: the sigmas (normal matrix or sandwich);
 :func:`fit_terms`: that GLS with the Gauss–Markov T_c profiled; :func:`select_terms`: which of
-quantisation, rate ramp and the Gauss–Markov term the curve needs.
+quantisation and rate ramp the curve needs; :func:`select_with_gauss_markov`: those and the
+Gauss–Markov term, by its own test against the model without it.
 """
 
 from __future__ import annotations
@@ -272,10 +273,17 @@ them (:func:`select_terms`)."""
 
 
 def select_terms(
-    t: FloatArray, s2: FloatArray, nu: FloatArray, active: list[int], tau0_s: float, n_it: int, fit: GlsFit
+    t: FloatArray,
+    s2: FloatArray,
+    nu: FloatArray,
+    active: list[int],
+    tau0_s: float,
+    n_it: int,
+    fit: GlsFit,
+    optional: tuple[int, ...] = OPTIONAL_TERMS,
 ) -> list[int]:
     """Indices (Q, N, B, K, R, GM = 0 … 5, the columns of :func:`basis`) of the terms to fit:
-    ``active`` less the optional ones (:data:`OPTIONAL_TERMS`) whose removal raises χ² by
+    ``active`` less those of ``optional`` whose removal raises χ² (per χ²/dof when above 1) by
     less than :data:`SELECT_DELTA_CHI2`,
     removed one at a time, smallest rise first (backward elimination). ``fit``: the GLS of all
     of ``active`` without allowance (:func:`fit_terms`); every trial refit is one too, with
@@ -286,7 +294,7 @@ def select_terms(
         scale = max(1.0, fit.chi2 / fit.dof)
         trials = []
         for idx in chosen:
-            if idx not in OPTIONAL_TERMS or len(chosen) == 1:
+            if idx not in optional or len(chosen) == 1:
                 continue
             rest = [i for i in chosen if i != idx]
             g = fit_terms(t, s2, nu, rest, tau0_s, n_it)
@@ -298,3 +306,46 @@ def select_terms(
             return chosen
         chosen.remove(idx)
         fit = g
+
+
+POWER_LAW_OPTIONAL = (0, 4)
+"""Quantisation and rate ramp: the optional power-law terms (:func:`select_with_gauss_markov`)."""
+
+
+def select_with_gauss_markov(
+    t: FloatArray,
+    s2: FloatArray,
+    nu: FloatArray,
+    active: list[int],
+    tau0_s: float,
+    n_it: int,
+    full: GlsFit,
+    holds: bool,
+) -> list[int]:
+    """Terms to fit (indices as :func:`select_terms`) where ``active`` holds :data:`GM`.
+
+    1. The power-law model the curve needs without the Gauss–Markov term: Q and R by
+       :func:`select_terms`, or both kept where ``holds`` is False (the full model's χ²
+       failed, so the bounded law does not hold).
+    2. The Gauss–Markov term is one test against that model, also where χ² fails: it enters
+       when adding it lowers χ² by at least :data:`SELECT_DELTA_CHI2` (per χ²/dof of the
+       larger fit when above 1; T_c profiled, so the statistic is the maximum over T_c).
+    3. With the term in, Q and R are chosen again beside it (:func:`select_terms` from
+       ``full``, the fit of all of ``active``, the term held in).
+
+    One test for the term, against the model without it: in a backward elimination from the
+    full model it also stayed where χ² failed (every term kept) and where Q or R stayed
+    beside it, 7 % of curves without a wander (docs/noise-model.md).
+    """
+    power_law = [i for i in active if i != GM]
+    if holds:
+        base = select_terms(t, s2, nu, power_law, tau0_s, n_it, fit_terms(t, s2, nu, power_law, tau0_s, n_it),
+                            POWER_LAW_OPTIONAL)  # fmt: skip
+    else:
+        base = power_law
+    without = fit_terms(t, s2, nu, base, tau0_s, n_it)
+    with_gm = fit_terms(t, s2, nu, sorted([*base, GM]), tau0_s, n_it)
+    delta = (without.chi2 - with_gm.chi2) / max(1.0, with_gm.chi2 / with_gm.dof)
+    if delta < SELECT_DELTA_CHI2 or with_gm.dtc is None:
+        return base
+    return select_terms(t, s2, nu, active, tau0_s, n_it, full, POWER_LAW_OPTIONAL) if holds else list(active)

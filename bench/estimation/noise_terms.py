@@ -47,12 +47,15 @@ needs them
 (:func:`select_terms`): backward elimination, a term leaving when that raises χ² by less
 than :data:`SELECT_DELTA_CHI2`, the 1 % point of the ½χ²₀ + ½χ²₁ law of a likelihood ratio
 for a parameter on its bound (Self & Liang, JASA 82, 1987). That law needs the model to
-hold: where χ² fails (above), every term stays. A term left out reads 0 with its one-sigma
+hold: where χ² fails (above), Q and R stay. A term left out reads 0 with its one-sigma
 upper limit from the full model. Counting the trade with a Q or R held at 0 by the bound
 made every sigma too wide on short records, where the estimates cannot follow that trade
 (they stay on the bound): between recordings of one sensor pair z 0.47-0.73 at 600 s, also
 for a sensor of pure power laws (docs/noise-model.md); with the selection 0.78-1.02.
-The Gauss–Markov T_c is profiled (the T_c of least χ², :func:`~bench.estimation.noise_gls.fit_terms`)
+The Gauss–Markov term is one such test against the power-law model chosen without it, also
+where χ² fails (per χ²/dof then; :func:`~bench.estimation.noise_gls.select_with_gauss_markov`):
+kept by the gate or beside Q or R in the elimination, it entered 7 % of curves without a wander.
+Its T_c is profiled (the T_c of least χ², :func:`~bench.estimation.noise_gls.fit_terms`)
 in every fit that holds the term, the test's included; its sigma, and its trade with the
 other terms, from the fit's design with the column ∂σ²/∂ln T_c added (linearised).
 
@@ -88,6 +91,7 @@ from bench.estimation.noise_gls import (
     floor_for_unit_chi2,
     gls,
     select_terms,
+    select_with_gauss_markov,
     tc_range_s,
     term_variances,
 )
@@ -263,7 +267,12 @@ def fit_noise_model_curve(
     bound_var = term_variances(full, max(1.0, full.chi2 / full.dof))
     # the bounded likelihood-ratio test needs the model to hold: where χ² rejects it, all terms stay
     holds = full.chi2 <= stats.chi2.ppf(MISFIT_LEVEL, full.dof)
-    chosen = select_terms(t, s2, nu, active, tau0, n_iterations, full) if select and holds else active
+    if not select:
+        chosen = active
+    elif GM in active:
+        chosen = select_with_gauss_markov(t, s2, nu, active, tau0, n_iterations, full, holds)
+    else:
+        chosen = select_terms(t, s2, nu, active, tau0, n_iterations, full) if holds else active
     fit = full if chosen == active else fit_terms(t, s2, nu, chosen, tau0, n_iterations)
     tc = fit.tc_s  # the allowance's fits keep the Gauss–Markov T_c of the fit without it
     A = basis(t, tc)[:, chosen]

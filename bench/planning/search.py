@@ -67,7 +67,8 @@ class Plan:
     """The chosen design, or why none met the targets.
 
     :param best: the shortest design that met every target, ``None`` when none did.
-    :param closest: when none did, the longest candidate tried (what is reachable).
+    :param closest: when none did, of every dwell's longest design within the cap the one of
+        least RMS σ(K_ij) (what is reachable).
     :param problems: one sentence each when a target is out of reach.
     """
 
@@ -87,8 +88,9 @@ def plan(
     max_duration_s: float = 2 * 3600.0,
     fits: tuple[Fit, ...] = ("window",),
 ) -> Plan:
-    """The shortest planned-static design that meets ``targets`` under any of ``fits`` (module
-    docstring); the chosen :class:`Evaluation` names its fit. ``settle_s``: :func:`settle_for`."""
+    """The shortest planned-static design within ``max_duration_s`` of table time that meets
+    ``targets`` under any of ``fits`` (module docstring); the chosen :class:`Evaluation` names
+    its fit. ``settle_s``: :func:`settle_for`."""
     settle = settle_for(limits, settle_s)
     chosen = [_plan_one(noise, targets, limits, settle, g_m_s2, with_tilt, max_duration_s, f) for f in fits]
     met = [p for p in chosen if p.best is not None]
@@ -184,11 +186,14 @@ class Designs:
         return self.floor(dwell_s, repeats).misses(targets)
 
 
-def _passes_within(designs: Designs, dwell_s: float, max_duration_s: float) -> int:
-    """The most passes of ``dwell_s`` whose table time the cap allows, at least one and at most
-    :data:`MAX_WINDOWS` / 12 (taken as passes × one pass's time)."""
+def _passes_within(designs: Designs, dwell_s: float, max_duration_s: float) -> int | None:
+    """The most passes of ``dwell_s``, at most :data:`MAX_WINDOWS` / 12, whose table time is
+    within the cap; ``None`` when one pass is not. (A later pass takes a little longer than the
+    first, whose first move starts from the table's zero: passes × one pass's time is only the
+    start of the bisection.)"""
     per_pass = designs.duration_s(dwell_s, 1)
-    return max(1, min(MAX_WINDOWS // 12, int(max_duration_s // per_pass)))
+    hi = max(1, min(MAX_WINDOWS // 12, int(max_duration_s // per_pass)))
+    return _passes_shorter_than(designs, dwell_s, hi, math.nextafter(max_duration_s, math.inf))
 
 
 def _passes_shorter_than(designs: Designs, dwell_s: float, hi: int, duration_s: float) -> int | None:
@@ -260,7 +265,10 @@ def _plan_one(
     best: Evaluation | None = None
     longest: list[tuple[float, int, Evaluation | None]] = []  # while none meets: each dwell's longest
     for dwell in DWELL_GRID_S:
-        hi = _passes_within(designs, dwell, max_duration_s)
+        within = _passes_within(designs, dwell, max_duration_s)
+        if within is None:
+            continue
+        hi = within
         if best is not None:
             # only a design shorter than the best so far can take its place
             shorter = _passes_shorter_than(designs, dwell, hi, best.duration_s)
@@ -284,7 +292,7 @@ def _none_meets(closest: Evaluation | None, max_duration_s: float) -> Plan:
         f"{max_duration_s / 60:.0f} min meets the targets; the best reaches "
         + describe_sigmas(closest.predicted)
         if closest is not None
-        else "no design could be evaluated"
+        else f"no planned design fits within {max_duration_s / 60:.3g} min (one pass of the shortest dwell)"
     )
     return Plan(None, closest, (problem,))
 

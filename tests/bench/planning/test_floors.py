@@ -58,13 +58,19 @@ def test_no_prediction_is_below_its_floor(fit: Fit, dwell_s: float, reps: int) -
 
 
 def _closest_of_all(noise: UnitNoise, fit: Fit, max_duration_s: float) -> tuple[dict[str, object], float]:
-    """Every dwell's longest design within the cap (at least one pass) evaluated: the parameters
-    and RMS σ(K_ij) of the least, the first on a tie."""
+    """Every dwell's longest design within the cap evaluated: the parameters and RMS σ(K_ij) of
+    the least, the first on a tie."""
     found: tuple[float, dict[str, object]] | None = None
     for dwell in DWELL_GRID_S:
-        per_pass = preview(FAMILY[fit](dwell_s=dwell, repeats=1), DEFAULT_TABLE_LIMITS).duration_s
-        reps = max(1, min(MAX_WINDOWS // 12, int(max_duration_s // per_pass)))
-        e = evaluate(FAMILY[fit](dwell_s=dwell, repeats=reps), noise, fit=fit)
+        reps = min(MAX_WINDOWS // 12, int(max_duration_s // 60))  # a pass takes over 60 s
+        while reps >= 1:
+            proc = FAMILY[fit](dwell_s=dwell, repeats=reps)
+            if preview(proc, DEFAULT_TABLE_LIMITS).duration_s <= max_duration_s:
+                break
+            reps -= 1
+        if reps < 1:
+            continue
+        e = evaluate(proc, noise, fit=fit)
         if found is None or e.predicted.k_rms < found[0]:
             found = (e.predicted.k_rms, dict(e.procedure.parameters))
     assert found is not None
@@ -91,3 +97,16 @@ def test_a_target_no_design_meets_names_the_closest_of_every_dwells_longest_desi
     assert got.closest.procedure.parameters == params
     assert got.closest.predicted.k_rms == pytest.approx(k_rms, rel=1e-12)
     assert f"within {minutes:.0f} min meets" in got.problems[0]
+
+
+def test_no_plan_is_longer_than_its_cap() -> None:
+    """The design chosen, or the closest when none meets, lasts at most ``max_duration_s``
+    (a 120-s dwell's one pass takes 25 min: it is no candidate within 3 min)."""
+    for minutes in (3.0, 10.0):
+        for scale_ppm in (60.0, 40.0, 20.0, 1.0):
+            got = plan(ADXL, Targets(scale=scale_ppm * 1e-6), max_duration_s=minutes * 60)
+            e = got.best if got.best is not None else got.closest
+            assert e is not None and e.duration_s <= minutes * 60, (minutes, scale_ppm, e and e.duration_s)
+    none = plan(ADXL, Targets(scale=60e-6), max_duration_s=30.0)  # shorter than any one pass
+    assert none.best is None and none.closest is None
+    assert none.problems == ("no planned design fits within 0.5 min (one pass of the shortest dwell)",)

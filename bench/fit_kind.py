@@ -7,8 +7,10 @@
 * :attr:`FitKind.ORIENTATION_FREE`: still windows of unknown orientation: the 9-parameter fit
   of |f| = g (K as the lower-triangular L, K up to a rotation).
 
-The values are the names the database's ``fit_model.kind`` column stores. The kind is chosen
-once, from the recording (:mod:`bench.calibration.kind`), and carried by the fit. A fit kept as
+It is the one enum of fit kinds: the database's ``fit_model.kind`` column is of this type, and
+the values are the strings that column has stored since migration 0001 (``static``, ``scalar``,
+``dynamic``). The kind is chosen once, from the recording (:mod:`bench.calibration.kind`), and
+carried by the fit. A fit kept as
 its ``calbench calibrate --json`` object states its kind by two keys (docs/cli-contract.md):
 ``method`` ``"dynamic-batch"`` (:data:`DYNAMIC_BATCH`) for the moving fit, ``terms`` holding
 ``"scale_matrix_lower_triangular"`` (:data:`ORIENTATION_FREE_TERMS`) for the orientation-free

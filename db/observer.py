@@ -24,7 +24,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from bench import records as br
 from bench.run_observer import NullObserver
 from bench.run_state import HOLDING_STATES, Outcome
-from db.models import FINAL_STATES, FitKind, Run, RunState
+from db.models import FINAL_STATES, Run, RunState
 from db.models import run_params as rp
 from db.notify import notify_run
 from db.repo import gaps, progress, recovery, results, runs, units
@@ -72,7 +72,7 @@ def store_fit(s: Session, record: br.RunRecord, *, replace: bool = True) -> None
     results.add_fit(
         s,
         record.run_id,
-        FitKind(fit.kind.value),
+        fit.kind,
         contract,
         covariance=record.fit_covariance,
         param_names=record.fit_param_names,

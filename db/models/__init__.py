@@ -21,7 +21,7 @@ table              holds
 
 from db.base import Base
 from db.models.audit import AGENT, SYSTEM, AuditAction, RunAudit
-from db.models.results import Certificate, DriftCheck, Finding, FitKind, FitModel
+from db.models.results import Certificate, DriftCheck, Finding, FitModel
 from db.models.runs import (
     ACTIVE_STATES,
     FINAL_STATES,
@@ -48,7 +48,6 @@ __all__ = [
     "Certificate",
     "DriftCheck",
     "Finding",
-    "FitKind",
     "FitModel",
     "Run",
     "RunAudit",

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import datetime as dt
-import enum
 from typing import Any
 
 import numpy as np
@@ -11,19 +10,12 @@ import numpy.typing as npt
 import sqlalchemy as sa
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
+from bench.fit_kind import FitKind
 from db.base import Base, IntId
 from db.models._enum import value_enum
 from db.models.runs import Run
 from db.models.units import Unit
 from db.types import NpyArray, utc_now
-
-
-class FitKind(enum.Enum):
-    """Which estimator produced a fit."""
-
-    STATIC = "static"
-    SCALAR = "scalar"
-    DYNAMIC = "dynamic"
 
 
 class FitModel(IntId, Base):

@@ -16,8 +16,9 @@ import numpy.typing as npt
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
+from bench.fit_kind import FitKind
 from bench.records import GapRecord
-from db.models import Finding, FitKind, FitModel, Run, Unit
+from db.models import Finding, FitModel, Run, Unit
 from db.notify import notify_run
 from db.repo.gaps import gaps_of_runs
 

@@ -12,10 +12,9 @@ import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.engine import Engine
 
-from bench.calibration import FitKind
+from bench.fit_kind import FitKind
 from db.engine import make_session_factory
 from db.migrate import downgrade, upgrade
-from db.models import FitKind as DbFitKind
 from db.models import FitModel, Run
 from db.repo.results import add_fit
 from db.repo.runs import create_run
@@ -90,4 +89,20 @@ def test_a_fit_stored_without_a_row_gets_the_kind_it_chose(empty_engine: Engine)
     upgrade(empty_engine)
     kinds = {run_id: kind for run_id, kind, *_ in _stored(empty_engine)}
     assert kinds == {i: f[0].value for i, f in fits.items()}
-    assert {k.value for k in DbFitKind} == {k.value for k in FitKind}
+
+
+def test_the_column_stores_the_names_of_migration_0001(empty_engine: Engine) -> None:
+    """The ORM's kind is the one ``FitKind``, and it writes and reads the strings databases
+    have held since migration 0001 created the column (``static``, ``scalar``, ``dynamic``)."""
+    assert FitModel.__table__.c.kind.type.enum_class is FitKind
+    _fill_at_head(empty_engine)
+    with empty_engine.begin() as conn:
+        raw = dict(conn.execute(sa.text("SELECT run_id, kind FROM fit_model")).all())
+    assert raw == {"R-static": "static", "R-scalar": "scalar", "R-dynamic": "dynamic"}
+    with make_session_factory(empty_engine).begin() as s:
+        read = {r.run_id: r.kind for r in s.scalars(sa.select(FitModel))}
+    assert read == {
+        "R-static": FitKind.STATIC,
+        "R-scalar": FitKind.ORIENTATION_FREE,
+        "R-dynamic": FitKind.MOVING,
+    }

@@ -12,10 +12,10 @@ from sqlalchemy.exc import OperationalError
 
 from bench import records as br
 from bench import run_state as rs
-from bench.calibration import FitKind as BenchFitKind
+from bench.fit_kind import FitKind
 from bench.limit_check import LimitCheck
 from bench.run_observer import RunObserver
-from db.models import FitKind, FitModel, Run, RunState, SampleChunk
+from db.models import FitModel, Run, RunState, SampleChunk
 from db.observer import DbRunObserver, final_state
 from db.repo import progress, recovery
 from db.repo.gaps import list_gaps
@@ -272,10 +272,10 @@ def test_observer_satisfies_the_protocol(db_session_factory):
 @pytest.mark.parametrize(
     ("procedure", "kind", "stored"),
     [
-        ("static-12", BenchFitKind.STATIC, FitKind.STATIC),
-        ("static-12", BenchFitKind.ORIENTATION_FREE, FitKind.SCALAR),
+        ("static-12", FitKind.STATIC, "static"),
+        ("static-12", FitKind.ORIENTATION_FREE, "scalar"),
         # the fit's own kind decides, never the procedure's name
-        ("oscillation-2axis", BenchFitKind.STATIC, FitKind.STATIC),
+        ("oscillation-2axis", FitKind.STATIC, "static"),
     ],
 )
 def test_the_stored_kind_is_the_kind_the_fit_chose(db_session_factory, procedure, kind, stored):
@@ -290,7 +290,9 @@ def test_the_stored_kind_is_the_kind_the_fit_chose(db_session_factory, procedure
     )  # fmt: skip
     with db_session_factory() as s:
         row = s.scalars(sa.select(FitModel)).one()
-        assert row.kind is stored and list(row.param_names) == list(names)
+        assert row.kind is kind and list(row.param_names) == list(names)
+        # the column holds the names databases have stored since migration 0001
+        assert s.scalar(sa.text("SELECT kind FROM fit_model")) == stored
         assert (
             fit_contract(s, start.run_id) == row.contract
             and "calibration" not in s.get(Run, start.run_id).params

@@ -12,13 +12,13 @@ import sqlalchemy as sa
 from sqlalchemy.exc import IntegrityError, InvalidRequestError
 
 from bench.diagnosis.stored import StoredDiagnosis
+from bench.fit_kind import FitKind
 from db.models import (
     ApiToken,
     Bench,
     Certificate,
     DriftCheck,
     Finding,
-    FitKind,
     FitModel,
     Run,
     RunState,

@@ -9,7 +9,8 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.exc import StatementError
 
-from db.models import Bench, FitKind
+from bench.fit_kind import FitKind
+from db.models import Bench
 from db.repo.results import add_fit
 from db.types import NpyArray, UtcDateTime
 from tests.db._factories import make_run

@@ -14,11 +14,12 @@ import sqlalchemy as sa
 import bench.calibration.recording
 import bench.calibration.static
 import bench.recording.reader
+from bench.fit_kind import FitKind
 from bench.run_state import RunState
 from bench.sequencer.control import RunControl
 from db.engine import make_session_factory
 from db.migrate import open_database
-from db.models import Certificate, FitKind, Run, Unit
+from db.models import Certificate, Run, Unit
 from db.repo.results import list_fits
 from db.repo.units import get_or_create_unit
 from station.agent.bench_agent import make_finisher

@@ -109,11 +109,6 @@ class FittedModel:
         """The kind of fit its ``method`` and ``terms`` state (:func:`bench.fit_kind.stated_kind`)."""
         return stated_kind(self.method, self.terms)
 
-    @property
-    def is_dynamic_batch(self) -> bool:
-        """The fit is the moving-table (sample-by-sample) fit."""
-        return self.kind is FitKind.MOVING
-
     @classmethod
     def from_contract(cls, contract: object, where: str = "calibration") -> FittedModel:
         """Parse a stored ``calibrate --json`` object (keys beyond the ones read are ignored).

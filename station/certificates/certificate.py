@@ -18,6 +18,7 @@ import datetime as dt
 import importlib.metadata
 from typing import Any
 
+from bench.fit_kind import FitKind
 from bench.planning.report import predicted_and_achieved
 from bench.procedures.planned import NAME as PLANNED_STATIC
 from bench.procedures.planned import TUMBLE_NAME as PLANNED_TUMBLE
@@ -207,7 +208,7 @@ def certificate_content(
         "results": results_section(inp.calibration, inp.budget),
         "g_check": g_check_section(inp.calibration, inp.g_check_n, inp.limit_checks),
         "uncertainty_statement": (
-            DYNAMIC_COVERAGE_STATEMENT if inp.calibration.is_dynamic_batch else COVERAGE_STATEMENT
+            DYNAMIC_COVERAGE_STATEMENT if inp.calibration.kind is FitKind.MOVING else COVERAGE_STATEMENT
         )
         if inp.budget is not None
         else TYPE_A_ONLY_STATEMENT.format(reason=inp.budget_note or "no budget given"),

@@ -346,7 +346,7 @@ def issue_for_run(
     content = certificate_content(inputs, laboratory(settings), number=cert.number, issued_at=now)
     cert.content = content
     cert.sha256 = canonical_sha256(content)
-    cert.pdf = render_pdf(content, cert.sha256)
+    cert.pdf = render_pdf(content, cert.sha256, kind=calibration.kind)
     s.flush()
     return cert
 

@@ -7,7 +7,9 @@ each quantity in the content: 2 unless the budget has finite degrees of freedom)
 check before and after, the diagnosis findings, the traceability and conformity statements,
 the authorisation with a signature line, "End of certificate" (ISO/IEC 17025 7.8.2.1 d), and
 in the footer of every page the SHA-256 of the JSON content, so a reader can check the
-paper against the stored record. Text only comes from the content; nothing is recomputed.
+paper against the stored record. Text only comes from the content, and from the kind of the
+fit (:class:`bench.fit_kind.FitKind`, the run's ``fit_model.kind``), which states over what the
+|g| check was taken; nothing is recomputed.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
-from bench.calibration.kind import MOVING_PROCEDURES
+from bench.fit_kind import FitKind
 from station.certificates.pdf_budget import budget_section
 from station.certificates.pdf_layout import Flow, Page, wrap
 from station.certificates.pdf_record import record_section
@@ -29,6 +31,12 @@ from station.certificates.rounding import format_significant, value_and_u
 A4_IN = (8.27, 11.69)
 AXES = ("x", "y", "z")
 FONT = "DejaVu Sans"
+G_CHECK_OVER = {
+    FitKind.STATIC: "over the static positions",
+    FitKind.ORIENTATION_FREE: "over the static positions",
+    FitKind.MOVING: "over 1 s blocks of the moving recording, gravity with the fitted motion terms removed",
+}
+"""Over what each kind of fit takes its |g| check."""
 
 
 def _unit(text: str) -> str:
@@ -172,7 +180,7 @@ def _datasheet(f: Flow, d: dict[str, Any] | None) -> None:
     f.paragraph(f"Sensitivity: {s['basis']}. Cross-axis: {x['basis']}.", size=7.5)
 
 
-def _results(f: Flow, c: dict[str, Any]) -> None:
+def _results(f: Flow, c: dict[str, Any], kind: FitKind) -> None:
     res = c["results"]
     f.heading("4  Results")
     f.paragraph(f"Model: {_unit(res['model'])}.  Terms fitted: {', '.join(res['terms'])}.")
@@ -194,12 +202,7 @@ def _results(f: Flow, c: dict[str, Any]) -> None:
     rms = res["residual_rms"]
     f.paragraph(f"Residual RMS of the fit: {_stat(rms['value']) or 'not available'} {_unit(rms['unit'])}.")
     g = c["g_check"]
-    where = (
-        "over 1 s blocks of the moving recording, gravity with the fitted motion terms removed"
-        if c["method"]["procedure"] in MOVING_PROCEDURES
-        else "over the static positions"
-    )
-    f.subheading(f"|g| check: |K⁻¹(raw − b)| − g_local {where} (m/s²)")
+    f.subheading(f"|g| check: |K⁻¹(raw − b)| − g_local {G_CHECK_OVER[kind]} (m/s²)")
     rows = [("", "mean error", "U of the mean, k = 2", "standard deviation", "n")]
     for when, label in (("before", "with the nominal values"), ("after", "with this calibration")):
         v = g[when]
@@ -313,29 +316,30 @@ def _rule(y: float) -> Any:
     return Line2D([0.07, 0.93], [y, y], lw=0.8, color="0.3")
 
 
-def certificate_pages(c: dict[str, Any]) -> list[Page]:
-    """The laid-out body pages of a certificate."""
+def certificate_pages(c: dict[str, Any], kind: FitKind) -> list[Page]:
+    """The laid-out body pages of a certificate of a fit of ``kind``."""
     f = Flow(top=0.915, bottom=0.065, left=0.07, right=0.93)
     _identification(f, c)
     _method_conditions(f, c)
     record_section(f, c)
-    _results(f, c)
+    _results(f, c, kind)
     budget_section(f, c)
     _statements(f, c)
     return f.pages
 
 
-def certificate_lines(c: dict[str, Any], sha256: str) -> list[str]:
-    """The certificate's text, line by line (for a text rendering or a search)."""
+def certificate_lines(c: dict[str, Any], sha256: str, *, kind: FitKind) -> list[str]:
+    """The text of the certificate of a fit of ``kind``, line by line (for a text rendering or
+    a search)."""
     lines = [c["title"], c["number"], c["laboratory"]["name"]]
-    for page in certificate_pages(c):
+    for page in certificate_pages(c, kind):
         lines += page.texts()
     return [*lines, f"SHA-256 of the content: {sha256}"]
 
 
-def render_pdf(content: dict[str, Any], sha256: str) -> bytes:
-    """The certificate PDF (bytes)."""
-    pages = certificate_pages(content)
+def render_pdf(content: dict[str, Any], sha256: str, *, kind: FitKind) -> bytes:
+    """The PDF (bytes) of the certificate of a fit of ``kind``."""
+    pages = certificate_pages(content, kind)
     buf = io.BytesIO()
     meta = {"Title": f"{content['title']} {content['number']}", "Creator": "calbench", "Subject": sha256}
     with PdfPages(buf, metadata=meta) as pdf:
@@ -346,4 +350,4 @@ def render_pdf(content: dict[str, Any], sha256: str) -> bytes:
     return buf.getvalue()
 
 
-__all__ = ["certificate_lines", "render_pdf", "value_and_u", "wrap"]
+__all__ = ["G_CHECK_OVER", "certificate_lines", "render_pdf", "value_and_u", "wrap"]

@@ -9,8 +9,7 @@ import sys
 
 import pytest
 
-from bench.calibration import FitKind
-from bench.fit_kind import contract_kind, stated_kind
+from bench.fit_kind import FitKind, contract_kind, stated_kind
 from bench.fitted_model import FittedModel
 from tests.support.fits import DEFAULTS, calibration_result
 
@@ -20,14 +19,14 @@ def test_a_fits_object_states_the_kind_it_chose(kind: FitKind) -> None:
     contract = json.loads(json.dumps(calibration_result(kind).to_contract()))  # as stored
     assert contract_kind(contract) is kind
     parsed = FittedModel.from_contract(contract)
-    assert parsed.kind is kind and not parsed.is_dynamic_batch
+    assert parsed.kind is kind
 
 
 def test_a_moving_fit_is_stated_by_its_method() -> None:
     contract = {**DEFAULTS, "method": "dynamic-batch", "terms": ["bias", "scale_matrix", "time_skew"]}
     assert contract_kind(contract) is FitKind.MOVING
     parsed = FittedModel.from_contract(contract)
-    assert parsed.kind is FitKind.MOVING and parsed.is_dynamic_batch
+    assert parsed.kind is FitKind.MOVING
 
 
 @pytest.mark.parametrize(

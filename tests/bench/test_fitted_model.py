@@ -13,6 +13,7 @@ import pytest
 
 from api.simulated_recording import write_simulated
 from bench.calibration import CalibrationResult, calibrate_recording
+from bench.fit_kind import FitKind
 from bench.fitted_model import DYNAMIC_BATCH, ContractError, FittedModel, GCheckSummary, NominalReference
 from bench.recording import read_recording
 from drivers.sim.offline import DEFAULT_AXES, simulate_static, static12_poses_deg
@@ -50,7 +51,7 @@ def test_a_stored_fit_parses_to_the_values_of_the_fit_that_wrote_it(fitted: Cali
     )
     assert parsed.g_after == direct.g_after and parsed.g_before == direct.g_before
     assert parsed.g_before is not None  # m/s2 output: the raw output is its own nominal
-    assert (parsed.extra, parsed.method, parsed.is_dynamic_batch) == ({}, None, False)
+    assert (parsed.extra, parsed.method, parsed.kind) == ({}, None, FitKind.STATIC)
 
 
 def test_the_nominal_of_a_before_check_and_a_dynamic_method_are_read() -> None:
@@ -77,7 +78,7 @@ def test_the_nominal_of_a_before_check_and_a_dynamic_method_are_read() -> None:
     }
     fit = FittedModel.from_contract(stored)
     assert fit.g_before == GCheckSummary(-2.0, 1.0, NominalReference(0.02, 0.0, "s"))
-    assert fit.residual_rms is None and fit.method == DYNAMIC_BATCH and fit.is_dynamic_batch
+    assert fit.residual_rms is None and fit.method == DYNAMIC_BATCH and fit.kind is FitKind.MOVING
     assert fit.extra == {"lever_arm": {"r_m": [0.1, 0.0, 0.0]}} and fit.K[2, 2] == 3.0
     # written back (a nominal |g| check added to a stored fit) in the stored form it was read from
     assert fit.g_before is not None

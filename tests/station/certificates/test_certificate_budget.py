@@ -144,7 +144,7 @@ def test_pdf_shows_the_budget_tables(recorded: tuple[Recording, dict[str, Any]],
         cal, certificate_budget(analyse(rec), FittedModel.from_contract(cal), TypeBSettings.of(Settings()))
     )
     path = tmp_path / "c.pdf"
-    path.write_bytes(render_pdf(c, canonical_sha256(c)))
+    path.write_bytes(render_pdf(c, canonical_sha256(c), kind=FittedModel.from_contract(cal).kind))
     text = subprocess.run(["pdftotext", "-layout", str(path), "-"], capture_output=True, text=True,
                           check=True).stdout  # fmt: skip
     for needle in ("Uncertainty budget", "Bias b: contributions", "Scale factors K_ii", "DAQ gain",

@@ -124,7 +124,7 @@ def test_certificate_lists_every_check_and_states_the_runs_outcome(tmp_path: Pat
     )
     line = conformity_line(c)
     assert line.startswith("Conformity: PASS against the limits of unit model M (guarded acceptance)")
-    text = "\n".join(certificate_lines(c, "0" * 64))
+    text = "\n".join(certificate_lines(c, "0" * 64, kind=FIT.kind))
     assert "7  Statement of conformity" in text and "Acceptance interval" in text
     # a run stored as FAIL cannot get a certificate that lists passing checks
     with pytest.raises(ValueError, match="disagrees with its limit checks"):
@@ -168,7 +168,7 @@ def test_every_pdf_page_renders_and_states_the_stored_outcome(tmp_path: Path, wi
         expected = "Conformity: no statement of conformity (no specification limits apply)"
     c = _content(rows, stored)
     pdf = tmp_path / "c.pdf"
-    pdf.write_bytes(render_pdf(c, canonical_sha256(c)))
+    pdf.write_bytes(render_pdf(c, canonical_sha256(c), kind=FIT.kind))
     subprocess.run(["pdftoppm", "-r", "50", "-png", str(pdf), str(tmp_path / "page")], check=True)
     pngs = sorted(tmp_path.glob("page-*.png"))
     assert len(pngs) >= 3

@@ -17,7 +17,7 @@ from bench.recording import read_recording
 from db.repo.certificates import canonical_sha256
 from station.certificates.certificate import certificate_content
 from station.certificates.inputs import CertificateInputs, Laboratory, RunFacts, UnitFacts
-from station.certificates.pdf import render_pdf
+from station.certificates.pdf import certificate_lines, render_pdf
 from station.certificates.rounding import expanded_quantity, round_expanded
 from station.certificates.statements import NOT_REPRODUCED, ONLY_ITEM, REQUIRED_ITEMS, RUN_MEAN_BIAS
 from tests.conftest import STATIC_EXAMPLE, copy_example
@@ -115,7 +115,7 @@ def test_pdf_text_holds_number_results_and_hash(tmp_path: Path) -> None:
     c = _content()
     digest = canonical_sha256(c)
     path = tmp_path / "c.pdf"
-    path.write_bytes(render_pdf(c, digest))
+    path.write_bytes(render_pdf(c, digest, kind=FIT.kind))
     text = subprocess.run(
         ["pdftotext", "-layout", str(path), "-"], capture_output=True, text=True, check=True
     ).stdout
@@ -138,6 +138,25 @@ def test_pdf_text_holds_number_results_and_hash(tmp_path: Path) -> None:
     # bias and its U on one table row, to U's second significant digit (U = 2.2e-5 V: 6 decimals)
     assert re.search(r"x\s+1\.504200\s+0\.000022", text), text
     assert re.search(r"0\.0174400 ± 0\.0000032", text)
+
+
+@pytest.mark.parametrize(
+    ("method", "procedure", "over"),
+    [
+        (None, "oscillation-2axis", "over the static positions"),
+        ("dynamic-batch", "static-12", "over 1 s blocks of the moving recording"),
+    ],
+)
+def test_the_g_check_states_over_what_the_fits_kind_took_it(
+    method: str | None, procedure: str, over: str
+) -> None:
+    """The |g| check's basis is the fit's own kind (its ``method``), whatever the run's
+    procedure is called."""
+    fit = FittedModel.from_contract({**CAL, "method": method})
+    c = _content(fit)
+    c["method"]["procedure"] = procedure
+    heading = [ln for ln in certificate_lines(c, "0" * 64, kind=fit.kind) if ln.startswith("|g| check")]
+    assert len(heading) == 1 and over in heading[0]
 
 
 def test_every_17025_item_is_filled_and_missing_ones_say_not_stated() -> None:

@@ -51,7 +51,7 @@ def test_certificate_states_and_prints_two_digits() -> None:
     assert (before["mean_error_m_s2"], before["std_m_s2"]) == (0.13, 0.30)
     # no window count in the inputs: the check's U cannot be stated, and says so
     assert before["expanded_uncertainty_m_s2"] == "not stated" and before["n"] == "not stated"
-    text = "\n".join(certificate_lines(c, "0" * 64))
+    text = "\n".join(certificate_lines(c, "0" * 64, kind=inputs.calibration.kind))
     assert "Residual RMS of the fit: 2.0e-05 V." in text
     for cell in ("0.13", "0.30", "-0.00010", "0.00030"):
         assert cell in text.split(), cell

@@ -8,8 +8,9 @@ check before and after, the diagnosis findings, the traceability and conformity 
 the authorisation with a signature line, "End of certificate" (ISO/IEC 17025 7.8.2.1 d), and
 in the footer of every page the SHA-256 of the JSON content, so a reader can check the
 paper against the stored record. Text only comes from the content, and from the kind of the
-fit (:class:`bench.fit_kind.FitKind`, the run's ``fit_model.kind``), which states over what the
-|g| check was taken; nothing is recomputed.
+fit (:class:`bench.fit_kind.FitKind`, as the stored fit states it:
+:attr:`bench.fitted_model.FittedModel.kind`), which says over what the |g| check was taken;
+nothing is recomputed.
 """
 
 from __future__ import annotations

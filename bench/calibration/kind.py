@@ -22,21 +22,28 @@ from bench.calibration.windows import MAX_TABLE_MOTION_RAD
 from bench.fit_kind import FitKind
 from bench.recording import Recording
 
-__all__ = ["CANDIDATE_TERMS", "MOVING_PROCEDURES", "FitKind", "is_moving"]
+__all__ = ["CANDIDATE_TERMS", "MOVING_PROCEDURES", "STATIC_PROCEDURES", "FitKind", "is_moving"]
 
 MOVING_PROCEDURES = ("rate-1axis", "oscillation-2axis", "planned-tumble")
-"""Procedures whose table moves while it records."""
+"""calbench's procedures whose table moves while it records."""
+STATIC_PROCEDURES = ("static-12", "planned-static")
+"""calbench's procedures that record only while the table is still (with
+:data:`MOVING_PROCEDURES`, every name of ``bench.procedures.PROCEDURES``; a test holds them
+together)."""
 CANDIDATE_TERMS = ("lever_arm", "proof_mass_offsets", "nonlinearity_quadratic", "table_tilt", "time_skew")
 """The moving fit's terms beyond bias and K (``calbench calibrate --terms``)."""
 
 
 def is_moving(rec: Recording) -> bool:
-    """A moving-table recording: a moving procedure, or (no procedure) a declared segment in
-    which the encoder angles span more than ``MAX_TABLE_MOTION_RAD``."""
+    """A moving-table recording: one of calbench's moving procedures, or, for a recording of no
+    procedure or of a procedure calbench does not know (the sidecar's ``procedure`` is free text
+    from another bench), a declared segment in which the encoder angles span more than
+    ``MAX_TABLE_MOTION_RAD``. calbench's own static procedures are static whatever their
+    segments hold (a segment that moved is named unused by the window fit)."""
     proc = rec.sidecar.procedure
     if proc in MOVING_PROCEDURES:
         return True
-    if proc is not None or rec.table_deg is None or not rec.sidecar.segments:
+    if proc in STATIC_PROCEDURES or rec.table_deg is None or not rec.sidecar.segments:
         return False
     q = rec.table_rad_unwrapped()
     assert q is not None

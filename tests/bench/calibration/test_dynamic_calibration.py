@@ -145,8 +145,9 @@ def test_dispatch_and_bad_input() -> None:
     _, rec = oscillation(duration_s=30.0)
     assert is_moving(rec)
     assert not is_moving(replace(rec, sidecar=replace(rec.sidecar, procedure="static-12")))
-    # no procedure, but a segment in which the table turns
+    # no procedure, or another bench's name for it, but a segment in which the table turns
     assert is_moving(replace(rec, sidecar=replace(rec.sidecar, procedure=None)))
+    assert is_moving(replace(rec, sidecar=replace(rec.sidecar, procedure="tumble-b7 (lab 2)")))
     # a rate-1axis recording at one pose turning about the vertical only: K cannot be determined
     _, flat = rate(rates_deg_s=(50.0, 100.0), poses_deg=((0.0, 0.0),), dwell_s=3.0)
     with pytest.raises(ValueError, match=r"cannot be determined|cannot determine"):

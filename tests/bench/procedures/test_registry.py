@@ -78,3 +78,12 @@ def test_admit_raises_the_refusal_as_a_value_error() -> None:
     assert info.value.refusal.kind is RefusalKind.UNKNOWN_PROCEDURE
     admitted = admit_procedure("static-12", DEFAULT_TABLE_LIMITS, dwell_s=5.0)
     assert admitted.procedure.n_windows == 12
+
+
+def test_every_procedure_is_named_moving_or_static_once() -> None:
+    """The fit kind's name lists (``bench.calibration.kind``) cover the registry exactly."""
+    from bench.calibration.kind import MOVING_PROCEDURES, STATIC_PROCEDURES
+    from bench.procedures.registry import PROCEDURES
+
+    assert set(MOVING_PROCEDURES) | set(STATIC_PROCEDURES) == set(PROCEDURES)
+    assert not set(MOVING_PROCEDURES) & set(STATIC_PROCEDURES)

@@ -18,6 +18,7 @@ one-parameter family (``base.Family``) whose τ the selection profiles on a grid
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -72,13 +73,37 @@ def lagged_c(t_s: FloatArray, temp_c: FloatArray, tau_s: float, block_decay: flo
     return out
 
 
+_MEANS: dict[float, FloatArray] = {}
+"""Window means of T_e already computed for the run in ``_OWNER``, by τ (the three channels'
+candidates and every step of a selection ask for the same ones)."""
+_OWNER: list[object] = []
+"""The run's columns (t, T, window bounds) whose means ``_MEANS`` holds: one run at a time."""
+_LOCK = threading.Lock()
+"""Diagnoses may run in threads (the station's API): owner and means change together."""
+
+
 def window_means_c(ev: StaticEvidence, tau_s: float) -> FloatArray:
-    """(m,) mean of T_e (°C) over each window's samples, T_e over the run's whole column."""
+    """(m,) mean of T_e (°C) over each window's samples, T_e over the run's whole column.
+    Kept per τ for the last run asked (memory only: the columns' identity is checked, so a
+    result is never read for another run, and one run's columns at most are held)."""
     assert ev.run_t_s is not None and ev.run_temp_c is not None and ev.window_bounds is not None
+    owner = [ev.run_t_s, ev.run_temp_c, ev.window_bounds]
+    with _LOCK:
+        if len(_OWNER) == 3 and all(a is b for a, b in zip(_OWNER, owner, strict=True)):
+            hit = _MEANS.get(float(tau_s))
+            if hit is not None:
+                return hit
     te = lagged_c(ev.run_t_s, ev.run_temp_c, tau_s)
     csum = np.concatenate([[0.0], np.cumsum(te)])
     a, b = ev.window_bounds[:, 0], ev.window_bounds[:, 1]
-    return np.asarray((csum[b] - csum[a]) / (b - a), dtype=float)
+    out = np.asarray((csum[b] - csum[a]) / (b - a), dtype=float)
+    out.flags.writeable = False
+    with _LOCK:
+        if len(_OWNER) != 3 or any(a is not b for a, b in zip(_OWNER, owner, strict=True)):
+            _MEANS.clear()
+            _OWNER[:] = owner
+        _MEANS[float(tau_s)] = out
+    return out
 
 
 def tau_grid_s(ev: StaticEvidence, th: Thresholds = THRESHOLDS) -> tuple[float, ...]:

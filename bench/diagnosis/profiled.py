@@ -20,9 +20,12 @@ bound = α; the candidate then counts as ``tries`` = α / P(χ²₁ > u) indepen
 
 **Reduction.** The family reduces to another effect at the null column (a lag of 0: the plain
 temperature coefficient). The family is claimed only where its best v beats the null column
-by the χ²₁ gate at α: LR(v̂) − LR(null) > χ²₁(1 − α) (the null's LR taken as 0 where its column
-has no leverage beyond X, e.g. the plain effect already in the model). Otherwise it is noted
-as the reduced effect and left to that effect's own candidate.
+by the χ²₁ gate at ``Thresholds.false_alarm``: LR(v̂) − LR(null) > χ²₁(1 − false_alarm) (the
+null's LR taken as 0 where its column has no leverage beyond X, e.g. the plain effect already
+in the model). One question per claim, not shared over the step's candidates: it chooses the
+form of an effect the candidate's own gate already admits (a lag, or none), it does not admit
+one; as a boundary test (v ≥ 0) its level is at most that. Otherwise the family is noted as
+the reduced effect and left to that effect's own candidate.
 
 **Sigmas.** The fixed candidate is the column a(v̂) with v held; the joint information of
 (c, v) at v̂, J = [a(v̂), c·∂a/∂v] (central difference, a tenth of the grid's step), gives the
@@ -121,7 +124,7 @@ def resolve(
         return None
     v, lr_v, lr_null, length = found
     over_null = lr_v - lr_null
-    nested = float(chi2.isf(alpha, 1))
+    nested = float(chi2.isf(th.false_alarm, 1))
     if over_null <= nested:
         if lr_v > davies_gate(alpha, length):
             notes[cand.label] = (

@@ -1,6 +1,6 @@
 """Mutation fuzzer of the CLI: mutants of one valid recording, each through ``calibrate`` and ``diagnose``.
 
-``python -m benchmarks.fuzz_cli [N_MUTANTS] [SEED] [--moving] [--progress] [--deadline-s=S]``
+``python -m benchmarks.fuzz_cli [N_MUTANTS] [SEED] [--moving] [--progress] [--deadline-s=S] [--first=I]``
 (``make fuzz``) writes a small static-12 recording with ``calbench simulate``, makes N_MUTANTS
 (default 800) mutants of its CSV and sidecar (number spellings Python's ``float()`` reads but a
 recording must not, huge and non-finite numbers, huge fields, deep nesting,
@@ -507,6 +507,7 @@ def run(
     moving: bool = False,
     progress: bool = False,
     deadline_s: float | None = None,
+    first: int = 0,
 ) -> Counter[str]:
     """Fuzz both commands with ``n_mutants`` mutants; returns the count of each class.
 
@@ -514,7 +515,9 @@ def run(
         JSON's ``warnings``; else of a static-12 one.
     :param progress: log each mutant's classes and the commands' wall times as it finishes.
     :param deadline_s: stop after the mutant that passes this wall time (s) and report the
-        mutants done (the same mutants as a full run's first ones: the draws do not depend on it)."""
+        mutants done (the same mutants as a full run's first ones: the draws do not depend on it).
+    :param first: run the mutants from this one on (the ones before are drawn, not run), so that
+        two processes can share one seed's mutants."""
     rng = random.Random(seed)
     worker = Worker()
     counts: Counter[str] = Counter()
@@ -551,6 +554,8 @@ def run(
                     text, desc = csv_text, ""
                     side_text, desc = mutate_sidecar(side, rng)
                     label = "sidecar"
+                if i < first:  # drawn, so that mutant i is the same as in a run from 0
+                    continue
                 path.write_bytes(text.encode("utf-8", "surrogateescape"))
                 if side_text is not None:
                     path.with_suffix(".json").write_text(side_text, encoding="utf-8")
@@ -580,8 +585,10 @@ def run(
     finally:
         worker.close()
     what = "moving (rate-1axis)" if moving else "static-12"
-    stopped = f" (stopped at the {deadline_s:.0f} s limit; {n_mutants} asked)" if done < n_mutants else ""
-    log(f"{done} {what} mutants x 2 commands in {elapsed:.0f} s (seed {seed}){stopped}:")
+    asked = n_mutants - first
+    stopped = f" (stopped at the {deadline_s:.0f} s limit; {asked} asked)" if done < asked else ""
+    which = f", mutants {first}-{first + done - 1}" if first else ""
+    log(f"{done} {what} mutants x 2 commands in {elapsed:.0f} s (seed {seed}{which}){stopped}:")
     for cls, n in sorted(counts.items()):
         log(f"  {cls:<18}{n:>6}")
     if kinds:
@@ -599,10 +606,11 @@ def main(argv: list[str] | None = None) -> int:
     moving = "--moving" in args
     progress = "--progress" in args
     deadline_s = next((float(a.split("=", 1)[1]) for a in args if a.startswith("--deadline-s=")), None)
+    first = next((int(a.split("=", 1)[1]) for a in args if a.startswith("--first=")), 0)
     args = [a for a in args if not a.startswith("--")]
     n = int(args[0]) if args else 800
     seed = int(args[1]) if len(args) > 1 else 13
-    counts = run(n, seed, moving=moving, progress=progress, deadline_s=deadline_s)
+    counts = run(n, seed, moving=moving, progress=progress, deadline_s=deadline_s, first=first)
     bugs = sum(n for cls, n in counts.items() if cls in BUGS or cls.startswith("exit "))
     print(f"bugs: {bugs}")
     return 1 if bugs else 0

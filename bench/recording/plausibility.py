@@ -28,7 +28,9 @@ Before the fit (:func:`recording_findings`, on the samples alone):
   :data:`MIN_CLIP_SAMPLES` samples and more than :data:`CLIP_EXCESS` times as many as any
   other value: the tail of a distribution thins out towards its extreme, a rail collects
   everything beyond it (an ADC or a sensor at its limit). A channel quantised more coarsely
-  than its noise (more than :data:`MAX_TIE_SHARE` of consecutive samples equal) is not judged.
+  than its noise (more than :data:`MAX_TIE_SHARE` of consecutive samples equal, counted where
+  neither sample is at the channel's extremes: a rail holding most samples makes ties there
+  alone) is not judged.
 - **encoder resolution** (warning): a table column whose angles, while the table moves,
   scatter about a smooth motion (a quadratic Savitzky-Golay fit over
   :data:`ANGLE_SMOOTH_SAMPLES` samples) by more than :data:`MAX_ANGLE_SCATTER_DEG` (robust
@@ -193,7 +195,9 @@ def _spikes(t_s: FloatArray, v: FloatArray, name: str) -> Finding | None:
 
 
 def _clipping(v: FloatArray, name: str) -> Finding | None:
-    ties = float(np.mean(np.diff(v) == 0))
+    off = (v != v.min()) & (v != v.max())
+    inner = off[:-1] & off[1:]  # consecutive pairs off the extremes, where a rail cannot make ties
+    ties = float(np.mean(np.diff(v)[inner] == 0)) if inner.any() else 1.0
     if ties > MAX_TIE_SHARE:
         return None  # quantised more coarsely than its noise: no level can be told from a rail
     values, counts = np.unique(v, return_counts=True)

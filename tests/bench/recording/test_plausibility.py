@@ -71,6 +71,24 @@ def test_a_channel_stuck_at_its_rail_is_named(moving: Recording) -> None:
     assert len(clip) == 1 and clip[0].text.startswith(f"channel az holds its largest value {rail:.6g} in ")
 
 
+@pytest.mark.parametrize("share", [0.6, 0.9])
+def test_a_rail_holding_most_samples_is_named_not_taken_for_quantisation(
+    moving: Recording, share: float
+) -> None:
+    """Clipped below its (1 - share) quantile, most consecutive samples are equal (at the rail);
+    the channel is still judged, and the rail's count is the samples at or below that level."""
+    rail = float(np.quantile(moving.accel_raw[:, 0], share))
+    found = recording_findings(_accel(moving, lambda y: np.maximum(y[:, 0], rail, out=y[:, 0])))
+    clip = [f for f in found if f.kind == "clipping"]
+    n_rail = int(np.sum(moving.accel_raw[:, 0] <= rail))
+    assert len(clip) == 1 and clip[0].text.startswith(
+        f"channel ax holds its smallest value {rail:.6g} in {n_rail} "
+    )
+    q = 20 * float(np.median(np.abs(np.diff(moving.accel_raw[:, 0]))))  # steps of 20x the noise
+    coarse = _accel(moving, lambda y: np.multiply(np.round(y[:, 0] / q), q, out=y[:, 0]))
+    assert "clipping" not in _kinds(coarse)
+
+
 @pytest.mark.parametrize("q_deg", [0.07, 0.37])
 def test_encoders_on_a_coarse_grid_are_named(moving: Recording, q_deg: float) -> None:
     """Rounded to q, a moving encoder scatters by q/√12 about its smooth motion (q incommensurate

@@ -23,9 +23,10 @@ TEN_X = ["nonlinearity_quadratic", "scale_asymmetry", "cross_coupling", "tempera
 THREE_X_SEEDS = range(21, 25)
 THREE_X_MIN_FOUND = 3
 """At 3x the limit an effect is found in at least 3 of these 4 recordings (the study finds >= 90 %)."""
-THREE_X_MIN_FOUND_POSE = 2
-"""pose_error at 3x its limit is found in 4 of 6 (study seeds 100-105) and 2 of 4 (these seeds):
-about 60 % measured, so its 3x test asks for 2 of 4; at 10x it is found in 6 of 6."""
+POSE_THREE_X_RATE = 0.45
+"""Share of static-12 recordings in which pose_error at 3x its limit is found: 54 of 120 (seeds
+200-319, ``python -m benchmarks.study_sampled_rates pose``, 95 % interval 36-54 %, docs/diagnose.md)."""
+POSE_THREE_X_SEEDS = range(21, 61)
 
 
 @pytest.mark.slow
@@ -38,13 +39,29 @@ def test_effect_at_ten_times_its_limit_is_found_and_measured(effect: str) -> Non
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", TEN_X)
+@pytest.mark.parametrize("effect", [e for e in TEN_X if e != "pose_error"])
 def test_effect_at_three_times_its_limit_is_found_mostly(effect: str) -> None:
     case = CASES[effect]
     scores = [run_case(case, 3 * case.limit, seed=s) for s in THREE_X_SEEDS]
     found = sum(s.found for s in scores)
-    need = THREE_X_MIN_FOUND_POSE if effect == "pose_error" else THREE_X_MIN_FOUND
-    assert found >= need, f"{effect} found in {found} of {len(scores)} at 3x"
+    assert found >= THREE_X_MIN_FOUND, f"{effect} found in {found} of {len(scores)} at 3x"
+    assert all(abs(s.z) < 4.0 for s in scores if s.found and not math.isnan(s.z))
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1800)
+def test_pose_error_at_three_times_its_limit_is_found_at_its_measured_rate() -> None:
+    """pose_error at 3x its limit is found on only part of the recordings: the count over the
+    40 seeds 21-60 may fall to the 0.1 % point of Bin(40, ``POSE_THREE_X_RATE``) (the rate
+    measured over the study's seeds, which these do not share), 9 at 0.45, and no lower: a true
+    rate of 20 % fails it with probability 0.59, of 15 % with 0.86.
+    Where found, the angles are within 4 of their sigmas (RMS over the windows)."""
+    case = CASES["pose_error"]
+    n = len(POSE_THREE_X_SEEDS)
+    need = binom.ppf(0.001, n, POSE_THREE_X_RATE)
+    scores = [run_case(case, 3 * case.limit, seed=s) for s in POSE_THREE_X_SEEDS]
+    found = sum(s.found for s in scores)
+    assert found >= need, f"pose_error found in {found} of {n} at 3x (at least {need:.0f})"
     assert all(abs(s.z) < 4.0 for s in scores if s.found and not math.isnan(s.z))
 
 

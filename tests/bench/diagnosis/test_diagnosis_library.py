@@ -181,31 +181,50 @@ def test_concealed_term_is_named_or_its_alike_twin(name: str) -> None:
         assert twin, s
 
 
+CUBE_CLAIM_RATE = 0.19
+"""Share of static-12 recordings with the concealed cube (``cubic`` of benchmarks/library_cases)
+that claim a catalogue effect (always cross_coupling alone): 15 of 80 (seeds 200-279,
+``python -m benchmarks.study_sampled_rates cube``, 95 % interval 11-29 %, docs/diagnose.md)."""
+CUBE_UNNAMED_RATE = 0.09
+"""Share of the same recordings with no catalogue claim where no term on ax is f_x^3 or lists it:
+7 of 80 (95 % interval 4-17 %)."""
+CUBE_OTHER_RATE = 0.045
+"""Share with a catalogue claim other than cross_coupling alone: none of the 80, and 0.045 the
+upper end of its 95 % interval."""
+CUBE_SEEDS = range(1, 25)
+
+
 @pytest.mark.slow
+@pytest.mark.timeout(1800)
 def test_concealed_cube_is_not_taken_for_cross_coupling() -> None:
-    """f_x³ on ax (``cubic`` of benchmarks/library_cases), seeds 1-6: on the 12-pose set it is
+    """f_x³ on ax (``cubic`` of benchmarks/library_cases), seeds 1-24: on the 12-pose set it is
     the signature of f_x·|f_x| (|cos| = 1.00 beyond f_x), which cross_coupling's three products
     partly mimic. cross_coupling enters first; where the library then needs a term beside it
-    on ax, the two compete head to head (``catalogue_swap.swap_step``) and the cube's twin wins: no
-    catalogue claim, and the term named on ax is f_x^3 or lists it. Measured over seeds 1-12:
-    cross_coupling claimed on 7 without the head to head; with it on 4 (seeds 3, 6, 7, 11,
-    each resting on c_yz, beside a term that is not the cube's twin, docs/diagnose.md), so
-    at most 2 of seeds 1-6 (measured 2) and the cube named or listed in every other."""
+    on ax, the two compete head to head (``catalogue_swap.swap_step``) and the cube's twin wins.
+    Each count over these 24 seeds (which the study does not use) may reach the 99.9 % point of
+    Bin(24, rate), the rate measured by the study (the constants above): 11 recordings with
+    cross_coupling, 7 with no claim and the cube unnamed, 5 with another claim. A true rate of
+    50 % fails the first with probability 0.58, of 30 % the second with 0.44 and the third with 0.77."""
+    from scipy.stats import binom
+
     from bench.calibration.diagnose import diagnose_recording
     from benchmarks.library_cases import CASES, score
 
     case = CASES["cubic"]
-    claimed = []
-    for seed in range(1, 7):
+    claimed: list[int] = []
+    unnamed: list[int] = []
+    other: list[int] = []
+    for seed in CUBE_SEEDS:
         d = diagnose_recording(case.recording(seed))
         s = score(case, d)
         if s.catalogue:
-            assert s.catalogue == ("cross_coupling",), (seed, s)
-            claimed.append(seed)
-            continue
-        named = [x for x in d.discovered if x.channel == "ax" and "f_x^3" in (x.term, *x.confounded_with)]
-        assert named, (seed, s)
-    assert len(claimed) <= 2, claimed
+            (claimed if s.catalogue == ("cross_coupling",) else other).append(seed)
+        elif not any(x.channel == "ax" and "f_x^3" in (x.term, *x.confounded_with) for x in d.discovered):
+            unnamed.append(seed)
+    n = len(CUBE_SEEDS)
+    assert len(claimed) <= binom.ppf(0.999, n, CUBE_CLAIM_RATE), claimed
+    assert len(unnamed) <= binom.ppf(0.999, n, CUBE_UNNAMED_RATE), unnamed
+    assert len(other) <= binom.ppf(0.999, n, CUBE_OTHER_RATE), other
 
 
 @pytest.mark.slow

@@ -12,21 +12,30 @@ windows stacked (3m,), y = H θ + e, Cov(e) = V + Σ_l φ_l G_l, the components
     G_pose = blockdiag(K (I − f̂_w f̂_wᵀ) Kᵀ)   (pose error, ``window_noise.pose_scatter``),
     G_i    = blockdiag(e_i e_iᵀ), i = x, y, z  (each channel's own excess),
 
-and R = W − W H (Hᵀ W H)⁻¹ Hᵀ W with W = S⁻¹ the fit's weights (R y = W r, r the fit's
-residuals), φ of the active components solves the MINQUE equations (C. R. Rao, J. Multivariate
-Anal. 1 (1971) 257; one step of REML from the prior S, Harville, JASA 72 (1977) 320; for one
-component and a mean, the moment estimator of DerSimonian & Laird, Control. Clin. Trials 7
-(1986) 177, without its truncation):
+and R = W − W H (Hᵀ W H)⁻¹ Hᵀ W with W = P⁻¹ the weights of a prior P, φ of the active
+components solves the MINQUE equations (C. R. Rao, J. Multivariate Anal. 1 (1971) 257; one step
+of REML from the prior P, Harville, JASA 72 (1977) 320; for one component and a mean, the moment
+estimator of DerSimonian & Laird, Control. Clin. Trials 7 (1986) 177, without its truncation):
 
     Σ_l tr(R G_k R G_l) φ_l = yᵀ R G_k R y − tr(R G_k R V) − Σ_X d_Xᵀ R G_k R d_X,
 
 d_X the move u(X) (∂y/∂X − K ∂f/∂X) of each Type B input (``type_a.residual_moves``), whose
 expected share is thus taken out. E[yᵀ R G_k R y] = tr(R G_k R Cov(y)) for fixed W (R H = 0),
-so φ̂ is unbiased; it is not clipped at zero (a negative φ̂ is the sampling scatter of a small
-excess; clipping it is what biased the old estimate). Three models are estimated (pose alone,
-own alone, both: :data:`MODELS`) and the one with the largest restricted log-likelihood less
+so φ̂ is unbiased for any fixed prior; it is not clipped at zero (a negative φ̂ is the
+sampling scatter of a small excess; clipping it is what biased the old estimate). The first
+prior is the fit's S; each of :data:`PRIOR_STEPS` further steps takes P = V + the positive part
+of each window's Σ φ̂_l G_l of the step before (iterated MINQUE, whose fixed point solves the
+REML equations: Rao & Kleffe, Estimation of Variance Components and Applications, 1988, ch. 9).
+The fit's Paule-Mandel S
+spreads a pose scatter over every direction of a window, so with S as the prior the readings
+along gravity, the only ones that tell a channel's own excess from pose scatter, were weighted as
+noisy as the tilts: with pose errors 50× the window noise (3′ on 198 s windows) the own
+components came out with standard deviations 100-200× the window variance, and u_j² swung from
+the floor to 50× a_j within one run (docs/noise-model.md). Only φ̂ uses these weights; the
+estimator θ̂ = A y below is the fit's. Three models are estimated (pose alone, own alone,
+both: :data:`MODELS`) and the one with the largest restricted log-likelihood less
 its number of components is used. The variance of the fit's estimator θ̂ = A y,
-A = (Hᵀ W H)⁻¹ Hᵀ W, is then
+A = (Hᵀ S⁻¹ H)⁻¹ Hᵀ S⁻¹ (the fit's weights), is then
 
     C_A = A (V + Σ_l φ̂_l G_l) Aᵀ,   u_j² = a_j + Σ_l c_jl φ̂_l,   a_j = (A V Aᵀ)_jj, c_jl = (A G_l Aᵀ)_jj,
 
@@ -65,6 +74,9 @@ Trans. Autom. Control 19 (1974) 716) is used. With both always estimated, where 
 dominate the own excess could not be told from them (its standard deviation 4× the window
 noise over 80 simulated runs) and carried that noise into every bias and diagonal K (ν ≈ 1,
 k = 14); with the pose scatter alone tested first an own excess was read as pose scatter."""
+PRIOR_STEPS = 10
+"""MINQUE steps after the first, each with the prior of the step before's φ̂ (its negative part
+dropped), towards REML (module docstring)."""
 MIN_DOF = 1.0
 """Lowest ν_j stated: below one degree of freedom t_p(ν) is not defined (GUM G.6.4 rounds down)."""
 COMPONENTS = ("pose scatter", "own excess, channel x", "own excess, channel y", "own excess, channel z")
@@ -128,6 +140,30 @@ def _minque(
     idx = np.array(active)
     phi[idx] = phi_a
     cov_phi[np.ix_(idx, idx)] = Finv @ omega @ Finv
+    return phi, cov_phi
+
+
+def _iterated(
+    H: FloatArray,
+    R: FloatArray,
+    y: FloatArray,
+    Vb: FloatArray,
+    V: FloatArray,
+    G: list[FloatArray],
+    blocks: list[FloatArray],
+    D: FloatArray,
+    active: tuple[int, ...],
+) -> tuple[FloatArray, FloatArray]:
+    """φ̂ and Cov(φ̂) of :func:`_minque`, its prior iterated :data:`PRIOR_STEPS` times (module
+    docstring): each step weights with V + the positive part of each window's Σ φ̂_l G_l."""
+    phi, cov_phi = _minque(R, y, Vb, V, G, blocks, D, active)
+    for _ in range(PRIOR_STEPS):
+        lam, vec = np.linalg.eigh(sum(phi[i] * blocks[i] for i in active))
+        excess = np.einsum("wab,wb,wcb->wac", vec, np.clip(lam, 0.0, None), vec)
+        W = _block_diag(np.linalg.inv(V + excess))
+        HtW = H.T @ W
+        R_step = W - HtW.T @ np.linalg.solve(HtW @ H, HtW)
+        phi, cov_phi = _minque(0.5 * (R_step + R_step.T), y, Vb, V, G, blocks, D, active)
     return phi, cov_phi
 
 
@@ -202,7 +238,7 @@ def excess_moments(
         )
     Vb = _block_diag(V)
     D = kn.reshape(kn.shape[0], 3 * m)
-    fits = [_minque(R, y.reshape(-1), Vb, V, G, blocks, D, active) for active in MODELS]
+    fits = [_iterated(H, R, y.reshape(-1), Vb, V, G, blocks, D, active) for active in MODELS]
     aic = np.array(
         [
             _reml_loglik(H, y.reshape(-1), V, blocks, phi) - len(act)

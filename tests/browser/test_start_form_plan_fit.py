@@ -53,6 +53,13 @@ def test_an_every_sample_plan_is_shown_and_started_as_planned_tumble(browser: An
     page.locator("#plan-run").click(force=True)  # a second click while it works sends nothing
     page.fill("#start-serial", "SN-TUMBLE")  # the rest of the form stays usable
     expect(page.locator("#start-serial")).to_have_value("SN-TUMBLE")
+    # the route's callback runs while Playwright waits: wait for the first request to be held,
+    # then a while longer, in which a second request (from the second click) would be held too
+    for _ in range(300):
+        if held:
+            break
+        page.wait_for_timeout(100)
+    page.wait_for_timeout(1000)
     assert len(held) == 1
     assert "fit=every-sample" in held[0].request.url
     held[0].continue_()

@@ -54,8 +54,9 @@ def test_each_real_data_set_carries_its_licence(folder: Path) -> None:
 
 
 def test_nothing_reads_the_reference_folder_beside_the_repository() -> None:
-    """Tests, benchmarks, product code and docs name no ``../shared`` (the team's reference folder
-    is not there in a clean clone; the data sets they need are in tests/data)."""
+    """Tests, benchmarks, product code and docs name no reference folder beside the repository
+    (the team's references are not there in a clean clone; the data sets they need are in
+    tests/data): the pattern below is the only place that spells its path."""
     beside = re.compile(r"\.\./shared\b|parents?(\[\d\])?\s*/\s*[\"']shared[\"']")
     here = Path(__file__).resolve()
     hits = []
